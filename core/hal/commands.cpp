@@ -1,0 +1,480 @@
+#include "core/hal/commands.hpp"
+
+#include <fnmatch.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cinttypes>
+#include <cstdio>
+#include <cstdlib>
+#include <sstream>
+#include <thread>
+
+#include "core/ini/ini_file.hpp"
+#include "core/util/atomic_file.hpp"
+#include "core/util/error.hpp"
+#include "core/util/strings.hpp"
+
+namespace cnc::hal {
+namespace {
+
+bool matches(const std::string& name, const std::string& pattern) {
+  if (pattern.empty()) return true;
+  if (pattern.find_first_of("*?[") != std::string::npos) return fnmatch(pattern.c_str(), name.c_str(), 0) == 0;
+  return name.rfind(pattern, 0) == 0;  // a plain pattern is a prefix, as in halcmd
+}
+
+std::string pad_left(const std::string& s, std::size_t w) { return s.size() >= w ? s : std::string(w - s.size(), ' ') + s; }
+std::string pad_right(const std::string& s, std::size_t w) { return s.size() >= w ? s : s + std::string(w - s.size(), ' '); }
+
+void need(const std::vector<std::string>& w, std::size_t min, const char* usage) {
+  if (w.size() < min) throw HalError(std::string("usage: ") + usage);
+}
+
+}  // namespace
+
+std::vector<std::string> tokenize_hal_line(std::string_view line) {
+  std::vector<std::string> out;
+  std::string cur;
+  bool in_quotes = false, have = false;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if (in_quotes) {
+      if (c == '"') in_quotes = false;
+      else cur += c;
+      continue;
+    }
+    if (c == '"') { in_quotes = true; have = true; continue; }
+    if (c == '#') break;
+    if (c == ' ' || c == '\t' || c == '\r' || c == '\n') {
+      if (have) { out.push_back(cur); cur.clear(); have = false; }
+      continue;
+    }
+    cur += c;
+    have = true;
+  }
+  if (in_quotes) throw HalError("unterminated quote");
+  if (have) out.push_back(cur);
+  return out;
+}
+
+CommandInterpreter::CommandInterpreter(Hal& hal, const ComponentRegistry& registry, const ini::IniFile* ini,
+                                       MessageQueue* messages)
+    : hal_(hal), registry_(registry), ini_(ini), messages_(messages) {}
+
+CommandInterpreter::~CommandInterpreter() { stop_user_programs(); }
+
+std::string CommandInterpreter::substitute(std::string_view line) const {
+  std::string out;
+  for (std::size_t i = 0; i < line.size();) {
+    const char c = line[i];
+    if (c == '#') {  // comments are not substituted
+      out.append(line.substr(i));
+      break;
+    }
+    if (c == '[') {
+      const std::size_t close = line.find(']', i);
+      if (close == std::string_view::npos) throw HalError("'[' without ']'");
+      const std::string section(line.substr(i + 1, close - i - 1));
+      std::size_t k = close + 1;
+      std::string key;
+      if (k < line.size() && line[k] == '(') {
+        const std::size_t end = line.find(')', k);
+        if (end == std::string_view::npos) throw HalError("[" + section + "](KEY without ')'");
+        key = std::string(line.substr(k + 1, end - k - 1));
+        k = end + 1;
+      } else {
+        while (k < line.size() && (std::isalnum(static_cast<unsigned char>(line[k])) || line[k] == '_')) key += line[k++];
+      }
+      if (key.empty()) throw HalError("[" + section + "] must be followed by a key name");
+      if (!ini_) throw HalError("[" + section + "]" + key + ": no INI file was given");
+      const auto v = ini_->find(section, key);
+      if (!v) throw HalError("[" + section + "]" + key + " is not in " + ini_->path().string());
+      out += *v;
+      i = k;
+      continue;
+    }
+    if (c == '$') {
+      std::size_t k = i + 1;
+      std::string var;
+      if (k < line.size() && line[k] == '(') {
+        const std::size_t end = line.find(')', k);
+        if (end == std::string_view::npos) throw HalError("$(VAR without ')'");
+        var = std::string(line.substr(k + 1, end - k - 1));
+        k = end + 1;
+      } else {
+        while (k < line.size() && (std::isalnum(static_cast<unsigned char>(line[k])) || line[k] == '_')) var += line[k++];
+      }
+      if (var.empty()) throw HalError("'$' must be followed by an environment variable name");
+      const char* v = std::getenv(var.c_str());
+      if (!v) throw HalError("environment variable " + var + " is not set");
+      out += v;
+      i = k;
+      continue;
+    }
+    out += c;
+    ++i;
+  }
+  return out;
+}
+
+std::string CommandInterpreter::execute(std::string_view line) {
+  std::lock_guard lock(mutex_);
+  const auto words = tokenize_hal_line(substitute(line));
+  if (words.empty()) return {};
+  return dispatch(words);
+}
+
+void CommandInterpreter::run_file(const std::filesystem::path& path) {
+  std::string text;
+  try {
+    text = read_file(path);
+  } catch (const std::exception&) {
+    throw ConfigError(path.string(), 0, "cannot read HAL file");
+  }
+  run_text(text, path.string());
+}
+
+void CommandInterpreter::run_text(std::string_view text, const std::string& name) {
+  std::lock_guard lock(mutex_);
+  file_stack_.emplace_back(name);
+  const auto lines = split(text, '\n');
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    const int line_no = static_cast<int>(i) + 1;
+    std::string line = lines[i];
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    while (!line.empty() && line.back() == '\\' && i + 1 < lines.size()) {
+      line.pop_back();
+      line += " " + lines[++i];
+    }
+    try {
+      execute(line);
+    } catch (const ConfigError&) {
+      file_stack_.pop_back();
+      throw;  // from a nested `source`: already names its file
+    } catch (const std::exception& e) {
+      file_stack_.pop_back();
+      throw ConfigError(name, line_no, e.what());
+    }
+  }
+  file_stack_.pop_back();
+}
+
+std::string CommandInterpreter::dispatch(const std::vector<std::string>& w) {
+  const std::string& cmd = w[0];
+  // "name = value" is setp.
+  if (w.size() == 3 && w[1] == "=") {
+    hal_.set_value(w[0], w[2]);
+    return {};
+  }
+  if (cmd == "loadrt") return cmd_loadrt(w);
+  if (cmd == "loadusr") return cmd_loadusr(w);
+  if (cmd == "net") {
+    need(w, 3, "net <signal> <pin> [<pin> ...] (arrows => <= <=> are optional)");
+    std::vector<std::string> pins;
+    for (std::size_t i = 2; i < w.size(); ++i) {
+      if (w[i] != "=>" && w[i] != "<=" && w[i] != "<=>") pins.push_back(w[i]);
+    }
+    hal_.net(w[1], pins);
+    return {};
+  }
+  if (cmd == "setp") {
+    need(w, 3, "setp <pin|param> <value>");
+    hal_.set_value(w[1], w[2]);
+    return {};
+  }
+  if (cmd == "sets") {
+    need(w, 3, "sets <signal> <value>");
+    hal_.set_signal(w[1], w[2]);
+    return {};
+  }
+  if (cmd == "getp") {
+    need(w, 2, "getp <pin|param>");
+    return hal_.get_value(w[1]) + "\n";
+  }
+  if (cmd == "gets") {
+    need(w, 2, "gets <signal>");
+    return hal_.get_signal(w[1]) + "\n";
+  }
+  if (cmd == "ptype") {
+    need(w, 2, "ptype <pin|param>");
+    return std::string(to_string(hal_.type_of_name(w[1]))) + "\n";
+  }
+  if (cmd == "stype") {
+    need(w, 2, "stype <signal>");
+    return std::string(to_string(hal_.signal_type(w[1]))) + "\n";
+  }
+  if (cmd == "newsig") {
+    need(w, 3, "newsig <signal> <type>");
+    const auto t = parse_type(w[2]);
+    if (!t) throw HalError("newsig: type \"" + w[2] + "\": expected bit, float, s32, u32, s64 or u64");
+    hal_.new_signal(w[1], *t);
+    return {};
+  }
+  if (cmd == "delsig") {
+    need(w, 2, "delsig <signal>");
+    hal_.delete_signal(w[1]);
+    return {};
+  }
+  if (cmd == "linkps") {
+    need(w, 3, "linkps <pin> <signal>");
+    hal_.link(w[1], w[w.size() - 1]);
+    return {};
+  }
+  if (cmd == "linksp") {
+    need(w, 3, "linksp <signal> <pin>");
+    hal_.link(w[w.size() - 1], w[1]);
+    return {};
+  }
+  if (cmd == "linkpp") {
+    need(w, 3, "linkpp <pin> <pin>");
+    hal_.link_pins(w[1], w[w.size() - 1]);
+    return {};
+  }
+  if (cmd == "unlinkp") {
+    need(w, 2, "unlinkp <pin>");
+    hal_.unlink(w[1]);
+    return {};
+  }
+  if (cmd == "addf") {
+    need(w, 3, "addf <function> <thread> [position]");
+    int pos = -1;
+    if (w.size() > 3) {
+      const auto p = parse_int(w[3]);
+      if (!p || *p == 0) throw HalError("addf: position \"" + w[3] + "\": expected a non-zero integer");
+      pos = static_cast<int>(*p);
+    }
+    hal_.add_function(w[1], w[2], pos);
+    return {};
+  }
+  if (cmd == "delf") {
+    need(w, 3, "delf <function> <thread>");
+    hal_.remove_function(w[1], w[2]);
+    return {};
+  }
+  if (cmd == "start") {
+    hal_.start_threads();
+    return {};
+  }
+  if (cmd == "stop") {
+    hal_.stop_threads();
+    return {};
+  }
+  if (cmd == "show") return cmd_show(w);
+  if (cmd == "list") return cmd_list(w);
+  if (cmd == "save") return cmd_save();
+  if (cmd == "echo" || cmd == "print") {
+    std::string out;
+    for (std::size_t i = 1; i < w.size(); ++i) out += (i > 1 ? " " : "") + w[i];
+    return out + "\n";
+  }
+  if (cmd == "source") {
+    need(w, 2, "source <file.hal>");
+    std::filesystem::path p = w[1];
+    if (p.is_relative() && !file_stack_.empty()) p = file_stack_.back().parent_path() / p;
+    run_file(p);
+    return {};
+  }
+  throw HalError("unknown command \"" + cmd + "\"");
+}
+
+std::string CommandInterpreter::cmd_loadrt(const std::vector<std::string>& w) {
+  need(w, 2, "loadrt <component> [key=value ...]");
+  // `loadrt [KINS]KINEMATICS` may expand to "trivkins coordinates=XYZ".
+  const ComponentRegistry::Entry* e = registry_.find(w[1]);
+  if (!e) {
+    std::string known;
+    for (const auto* entry : registry_.entries()) known += (known.empty() ? "" : ", ") + entry->name;
+    throw HalError("loadrt: no component named \"" + w[1] + "\"; available: " + known);
+  }
+  std::vector<std::pair<std::string, std::string>> kv;
+  for (std::size_t i = 2; i < w.size(); ++i) {
+    const auto eq = w[i].find('=');
+    if (eq == std::string::npos || eq == 0) throw HalError("loadrt " + w[1] + ": argument \"" + w[i] + "\": expected key=value");
+    kv.emplace_back(w[i].substr(0, eq), w[i].substr(eq + 1));
+  }
+  ComponentContext ctx{hal_, ini_, messages_};
+  auto comp = e->factory(ctx, LoadArgs(w[1], std::move(kv)));
+  if (comp) hal_.add_component(std::move(comp));
+  return {};
+}
+
+std::string CommandInterpreter::cmd_loadusr(const std::vector<std::string>& w) {
+  need(w, 2, "loadusr [-w] <program> [args ...]");
+  std::size_t i = 1;
+  bool wait_exit = false;
+  while (i < w.size() && w[i].size() > 1 && w[i][0] == '-') {
+    if (w[i] == "-w") {
+      wait_exit = true;
+    } else if (w[i] == "-W" || w[i] == "-Wn" || w[i] == "-i") {
+      throw HalError("loadusr " + w[i] +
+                     ": waiting for a userspace HAL component is not supported; components run inside the "
+                     "controller (loadrt), loadusr only starts programs");
+    } else {
+      throw HalError("loadusr: unknown option " + w[i]);
+    }
+    if (w[i] == "-Wn") ++i;
+    ++i;
+  }
+  if (i >= w.size()) throw HalError("loadusr: no program given");
+  std::vector<char*> argv;
+  for (std::size_t k = i; k < w.size(); ++k) argv.push_back(const_cast<char*>(w[k].c_str()));
+  argv.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) throw HalError("loadusr: fork failed");
+  if (pid == 0) {
+    ::execvp(argv[0], argv.data());
+    std::fprintf(stderr, "loadusr: cannot run %s\n", argv[0]);
+    ::_exit(127);
+  }
+  if (wait_exit) {
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+      throw HalError("loadusr -w " + w[i] + ": exited with status " + std::to_string(WEXITSTATUS(status)));
+    }
+  } else {
+    children_.push_back(pid);
+  }
+  return {};
+}
+
+void CommandInterpreter::stop_user_programs() {
+  std::lock_guard lock(mutex_);
+  for (pid_t pid : children_) ::kill(pid, SIGTERM);
+  for (pid_t pid : children_) {
+    int status = 0;
+    for (int i = 0; i < 100; ++i) {
+      if (::waitpid(pid, &status, WNOHANG) != 0) goto reaped;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    ::kill(pid, SIGKILL);
+    ::waitpid(pid, &status, 0);
+  reaped:;
+  }
+  children_.clear();
+}
+
+std::string CommandInterpreter::cmd_show(const std::vector<std::string>& w) const {
+  const std::string what = w.size() > 1 ? w[1] : "all";
+  const std::string pattern = w.size() > 2 ? w[2] : "";
+  std::ostringstream out;
+  const bool all = what == "all";
+  if (all || what == "comp") {
+    out << "Loaded HAL Components:\n";
+    for (const Component* c : hal_.components()) {
+      if (matches(c->name(), pattern)) out << "    RT  " << c->name() << "\n";
+    }
+    out << "\n";
+  }
+  if (all || what == "pin") {
+    out << "Component Pins:\n" << pad_right("Owner", 14) << "Type  Dir         Value  Name\n";
+    for (const PinView& p : hal_.pins()) {
+      if (!matches(p.name, pattern)) continue;
+      out << pad_right(p.owner, 14) << pad_right(to_string(p.type), 6) << pad_right(to_string(p.dir), 5)
+          << pad_left(format_value(p.type, p.value), 12) << "  " << p.name;
+      if (!p.signal.empty()) {
+        out << (p.dir == PinDir::In ? " <== " : p.dir == PinDir::Out ? " ==> " : " <=> ") << p.signal;
+      }
+      out << "\n";
+    }
+    out << "\n";
+  }
+  if (all || what == "param") {
+    out << "Parameters:\n" << pad_right("Owner", 14) << "Type  Dir         Value  Name\n";
+    for (const ParamView& p : hal_.params()) {
+      if (!matches(p.name, pattern)) continue;
+      out << pad_right(p.owner, 14) << pad_right(to_string(p.type), 6) << pad_right(to_string(p.dir), 5)
+          << pad_left(format_value(p.type, p.value), 12) << "  " << p.name << "\n";
+    }
+    out << "\n";
+  }
+  if (all || what == "sig") {
+    out << "Signals:\nType          Value  Name     (linked to)\n";
+    for (const SignalView& s : hal_.signals()) {
+      if (!matches(s.name, pattern)) continue;
+      out << pad_right(to_string(s.type), 6) << pad_left(format_value(s.type, s.value), 12) << "  " << s.name << "\n";
+      if (!s.writer.empty()) out << "                         <== " << s.writer << "\n";
+      for (const auto& b : s.bidirs) out << "                         <=> " << b << "\n";
+      for (const auto& r : s.readers) out << "                         ==> " << r << "\n";
+    }
+    out << "\n";
+  }
+  if (all || what == "funct") {
+    out << "Exported Functions:\n" << pad_right("Owner", 14) << "FP   Users      Time(ns)   Max(ns)  Name\n";
+    for (const FunctionView& f : hal_.functions()) {
+      if (!matches(f.name, pattern)) continue;
+      out << pad_right(f.owner, 14) << pad_right(f.uses_fp ? "YES" : "NO", 5) << pad_left(std::to_string(f.users), 5)
+          << pad_left(std::to_string(f.time_ns), 14) << pad_left(std::to_string(f.tmax_ns), 10) << "  " << f.name
+          << "\n";
+    }
+    out << "\n";
+  }
+  if (all || what == "thread") {
+    out << "Realtime Threads:\n     Period  FP     Name               (     Time, Max-Time )\n";
+    for (const ThreadView& t : hal_.thread_views()) {
+      if (!matches(t.name, pattern)) continue;
+      out << pad_left(std::to_string(t.period_ns), 11) << "  " << pad_right(t.uses_fp ? "YES" : "NO", 4)
+          << pad_left(t.name, 20) << " ( " << pad_left(std::to_string(t.time_ns), 8) << ", "
+          << pad_left(std::to_string(t.tmax_ns), 8) << " )" << (t.running ? "" : "  stopped") << "\n";
+      int n = 1;
+      for (const auto& f : t.functions) out << pad_left(std::to_string(n++), 19) << " " << f << "\n";
+    }
+    out << "\n";
+  }
+  if (!all && what != "comp" && what != "pin" && what != "param" && what != "sig" && what != "funct" &&
+      what != "thread") {
+    throw HalError("show: unknown item \"" + what + "\"; expected comp, pin, sig, param, funct or thread");
+  }
+  return out.str();
+}
+
+std::string CommandInterpreter::cmd_list(const std::vector<std::string>& w) const {
+  need(w, 2, "list comp|pin|sig|param|funct|thread [pattern]");
+  const std::string pattern = w.size() > 2 ? w[2] : "";
+  std::vector<std::string> names;
+  if (w[1] == "comp") for (const Component* c : hal_.components()) names.push_back(c->name());
+  else if (w[1] == "pin") for (const auto& p : hal_.pins()) names.push_back(p.name);
+  else if (w[1] == "sig") for (const auto& s : hal_.signals()) names.push_back(s.name);
+  else if (w[1] == "param") for (const auto& p : hal_.params()) names.push_back(p.name);
+  else if (w[1] == "funct") for (const auto& f : hal_.functions()) names.push_back(f.name);
+  else if (w[1] == "thread") for (const auto& t : hal_.thread_views()) names.push_back(t.name);
+  else throw HalError("list: unknown item \"" + w[1] + "\"; expected comp, pin, sig, param, funct or thread");
+  std::string out;
+  for (const auto& n : names) {
+    if (matches(n, pattern)) out += (out.empty() ? "" : " ") + n;
+  }
+  return out + "\n";
+}
+
+std::string CommandInterpreter::cmd_save() const {
+  std::ostringstream out;
+  out << "# signals and links\n";
+  for (const SignalView& s : hal_.signals()) {
+    out << "net " << s.name;
+    if (!s.writer.empty()) out << " <= " << s.writer;
+    for (const auto& b : s.bidirs) out << " <=> " << b;
+    for (const auto& r : s.readers) out << " => " << r;
+    out << "\n";
+    if (s.writer.empty()) out << "sets " << s.name << " " << format_value(s.type, s.value) << "\n";
+  }
+  out << "# parameters\n";
+  for (const ParamView& p : hal_.params()) {
+    if (p.dir == ParamDir::RW && !p.name.ends_with(".tmax")) {
+      out << "setp " << p.name << " " << format_value(p.type, p.value) << "\n";
+    }
+  }
+  out << "# unconnected input pins\n";
+  for (const PinView& p : hal_.pins()) {
+    if (p.dir == PinDir::In && p.signal.empty()) out << "setp " << p.name << " " << format_value(p.type, p.value) << "\n";
+  }
+  out << "# functions\n";
+  for (const ThreadView& t : hal_.thread_views()) {
+    for (const auto& f : t.functions) out << "addf " << f << " " << t.name << "\n";
+  }
+  return out.str();
+}
+
+}  // namespace cnc::hal

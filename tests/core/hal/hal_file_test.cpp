@@ -1,0 +1,143 @@
+#include <gtest/gtest.h>
+
+#include "core/hal/commands.hpp"
+#include "core/ini/ini_file.hpp"
+#include "core/util/error.hpp"
+#include "tests/support/testing.hpp"
+
+using namespace cnc::hal;
+
+namespace {
+struct Fixture {
+  Hal hal;
+  ComponentRegistry registry;
+  cnc::ini::IniFile ini = cnc::ini::IniFile::parse(
+      "[EMCMOT]\nSERVO_PERIOD = 1000000\n[KINS]\nLOGIC = and2 count=2\n[SCALE]\nGAIN = 2.5\n", "mill.ini");
+  CommandInterpreter interp{hal, registry, &ini, nullptr};
+  Fixture() { register_core_components(registry); }
+};
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+}  // namespace
+
+TEST(HalFile, TokenizerHandlesQuotesAndComments) {
+  EXPECT_EQ(tokenize_hal_line("net a  b => c # comment"), (std::vector<std::string>{"net", "a", "b", "=>", "c"}));
+  EXPECT_EQ(tokenize_hal_line("loadusr prog \"two words\""), (std::vector<std::string>{"loadusr", "prog", "two words"}));
+  EXPECT_TRUE(tokenize_hal_line("   # only a comment").empty());
+  EXPECT_THROW(tokenize_hal_line("echo \"open"), HalError);
+}
+
+TEST(HalFile, IniAndEnvironmentSubstitution) {
+  Fixture f;
+  ::setenv("CNC_TEST_VALUE", "7", 1);
+  EXPECT_EQ(f.interp.substitute("setp x [SCALE]GAIN"), "setp x 2.5");
+  EXPECT_EQ(f.interp.substitute("setp x [SCALE](GAIN)"), "setp x 2.5");
+  EXPECT_EQ(f.interp.substitute("a $CNC_TEST_VALUE $(CNC_TEST_VALUE)b"), "a 7 7b");
+  EXPECT_EQ(f.interp.substitute("x # [NOT]SUBSTITUTED"), "x # [NOT]SUBSTITUTED");
+  EXPECT_EQ(error_of([&] { f.interp.substitute("[SCALE]MISSING"); }), "[SCALE]MISSING is not in mill.ini");
+}
+
+TEST(HalFile, RunsAFileWithEveryCommonCommand) {
+  Fixture f;
+  f.interp.run_text(
+      "# a small machine\n"
+      "loadrt threads name1=servo-thread period1=[EMCMOT]SERVO_PERIOD\n"
+      "loadrt [KINS]LOGIC\n"
+      "loadrt scale names=gain-x\n"
+      "addf and2.0 servo-thread\n"
+      "addf gain-x servo-thread\n"
+      "addf and2.1 servo-thread 1\n"
+      "net enable and2.0.out => and2.1.in0\n"
+      "net  go  and2.1.out \\\n"
+      "     and2.0.in1\n"
+      "setp gain-x.gain [SCALE]GAIN\n"
+      "gain-x.offset = 1\n"
+      "net spare and2.1.in1\n"
+      "sets spare TRUE\n",
+      "mill.hal");
+  EXPECT_EQ(f.hal.get_value("gain-x.gain"), "2.5");
+  EXPECT_EQ(f.hal.get_value("gain-x.offset"), "1");
+  EXPECT_EQ(f.hal.get_signal("spare"), "TRUE");
+  EXPECT_EQ(f.hal.get_value("and2.1.in1"), "TRUE");
+  const auto threads = f.hal.thread_views();
+  ASSERT_EQ(threads.size(), 1u);
+  EXPECT_EQ(threads[0].period_ns, 1'000'000);
+  EXPECT_EQ(threads[0].functions, (std::vector<std::string>{"and2.1", "and2.0", "gain-x"}));
+}
+
+TEST(HalFile, ErrorsNameFileAndLine) {
+  Fixture f;
+  EXPECT_EQ(error_of([&] { f.interp.run_text("loadrt and2\n\nnet s and2.0.out and2.0.nope\n", "x.hal"); }),
+            "x.hal:3: pin \"and2.0.nope\" does not exist");
+  Fixture g;
+  EXPECT_EQ(error_of([&] { g.interp.run_text("frobnicate\n", "y.hal"); }), "y.hal:1: unknown command \"frobnicate\"");
+  Fixture h;
+  EXPECT_EQ(error_of([&] { h.interp.run_text("loadrt and2 count=abc\n", "z.hal"); }),
+            "z.hal:1: and2: count=abc: expected an integer from 1 to 64");
+  Fixture i;
+  EXPECT_EQ(error_of([&] { i.interp.run_text("loadrt and2 colour=red\n", "w.hal"); }),
+            "w.hal:1: and2: unknown argument \"colour\"; it takes count, names");
+  Fixture j;
+  EXPECT_NE(error_of([&] { j.interp.run_text("loadrt nosuchcomp\n", "v.hal"); }).find("v.hal:1: loadrt: no component named \"nosuchcomp\""),
+            std::string::npos);
+  Fixture k;
+  EXPECT_EQ(error_of([&] { k.interp.run_text("setp\n", "u.hal"); }), "u.hal:1: usage: setp <pin|param> <value>");
+}
+
+TEST(HalFile, SourceIncludesRelativeFiles) {
+  cnc::testing::TempDir dir;
+  dir.write("sub/io.hal", "loadrt not\nnet n not.0.out\n");
+  const auto main = dir.write("main.hal", "loadrt and2\nsource sub/io.hal\n");
+  Fixture f;
+  f.interp.run_file(main);
+  EXPECT_EQ(f.hal.get_signal("n"), "TRUE");
+  const auto bad = dir.write("bad.hal", "source sub/missing.hal\n");
+  Fixture g;
+  EXPECT_NE(error_of([&] { g.interp.run_file(bad); }).find("missing.hal: cannot read HAL file"), std::string::npos);
+}
+
+TEST(HalFile, ShowAndListOutput) {
+  Fixture f;
+  f.interp.run_text("loadrt threads name1=servo-thread period1=1000000\nloadrt and2\naddf and2.0 servo-thread\n"
+                    "net go and2.0.out\n", "m.hal");
+  const std::string pins = f.interp.execute("show pin and2");
+  EXPECT_NE(pins.find("and2          bit   OUT         FALSE  and2.0.out ==> go"), std::string::npos) << pins;
+  EXPECT_NE(pins.find("and2.0.in0"), std::string::npos);
+  const std::string threads = f.interp.execute("show thread");
+  EXPECT_NE(threads.find("1000000"), std::string::npos);
+  EXPECT_NE(threads.find("servo-thread"), std::string::npos);
+  EXPECT_NE(threads.find("1 and2.0"), std::string::npos) << threads;
+  EXPECT_EQ(f.interp.execute("list pin and2.0.in*"), "and2.0.in0 and2.0.in1\n");
+  EXPECT_EQ(f.interp.execute("getp and2.0.out"), "FALSE\n");
+  EXPECT_EQ(f.interp.execute("ptype and2.0.out"), "bit\n");
+  const std::string params = f.interp.execute("show param");
+  EXPECT_NE(params.find("and2.0.tmax"), std::string::npos);
+  const std::string save = f.interp.execute("save");
+  EXPECT_NE(save.find("net go <= and2.0.out"), std::string::npos) << save;
+  EXPECT_NE(save.find("addf and2.0 servo-thread"), std::string::npos);
+}
+
+TEST(HalFile, ThreadsComponentValidatesArguments) {
+  Fixture f;
+  EXPECT_NE(error_of([&] { f.interp.execute("loadrt threads name1=fast"); }).find("needs period1"), std::string::npos);
+  Fixture g;
+  EXPECT_NE(error_of([&] { g.interp.execute("loadrt threads name1=fast period1=5000"); }).find("below 10000 ns"),
+            std::string::npos);
+}
+
+TEST(HalFile, LoadusrRunsAProgram) {
+  cnc::testing::TempDir dir;
+  Fixture f;
+  const auto marker = dir / "ran";
+  f.interp.execute("loadusr -w touch " + marker.string());
+  EXPECT_TRUE(std::filesystem::exists(marker));
+  EXPECT_NE(error_of([&] { f.interp.execute("loadusr -w false"); }).find("exited with status 1"), std::string::npos);
+  EXPECT_NE(error_of([&] { f.interp.execute("loadusr -W halui"); }).find("not supported"), std::string::npos);
+}

@@ -1,0 +1,107 @@
+#include <gtest/gtest.h>
+
+#include "core/ini/ini_file.hpp"
+#include "tests/support/testing.hpp"
+
+using cnc::ConfigError;
+using cnc::ini::IniFile;
+
+namespace {
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+}  // namespace
+
+TEST(IniFile, SectionsKeysAndComments) {
+  const auto ini = IniFile::parse(
+      "# comment\n; another\n[EMC]\nMACHINE = My Mill  \n\n[TRAJ]\nCOORDINATES=X Y Z\nLINEAR_UNITS = mm\n", "t.ini");
+  EXPECT_EQ(ini.find("EMC", "MACHINE"), "My Mill");
+  EXPECT_EQ(ini.find("TRAJ", "COORDINATES"), "X Y Z");
+  EXPECT_FALSE(ini.find("TRAJ", "MISSING"));
+  EXPECT_FALSE(ini.find("traj", "COORDINATES")) << "sections are case-sensitive";
+  EXPECT_EQ(ini.sections(), (std::vector<std::string>{"EMC", "TRAJ"}));
+}
+
+TEST(IniFile, RepeatedKeysKeepOrderAndFirstWinsForScalars) {
+  const auto ini = IniFile::parse("[HAL]\nHALFILE = a.hal\nHALFILE = b.hal\nHALFILE = c.hal\n", "t.ini");
+  EXPECT_EQ(ini.find_all("HAL", "HALFILE"), (std::vector<std::string>{"a.hal", "b.hal", "c.hal"}));
+  EXPECT_EQ(ini.find("HAL", "HALFILE"), "a.hal");
+}
+
+TEST(IniFile, CommentMarkInsideValueIsPartOfIt) {
+  const auto ini = IniFile::parse("[X]\nA = 5 ; not a comment\n", "t.ini");
+  EXPECT_EQ(ini.find("X", "A"), "5 ; not a comment");
+}
+
+TEST(IniFile, ContinuationAndEscapes) {
+  const auto ini = IniFile::parse("[MDI_COMMAND_LIST]\nMDI_COMMAND_MACRO0 = G0 Z25;X0 Y0, Go\\nHome\nK = a \\\n  b\n", "t.ini");
+  EXPECT_EQ(ini.find("MDI_COMMAND_LIST", "MDI_COMMAND_MACRO0"), "G0 Z25;X0 Y0, Go\nHome");
+  EXPECT_EQ(ini.find("MDI_COMMAND_LIST", "K"), "a b");
+  const auto esc = IniFile::parse("[X]\nT = a\\tb\\x41\\u00e9\n", "t.ini");
+  EXPECT_EQ(esc.find("X", "T"), "a\tbA\xc3\xa9");
+}
+
+TEST(IniFile, IncludeResolvesRelativeToIncludingFile) {
+  cnc::testing::TempDir dir;
+  dir.write("sub/axes.inc", "[AXIS_X]\nMAX_VELOCITY = 50\n");
+  const auto main = dir.write("mill.ini", "[EMC]\nMACHINE = m\n#INCLUDE sub/axes.inc\n[TRAJ]\nX = 1\n");
+  const auto ini = IniFile::load(main);
+  EXPECT_EQ(ini.find("AXIS_X", "MAX_VELOCITY"), "50");
+  EXPECT_EQ(ini.find("TRAJ", "X"), "1");
+  EXPECT_EQ(ini.find_entry("AXIS_X", "MAX_VELOCITY")->file, (dir.path() / "sub/axes.inc").string());
+  EXPECT_EQ(ini.find_entry("AXIS_X", "MAX_VELOCITY")->line, 2);
+}
+
+TEST(IniFile, IncludeCycleIsAnError) {
+  cnc::testing::TempDir dir;
+  dir.write("a.inc", "#INCLUDE b.inc\n");
+  dir.write("b.inc", "#INCLUDE a.inc\n");
+  const auto main = dir.write("m.ini", "#INCLUDE a.inc\n");
+  EXPECT_NE(error_of([&] { IniFile::load(main); }).find("nested deeper"), std::string::npos);
+}
+
+TEST(IniFile, TypedGettersWithDefaultsAndRanges) {
+  const auto ini = IniFile::parse(
+      "[EMCMOT]\nSERVO_PERIOD = 1000000\n[JOINT_0]\nMAX_VELOCITY = 166.7\nHOME_USE_INDEX = YES\nADDR = 0x10\n", "m.ini");
+  EXPECT_EQ(ini.get_int("EMCMOT", "SERVO_PERIOD", 0, {1, 1e9}), 1000000);
+  EXPECT_DOUBLE_EQ(ini.get_double("JOINT_0", "MAX_VELOCITY", 0), 166.7);
+  EXPECT_DOUBLE_EQ(ini.get_double("JOINT_0", "MAX_ACCELERATION", 750.0), 750.0);
+  EXPECT_TRUE(ini.get_bool("JOINT_0", "HOME_USE_INDEX", false));
+  EXPECT_EQ(ini.get_int("JOINT_0", "ADDR", 0), 16);
+}
+
+TEST(IniFile, BadValueNamesFileLineAndKey) {
+  const auto ini = IniFile::parse("[EMC]\nX=1\n[JOINT_2]\nMAX_VELOCITY = fast\nFERROR = -1\n", "mill.ini");
+  EXPECT_EQ(error_of([&] { ini.get_double("JOINT_2", "MAX_VELOCITY", 0); }),
+            "mill.ini:4: [JOINT_2]MAX_VELOCITY: expected a number, got \"fast\"");
+  EXPECT_EQ(error_of([&] { ini.get_double("JOINT_2", "FERROR", 1, {0, 1000}); }),
+            "mill.ini:5: [JOINT_2]FERROR: expected a number between 0 and 1000, got \"-1\"");
+  EXPECT_EQ(error_of([&] { ini.require_double("JOINT_2", "MAX_ACCELERATION", {0, 1e6}); }),
+            "mill.ini: [JOINT_2]MAX_ACCELERATION: missing, expected a number between 0 and 1000000");
+}
+
+TEST(IniFile, SyntaxErrorsNameTheLine) {
+  EXPECT_EQ(error_of([] { IniFile::parse("[EMC]\nthis is not a key\n", "bad.ini"); }),
+            "bad.ini:2: expected KEY = value, a [SECTION] header or a comment");
+  EXPECT_EQ(error_of([] { IniFile::parse("[EMC\n", "bad.ini"); }), "bad.ini:1: section header without ']'");
+  EXPECT_EQ(error_of([] { IniFile::parse("KEY = 1\n", "bad.ini"); }), "bad.ini:1: key KEY before any [SECTION]");
+  EXPECT_NE(error_of([] { IniFile::parse("[A]\n9KEY = 1\n", "bad.ini"); }).find("bad.ini:2: key \"9KEY\""),
+            std::string::npos);
+}
+
+TEST(IniFile, MissingFileIsAClearError) {
+  EXPECT_EQ(error_of([] { IniFile::load("/nonexistent/mill.ini"); }), "/nonexistent/mill.ini: cannot read INI file");
+}
+
+TEST(IniFile, ResolvePathIsRelativeToTheIniFolder) {
+  cnc::testing::TempDir dir;
+  const auto p = dir.write("cfg/mill.ini", "[EMCIO]\nTOOL_TABLE = tool.tbl\n");
+  const auto ini = IniFile::load(p);
+  EXPECT_EQ(ini.resolve_path(*ini.find("EMCIO", "TOOL_TABLE")), dir.path() / "cfg/tool.tbl");
+  EXPECT_EQ(ini.resolve_path("/abs/x"), std::filesystem::path("/abs/x"));
+}
