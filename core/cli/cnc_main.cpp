@@ -1,0 +1,417 @@
+// cnc: the command-line client of a running controller: status, messages,
+// and every operator command (E-stop, machine on, modes, MDI, programs,
+// jogging, homing, overrides...). Each command is sent through the shared
+// segment's command channel and answered by the controller.
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <functional>
+#include <map>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "core/cli/status_format.hpp"
+#include "core/ipc/client.hpp"
+#include "core/util/strings.hpp"
+#include "core/util/time.hpp"
+
+using namespace cnc;
+using ipc::Command;
+using ipc::CommandType;
+
+namespace {
+
+struct Context {
+  std::string instance;
+  double timeout_s = 30;
+  std::vector<std::string> args;  // after the command name
+};
+
+[[noreturn]] void fail_usage(const std::string& msg) {
+  std::fprintf(stderr, "cnc: %s (see cnc help)\n", msg.c_str());
+  std::exit(2);
+}
+
+double number(const std::string& s, const char* what) {
+  const auto v = parse_double(s);
+  if (!v) fail_usage(std::string(what) + ": \"" + s + "\" is not a number");
+  return *v;
+}
+
+int integer(const std::string& s, const char* what) {
+  const auto v = parse_int(s);
+  if (!v) fail_usage(std::string(what) + ": \"" + s + "\" is not an integer");
+  return static_cast<int>(*v);
+}
+
+bool on_off(const std::string& s) {
+  const auto b = parse_bool(s);
+  if (!b) fail_usage("expected on or off, got \"" + s + "\"");
+  return *b;
+}
+
+void need_args(const Context& c, std::size_t n, const char* usage) {
+  if (c.args.size() < n) fail_usage(std::string("usage: cnc ") + usage);
+}
+
+// Sends a command and waits for its answer; prints a rejection's reason.
+int send(const Context& c, const Command& cmd) {
+  ipc::Client client(c.instance);
+  const auto timeout = std::chrono::milliseconds(static_cast<int64_t>(c.timeout_s * 1000));
+  const ipc::CommandResult r = client.execute(cmd, timeout);
+  switch (r.state) {
+    case ipc::CommandState::Done:
+      return 0;
+    case ipc::CommandState::Rejected:
+      std::fprintf(stderr, "cnc: %s rejected: %s\n", ipc::to_string(cmd.type), r.reason.c_str());
+      return 1;
+    case ipc::CommandState::Executing:
+    case ipc::CommandState::Received:
+      std::fprintf(stderr, "cnc: %s still %s after %.0f s\n", ipc::to_string(cmd.type), ipc::to_string(r.state),
+                   c.timeout_s);
+      return 3;
+    case ipc::CommandState::None:
+      std::fprintf(stderr, "cnc: %s: no answer from the controller%s%s\n", ipc::to_string(cmd.type),
+                   r.reason.empty() ? "" : ": ", r.reason.c_str());
+      return 3;
+  }
+  return 3;
+}
+
+Command cmd_of(CommandType t) { return ipc::make_command(t); }
+
+Command with_i(CommandType t, int a, int b = 0) {
+  Command c = cmd_of(t);
+  c.i[0] = a;
+  c.i[1] = b;
+  return c;
+}
+
+Command with_d(CommandType t, double d) {
+  Command c = cmd_of(t);
+  c.d[0] = d;
+  return c;
+}
+
+Command with_text(CommandType t, const std::string& text) {
+  Command c = cmd_of(t);
+  if (text.size() > decltype(c.text)::capacity()) fail_usage("text longer than " + std::to_string(decltype(c.text)::capacity()) + " characters");
+  c.text.assign(text);
+  return c;
+}
+
+std::string join_args(const Context& c, std::size_t from = 0) {
+  std::string out;
+  for (std::size_t i = from; i < c.args.size(); ++i) out += (i > from ? " " : "") + c.args[i];
+  return out;
+}
+
+// "x".."w" -> axis (teleop jog), a number -> joint (free jog).
+void target(const std::string& s, Command& cmd) {
+  if (s.size() == 1 && axis_index(s[0]) >= 0) {
+    cmd.i[0] = axis_index(s[0]);
+    cmd.i[1] = 0;
+    return;
+  }
+  cmd.i[0] = integer(s, "joint");
+  cmd.i[1] = 1;
+}
+
+int joint_or_all(const std::string& s) { return s == "all" ? -1 : integer(s, "joint"); }
+
+int cmd_status(const Context& c) {
+  bool json = false;
+  for (const auto& a : c.args) {
+    if (a == "--json") json = true;
+    else fail_usage("status: unknown option " + a);
+  }
+  ipc::Client client(c.instance);
+  const ipc::Status s = client.status();
+  std::fputs((json ? cli::status_json(s) + "\n" : cli::format_status(s)).c_str(), stdout);
+  return 0;
+}
+
+int cmd_watch(const Context& c) {
+  double interval = 0.5;
+  bool json = false;
+  int count = -1;
+  for (std::size_t i = 0; i < c.args.size(); ++i) {
+    if (c.args[i] == "--interval" && i + 1 < c.args.size()) interval = number(c.args[++i], "interval");
+    else if (c.args[i] == "--count" && i + 1 < c.args.size()) count = integer(c.args[++i], "count");
+    else if (c.args[i] == "--json") json = true;
+    else fail_usage("watch: unknown option " + c.args[i]);
+  }
+  ipc::Client client(c.instance);
+  const bool tty = ::isatty(1);
+  for (int n = 0; count < 0 || n < count; ++n) {
+    if (!client.controller_alive()) {
+      std::fprintf(stderr, "cnc: controller not running (it stopped)\n");
+      return 1;
+    }
+    const ipc::Status s = client.status();
+    if (tty && !json) std::fputs("\033[H\033[2J", stdout);
+    std::fputs((json ? cli::status_json(s, -1) + "\n" : cli::format_status(s)).c_str(), stdout);
+    std::fflush(stdout);
+    std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int64_t>(interval * 1000)));
+  }
+  return 0;
+}
+
+void print_message(const Message& m) {
+  const time_t secs = static_cast<time_t>(m.time_ns / 1'000'000'000);
+  tm local{};
+  localtime_r(&secs, &local);
+  char stamp[32];
+  std::strftime(stamp, sizeof stamp, "%Y-%m-%d %H:%M:%S", &local);
+  std::printf("%s %-7s [%s] %s\n", stamp, to_string(m.kind), m.source.c_str(), m.text.c_str());
+}
+
+int cmd_messages(const Context& c) {
+  bool follow = false, all = false;
+  for (const auto& a : c.args) {
+    if (a == "--follow" || a == "-f") follow = true;
+    else if (a == "--all") all = true;
+    else fail_usage("messages: unknown option " + a);
+  }
+  ipc::Client client(c.instance);
+  if (all || !follow) client.rewind_messages();
+  for (;;) {
+    Message m;
+    uint64_t lost = 0;
+    while (client.next_message(m, &lost)) {
+      if (lost) {
+        std::printf("(%llu messages lost: the reader fell behind)\n", static_cast<unsigned long long>(lost));
+        lost = 0;
+      }
+      print_message(m);
+    }
+    std::fflush(stdout);
+    if (!follow) return 0;
+    if (!client.controller_alive()) return 0;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
+int cmd_wait_ready(const Context& c) {
+  const int64_t deadline = monotonic_ns() + static_cast<int64_t>(c.timeout_s * 1e9);
+  std::string last;
+  while (monotonic_ns() < deadline) {
+    try {
+      ipc::Client client(c.instance);
+      if (client.controller_ready()) return 0;
+    } catch (const std::exception& e) {
+      last = e.what();
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  std::fprintf(stderr, "cnc: controller not ready after %.0f s%s%s\n", c.timeout_s, last.empty() ? "" : ": ", last.c_str());
+  return 1;
+}
+
+struct Entry {
+  const char* usage;
+  const char* help;
+  std::function<int(Context&)> run;
+};
+
+std::map<std::string, Entry> commands() {
+  std::map<std::string, Entry> m;
+  m["status"] = {"status [--json]", "print the controller's status", cmd_status};
+  m["watch"] = {"watch [--interval S] [--count N] [--json]", "print the status repeatedly", cmd_watch};
+  m["messages"] = {"messages [--follow] [--all]", "print the error/message channel", cmd_messages};
+  m["wait-ready"] = {"wait-ready", "wait until the controller is up (see --timeout)", cmd_wait_ready};
+  m["ping"] = {"ping", "check that the controller answers commands",
+               [](Context& c) { return send(c, cmd_of(CommandType::Ping)); }};
+  m["shutdown"] = {"shutdown", "stop the controller (drives to a safe state first)",
+                   [](Context& c) { return send(c, cmd_of(CommandType::Shutdown)); }};
+  m["error"] = {"error TEXT", "post an operator error", [](Context& c) {
+                  need_args(c, 1, "error TEXT");
+                  return send(c, with_text(CommandType::OperatorError, join_args(c)));
+                }};
+  m["text"] = {"text TEXT", "post an operator text", [](Context& c) {
+                 need_args(c, 1, "text TEXT");
+                 return send(c, with_text(CommandType::OperatorText, join_args(c)));
+               }};
+  m["display"] = {"display TEXT", "post an operator display message", [](Context& c) {
+                    need_args(c, 1, "display TEXT");
+                    return send(c, with_text(CommandType::OperatorDisplay, join_args(c)));
+                  }};
+  m["estop"] = {"estop", "E-stop", [](Context& c) { return send(c, with_i(CommandType::TaskSetState, 1)); }};
+  m["estop-reset"] = {"estop-reset", "reset the E-stop",
+                      [](Context& c) { return send(c, with_i(CommandType::TaskSetState, 2)); }};
+  m["off"] = {"off", "machine off", [](Context& c) { return send(c, with_i(CommandType::TaskSetState, 3)); }};
+  m["on"] = {"on", "machine on", [](Context& c) { return send(c, with_i(CommandType::TaskSetState, 4)); }};
+  m["mode"] = {"mode manual|auto|mdi", "change the task mode", [](Context& c) {
+                 need_args(c, 1, "mode manual|auto|mdi");
+                 const std::string m = to_lower(c.args[0]);
+                 const int v = m == "manual" ? 1 : m == "auto" ? 2 : m == "mdi" ? 3 : 0;
+                 if (!v) fail_usage("mode: expected manual, auto or mdi");
+                 return send(c, with_i(CommandType::TaskSetMode, v));
+               }};
+  m["mdi"] = {"mdi G-CODE...", "execute one MDI line", [](Context& c) {
+                need_args(c, 1, "mdi G-CODE");
+                Command cmd = with_text(CommandType::TaskPlanExecute, join_args(c));
+                cmd.i[0] = -1;
+                return send(c, cmd);
+              }};
+  m["macro"] = {"macro N", "run [MDI_COMMAND_LIST] macro N", [](Context& c) {
+                  need_args(c, 1, "macro N");
+                  return send(c, with_i(CommandType::TaskPlanExecute, integer(c.args[0], "macro")));
+                }};
+  m["open"] = {"open FILE", "open a program", [](Context& c) {
+                 need_args(c, 1, "open FILE");
+                 std::string path = c.args[0];
+                 if (!path.empty() && path[0] != '/') {
+                   char cwd[4096];
+                   if (::getcwd(cwd, sizeof cwd)) path = std::string(cwd) + "/" + path;
+                 }
+                 return send(c, with_text(CommandType::TaskPlanOpen, path));
+               }};
+  m["run"] = {"run [LINE]", "run the open program (from LINE)", [](Context& c) {
+                return send(c, with_i(CommandType::TaskPlanRun, c.args.empty() ? 0 : integer(c.args[0], "line")));
+              }};
+  m["pause"] = {"pause", "pause the program", [](Context& c) { return send(c, cmd_of(CommandType::TaskPlanPause)); }};
+  m["resume"] = {"resume", "resume the program", [](Context& c) { return send(c, cmd_of(CommandType::TaskPlanResume)); }};
+  m["step"] = {"step", "execute one block", [](Context& c) { return send(c, cmd_of(CommandType::TaskPlanStep)); }};
+  m["abort"] = {"abort", "abort motion and the program", [](Context& c) { return send(c, cmd_of(CommandType::TaskAbort)); }};
+  m["close"] = {"close", "close the program", [](Context& c) { return send(c, cmd_of(CommandType::TaskPlanClose)); }};
+  m["optional-stop"] = {"optional-stop on|off", "M1 stops or not", [](Context& c) {
+                          need_args(c, 1, "optional-stop on|off");
+                          return send(c, with_i(CommandType::TaskPlanSetOptionalStop, on_off(c.args[0])));
+                        }};
+  m["block-delete"] = {"block-delete on|off", "skip lines starting with /", [](Context& c) {
+                         need_args(c, 1, "block-delete on|off");
+                         return send(c, with_i(CommandType::TaskPlanSetBlockDelete, on_off(c.args[0])));
+                       }};
+  m["home"] = {"home JOINT|all", "home a joint or all joints", [](Context& c) {
+                 need_args(c, 1, "home JOINT|all");
+                 return send(c, with_i(CommandType::JointHome, joint_or_all(c.args[0])));
+               }};
+  m["unhome"] = {"unhome JOINT|all", "forget a joint's home", [](Context& c) {
+                   need_args(c, 1, "unhome JOINT|all");
+                   return send(c, with_i(CommandType::JointUnhome, joint_or_all(c.args[0])));
+                 }};
+  m["override-limits"] = {"override-limits", "allow jogging off a limit switch (until the next jog ends)",
+                          [](Context& c) { return send(c, with_i(CommandType::JointOverrideLimits, -1)); }};
+  m["jog"] = {"jog AXIS|JOINT VELOCITY [DISTANCE]", "jog continuously, or by DISTANCE", [](Context& c) {
+                need_args(c, 2, "jog AXIS|JOINT VELOCITY [DISTANCE]");
+                Command cmd = cmd_of(c.args.size() > 2 ? CommandType::JogIncr : CommandType::JogCont);
+                target(c.args[0], cmd);
+                cmd.d[0] = number(c.args[1], "velocity");
+                if (c.args.size() > 2) {
+                  cmd.d[1] = number(c.args[2], "distance");
+                  if (cmd.d[0] < 0) {
+                    cmd.d[0] = -cmd.d[0];
+                    cmd.d[1] = -cmd.d[1];
+                  }
+                }
+                return send(c, cmd);
+              }};
+  m["jog-to"] = {"jog-to AXIS|JOINT VELOCITY POSITION", "jog to an absolute position", [](Context& c) {
+                   need_args(c, 3, "jog-to AXIS|JOINT VELOCITY POSITION");
+                   Command cmd = cmd_of(CommandType::JogAbs);
+                   target(c.args[0], cmd);
+                   cmd.d[0] = number(c.args[1], "velocity");
+                   cmd.d[1] = number(c.args[2], "position");
+                   return send(c, cmd);
+                 }};
+  m["jog-stop"] = {"jog-stop AXIS|JOINT", "stop a jog", [](Context& c) {
+                     need_args(c, 1, "jog-stop AXIS|JOINT");
+                     Command cmd = cmd_of(CommandType::JogStop);
+                     target(c.args[0], cmd);
+                     return send(c, cmd);
+                   }};
+  m["feed-override"] = {"feed-override PERCENT", "feed override", [](Context& c) {
+                          need_args(c, 1, "feed-override PERCENT");
+                          return send(c, with_d(CommandType::TrajSetScale, number(c.args[0], "percent") / 100));
+                        }};
+  m["rapid-override"] = {"rapid-override PERCENT", "rapid override", [](Context& c) {
+                           need_args(c, 1, "rapid-override PERCENT");
+                           return send(c, with_d(CommandType::TrajSetRapidScale, number(c.args[0], "percent") / 100));
+                         }};
+  m["max-velocity"] = {"max-velocity UNITS_PER_S", "maximum velocity override", [](Context& c) {
+                         need_args(c, 1, "max-velocity UNITS_PER_S");
+                         return send(c, with_d(CommandType::TrajSetMaxVelocity, number(c.args[0], "velocity")));
+                       }};
+  m["spindle-override"] = {"spindle-override PERCENT", "spindle override", [](Context& c) {
+                             need_args(c, 1, "spindle-override PERCENT");
+                             return send(c, with_d(CommandType::SpindleOverride, number(c.args[0], "percent") / 100));
+                           }};
+  m["spindle"] = {"spindle RPM|off", "start (negative: reverse) or stop spindle 0", [](Context& c) {
+                    need_args(c, 1, "spindle RPM|off");
+                    if (c.args[0] == "off") return send(c, with_i(CommandType::SpindleOff, 0));
+                    Command cmd = with_i(CommandType::SpindleOn, 0);
+                    cmd.d[0] = number(c.args[0], "rpm");
+                    return send(c, cmd);
+                  }};
+  m["flood"] = {"flood on|off", "flood coolant", [](Context& c) {
+                  need_args(c, 1, "flood on|off");
+                  return send(c, cmd_of(on_off(c.args[0]) ? CommandType::CoolantFloodOn : CommandType::CoolantFloodOff));
+                }};
+  m["mist"] = {"mist on|off", "mist coolant", [](Context& c) {
+                 need_args(c, 1, "mist on|off");
+                 return send(c, cmd_of(on_off(c.args[0]) ? CommandType::CoolantMistOn : CommandType::CoolantMistOff));
+               }};
+  m["lube"] = {"lube on|off", "lubrication", [](Context& c) {
+                 need_args(c, 1, "lube on|off");
+                 return send(c, cmd_of(on_off(c.args[0]) ? CommandType::LubeOn : CommandType::LubeOff));
+               }};
+  m["tool-load-table"] = {"tool-load-table", "re-read the tool table file",
+                          [](Context& c) { return send(c, cmd_of(CommandType::ToolLoadTable)); }};
+  m["tool-set-number"] = {"tool-set-number TOOL", "declare the tool in the spindle (M61)", [](Context& c) {
+                            need_args(c, 1, "tool-set-number TOOL");
+                            return send(c, with_i(CommandType::ToolSetNumber, integer(c.args[0], "tool")));
+                          }};
+  m["set"] = {"set PARAMETER INDEX VALUE", "set a motion parameter (SET_xxx)", [](Context& c) {
+                need_args(c, 3, "set PARAMETER INDEX VALUE");
+                Command cmd = with_text(CommandType::SetParameter, c.args[0]);
+                cmd.i[0] = integer(c.args[1], "index");
+                cmd.d[0] = number(c.args[2], "value");
+                return send(c, cmd);
+              }};
+  m["inject"] = {"inject WHAT [VALUE]", "fault injection on simulated machines", [](Context& c) {
+                   need_args(c, 1, "inject WHAT [VALUE]");
+                   Command cmd = with_text(CommandType::SimInject, c.args[0]);
+                   if (c.args.size() > 1) cmd.d[0] = number(c.args[1], "value");
+                   return send(c, cmd);
+                 }};
+  return m;
+}
+
+void help(const std::map<std::string, Entry>& m) {
+  std::printf("usage: cnc [-i INSTANCE] [--timeout S] COMMAND [ARGS...]\n\n"
+              "The instance defaults to $CNC_INSTANCE or \"default\". Commands:\n");
+  for (const auto& [name, e] : m) std::printf("  %-42s %s\n", e.usage, e.help);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Context c;
+  c.instance = ipc::default_instance();
+  int i = 1;
+  for (; i < argc; ++i) {
+    const std::string a = argv[i];
+    if ((a == "-i" || a == "--instance") && i + 1 < argc) c.instance = argv[++i];
+    else if (a == "--timeout" && i + 1 < argc) c.timeout_s = number(argv[++i], "timeout");
+    else break;
+  }
+  const auto table = commands();
+  if (i >= argc || std::strcmp(argv[i], "help") == 0 || std::strcmp(argv[i], "--help") == 0) {
+    help(table);
+    return i >= argc ? 2 : 0;
+  }
+  const std::string name = argv[i];
+  for (int k = i + 1; k < argc; ++k) c.args.emplace_back(argv[k]);
+  const auto it = table.find(name);
+  if (it == table.end()) fail_usage("unknown command \"" + name + "\"");
+  try {
+    return it->second.run(c);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "cnc: %s\n", e.what());
+    return 1;
+  }
+}

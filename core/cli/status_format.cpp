@@ -1,0 +1,220 @@
+#include "core/cli/status_format.hpp"
+
+#include <cinttypes>
+#include <cstdarg>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "core/util/time.hpp"
+
+namespace cnc::cli {
+namespace {
+
+std::string fmt(const char* f, ...) __attribute__((format(printf, 1, 2)));
+std::string fmt(const char* f, ...) {
+  char buf[512];
+  va_list ap;
+  va_start(ap, f);
+  std::vsnprintf(buf, sizeof buf, f, ap);
+  va_end(ap);
+  return buf;
+}
+
+std::string axes_line(const char* label, const Pose& p, uint32_t mask) {
+  std::string out = fmt("  %-10s", label);
+  for (int a = 0; a < kNumAxes; ++a) {
+    if (mask & (1U << a)) out += fmt(" %c%11.4f", kAxisLetters[a], p[a]);
+  }
+  return out + "\n";
+}
+
+nlohmann::json pose_json(const Pose& p) { return nlohmann::json(p.v); }
+
+}  // namespace
+
+std::string format_status(const ipc::Status& s) {
+  std::ostringstream o;
+  const double uptime = static_cast<double>(s.health.time_ns - s.health.started_ns) * 1e-9;
+  o << fmt("Controller pid %d, up %.1f s, machine \"%s\"\n", s.health.pid, uptime, s.health.machine.c_str());
+  o << fmt("  config     %s\n", s.health.ini_file.c_str());
+  o << fmt("  realtime   memory %s, %s\n", s.health.realtime_memory_locked ? "locked" : "not locked",
+           s.health.realtime_fifo ? "SCHED_FIFO" : "normal scheduling");
+  if (!s.health.realtime_note.empty()) o << "             " << s.health.realtime_note.c_str() << "\n";
+  if (s.task.available) {
+    o << fmt("Task: state %s, mode %s, interpreter %s, exec %s%s\n", to_string(s.task.state), to_string(s.task.mode),
+             to_string(s.task.interp_state), to_string(s.task.exec_state), s.task.paused ? ", PAUSED" : "");
+    if (!s.task.file.empty()) {
+      o << fmt("  program    %s  line %d (read %d of %d)\n", s.task.file.c_str(), s.task.current_line, s.task.read_line,
+               s.task.total_lines);
+    }
+  } else {
+    o << "Task: no task controller loaded\n";
+  }
+  if (s.motion.joints > 0) {
+    o << fmt("Motion: mode %s, %s, %s, queue %d, line %d, velocity %.3f\n", to_string(s.motion.mode),
+             s.motion.enabled ? "enabled" : "disabled", s.motion.inpos ? "in position" : "moving", s.motion.queue,
+             s.motion.motion_line, s.motion.current_vel);
+    o << fmt("  overrides  feed %.0f%%, rapid %.0f%%, max velocity %.3f\n", s.motion.feed_scale * 100,
+             s.motion.rapid_scale * 100, s.motion.max_velocity);
+    o << axes_line("commanded", s.motion.position, s.motion.axis_mask);
+    if (s.motion.carte_fb_valid) o << axes_line("actual", s.motion.actual_position, s.motion.axis_mask);
+    else o << "  actual     unknown (forward kinematics not usable until homed)\n";
+    o << axes_line("to go", s.motion.dtg, s.motion.axis_mask);
+    o << "  joint  homed  enabled  fault   pos-cmd       pos-fb       f-error   limits\n";
+    for (int j = 0; j < s.motion.joints && j < kMaxJoints; ++j) {
+      const ipc::JointStatus& js = s.joints[j];
+      std::string lim;
+      if (js.min_hard_limit) lim += "MIN-HARD ";
+      if (js.max_hard_limit) lim += "MAX-HARD ";
+      if (js.min_soft_limit) lim += "min-soft ";
+      if (js.max_soft_limit) lim += "max-soft ";
+      o << fmt("  %5d  %-5s  %-7s  %-5s %11.4f  %11.4f  %10.5f   %s\n", j,
+               js.homed ? "yes" : js.homing ? "..." : "no", js.enabled ? "yes" : "no", js.fault ? "YES" : "no",
+               js.pos_cmd, js.pos_fb, js.ferror_current, lim.c_str());
+    }
+  }
+  bool any_drive = false;
+  for (const ipc::DriveStatus& d : s.drives) any_drive = any_drive || d.present;
+  if (any_drive) {
+    o << "Drives:\n";
+    for (const ipc::DriveStatus& d : s.drives) {
+      if (!d.present) continue;
+      o << fmt("  %-20s joint %2d  status 0x%04x  mode %d  f-error %9.5f  torque %5.1f%%  %s\n", d.name.c_str(),
+               d.joint, d.statusword, d.mode, d.following_error, d.torque_percent, d.fault_text.c_str());
+    }
+  }
+  o << "Threads:\n";
+  for (const ipc::ThreadStatus& t : s.threads) {
+    if (t.name.empty()) continue;
+    o << fmt("  %-14s period %" PRId64 " ns, %" PRIu64 " cycles, %" PRIu64 " overruns, %s\n", t.name.c_str(),
+             t.period_ns, t.cycles, t.overruns, t.fifo ? "SCHED_FIFO" : "normal scheduling");
+    o << fmt("                 wake-up latency p50 %.1f us, p99.9 %.1f us, max %.1f us; period %.1f..%.1f us; "
+             "exec %.1f us (max %.1f)\n",
+             static_cast<double>(t.latency_p50_ns) / 1e3, static_cast<double>(t.latency_p999_ns) / 1e3,
+             static_cast<double>(t.latency_max_ns) / 1e3, static_cast<double>(t.period_min_ns) / 1e3,
+             static_cast<double>(t.period_max_ns) / 1e3, static_cast<double>(t.exec_last_ns) / 1e3,
+             static_cast<double>(t.exec_max_ns) / 1e3);
+  }
+  o << fmt("Last command: serial %u %s, %s\n", s.echo.serial, to_string(s.echo.type), to_string(s.echo.state));
+  return o.str();
+}
+
+std::string status_json(const ipc::Status& s, int indent) {
+  using nlohmann::json;
+  json j;
+  j["health"] = {{"heartbeat", s.health.heartbeat},
+                 {"time_ns", s.health.time_ns},
+                 {"started_ns", s.health.started_ns},
+                 {"pid", s.health.pid},
+                 {"realtime_memory_locked", s.health.realtime_memory_locked},
+                 {"realtime_fifo", s.health.realtime_fifo},
+                 {"realtime_note", s.health.realtime_note.c_str()},
+                 {"ini_file", s.health.ini_file.c_str()},
+                 {"machine", s.health.machine.c_str()},
+                 {"messages_dropped", s.health.messages_dropped},
+                 {"shutting_down", s.health.shutting_down}};
+  j["echo"] = {{"serial", s.echo.serial}, {"state", to_string(s.echo.state)}, {"type", to_string(s.echo.type)}};
+  j["task"] = {{"available", s.task.available},
+               {"state", to_string(s.task.state)},
+               {"mode", to_string(s.task.mode)},
+               {"interp_state", to_string(s.task.interp_state)},
+               {"exec_state", to_string(s.task.exec_state)},
+               {"paused", s.task.paused},
+               {"block_delete", s.task.block_delete},
+               {"optional_stop", s.task.optional_stop},
+               {"file", s.task.file.c_str()},
+               {"command", s.task.command.c_str()},
+               {"current_line", s.task.current_line},
+               {"read_line", s.task.read_line},
+               {"total_lines", s.task.total_lines},
+               {"g5x_index", s.task.g5x_index},
+               {"g5x_offset", pose_json(s.task.g5x_offset)},
+               {"g92_offset", pose_json(s.task.g92_offset)},
+               {"rotation_xy", s.task.rotation_xy},
+               {"tool_offset", pose_json(s.task.tool_offset)},
+               {"program_units", s.task.program_units},
+               {"gcodes", s.task.active_gcodes},
+               {"mcodes", s.task.active_mcodes},
+               {"settings", s.task.active_settings},
+               {"program_elapsed_s", static_cast<double>(s.task.program_elapsed_ns) * 1e-9},
+               {"blocks_executed", s.task.blocks_executed}};
+  j["motion"] = {{"mode", to_string(s.motion.mode)},
+                 {"enabled", s.motion.enabled},
+                 {"inpos", s.motion.inpos},
+                 {"paused", s.motion.paused},
+                 {"queue", s.motion.queue},
+                 {"queue_full", s.motion.queue_full},
+                 {"motion_line", s.motion.motion_line},
+                 {"axis_mask", s.motion.axis_mask},
+                 {"joints", s.motion.joints},
+                 {"position", pose_json(s.motion.position)},
+                 {"actual_position", pose_json(s.motion.actual_position)},
+                 {"actual_position_valid", s.motion.carte_fb_valid},
+                 {"dtg", pose_json(s.motion.dtg)},
+                 {"current_vel", s.motion.current_vel},
+                 {"feed_scale", s.motion.feed_scale},
+                 {"rapid_scale", s.motion.rapid_scale},
+                 {"max_velocity", s.motion.max_velocity},
+                 {"probe_tripped", s.motion.probe_tripped},
+                 {"probed_position", pose_json(s.motion.probed_position)},
+                 {"watchdog_enabled", s.motion.watchdog_enabled},
+                 {"servo_cycles", s.motion.servo_cycles}};
+  json joints = json::array();
+  for (int i = 0; i < s.motion.joints && i < kMaxJoints; ++i) {
+    const ipc::JointStatus& js = s.joints[i];
+    joints.push_back({{"homed", js.homed},
+                      {"homing", js.homing},
+                      {"enabled", js.enabled},
+                      {"fault", js.fault},
+                      {"inpos", js.inpos},
+                      {"pos_cmd", js.pos_cmd},
+                      {"pos_fb", js.pos_fb},
+                      {"motor_pos_cmd", js.motor_pos_cmd},
+                      {"motor_pos_fb", js.motor_pos_fb},
+                      {"velocity", js.velocity},
+                      {"ferror_current", js.ferror_current},
+                      {"ferror_highmark", js.ferror_highmark},
+                      {"min_hard_limit", js.min_hard_limit},
+                      {"max_hard_limit", js.max_hard_limit},
+                      {"min_soft_limit", js.min_soft_limit},
+                      {"max_soft_limit", js.max_soft_limit},
+                      {"axis", js.axis}});
+  }
+  j["joints"] = joints;
+  j["io"] = {{"tool_in_spindle", s.io.tool_in_spindle},
+             {"pocket_prepped", s.io.pocket_prepped},
+             {"flood", s.io.flood},
+             {"mist", s.io.mist},
+             {"lube", s.io.lube},
+             {"estop_chain_ok", s.io.estop_chain_ok}};
+  json spindles = json::array();
+  for (int i = 0; i < s.motion.spindles && i < ipc::kMaxSpindles; ++i) {
+    const ipc::SpindleStatus& sp = s.spindles[i];
+    spindles.push_back({{"speed", sp.speed}, {"direction", sp.direction}, {"enabled", sp.enabled},
+                        {"override", sp.override_scale}, {"at_speed", sp.at_speed}, {"brake", sp.brake}});
+  }
+  j["spindles"] = spindles;
+  json threads = json::array();
+  for (const ipc::ThreadStatus& t : s.threads) {
+    if (t.name.empty()) continue;
+    threads.push_back({{"name", t.name.c_str()},
+                       {"fifo", t.fifo},
+                       {"period_ns", t.period_ns},
+                       {"cycles", t.cycles},
+                       {"overruns", t.overruns},
+                       {"latency_min_ns", t.latency_min_ns},
+                       {"latency_p50_ns", t.latency_p50_ns},
+                       {"latency_p99_ns", t.latency_p99_ns},
+                       {"latency_p999_ns", t.latency_p999_ns},
+                       {"latency_max_ns", t.latency_max_ns},
+                       {"period_min_ns", t.period_min_ns},
+                       {"period_max_ns", t.period_max_ns},
+                       {"exec_last_ns", t.exec_last_ns},
+                       {"exec_max_ns", t.exec_max_ns}});
+  }
+  j["threads"] = threads;
+  return j.dump(indent);
+}
+
+}  // namespace cnc::cli

@@ -1,0 +1,30 @@
+// One place lists every module's components. A module that is not built
+// (its library target does not exist) is left out by CMake definitions.
+#include "core/daemon/controller.hpp"
+
+#ifdef CNC_HAVE_KINEMATICS
+#include "kinematics/kinematics.hpp"
+#endif
+#ifdef CNC_HAVE_MOTION
+#include "core/motion/motion_component.hpp"
+#endif
+#ifdef CNC_HAVE_CANOPEN
+#include "fieldbus/canopen/components.hpp"
+#endif
+
+namespace cnc::daemon {
+
+void register_all_components(hal::ComponentRegistry& registry) {
+  hal::register_core_components(registry);
+#ifdef CNC_HAVE_KINEMATICS
+  kin::register_kinematics_components(registry);
+#endif
+#ifdef CNC_HAVE_MOTION
+  motion::register_components(registry);
+#endif
+#ifdef CNC_HAVE_CANOPEN
+  canopen::register_components(registry);
+#endif
+}
+
+}  // namespace cnc::daemon

@@ -1,0 +1,256 @@
+#include "core/daemon/controller.hpp"
+
+#include <signal.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <ctime>
+#include <thread>
+
+#include "core/rt/periodic_task.hpp"
+#include "core/util/strings.hpp"
+#include "core/util/time.hpp"
+
+namespace cnc::daemon {
+namespace {
+
+void log_line(const char* kind, const std::string& source, const std::string& text) {
+  const int64_t now = realtime_ns();
+  const time_t secs = static_cast<time_t>(now / 1'000'000'000);
+  tm local{};
+  localtime_r(&secs, &local);
+  char stamp[32];
+  std::strftime(stamp, sizeof stamp, "%H:%M:%S", &local);
+  std::fprintf(stderr, "%s.%03d cncd %s [%s] %s\n", stamp, static_cast<int>((now / 1'000'000) % 1000), kind,
+               source.c_str(), text.c_str());
+}
+
+}  // namespace
+
+Controller::Controller(const Options& options) : options_(options), status_(std::make_unique<ipc::Status>()) {
+  started_ns_ = realtime_ns();
+  ini_ = ini::IniFile::load(options.ini_file);
+  const double cycle_s = ini_.get_double("TASK", "CYCLE_TIME", 0.001, {0.0001, 1.0});
+  cycle_ns_ = static_cast<int64_t>(cycle_s * 1e9);
+  server_ = std::make_unique<ipc::Server>(options.instance);
+
+  const rt::RealtimeCapabilities& caps = rt::prepare_process();
+  if (!caps.note.empty()) {
+    log_line("warning", "rt", caps.note);
+    messages_.post(MessageKind::Text, "rt", caps.note);
+  }
+
+  register_all_components(registry_);
+  interp_ = std::make_unique<hal::CommandInterpreter>(hal_, registry_, &ini_, &messages_);
+  try {
+    for (const ini::Entry* e : ini_.find_all_entries("HAL", "HALFILE")) {
+      std::string file = e->value;
+      if (file.rfind("LIB:", 0) == 0) file = file.substr(4);
+      const auto path = ini_.resolve_path(file);
+      if (options_.verbose) log_line("info", "hal", "running " + path.string());
+      interp_->run_file(path);
+    }
+    for (const ini::Entry* e : ini_.find_all_entries("HAL", "HALCMD")) {
+      try {
+        interp_->execute(e->value);
+      } catch (const std::exception& ex) {
+        throw ConfigError(e->file, e->line, "[HAL]HALCMD: " + std::string(ex.what()));
+      }
+    }
+    for (hal::Component* c : hal_.components()) c->on_ready();
+  } catch (...) {
+    hal_.stop_threads();
+    interp_->stop_user_programs();
+    throw;
+  }
+  for (hal::Component* c : hal_.components()) {
+    if (auto* s = dynamic_cast<ipc::ControllerService*>(c)) services_.push_back(s);
+  }
+  std::stable_sort(services_.begin(), services_.end(),
+                   [](const ipc::ControllerService* a, const ipc::ControllerService* b) {
+                     return a->service_order() < b->service_order();
+                   });
+  admin_ = std::make_unique<ipc::AdminServer>(options.instance,
+                                              [this](const std::string& line) { return admin_request(line); });
+  hal_.start_threads();
+  publish_status();
+  server_->set_ready(true);
+  log_line("info", "cncd",
+           "instance \"" + options.instance + "\" running " + ini_.path().string() + " (pid " +
+               std::to_string(::getpid()) + ")");
+}
+
+Controller::~Controller() { shutdown(); }
+
+ipc::AdminReply Controller::admin_request(const std::string& line) {
+  try {
+    return {true, interp_->execute(line)};
+  } catch (const std::exception& e) {
+    return {false, e.what()};
+  }
+}
+
+void Controller::report(const ipc::Command& cmd, ipc::CommandState state, std::string_view reason) {
+  server_->report(cmd, state, reason);
+  if (state == ipc::CommandState::Rejected && options_.verbose) {
+    log_line("info", "command", std::string(ipc::to_string(cmd.type)) + " rejected: " + std::string(reason));
+  }
+}
+
+void Controller::dispatch(const ipc::Command& cmd) {
+  using ipc::CommandType;
+  switch (cmd.type) {
+    case CommandType::Ping:
+      report(cmd, ipc::CommandState::Done, {});
+      return;
+    case CommandType::Shutdown:
+      report(cmd, ipc::CommandState::Done, {});
+      stop();
+      return;
+    case CommandType::OperatorError:
+    case CommandType::OperatorText:
+    case CommandType::OperatorDisplay: {
+      const MessageKind kind = cmd.type == CommandType::OperatorError  ? MessageKind::Error
+                               : cmd.type == CommandType::OperatorText ? MessageKind::Text
+                                                                       : MessageKind::Display;
+      messages_.post(kind, "operator", cmd.text.view());
+      report(cmd, ipc::CommandState::Done, {});
+      return;
+    }
+    default:
+      break;
+  }
+  for (ipc::ControllerService* s : services_) {
+    if (s->handle_command(cmd, *this)) return;
+  }
+  report(cmd, ipc::CommandState::Rejected,
+         std::string("no part of this controller handles '") + ipc::to_string(cmd.type) +
+             "' (is the component that does, e.g. the task or motion controller, loaded in the HAL files?)");
+}
+
+void Controller::drain_messages() {
+  Message m;
+  while (messages_.pop(m)) {
+    server_->post(m);
+    log_line(to_string(m.kind), m.source.c_str(), m.text.c_str());
+  }
+}
+
+void Controller::publish_status() {
+  ipc::Status& s = *status_;
+  s.health.heartbeat = ++heartbeat_;
+  s.health.time_ns = realtime_ns();
+  s.health.started_ns = started_ns_;
+  s.health.pid = ::getpid();
+  const rt::RealtimeCapabilities& caps = rt::prepare_process();
+  s.health.realtime_memory_locked = caps.memory_locked;
+  s.health.realtime_note.assign(caps.note);
+  s.health.ini_file.assign(ini_.path().string());
+  s.health.machine.assign(ini_.get_string("EMC", "MACHINE", ""));
+  s.health.messages_dropped = messages_.dropped();
+  s.health.shutting_down = stop_requested_.load();
+  int i = 0;
+  bool fifo = false;
+  for (hal::Thread* t : hal_.threads()) {
+    if (i >= ipc::kMaxThreads) break;
+    const rt::TimingSnapshot snap = t->task().stats().snapshot();
+    ipc::ThreadStatus& ts = s.threads[i++];
+    ts.name.assign(t->name());
+    ts.fifo = t->task().uses_fifo();
+    fifo = fifo || ts.fifo;
+    ts.period_ns = t->period_ns();
+    ts.cycles = snap.cycles;
+    ts.overruns = snap.overruns;
+    ts.latency_min_ns = snap.latency_min_ns;
+    ts.latency_p50_ns = snap.latency_percentile_ns(0.5);
+    ts.latency_p99_ns = snap.latency_percentile_ns(0.99);
+    ts.latency_p999_ns = snap.latency_percentile_ns(0.999);
+    ts.latency_max_ns = snap.latency_max_ns;
+    ts.period_min_ns = snap.actual_period_min_ns;
+    ts.period_max_ns = snap.actual_period_max_ns;
+    ts.exec_last_ns = snap.exec_last_ns;
+    ts.exec_max_ns = snap.exec_max_ns;
+  }
+  for (; i < ipc::kMaxThreads; ++i) s.threads[i] = ipc::ThreadStatus{};
+  s.health.realtime_fifo = fifo;
+  for (ipc::ControllerService* svc : services_) svc->contribute_status(s);
+  server_->publish(s);
+}
+
+void Controller::cycle() {
+  ipc::Command cmd;
+  for (int n = 0; n < 64 && server_->poll_command(cmd); ++n) dispatch(cmd);
+  const int64_t now = monotonic_ns();
+  for (ipc::ControllerService* s : services_) s->update(now);
+  drain_messages();
+  publish_status();
+}
+
+void Controller::run(bool handle_signals) {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  if (handle_signals) pthread_sigmask(SIG_BLOCK, &set, nullptr);
+  int64_t next = monotonic_ns();
+  while (!stop_requested_.load()) {
+    cycle();
+    next += cycle_ns_;
+    const int64_t wait = next - monotonic_ns();
+    if (wait <= 0) {
+      next = monotonic_ns();
+      continue;
+    }
+    if (handle_signals) {
+      const timespec ts = to_timespec(wait);
+      siginfo_t info{};
+      const int sig = sigtimedwait(&set, &info, &ts);
+      if (sig == SIGINT || sig == SIGTERM) {
+        log_line("info", "cncd", std::string("received ") + (sig == SIGINT ? "SIGINT" : "SIGTERM") + ", shutting down");
+        stop();
+      }
+    } else {
+      std::this_thread::sleep_for(std::chrono::nanoseconds(wait));
+    }
+  }
+  shutdown();
+}
+
+void Controller::shutdown() {
+  if (shut_down_) return;
+  shut_down_ = true;
+  stop_requested_.store(true);
+  server_->set_ready(false);
+  // Outputs to a safe state while the servo thread still runs.
+  for (hal::Component* c : hal_.components()) c->on_shutdown();
+  const int64_t deadline = monotonic_ns() + 2'000'000'000;
+  for (;;) {
+    cycle();
+    bool safe = true;
+    for (const ipc::ControllerService* s : services_) safe = safe && s->is_safe_to_stop();
+    if (safe) break;
+    if (monotonic_ns() > deadline) {
+      log_line("error", "cncd", "outputs not confirmed safe within 2 s; stopping anyway");
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::nanoseconds(cycle_ns_));
+  }
+  if (const auto file = ini_.find("HAL", "SHUTDOWN")) {
+    try {
+      interp_->run_file(ini_.resolve_path(*file));
+    } catch (const std::exception& e) {
+      log_line("error", "hal", std::string("[HAL]SHUTDOWN: ") + e.what());
+    }
+  }
+  drain_messages();
+  admin_.reset();
+  hal_.stop_threads();
+  interp_->stop_user_programs();
+  services_.clear();
+  hal_.clear();
+  log_line("info", "cncd", "stopped");
+  server_.reset();  // removes the segment: clients now see "not running"
+}
+
+}  // namespace cnc::daemon

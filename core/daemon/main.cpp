@@ -1,0 +1,51 @@
+// cncd: the controller daemon. See docs/architecture.md.
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+#include "core/daemon/controller.hpp"
+#include "core/ipc/segment.hpp"
+
+namespace {
+void usage() {
+  std::fprintf(stderr,
+               "usage: cncd [--instance NAME] [--verbose] MACHINE.ini\n"
+               "  Runs the controller for the machine the INI file describes until SIGINT,\n"
+               "  SIGTERM or `cnc shutdown`. The instance (default: $CNC_INSTANCE or\n"
+               "  \"default\") names the shared segment clients connect to.\n");
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  cnc::daemon::Options opt;
+  opt.instance = cnc::ipc::default_instance();
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if ((a == "--instance" || a == "-i") && i + 1 < argc) {
+      opt.instance = argv[++i];
+    } else if (a == "--verbose" || a == "-v") {
+      opt.verbose = true;
+    } else if (a == "--help" || a == "-h") {
+      usage();
+      return 0;
+    } else if (!a.empty() && a[0] == '-') {
+      std::fprintf(stderr, "cncd: unknown option %s\n", a.c_str());
+      usage();
+      return 2;
+    } else {
+      opt.ini_file = a;
+    }
+  }
+  if (opt.ini_file.empty()) {
+    usage();
+    return 2;
+  }
+  try {
+    cnc::daemon::Controller controller(opt);
+    controller.run(true);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "cncd: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,46 @@
+// Single-producer single-consumer ring for trivially copyable entries; in
+// shared memory it carries one client's commands to the controller. push
+// and pop never block and never allocate.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <type_traits>
+
+namespace cnc::ipc {
+
+template <class T, std::size_t N>
+class SpscRing {
+  static_assert((N & (N - 1)) == 0, "capacity must be a power of two");
+  static_assert(std::is_trivially_copyable_v<T>);
+
+ public:
+  void reset() noexcept {
+    head_.store(0, std::memory_order_relaxed);
+    tail_.store(0, std::memory_order_relaxed);
+  }
+  bool push(const T& v) noexcept {
+    const uint64_t h = head_.load(std::memory_order_relaxed);
+    if (h - tail_.load(std::memory_order_acquire) >= N) return false;
+    items_[h & (N - 1)] = v;
+    head_.store(h + 1, std::memory_order_release);
+    return true;
+  }
+  bool pop(T& out) noexcept {
+    const uint64_t t = tail_.load(std::memory_order_relaxed);
+    if (t == head_.load(std::memory_order_acquire)) return false;
+    out = items_[t & (N - 1)];
+    tail_.store(t + 1, std::memory_order_release);
+    return true;
+  }
+  std::size_t size() const noexcept {
+    return static_cast<std::size_t>(head_.load(std::memory_order_acquire) - tail_.load(std::memory_order_acquire));
+  }
+
+ private:
+  alignas(64) std::atomic<uint64_t> head_{0};
+  alignas(64) std::atomic<uint64_t> tail_{0};
+  T items_[N];
+};
+
+}  // namespace cnc::ipc

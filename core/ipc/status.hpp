@@ -1,0 +1,239 @@
+// The status block of the shared segment: everything a client (CLI, HMI,
+// halcmd) may show, mirroring what LinuxCNC's STAT messages and its Python
+// `linuxcnc.stat` carry. Plain data of fixed size, copied whole under a
+// sequence lock; the controller writes it every task cycle.
+#pragma once
+
+#include <cstdint>
+
+#include "core/ipc/command.hpp"
+#include "core/util/fixed_string.hpp"
+#include "core/util/pose.hpp"
+
+namespace cnc::ipc {
+
+// Values of LinuxCNC's STATE_*, MODE_*, INTERP_*, EXEC_*, TRAJ_MODE_*.
+enum class TaskState : uint8_t { Estop = 1, EstopReset = 2, Off = 3, On = 4 };
+enum class TaskMode : uint8_t { Manual = 1, Auto = 2, Mdi = 3 };
+enum class InterpState : uint8_t { Idle = 1, Reading = 2, Paused = 3, Waiting = 4 };
+enum class ExecState : uint8_t {
+  Error = 1,
+  Done = 2,
+  WaitingForMotion = 3,
+  WaitingForMotionQueue = 4,
+  WaitingForIo = 5,
+  WaitingForMotionAndIo = 7,
+  WaitingForDelay = 8,
+  WaitingForSystemCmd = 9,
+  WaitingForSpindleOriented = 10,
+};
+enum class MotionMode : uint8_t { Free = 1, Coord = 2, Teleop = 3 };
+
+const char* to_string(TaskState s) noexcept;
+const char* to_string(TaskMode m) noexcept;
+const char* to_string(InterpState s) noexcept;
+const char* to_string(ExecState s) noexcept;
+const char* to_string(MotionMode m) noexcept;
+
+inline constexpr int kMaxSpindles = 8;
+inline constexpr int kMaxThreads = 4;
+
+struct HealthStatus {
+  uint64_t heartbeat = 0;        // +1 per publication
+  int64_t time_ns = 0;           // CLOCK_REALTIME of this publication
+  int64_t started_ns = 0;        // when the controller started
+  int32_t pid = 0;
+  bool realtime_memory_locked = false;
+  bool realtime_fifo = false;
+  FixedString<256> realtime_note;  // why realtime was not granted
+  FixedString<256> ini_file;
+  FixedString<64> machine;         // [EMC]MACHINE
+  uint64_t messages_dropped = 0;   // error-channel entries lost in the controller
+  bool shutting_down = false;
+};
+
+struct CommandEcho {
+  uint32_t serial = 0;           // last serial received (echo_serial_number)
+  CommandState state = CommandState::None;
+  CommandType type = CommandType::None;
+};
+
+struct TaskStatus {
+  TaskState state = TaskState::Estop;
+  TaskMode mode = TaskMode::Manual;
+  InterpState interp_state = InterpState::Idle;
+  ExecState exec_state = ExecState::Done;
+  bool paused = false;
+  bool block_delete = false;
+  bool optional_stop = false;
+  bool available = false;        // a task controller is running in this build
+  FixedString<512> file;         // open program
+  FixedString<256> command;      // MDI line being executed
+  int32_t current_line = 0;      // line being executed (motion's)
+  int32_t read_line = 0;         // line the interpreter has read up to
+  int32_t total_lines = 0;
+  int32_t g5x_index = 1;         // 1..9 = G54..G59.3
+  Pose g5x_offset;
+  Pose g92_offset;
+  double rotation_xy = 0;
+  Pose tool_offset;
+  int32_t program_units = 2;     // 1 inch, 2 mm
+  int32_t active_gcodes[17] = {};
+  int32_t active_mcodes[10] = {};
+  double active_settings[5] = {};  // sequence, F, S, G64 P, G64 Q
+  double delay_left = 0;
+  int32_t queued_mdi = 0;
+  int64_t program_started_ns = 0;
+  int64_t program_elapsed_ns = 0;
+  int64_t blocks_executed = 0;
+  int32_t errors_since_start = 0;
+  int32_t run_from_line_pending = 0;  // run-from-line approach shown, waiting for confirmation
+  Pose run_from_line_start;
+};
+
+struct TrajStatus {
+  MotionMode mode = MotionMode::Free;
+  bool enabled = false;
+  bool inpos = true;
+  bool paused = false;
+  bool queue_full = false;
+  bool probing = false;
+  bool probe_tripped = false;
+  bool probe_input = false;
+  bool carte_fb_valid = false;   // forward kinematics usable: actual_position is meaningful
+  bool watchdog_enabled = false;
+  bool feed_override_enabled = true;
+  bool adaptive_feed_enabled = false;
+  bool feed_hold_enabled = true;
+  bool teleop_enabled = false;
+  int32_t queue = 0;
+  int32_t motion_line = 0;
+  uint32_t motion_id = 0;
+  uint32_t axis_mask = 0;
+  int32_t joints = 0;
+  int32_t spindles = 0;
+  uint8_t kinematics_type = 0;
+  Pose position;                 // commanded, machine coordinates (carte_pos_cmd)
+  Pose actual_position;          // carte_pos_fb
+  Pose dtg;                      // distance to go
+  Pose probed_position;
+  double current_vel = 0;
+  double distance_to_go = 0;
+  double feed_scale = 1;
+  double rapid_scale = 1;
+  double max_velocity = 0;
+  double linear_units = 1;       // machine units per mm
+  double angular_units = 1;      // per degree
+  double cycle_time_s = 0.001;
+  uint64_t servo_cycles = 0;
+};
+
+struct JointStatus {
+  uint8_t type = 0;              // 0 linear, 1 angular
+  bool active = false;
+  bool enabled = false;
+  bool homing = false;
+  bool homed = false;
+  bool fault = false;
+  bool inpos = true;
+  bool min_soft_limit = false;
+  bool max_soft_limit = false;
+  bool min_hard_limit = false;
+  bool max_hard_limit = false;
+  bool override_limits = false;
+  int8_t axis = -1;              // axis this joint moves, -1 when coupled
+  double pos_cmd = 0;
+  double pos_fb = 0;
+  double motor_pos_cmd = 0;
+  double motor_pos_fb = 0;
+  double velocity = 0;
+  double ferror_current = 0;
+  double ferror_highmark = 0;
+  double ferror_limit = 0;
+  double min_position_limit = 0;
+  double max_position_limit = 0;
+  double backlash = 0;
+  double home_offset = 0;
+  double compensation = 0;       // backlash + screw correction applied now
+};
+
+struct AxisStatus {
+  double min_position_limit = 0;
+  double max_position_limit = 0;
+  double velocity = 0;
+  double max_velocity = 0;
+  double max_acceleration = 0;
+};
+
+struct SpindleStatus {
+  double speed = 0;              // commanded rpm
+  double speed_feedback = 0;
+  double override_scale = 1;
+  int32_t direction = 0;         // -1, 0, 1
+  bool enabled = false;
+  bool brake = true;
+  bool at_speed = false;
+  bool override_enabled = true;
+  int32_t orient_state = 0;
+  int32_t orient_fault = 0;
+};
+
+struct IoStatus {
+  int32_t tool_in_spindle = 0;
+  int32_t pocket_prepped = -1;
+  int32_t tool_prepped = 0;
+  bool tool_change_in_progress = false;
+  bool flood = false;
+  bool mist = false;
+  bool lube = false;
+  bool lube_level_ok = true;
+  bool estop_chain_ok = false;   // iocontrol.0.emc-enable-in
+};
+
+// One CiA-402 drive behind a joint (or the spindle), for the drive panel.
+struct DriveStatus {
+  bool present = false;
+  int8_t joint = -1;
+  uint8_t state = 0;             // cia402 state machine state
+  uint8_t mode = 0;              // 0x6061
+  uint16_t statusword = 0;
+  uint16_t controlword = 0;
+  uint16_t error_code = 0;       // 0x603F
+  double following_error = 0;    // machine units
+  double torque_percent = 0;
+  double velocity = 0;
+  FixedString<48> name;
+  FixedString<96> fault_text;
+};
+
+struct ThreadStatus {
+  FixedString<32> name;
+  bool fifo = false;
+  int64_t period_ns = 0;
+  uint64_t cycles = 0;
+  uint64_t overruns = 0;
+  int64_t latency_min_ns = 0;
+  int64_t latency_p50_ns = 0;
+  int64_t latency_p99_ns = 0;
+  int64_t latency_p999_ns = 0;
+  int64_t latency_max_ns = 0;
+  int64_t period_min_ns = 0;
+  int64_t period_max_ns = 0;
+  int64_t exec_last_ns = 0;
+  int64_t exec_max_ns = 0;
+};
+
+struct Status {
+  HealthStatus health;
+  CommandEcho echo;
+  TaskStatus task;
+  TrajStatus motion;
+  JointStatus joints[kMaxJoints];
+  AxisStatus axes[kNumAxes];
+  SpindleStatus spindles[kMaxSpindles];
+  IoStatus io;
+  DriveStatus drives[kMaxJoints + 1];
+  ThreadStatus threads[kMaxThreads];
+};
+
+}  // namespace cnc::ipc
