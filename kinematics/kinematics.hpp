@@ -31,17 +31,26 @@ class Kinematics {
   // Bit i set: axis i (X=0 ... W=8) is used.
   virtual uint32_t axis_mask() const noexcept = 0;
   // Axis a joint moves (trivkins and gantries), or -1 when joints and axes
-  // are coupled (5-axis, SCARA, arms).
+  // are coupled (5-axis, SCARA, arms) under the active kinematics.
   virtual int joint_axis(int joint) const noexcept = 0;
+  // Axis letter a joint is named after by `coordinates=` (X=0 ... W=8), or
+  // -1: for labels, and for gantries (two joints, one letter) even when the
+  // kinematics couple the joints.
+  virtual int joint_coordinate(int joint) const noexcept { return joint_axis(joint); }
 
+  // Linear joints and axes in machine units, rotary ones in degrees. On a
+  // result other than Ok the output holds no new position: forward leaves
+  // `pose` as it was, inverse copies `hint` (when given) to `joints`.
   // joints[0..num_joints) -> pose.
   virtual KinResult forward(const double* joints, Pose& pose) const noexcept = 0;
-  // pose -> joints[0..num_joints); `hint` holds the previous joints.
+  // pose -> joints[0..num_joints); `hint` holds the previous joints (may be
+  // null: then the module's home configuration is the start).
   virtual KinResult inverse(const Pose& pose, const double* hint, double* joints) const noexcept = 0;
 
   // Switchable kinematics (identity for setup, full for machining): the
-  // motion controller calls this only while stopped. Returns false when the
-  // module has no such type.
+  // motion controller calls this only while stopped. Type 0 is the module's
+  // own kinematics, 1 identity (LinuxCNC's switchkins numbering). Returns
+  // false, and keeps the active type, when the module has no such type.
   virtual bool switch_to(int kins_type) noexcept { return kins_type == 0; }
   virtual int active_switch() const noexcept { return 0; }
 };
