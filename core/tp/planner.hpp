@@ -80,6 +80,10 @@ class TrajectoryPlanner {
   // Where the path starts: the current position when coord mode begins or
   // after an abort. Only while done().
   virtual void set_position(const Pose& pose) noexcept = 0;
+  // Drops everything queued and stops at once at `pose`, ignoring the
+  // limits: used only when motion is disabled (amplifiers off, the machine
+  // is not following the command) or on an emergency stop.
+  virtual void reset(const Pose& pose) noexcept = 0;
 
   virtual Result add_line(const Pose& end, const SegmentParams& params) noexcept = 0;
   // Arc or helix from the current end point to `end` around the axis
