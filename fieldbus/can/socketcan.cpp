@@ -1,0 +1,220 @@
+#include "fieldbus/can/socketcan.hpp"
+
+#include <linux/can.h>
+#include <linux/can/error.h>
+#include <linux/can/raw.h>
+#include <net/if.h>
+#include <poll.h>
+#include <sys/ioctl.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <system_error>
+#include <vector>
+
+#include "core/util/time.hpp"
+
+namespace cnc::can {
+namespace {
+
+[[noreturn]] void fail(const std::string& ifname, const char* what) {
+  throw std::system_error(errno, std::generic_category(), "SocketCAN " + ifname + ": " + what);
+}
+
+uint32_t to_kernel_id(const Frame& f) noexcept {
+  uint32_t id = f.is_extended() ? ((f.id & CAN_EFF_MASK) | CAN_EFF_FLAG) : (f.id & CAN_SFF_MASK);
+  if (f.is_remote()) id |= CAN_RTR_FLAG;
+  return id;
+}
+
+void from_kernel_id(canid_t id, Frame& f) noexcept {
+  f.flags = 0;
+  if (id & CAN_ERR_FLAG) {
+    f.flags |= kError;
+    f.id = id & CAN_ERR_MASK;
+    return;
+  }
+  if (id & CAN_EFF_FLAG) {
+    f.flags |= kExtended;
+    f.id = id & CAN_EFF_MASK;
+  } else {
+    f.id = id & CAN_SFF_MASK;
+  }
+  if (id & CAN_RTR_FLAG) f.flags |= kRemote;
+}
+
+}  // namespace
+
+bool SocketCanTransport::available() noexcept {
+  const int s = ::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
+  if (s < 0) return false;
+  ::close(s);
+  return true;
+}
+
+SocketCanTransport::SocketCanTransport(const std::string& ifname, SocketCanOptions options)
+    : name_("socketcan:" + ifname), options_(options) {
+  if (ifname.empty() || ifname.size() >= IFNAMSIZ) {
+    errno = EINVAL;
+    fail(ifname, "interface name");
+  }
+  fd_ = ::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW);
+  if (fd_ < 0) fail(ifname, "socket(PF_CAN, SOCK_RAW, CAN_RAW) (is the can-raw module loaded?)");
+  try {
+    const unsigned index = ::if_nametoindex(ifname.c_str());
+    if (index == 0) fail(ifname, "no such interface");
+    if (options_.fd) {
+      const int on = 1;
+      if (::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &on, sizeof on) < 0) fail(ifname, "CAN_RAW_FD_FRAMES");
+    }
+    if (options_.receive_own) {
+      const int on = 1;
+      if (::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_RECV_OWN_MSGS, &on, sizeof on) < 0) fail(ifname, "CAN_RAW_RECV_OWN_MSGS");
+    }
+    const can_err_mask_t err_mask = options_.error_reports ? CAN_ERR_MASK : 0;
+    if (::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &err_mask, sizeof err_mask) < 0) fail(ifname, "CAN_RAW_ERR_FILTER");
+    const int on = 1;
+    if (::setsockopt(fd_, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) < 0) fail(ifname, "SO_TIMESTAMPNS");
+    if (::setsockopt(fd_, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on) < 0) fail(ifname, "SO_RXQ_OVFL");
+    if (options_.receive_buffer_bytes > 0) {
+      ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &options_.receive_buffer_bytes, sizeof(int));
+    }
+    sockaddr_can addr{};
+    addr.can_family = AF_CAN;
+    addr.can_ifindex = static_cast<int>(index);
+    if (::bind(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) < 0) fail(ifname, "bind");
+  } catch (...) {
+    ::close(fd_);
+    fd_ = -1;
+    throw;
+  }
+}
+
+SocketCanTransport::~SocketCanTransport() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+SendStatus SocketCanTransport::send(const Frame& f) noexcept {
+  if (f.is_error() || !is_valid_length(f) || (f.is_fd() && !options_.fd)) {
+    ++stats_.tx_rejected;
+    return SendStatus::Invalid;
+  }
+  ssize_t n;
+  if (f.is_fd()) {
+    canfd_frame k{};
+    k.can_id = to_kernel_id(f);
+    k.len = f.len;
+    k.flags = static_cast<uint8_t>(((f.flags & kBitRateSwitch) ? CANFD_BRS : 0) |
+                                   ((f.flags & kErrorStateIndicator) ? CANFD_ESI : 0));
+    std::memcpy(k.data, f.data.data(), f.len);
+    n = ::send(fd_, &k, sizeof k, MSG_DONTWAIT);
+  } else {
+    can_frame k{};
+    k.can_id = to_kernel_id(f);
+    k.len = f.len;
+    if (!f.is_remote()) std::memcpy(k.data, f.data.data(), f.len);
+    n = ::send(fd_, &k, sizeof k, MSG_DONTWAIT);
+  }
+  if (n > 0) {
+    ++stats_.tx_frames;
+    return SendStatus::Ok;
+  }
+  ++stats_.tx_rejected;
+  switch (errno) {
+    case EAGAIN:
+    case ENOBUFS:
+      // A bus-off controller stops the interface queue.
+      return state_.load(std::memory_order_relaxed) == BusState::BusOff ? SendStatus::BusOff : SendStatus::WouldBlock;
+    case ENETDOWN:
+    case ENXIO:
+    case ENODEV: return SendStatus::Down;
+    case EINVAL: return SendStatus::Invalid;
+    default: return SendStatus::Error;
+  }
+}
+
+bool SocketCanTransport::receive(Frame& out) noexcept {
+  canfd_frame k{};
+  iovec iov{&k, sizeof k};
+  alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(uint32_t)) + 64];
+  msghdr msg{};
+  msg.msg_iov = &iov;
+  msg.msg_iovlen = 1;
+  msg.msg_control = control;
+  msg.msg_controllen = sizeof control;
+  const ssize_t n = ::recvmsg(fd_, &msg, MSG_DONTWAIT);
+  if (n < static_cast<ssize_t>(CAN_MTU)) return false;
+
+  out = Frame{};
+  from_kernel_id(k.can_id, out);
+  if (n == static_cast<ssize_t>(CANFD_MTU)) {
+    out.flags |= kFd;
+    if (k.flags & CANFD_BRS) out.flags |= kBitRateSwitch;
+    if (k.flags & CANFD_ESI) out.flags |= kErrorStateIndicator;
+    out.len = k.len > kFdMaxData ? kFdMaxData : k.len;
+  } else {
+    out.len = k.len > kClassicMaxData ? kClassicMaxData : k.len;
+  }
+  if (!(out.flags & kRemote)) std::memcpy(out.data.data(), k.data, out.len);
+
+  for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c; c = CMSG_NXTHDR(&msg, c)) {
+    if (c->cmsg_level != SOL_SOCKET) continue;
+    if (c->cmsg_type == SCM_TIMESTAMPNS) {
+      timespec ts;
+      std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+      const int64_t real = static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+      out.timestamp_ns = real - (realtime_ns() - monotonic_ns());
+    } else if (c->cmsg_type == SO_RXQ_OVFL) {
+      uint32_t drops;
+      std::memcpy(&drops, CMSG_DATA(c), sizeof drops);
+      stats_.rx_overruns += drops - last_drop_count_;
+      last_drop_count_ = drops;
+    }
+  }
+  if (out.is_error()) {
+    ++stats_.error_frames;
+    tracker_.on_error_frame(out);
+    state_.store(tracker_.state(), std::memory_order_relaxed);
+  } else {
+    ++stats_.rx_frames;
+  }
+  return true;
+}
+
+bool SocketCanTransport::wait(int64_t timeout_ns) noexcept {
+  pollfd p{fd_, POLLIN, 0};
+  const int ms = timeout_ns <= 0 ? 0 : static_cast<int>((timeout_ns + 999'999) / 1'000'000);
+  return ::poll(&p, 1, ms) > 0;
+}
+
+void SocketCanTransport::set_filters(std::span<const Filter> filters) {
+  std::vector<can_filter> k;
+  k.reserve(filters.size());
+  for (const auto& f : filters) {
+    can_filter c{};
+    c.can_id = f.id & (f.extended ? CAN_EFF_MASK : CAN_SFF_MASK);
+    c.can_mask = f.mask & CAN_EFF_MASK;
+    if (f.extended) c.can_id |= CAN_EFF_FLAG;
+    if (f.match_extended) c.can_mask |= CAN_EFF_FLAG;
+    k.push_back(c);
+  }
+  if (k.empty()) {
+    can_filter all{0, 0};
+    k.push_back(all);
+  }
+  if (::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_FILTER, k.data(), static_cast<socklen_t>(k.size() * sizeof(can_filter))) < 0) {
+    fail(name_, "CAN_RAW_FILTER");
+  }
+}
+
+void SocketCanTransport::set_error_reports(bool on) {
+  const can_err_mask_t err_mask = on ? CAN_ERR_MASK : 0;
+  if (::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &err_mask, sizeof err_mask) < 0) fail(name_, "CAN_RAW_ERR_FILTER");
+  options_.error_reports = on;
+}
+
+TransportStats SocketCanTransport::stats() const noexcept { return stats_; }
+
+}  // namespace cnc::can

@@ -1,0 +1,55 @@
+// SocketCAN raw socket transport (Linux AF_CAN): receive filters, error
+// frames with bus-off / error-passive tracking, non-blocking send and
+// receive for the servo thread, kernel receive timestamps converted to
+// CLOCK_MONOTONIC, receive-queue overruns counted (SO_RXQ_OVFL). Opening
+// throws; send/receive never block, allocate or throw.
+#pragma once
+
+#include <atomic>
+#include <string>
+
+#include "fieldbus/can/transport.hpp"
+
+namespace cnc::can {
+
+struct SocketCanOptions {
+  bool fd = false;              // accept and send CAN FD frames (CAN_RAW_FD_FRAMES)
+  bool error_reports = true;    // receive error frames (all classes)
+  bool receive_own = false;     // receive our own transmissions (CAN_RAW_RECV_OWN_MSGS)
+  int receive_buffer_bytes = 0; // SO_RCVBUF; 0 = kernel default
+};
+
+class SocketCanTransport final : public Transport {
+ public:
+  // Throws std::system_error naming the interface and the failing call.
+  explicit SocketCanTransport(const std::string& ifname, SocketCanOptions options = {});
+  ~SocketCanTransport() override;
+  SocketCanTransport(const SocketCanTransport&) = delete;
+  SocketCanTransport& operator=(const SocketCanTransport&) = delete;
+
+  const std::string& name() const noexcept override { return name_; }
+  SendStatus send(const Frame& f) noexcept override;
+  bool receive(Frame& out) noexcept override;
+  bool wait(int64_t timeout_ns) noexcept override;
+  void set_filters(std::span<const Filter> filters) override;
+  void set_error_reports(bool on) override;
+  BusState state() const noexcept override { return state_.load(std::memory_order_relaxed); }
+  TransportStats stats() const noexcept override;
+  uint32_t bitrate() const noexcept override { return bitrate_; }
+
+  int fd() const noexcept { return fd_; }
+  // True when the kernel offers AF_CAN raw sockets at all (for tests to skip).
+  static bool available() noexcept;
+
+ private:
+  int fd_ = -1;
+  std::string name_;
+  SocketCanOptions options_;
+  uint32_t bitrate_ = 0;
+  BusStateTracker tracker_;
+  std::atomic<BusState> state_{BusState::ErrorActive};
+  uint32_t last_drop_count_ = 0;
+  TransportStats stats_;
+};
+
+}  // namespace cnc::can
