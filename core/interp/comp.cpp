@@ -1,0 +1,273 @@
+// Cutter radius compensation (G41/G42, G41.1/G42.1) in the XY and XZ
+// planes: the tool path is the programmed path offset by the tool radius;
+// convex corners get an arc around the programmed corner, concave corners
+// move the previous move's end to the intersection of the offset paths.
+// One move is held back so its end can still change (LinuxCNC does the
+// same with its canon queue).
+#include <cmath>
+
+#include "core/interp/impl.hpp"
+
+namespace cnc::interp {
+
+namespace {
+struct V2 {
+  double x = 0, y = 0;
+};
+V2 operator+(V2 a, V2 b) { return {a.x + b.x, a.y + b.y}; }
+V2 operator-(V2 a, V2 b) { return {a.x - b.x, a.y - b.y}; }
+V2 operator*(V2 a, double k) { return {a.x * k, a.y * k}; }
+double dot(V2 a, V2 b) { return a.x * b.x + a.y * b.y; }
+double cross(V2 a, V2 b) { return a.x * b.y - a.y * b.x; }
+double len(V2 a) { return std::hypot(a.x, a.y); }
+V2 unit(V2 a) {
+  const double l = len(a);
+  return l > 0 ? a * (1.0 / l) : V2{};
+}
+V2 left_of(V2 d) { return {-d.y, d.x}; }
+
+// Intersections of two circles / a line and a circle, nearest to `near`.
+bool line_circle(V2 p, V2 d, V2 c, double r, V2 near, V2& out) {
+  const V2 f = p - c;
+  const double b = dot(f, d), cc = dot(f, f) - r * r;
+  const double disc = b * b - cc;
+  if (disc < 0) return false;
+  const double s = std::sqrt(disc);
+  const V2 a1 = p + d * (-b - s), a2 = p + d * (-b + s);
+  out = len(a1 - near) < len(a2 - near) ? a1 : a2;
+  return true;
+}
+bool circle_circle(V2 c1, double r1, V2 c2, double r2, V2 near, V2& out) {
+  const double d = len(c2 - c1);
+  if (d < 1e-12 || d > r1 + r2 || d < std::fabs(r1 - r2)) return false;
+  const double a = (r1 * r1 - r2 * r2 + d * d) / (2 * d);
+  const double h = std::sqrt(std::max(0.0, r1 * r1 - a * a));
+  const V2 u = unit(c2 - c1);
+  const V2 m = c1 + u * a;
+  const V2 p1 = m + left_of(u) * h, p2 = m - left_of(u) * h;
+  out = len(p1 - near) < len(p2 - near) ? p1 : p2;
+  return true;
+}
+}  // namespace
+
+namespace {
+struct Geo {
+  bool arc = false;
+  V2 start, end;  // tool centre
+  V2 center;
+  double radius = 0;
+  int rotation = 0;
+  V2 t_start, t_end;  // unit tangents of the programmed path
+};
+
+V2 arc_tangent(V2 center, V2 p, int rotation) {
+  const V2 radial = unit(p - center);
+  return rotation > 0 ? left_of(radial) : left_of(radial) * -1.0;
+}
+}  // namespace
+
+void Interpreter::State::comp_emit(const CompMove& m) {
+  if (m.feed >= 0 && m.kind != CompMove::Traverse) {
+    canon.set_feed_rate(m.feed);
+  }
+  if (m.kind == CompMove::Traverse) {
+    canon.straight_traverse(m.line, m.end);
+  } else if (m.kind == CompMove::Feed) {
+    canon.straight_feed(m.line, m.end);
+  } else {
+    canon.arc_feed(m.line, m.first_end, m.second_end, m.center1, m.center2, m.rotation, m.axis_end, m.end);
+  }
+}
+
+void Interpreter::State::comp_flush() {
+  while (!comp_queue.empty()) {
+    comp_emit(comp_queue.front());
+    comp_queue.pop_front();
+  }
+}
+
+void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
+  int a1, a2, a3;
+  plane_axes(a1, a2, a3);
+  const double r = cutter_radius;
+  const bool left = cutter_side == 410;
+  const V2 p0{comp_program_pos[a1], comp_program_pos[a2]};
+  const V2 p1{end[a1], end[a2]};
+  const V2 tool{pos[a1], pos[a2]};
+  CompMove m;
+  m.kind = traverse ? CompMove::Traverse : CompMove::Feed;
+  m.line = current_line;
+  m.feed = pending_comp_feed;
+  pending_comp_feed = -1;
+  m.end = end;
+  if (cutter_first_move) {
+    // Entry: end where the tool touches the programmed end point, reached
+    // on a line tangent to the tool circle there.
+    const double d = len(p1 - tool);
+    if (d <= r) fail("Length of cutter compensation entry move is not greater than the tool radius");
+    const double alpha = std::atan2(tool.y - p1.y, tool.x - p1.x);
+    const double theta = std::acos(r / d);
+    const double gamma = left ? alpha - theta : alpha + theta;
+    const V2 t = p1 + V2{std::cos(gamma), std::sin(gamma)} * r;
+    m.end[a1] = t.x;
+    m.end[a2] = t.y;
+    comp_flush();
+    comp_queue.push_back(m);
+    last_tangent_x = unit(t - tool).x;
+    last_tangent_y = unit(t - tool).y;
+    cutter_first_move = false;
+    comp_program_pos = end;
+    pos = m.end;
+    return;
+  }
+  const V2 d = unit(p1 - p0);
+  if (len(p1 - p0) < 1e-12) {
+    // no motion in the plane: other axes only
+    Pose e = pos;
+    for (int i = 0; i < kNumAxes; ++i) {
+      if (i != a1 && i != a2) e[i] = end[i];
+    }
+    m.end = e;
+    comp_flush();
+    comp_queue.push_back(m);
+    comp_program_pos = end;
+    pos = e;
+    return;
+  }
+  const V2 n = left ? left_of(d) : left_of(d) * -1.0;
+  Geo g;
+  g.start = p0 + n * r;
+  g.end = p1 + n * r;
+  g.t_start = g.t_end = d;
+  comp_corner(V2Ref{g.start.x, g.start.y}, V2Ref{d.x, d.y}, false, V2Ref{}, 0, 0);
+  // comp_corner may have changed where this move starts (concave corner)
+  m.end[a1] = g.end.x;
+  m.end[a2] = g.end.y;
+  comp_queue.push_back(m);
+  last_tangent_x = d.x;
+  last_tangent_y = d.y;
+  comp_program_pos = end;
+  pos = m.end;
+}
+
+void Interpreter::State::comp_arc(int g, const Pose& end, double c1, double c2, int rotation) {
+  int a1, a2, a3;
+  plane_axes(a1, a2, a3);
+  (void)g;
+  if (cutter_first_move) fail("Radius of cutter compensation entry arc is not greater than the tool radius");
+  const double r = cutter_radius;
+  const bool left = cutter_side == 410;
+  const V2 p0{comp_program_pos[a1], comp_program_pos[a2]};
+  const V2 p1{end[a1], end[a2]};
+  const V2 c{c1, c2};
+  const double R = len(p0 - c);
+  // tool inside the arc when the comp side faces the centre
+  const bool inside = (rotation > 0) == left;
+  const double tr = inside ? R - r : R + r;
+  if (tr <= 0) fail("Tool radius not less than arc radius with comp");
+  const V2 s = c + unit(p0 - c) * tr;
+  const V2 e = c + unit(p1 - c) * tr;
+  const V2 t0 = arc_tangent(c, p0, rotation);
+  comp_corner(V2Ref{s.x, s.y}, V2Ref{t0.x, t0.y}, true, V2Ref{c.x, c.y}, tr, rotation);
+  CompMove m;
+  m.kind = CompMove::Arc;
+  m.line = current_line;
+  m.feed = pending_comp_feed;
+  pending_comp_feed = -1;
+  m.end = end;
+  m.end[a1] = e.x;
+  m.end[a2] = e.y;
+  m.first_end = e.x;
+  m.second_end = e.y;
+  m.center1 = c.x;
+  m.center2 = c.y;
+  m.rotation = rotation;
+  m.axis_end = end[a3];
+  m.prog_center1 = c.x;
+  m.prog_center2 = c.y;
+  comp_queue.push_back(m);
+  const V2 t1 = arc_tangent(c, p1, rotation);
+  last_tangent_x = t1.x;
+  last_tangent_y = t1.y;
+  comp_program_pos = end;
+  pos = m.end;
+}
+
+// Joins the held-back move to a new one starting (offset) at `start` with
+// programmed tangent `t_new` at the programmed corner.
+void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_is_arc, V2Ref center_ref, double tool_r, int rotation) {
+  int a1, a2, a3;
+  plane_axes(a1, a2, a3);
+  const V2 start{start_ref.x, start_ref.y};
+  const V2 t_new{t_new_ref.x, t_new_ref.y};
+  const V2 corner{comp_program_pos[a1], comp_program_pos[a2]};
+  const bool left = cutter_side == 410;
+  if (comp_queue.empty()) return;
+  CompMove& prev = comp_queue.back();
+  const V2 prev_end{prev.end[a1], prev.end[a2]};
+  const V2 t_prev{last_tangent_x, last_tangent_y};
+  const double turn = cross(t_prev, t_new);
+  const double along = dot(t_prev, t_new);
+  if (len(prev_end - start) < 1e-9) {
+    comp_flush();
+    return;
+  }
+  const bool convex = left ? turn < 0 : turn > 0;
+  if (std::fabs(turn) < 1e-12 && along > 0) {
+    comp_flush();
+    return;
+  }
+  if (convex || (std::fabs(turn) < 1e-12 && along < 0)) {
+    comp_flush();
+    CompMove a;
+    a.kind = CompMove::Arc;
+    a.line = current_line;
+    a.end = prev.end;
+    a.end[a1] = start.x;
+    a.end[a2] = start.y;
+    a.first_end = start.x;
+    a.second_end = start.y;
+    a.center1 = corner.x;
+    a.center2 = corner.y;
+    a.rotation = left ? -1 : 1;
+    a.axis_end = prev.end[a3];
+    a.feed = -1;
+    comp_emit(a);
+    pos = a.end;
+    return;
+  }
+  // concave: meet where the offset paths cross
+  V2 x;
+  bool ok = false;
+  const bool prev_arc = prev.kind == CompMove::Arc;
+  if (!prev_arc && !new_is_arc) {
+    const double den = cross(t_prev, t_new);
+    if (std::fabs(den) < 1e-12) fail("Cannot intersect parallel lines");
+    const double k = cross(start - prev_end, t_new) / den;
+    x = prev_end + t_prev * k;
+    ok = true;
+  } else if (!prev_arc && new_is_arc) {
+    ok = line_circle(prev_end, t_prev, V2{center_ref.x, center_ref.y}, tool_r, corner, x);
+  } else if (prev_arc && !new_is_arc) {
+    const V2 pc{prev.center1, prev.center2};
+    ok = line_circle(start, t_new, pc, len(prev_end - pc), corner, x);
+  } else {
+    const V2 pc{prev.center1, prev.center2};
+    ok = circle_circle(pc, len(prev_end - pc), V2{center_ref.x, center_ref.y}, tool_r, corner, x);
+  }
+  (void)rotation;
+  if (!ok) {
+    fail(new_is_arc ? "Arc move in concave corner cannot be reached by the tool without gouging"
+                    : "Straight feed in concave corner cannot be reached by the tool without gouging");
+  }
+  prev.end[a1] = x.x;
+  prev.end[a2] = x.y;
+  if (prev_arc) {
+    prev.first_end = x.x;
+    prev.second_end = x.y;
+  }
+  comp_flush();
+  pos = prev.end;
+}
+
+}  // namespace cnc::interp

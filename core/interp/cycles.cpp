@@ -1,0 +1,211 @@
+// Canned cycles G73, G74, G81-G89 with G98/G99 retract, L repeats and
+// incremental positioning, in any of the three main planes.
+#include <cmath>
+
+#include "core/interp/impl.hpp"
+
+namespace cnc::interp {
+
+namespace {
+constexpr char kLetters[] = "xyzabcuvw";
+}
+
+void Interpreter::State::convert_cycle(int g, Pose) {
+  if (cutter_side != 400) fail("Cannot use canned cycles with cutter compensation on");
+  if (feed_mode == FeedMode::InverseTime) fail("Cannot use inverse time feed with canned cycles");
+  if (block.has_word('a')) fail("Cannot put an a in canned cycle");
+  if (block.has_word('b')) fail("Cannot put a b in canned cycle");
+  if (block.has_word('c')) fail("Cannot put a c in canned cycle");
+  if (plane == Plane::UV || plane == Plane::UW || plane == Plane::VW) fail("Canned cycles in planes G17.1, G18.1 or G19.1 are not supported");
+  int a1, a2, a3;
+  plane_axes(a1, a2, a3);
+  const char l1 = kLetters[a1], l2 = kLetters[a2], l3 = kLetters[a3];
+  const bool same = motion_mode == g;
+  int repeats = 1;
+  if (block.has_word('l')) {
+    repeats = static_cast<int>(block.get('l'));
+    if (repeats == 0) fail("Cannot do zero repeats of cycle");
+  }
+  if (block.has_word('r')) {
+    cycle_r = block.get('r');
+  } else if (!same) {
+    fail("R clearance plane unspecified in cycle");
+  }
+  if (block.has_word(l3)) {
+    cycle_cc = block.get(l3);
+  } else if (!same) {
+    static constexpr const char* msgs[] = {"Z value unspecified in xy plane canned cycle", "X value unspecified in yz plane canned cycle",
+                                           "Y value unspecified in xz plane canned cycle"};
+    fail(msgs[plane == Plane::XY ? 0 : plane == Plane::YZ ? 1 : 2]);
+  }
+  if (block.has_word('p')) cycle_p = block.get('p');
+  if (block.has_word('q')) cycle_q = block.get('q');
+  if (block.has_word('i')) cycle_i = block.get('i');
+  if (block.has_word('j')) cycle_j = block.get('j');
+  if (block.has_word('k')) cycle_k = block.get('k');
+  double old_cc = pos[a3];
+  double r = cycle_r, bottom = cycle_cc;
+  double clear = 0;
+  double aa = pos[a1], bb = pos[a2];
+  double aa_inc = 0, bb_inc = 0;
+  if (absolute) {
+    clear = retract_old_z ? std::max(r, old_cc) : r;
+    if (block.has_word(l1)) aa = block.get(l1);
+    if (block.has_word(l2)) bb = block.get(l2);
+  } else {
+    r = cycle_r + old_cc;
+    bottom = r + cycle_cc;
+    clear = retract_old_z ? std::max(r, old_cc) : r;
+    aa_inc = block.has_word(l1) ? block.get(l1) : 0.0;
+    bb_inc = block.has_word(l2) ? block.get(l2) : 0.0;
+  }
+  if (r < bottom) {
+    static constexpr const char* msgs[] = {"R less than z in cycle in xy plane", "R less than x in cycle in yz plane",
+                                           "R less than y in cycle in xz plane"};
+    fail(msgs[plane == Plane::XY ? 0 : plane == Plane::YZ ? 1 : 2]);
+  }
+  if (feed == 0.0 && feed_mode == FeedMode::UnitsPerMinute) fail("Cannot feed with zero feed rate");
+  switch (g) {
+    case 820: case 860: case 880: case 890:
+      if (!block.has_word('p') && !same) {
+        fail(g == 820 ? "Dwell time p word missing with g82" : g == 860 ? "Dwell time p word missing with g86"
+             : g == 880 ? "Dwell time p word missing with g88" : "Dwell time p word missing with g89");
+      }
+      break;
+    case 730: case 830:
+      if (!block.has_word('q') && !same) fail(g == 730 ? "Q word missing with g73" : "Q word missing with g83");
+      if (cycle_q <= 0) fail("Negative or zero q value used");
+      break;
+    default:
+      break;
+  }
+  if (g == 860 && spindle == Direction::Stopped) fail("Spindle not turning in g86");
+  if (g == 880 && spindle == Direction::Stopped) fail("Spindle not turning in g88");
+  if (g == 840 && spindle == Direction::CounterClockwise) fail("Spindle turning counterclockwise in G84");
+  if (g == 740 && spindle == Direction::Clockwise) fail("Spindle turning clockwise in G74");
+
+  auto at = [&](double a, double b, double c) {
+    Pose p = pos;
+    p[a1] = a;
+    p[a2] = b;
+    p[a3] = c;
+    return p;
+  };
+  auto trav = [&](double a, double b, double c) { emit_traverse(at(a, b, c)); };
+  auto feedto = [&](double a, double b, double c) { emit_feed(at(a, b, c)); };
+  const double rapid_delta = units == Units::Inch ? 0.010 : 0.254;
+
+  if (old_cc < r) {
+    trav(pos[a1], pos[a2], r);
+    old_cc = r;
+  }
+  double current_cc = old_cc;
+  for (int rep = 0; rep < repeats; ++rep) {
+    if (!absolute) {
+      aa += aa_inc;
+      bb += bb_inc;
+    }
+    trav(aa, bb, current_cc);
+    if (old_cc != r) trav(aa, bb, r);
+    switch (g) {
+      case 810:
+        feedto(aa, bb, bottom);
+        trav(aa, bb, clear);
+        break;
+      case 820:
+        feedto(aa, bb, bottom);
+        canon.dwell(cycle_p);
+        trav(aa, bb, clear);
+        break;
+      case 730:
+      case 830: {
+        for (double depth = r - cycle_q; depth > bottom; depth -= cycle_q) {
+          feedto(aa, bb, depth);
+          if (g == 830) {
+            trav(aa, bb, r);
+            trav(aa, bb, depth + rapid_delta);
+          } else {
+            trav(aa, bb, depth + rapid_delta);
+          }
+        }
+        feedto(aa, bb, bottom);
+        trav(aa, bb, clear);
+        break;
+      }
+      case 740:
+      case 840: {
+        const double pitch = speed != 0.0 ? feed / speed : 0.0;
+        canon.start_speed_feed_synch(0, pitch, false);
+        feedto(aa, bb, bottom);
+        if (block.has_word('p') || cycle_p > 0) canon.dwell(cycle_p);
+        if (g == 840) {
+          canon.start_spindle_counterclockwise(0);
+        } else {
+          canon.start_spindle_clockwise(0);
+        }
+        feedto(aa, bb, r);
+        if (g == 840) {
+          canon.start_spindle_clockwise(0);
+        } else {
+          canon.start_spindle_counterclockwise(0);
+        }
+        canon.stop_speed_feed_synch();
+        if (clear > r) trav(aa, bb, clear);
+        break;
+      }
+      case 850:
+        feedto(aa, bb, bottom);
+        feedto(aa, bb, r);
+        if (clear > r) trav(aa, bb, clear);
+        break;
+      case 860:
+        feedto(aa, bb, bottom);
+        canon.dwell(cycle_p);
+        canon.stop_spindle_turning(0);
+        trav(aa, bb, clear);
+        if (spindle == Direction::Clockwise) {
+          canon.start_spindle_clockwise(0);
+        } else {
+          canon.start_spindle_counterclockwise(0);
+        }
+        break;
+      case 870: {
+        // back boring: I/J offset move, orient-free approximation of LinuxCNC
+        const double middle = cycle_k;
+        const double oa = aa + cycle_i, ob = bb + cycle_j;
+        canon.stop_spindle_turning(0);
+        trav(oa, ob, current_cc);
+        trav(oa, ob, bottom);
+        trav(aa, bb, bottom);
+        spindle == Direction::Clockwise ? canon.start_spindle_clockwise(0) : canon.start_spindle_counterclockwise(0);
+        feedto(aa, bb, middle);
+        feedto(aa, bb, bottom);
+        canon.stop_spindle_turning(0);
+        trav(oa, ob, bottom);
+        trav(oa, ob, clear);
+        trav(aa, bb, clear);
+        spindle == Direction::Clockwise ? canon.start_spindle_clockwise(0) : canon.start_spindle_counterclockwise(0);
+        break;
+      }
+      case 880:
+        feedto(aa, bb, bottom);
+        canon.dwell(cycle_p);
+        canon.stop_spindle_turning(0);
+        canon.program_stop();
+        trav(aa, bb, clear);
+        spindle == Direction::Clockwise ? canon.start_spindle_clockwise(0) : canon.start_spindle_counterclockwise(0);
+        break;
+      case 890:
+        feedto(aa, bb, bottom);
+        canon.dwell(cycle_p);
+        feedto(aa, bb, r);
+        if (clear > r) trav(aa, bb, clear);
+        break;
+      default:
+        break;
+    }
+    current_cc = clear;
+  }
+}
+
+}  // namespace cnc::interp

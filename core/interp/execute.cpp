@@ -1,0 +1,925 @@
+// Executing one block: LinuxCNC's order (comment, spindle mode, feed mode,
+// F, S, T, M codes, G codes, stop codes) and every non-motion conversion.
+#include <cmath>
+#include <cstdio>
+
+#include "core/ini/ini_file.hpp"
+#include "core/util/strings.hpp"
+
+#include "core/interp/impl.hpp"
+
+namespace cnc::interp {
+
+namespace {
+double units_per_inch(Units u) { return u == Units::Inch ? 1.0 : (u == Units::Mm ? kMmPerInch : kMmPerInch / 10.0); }
+
+std::string_view skip_blanks(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  return s;
+}
+
+// "(msg,text)" style prefixes: blanks before the keyword are allowed,
+// then the keyword in any case and a comma.
+bool comment_prefix(std::string_view c, std::string_view key, std::string_view& rest) {
+  c = skip_blanks(c);
+  if (c.size() < key.size() + 1) return false;
+  if (!cnc::iequals(c.substr(0, key.size()), key) || c[key.size()] != ',') return false;
+  rest = c.substr(key.size() + 1);
+  return true;
+}
+}  // namespace
+
+double Interpreter::State::to_program_len(double machine_len) const {
+  return machine_len * units_per_inch(units) / units_per_inch(canon.machine_length_units());
+}
+
+double Interpreter::State::to_machine_len(double program_len) const {
+  return program_len * units_per_inch(canon.machine_length_units()) / units_per_inch(units);
+}
+
+void Interpreter::State::canon_init_calls() {
+  canon.use_length_units(units);
+  Pose g5x{};
+  for (int i = 0; i < kNumAxes; ++i) g5x[i] = origin_offset[i];
+  canon.set_g5x_offset(origin, g5x);
+  canon.set_g92_offset(axis_offset);
+  canon.set_xy_rotation(rotation);
+  canon.set_feed_reference(FeedReference::Xyz);
+}
+
+void Interpreter::State::reset_modal(bool keep_params) {
+  if (!keep_params) init_parameters();
+  pos = Pose{};
+  units = config.default_units;
+  plane = Plane::XY;
+  absolute = true;
+  ijk_absolute = false;
+  feed_mode = FeedMode::UnitsPerMinute;
+  feed = 0;
+  speed = 0;
+  spindle = Direction::Stopped;
+  css = false;
+  css_max = 0;
+  mist = flood = false;
+  motion_mode = 0;
+  origin = static_cast<int>(params[5220]);
+  if (origin < 1 || origin > 9) origin = 1;
+  const int base = 5201 + 20 * origin;
+  for (int i = 0; i < kNumAxes; ++i) origin_offset[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
+  rotation = params[static_cast<std::size_t>(base + 9)];
+  for (int i = 0; i < kNumAxes; ++i) {
+    axis_offset[i] = params[5210] != 0.0 ? to_program_len(params[static_cast<std::size_t>(5211 + i)]) : 0.0;
+  }
+  tool_offset = Pose{};
+  tool_offset_g = 490;
+  control = MotionMode::ExactPath;
+  tolerance = naive_tolerance = 0;
+  retract_old_z = true;
+  feed_override = speed_override = true;
+  adaptive = false;
+  feed_hold = true;
+  diameter_mode = config.lathe_diameter_mode;
+  selected_tool = -1;
+  selected_index = -1;
+  current_index = 0;
+  toolchange_flag = false;
+  cutter_side = 400;
+  cutter_radius = 0;
+  comp_queue.clear();
+  cycle_l = 1;
+  frames.clear();
+  frames.emplace_back();
+  skipping = false;
+  synch_pending = false;
+  block_ready = false;
+}
+
+void Interpreter::State::update_tool_from_canon() { tools = canon.tool_table(); }
+
+void Interpreter::State::snapshot_modal(ModalSnapshot& m) const {
+  m.valid = true;
+  m.units = units;
+  m.plane = plane;
+  m.absolute = absolute;
+  m.ijk_absolute = ijk_absolute;
+  m.feed_mode = feed_mode;
+  m.feed = feed;
+  m.speed = speed;
+  m.spindle = spindle;
+  m.mist = mist;
+  m.flood = flood;
+  m.control = control;
+  m.tolerance = tolerance;
+  m.naive_tolerance = naive_tolerance;
+  m.origin = origin;
+  m.retract_old_z = retract_old_z;
+  m.feed_override = feed_override;
+  m.speed_override = speed_override;
+}
+
+void Interpreter::State::restore_modal(const ModalSnapshot& m) {
+  if (m.units != units) convert_units(m.units);
+  if (m.plane != plane) {
+    plane = m.plane;
+    canon.select_plane(plane);
+  }
+  absolute = m.absolute;
+  ijk_absolute = m.ijk_absolute;
+  if (m.feed_mode != feed_mode) {
+    feed_mode = m.feed_mode;
+    canon.set_feed_mode(0, feed_mode == FeedMode::UnitsPerRev ? FeedMode::UnitsPerRev : FeedMode::UnitsPerMinute);
+  }
+  if (m.feed != feed) {
+    feed = m.feed;
+    canon.set_feed_rate(feed);
+  }
+  if (m.speed != speed) {
+    speed = m.speed;
+    canon.set_spindle_speed(0, speed);
+  }
+  if (m.spindle != spindle) {
+    spindle = m.spindle;
+    if (spindle == Direction::Clockwise) canon.start_spindle_clockwise(0);
+    if (spindle == Direction::CounterClockwise) canon.start_spindle_counterclockwise(0);
+    if (spindle == Direction::Stopped) canon.stop_spindle_turning(0);
+  }
+  if (m.mist != mist) {
+    mist = m.mist;
+    mist ? canon.mist_on() : canon.mist_off();
+  }
+  if (m.flood != flood) {
+    flood = m.flood;
+    flood ? canon.flood_on() : canon.flood_off();
+  }
+  if (m.control != control || m.tolerance != tolerance) {
+    control = m.control;
+    tolerance = m.tolerance;
+    naive_tolerance = m.naive_tolerance;
+    canon.set_motion_control_mode(control, tolerance);
+    if (control == MotionMode::Continuous) canon.set_naivecam_tolerance(naive_tolerance);
+  }
+  if (m.origin != origin) {
+    static constexpr int codes[] = {540, 550, 560, 570, 580, 590, 591, 592, 593};
+    convert_coordinate_system(codes[m.origin - 1]);
+  }
+  retract_old_z = m.retract_old_z;
+  if (m.feed_override != feed_override) {
+    feed_override = m.feed_override;
+    feed_override ? canon.enable_feed_override() : canon.disable_feed_override();
+  }
+  if (m.speed_override != speed_override) {
+    speed_override = m.speed_override;
+    speed_override ? canon.enable_speed_override(0) : canon.disable_speed_override(0);
+  }
+}
+
+Status Interpreter::State::execute_block() {
+  Status st = Status::Ok;
+  canon.begin_block(block.line, block.n_number);
+  n_number = block.n_number;
+  if (block.has_comment) convert_comment();
+  if (block.g[kGSpindleMode] != -1) convert_spindle_mode(block.g[kGSpindleMode]);
+  if (block.g[kGFeedMode] != -1) convert_feed_mode(block.g[kGFeedMode]);
+  if (cutter_side != 400 && !comp_queue.empty() && needs_comp_flush()) comp_flush();
+  if (block.has_word('f') && feed_mode != FeedMode::InverseTime) {
+    feed = block.get('f');
+    if (cutter_side != 400 && !comp_queue.empty()) {
+      pending_comp_feed = feed;  // emitted with the next compensated move
+    } else {
+      canon.set_feed_rate(feed);
+    }
+  }
+  if (block.has_word('s')) {
+    speed = block.get('s');
+    canon.set_spindle_speed(0, speed);
+  }
+  if (block.has_word('t')) convert_tool_select();
+  convert_m(st);
+  convert_g(st);
+  if (block.m[kMStop] != -1) convert_stop(st);
+  return st;
+}
+
+bool Interpreter::State::needs_comp_flush() const {
+  // Only plain motion blocks may pass a held-back compensated move.
+  if (block.has_comment || block.m_count > 0 || block.has_word('s') || block.has_word('t')) return true;
+  for (int gr = 0; gr < kGNumGroups; ++gr) {
+    if (block.g[static_cast<std::size_t>(gr)] != -1 && gr != kGMotion && gr != kGDistance && gr != kGIjk) return true;
+  }
+  const int m = block.g[kGMotion] != -1 ? block.g[kGMotion] : motion_mode;
+  return !(m == 10 || m == 20 || m == 30 || m == 0);
+}
+
+void Interpreter::State::convert_comment() {
+  std::string_view c = block.comment;
+  std::string_view rest;
+  if (comment_prefix(c, "msg", rest)) {
+    canon.message(rest);
+  } else if (comment_prefix(c, "debug", rest)) {
+    canon.message(substitute_params(rest));
+  } else if (comment_prefix(c, "print", rest)) {
+    canon.print(substitute_params(rest));
+  } else if (comment_prefix(c, "logopen", rest)) {
+    canon.log_open(rest, false);
+  } else if (comment_prefix(c, "logappend", rest)) {
+    canon.log_open(rest, true);
+  } else if (comment_prefix(c, "log", rest)) {
+    canon.log(substitute_params(rest));
+  } else if (cnc::iequals(cnc::trim(c), "logclose")) {
+    canon.log_close();
+  } else {
+    canon.comment(c);
+  }
+}
+
+void Interpreter::State::convert_spindle_mode(int g) {
+  if (g == 960) {
+    css = true;
+    css_max = block.has_word('d') ? block.get('d') : 1e30;
+    if (!block.has_word('s')) fail("S word missing with G96");
+    canon.set_spindle_mode(0, css_max);
+  } else {
+    css = false;
+    canon.set_spindle_mode(0, 0);
+  }
+}
+
+void Interpreter::State::convert_feed_mode(int g) {
+  if (g == 930) {
+    if (config.linuxcnc_comments) canon.comment("interpreter: feed mode set to inverse time");
+    feed_mode = FeedMode::InverseTime;
+    canon.set_feed_mode(0, FeedMode::UnitsPerMinute);
+  } else if (g == 940) {
+    if (config.linuxcnc_comments) canon.comment("interpreter: feed mode set to units per minute");
+    feed_mode = FeedMode::UnitsPerMinute;
+    canon.set_feed_mode(0, FeedMode::UnitsPerMinute);
+    feed = 0;
+    canon.set_feed_rate(0);
+  } else {
+    if (config.linuxcnc_comments) canon.comment("interpreter: feed mode set to units per revolution");
+    feed_mode = FeedMode::UnitsPerRev;
+    canon.set_feed_mode(0, FeedMode::UnitsPerRev);
+    feed = 0;
+    canon.set_feed_rate(0);
+  }
+}
+
+void Interpreter::State::convert_tool_select() {
+  const int t = static_cast<int>(block.get('t'));
+  int index = -1;
+  if (const auto i = tools.find_tool(t)) {
+    index = *i;
+  } else if (tools.is_random() && tools.spindle().number == t) {
+    index = 0;
+  } else if (t == 0 && !tools.is_random()) {
+    index = 0;
+  } else {
+    char buf[80];
+    std::snprintf(buf, sizeof buf, "Requested tool %d not found in the tool table", t);
+    fail(buf);
+  }
+  canon.select_tool(t);
+  selected_tool = t;
+  selected_index = index;
+}
+
+void Interpreter::State::convert_tool_change(Status& st) {
+  if (block.m[kMToolChange] == 6) {
+    if (cutter_side != 400) fail("Cannot change tools with cutter radius compensation on");
+    if (selected_index < 0) fail("Need tool prepared -Txx- for toolchange");
+    canon.start_change();
+    if (!config.tool_change_with_spindle_on) {
+      canon.stop_spindle_turning(0);
+      spindle = Direction::Stopped;
+    }
+    canon.change_tool(selected_index);
+    current_index = selected_index;
+    toolchange_flag = true;
+    tools.change_tool(selected_index);
+    st = Status::ExecuteFinish;
+    return;
+  }
+  // M61 Q
+  if (!block.has_word('q') || block.get('q') < 0) fail("Need non-negative Q-word to specify tool number with M61");
+  const int t = static_cast<int>(std::lround(block.get('q')));
+  int index = 0;
+  if (t != 0 || tools.is_random()) {
+    const auto i = tools.find_tool(t);
+    if (!i) {
+      char buf[80];
+      std::snprintf(buf, sizeof buf, "Requested tool %d not found in the tool table", t);
+      fail(buf);
+    }
+    index = *i;
+  }
+  canon.change_tool_number(index);
+  current_index = index;
+  // Manual 3.24.3.5: the spindle now holds that tool (M61 Q0: none).
+  tools.set_spindle_tool(index);
+  st = Status::ExecuteFinish;
+}
+
+void Interpreter::State::convert_m(Status& st) {
+  const int io = block.m[kMIo];
+  if (io != -1) {
+    if ((io >= 62 && io <= 65) && (!block.has_word('p') || block.get('p') < 0)) {
+      fail("No valid P word with M" + std::to_string(io));
+    }
+    const int p = static_cast<int>(std::lround(block.get('p')));
+    switch (io) {
+      case 62:
+        if (cutter_side != 400) fail("Cannot set motion digital output with cutter radius compensation on");
+        canon.set_motion_output_bit(p);
+        break;
+      case 63:
+        if (cutter_side != 400) fail("Cannot set motion digital output with cutter radius compensation on");
+        canon.clear_motion_output_bit(p);
+        break;
+      case 64: canon.set_aux_output_bit(p); break;
+      case 65: canon.clear_aux_output_bit(p); break;
+      case 66: {
+        const bool has_p = block.has_word('p') && block.get('p') >= 0;
+        const bool has_e = block.has_word('e') && block.get('e') >= 0;
+        if (has_p && has_e) fail("Invalid to select both a digital and an analog input with M66");
+        if (!has_p && !has_e) fail("Need to have either a valid P or a valid E word with M66");
+        const int type = block.has_word('l') ? static_cast<int>(block.get('l')) : 0;
+        if (type < 0 || type > 4) fail("Unknown wait type");
+        const double timeout = block.has_word('q') ? block.get('q') : 0.0;
+        if (type != 0 && timeout == 0) fail("Zero timeout with wait type != immediate return");
+        if (has_e && type != 0) fail("Can't select analog input with wait type != immediate return");
+        if (cutter_side != 400) {
+          fail(has_p ? "Cannot wait for digital input with cutter radius compensation on"
+                     : "Cannot wait for analog input with cutter radius compensation on");
+        }
+        const int index = static_cast<int>(std::lround(has_p ? block.get('p') : block.get('e')));
+        canon.wait_input(index, has_p, static_cast<WaitType>(type), timeout);
+        st = Status::ExecuteFinish;
+        break;
+      }
+      case 67:
+      case 68: {
+        if (!block.has_word('e') || block.get('e') < 0) fail(io == 67 ? "Invalid analog index with M67" : "Invalid analog index with M68");
+        const int e = static_cast<int>(std::lround(block.get('e')));
+        const double q = block.get('q');
+        if (io == 67) {
+          if (cutter_side != 400) fail("Cannot set motion analog output with cutter radius compensation on");
+          canon.set_motion_output_value(e, q);
+        } else {
+          canon.set_aux_output_value(e, q);
+        }
+        break;
+      }
+      default: break;
+    }
+  }
+  if (block.m[kMToolChange] != -1) convert_tool_change(st);
+  switch (block.m[kMSpindle]) {
+    case 3:
+      canon.start_spindle_clockwise(0);
+      spindle = Direction::Clockwise;
+      break;
+    case 4:
+      canon.start_spindle_counterclockwise(0);
+      spindle = Direction::CounterClockwise;
+      break;
+    case 5:
+      canon.stop_spindle_turning(0);
+      spindle = Direction::Stopped;
+      break;
+    case 19: {
+      const double r = block.has_word('r') ? block.get('r') : 0.0;
+      const int q = block.has_word('p') ? static_cast<int>(block.get('p')) : 0;
+      canon.orient_spindle(0, r, q);
+      spindle = Direction::Stopped;
+      break;
+    }
+    default: break;
+  }
+  switch (block.m[kMState]) {
+    case 70: snapshot_modal(saved_m70); break;
+    case 71: saved_m70.valid = false; break;
+    case 72:
+      if (!saved_m70.valid) fail("Cannot restore context from invalid stack frame - missing M70/M73?");
+      restore_modal(saved_m70);
+      break;
+    case 73: snapshot_modal(frame().saved_modal); break;
+    default: break;
+  }
+  switch (block.m[kMCoolant]) {
+    case 7:
+      canon.mist_on();
+      mist = true;
+      break;
+    case 8:
+      canon.flood_on();
+      flood = true;
+      break;
+    case 9:
+      canon.mist_off();
+      mist = false;
+      canon.flood_off();
+      flood = false;
+      break;
+    default: break;
+  }
+  const int ov = block.m[kMOverride];
+  if (ov != -1 && cutter_side != 400) {
+    fail(ov == 48 || ov == 50 || ov == 51 ? "Cannot enable overrides with cutter radius compensation on"
+                                          : "Cannot disable overrides with cutter radius compensation on");
+  }
+  const bool p_on = !block.has_word('p') || block.get('p') != 0.0;
+  switch (ov) {
+    case 48:
+      canon.enable_feed_override();
+      canon.enable_speed_override(0);
+      feed_override = speed_override = true;
+      break;
+    case 49:
+      canon.disable_feed_override();
+      canon.disable_speed_override(0);
+      feed_override = speed_override = false;
+      break;
+    case 50:
+      p_on ? canon.enable_feed_override() : canon.disable_feed_override();
+      feed_override = p_on;
+      break;
+    case 51:
+      p_on ? canon.enable_speed_override(0) : canon.disable_speed_override(0);
+      speed_override = p_on;
+      break;
+    case 52:
+      p_on ? canon.enable_adaptive_feed() : canon.disable_adaptive_feed();
+      adaptive = p_on;
+      break;
+    case 53:
+      p_on ? canon.enable_feed_hold() : canon.disable_feed_hold();
+      feed_hold = p_on;
+      break;
+    default: break;
+  }
+  const int user = block.m[kMUser];
+  if (user != -1) {
+    bool known = false;
+    for (const auto& dir : config.user_m_path) {
+      char name[8];
+      std::snprintf(name, sizeof name, "M%d", user);
+      std::error_code ec;
+      if (std::filesystem::exists(dir / name, ec)) known = true;
+    }
+    if (!known) fail("Unknown m code used: M" + std::to_string(user));
+    canon.user_m_code(user, block.get('p'), block.get('q'));
+  }
+}
+
+void Interpreter::State::convert_dwell() {
+  if (!block.has_word('p')) fail("Dwell time missing with g4");
+  canon.dwell(block.get('p'));
+}
+
+void Interpreter::State::convert_plane(int g) {
+  if (cutter_side != 400 && g != 170 && g != 180 && g != 190) fail("Cannot change planes with cutter radius compensation on");
+  if (cutter_side != 400 && g == 190) fail("Cannot use XZ or YZ plane with cutter radius compensation on");
+  switch (g) {
+    case 170: plane = Plane::XY; break;
+    case 180: plane = Plane::XZ; break;
+    case 190: plane = Plane::YZ; break;
+    case 171: plane = Plane::UV; break;
+    case 181: plane = Plane::UW; break;
+    case 191: plane = Plane::VW; break;
+    default: break;
+  }
+  canon.select_plane(plane);
+}
+
+void Interpreter::State::convert_units(Units u) {
+  if (cutter_side != 400) fail("Cannot change units with cutter radius compensation on");
+  if (u != units) {
+    const double k = units_per_inch(u) / units_per_inch(units);
+    for (int i = 0; i < kNumAxes; ++i) {
+      if (i >= 3 && i <= 5) continue;  // rotary axes keep degrees
+      pos[i] *= k;
+      origin_offset[i] *= k;
+      axis_offset[i] *= k;
+      tool_offset[i] *= k;
+    }
+    feed *= k;
+    cycle_r *= k;
+    cycle_z *= k;
+    cycle_cc *= k;
+    units = u;
+  }
+  canon.use_length_units(u);
+}
+
+void Interpreter::State::convert_cutter_comp(int g) {
+  if (g == 400) {
+    if (cutter_side != 400) comp_flush();
+    if (config.linuxcnc_comments) canon.comment("interpreter: cutter radius compensation off");
+    cutter_side = 400;
+    return;
+  }
+  if (cutter_side != 400) fail("Cannot turn cutter radius comp on when on");
+  if (plane != Plane::XY && plane != Plane::XZ) fail("Cutter radius compensation allowed only in XY, XZ planes");
+  double radius = 0;
+  int orientation = 0;
+  if (g == 411 || g == 421) {
+    if (!block.has_word('d')) fail("D word missing with G41.1/G42.1");  // LinuxCNC needs D here too
+    radius = block.get('d') / 2.0;
+    orientation = block.has_word('l') ? static_cast<int>(block.get('l')) : 0;
+  } else {
+    int index = 0;
+    if (block.has_word('d')) {
+      const double d = block.get('d');
+      if (d < 0) fail("Negative d word tool radius index used");
+      const int t = static_cast<int>(std::lround(d));
+      // Manual 3.24.3.6: D names a tool number; D0 or no D: the spindle.
+      if (t != 0) {
+        const auto i = tools.find_tool_anywhere(t);
+        if (!i) {
+          char buf[80];
+          std::snprintf(buf, sizeof buf, "Requested tool %d not found in the tool table", t);
+          fail(buf);
+        }
+        index = *i;
+      }
+    }
+    radius = to_program_len(tools.at(index).diameter) / 2.0;
+    orientation = tools.at(index).orientation;
+  }
+  if (radius < 0) {
+    radius = -radius;
+    g = (g == 410 || g == 411) ? 420 : 410;
+  }
+  cutter_side = (g == 410 || g == 411) ? 410 : 420;
+  cutter_radius = radius;
+  cutter_orientation = orientation;
+  cutter_first_move = true;
+  comp_program_pos = pos;
+  if (config.linuxcnc_comments) {
+    canon.comment(cutter_side == 410 ? "interpreter: cutter radius compensation on left"
+                                     : "interpreter: cutter radius compensation on right");
+  }
+}
+
+void Interpreter::State::convert_tool_length_offset(int g) {
+  if (cutter_side != 400) fail("Cannot change tool offset with cutter radius compensation on");
+  Pose off{};
+  if (g == 490) {
+    // all zero
+  } else if (g == 430 || (g == 432 && block.has_word('h'))) {
+    int index = 0;
+    if (block.has_word('h')) {
+      const int h = static_cast<int>(block.get('h'));
+      if (h != 0 || tools.is_random()) {
+        const auto i = tools.find_tool_anywhere(h);
+        if (!i) {
+          char buf[80];
+          std::snprintf(buf, sizeof buf, "Requested tool %d not found in the tool table", h);
+          fail(buf);
+        }
+        index = *i;
+      }
+    } else {
+      index = 0;  // the spindle
+    }
+    const ToolData& t = tools.at(index);
+    for (int i = 0; i < kNumAxes; ++i) off[i] = to_program_len(t.offset[i]);
+    if (g == 432) {
+      for (int i = 0; i < kNumAxes; ++i) off[i] += tool_offset[i];
+    }
+  } else {  // 431, or 432 with axis words
+    if (g == 432 && !block.any_axis(config.axis_mask)) fail("G43.2: No axes specified and H word missing");
+    static constexpr char letters[] = "xyzabcuvw";
+    for (int i = 0; i < kNumAxes; ++i) {
+      const char c = letters[i];
+      if (block.has_word(c)) off[i] = block.get(c);
+      if (g == 432) off[i] += tool_offset[i];
+    }
+    if (g == 431 && diameter_mode && block.has_word('x')) off[0] /= 2.0;
+  }
+  // Programmed position stays; the canonical position shifts by the change.
+  for (int i = 0; i < kNumAxes; ++i) pos[i] += tool_offset[i] - off[i];
+  tool_offset = off;
+  tool_offset_g = g;
+  canon.use_tool_length_offset(off);
+}
+
+void Interpreter::State::convert_coordinate_system(int g) {
+  if (cutter_side != 400) fail("Cannot change coordinate systems with cutter radius compensation on");
+  int n = 1;
+  switch (g) {
+    case 540: n = 1; break;
+    case 550: n = 2; break;
+    case 560: n = 3; break;
+    case 570: n = 4; break;
+    case 580: n = 5; break;
+    case 590: n = 6; break;
+    case 591: n = 7; break;
+    case 592: n = 8; break;
+    case 593: n = 9; break;
+    default: break;
+  }
+  if (n == origin) {
+    if (config.linuxcnc_comments) canon.comment("interpreter: continuing to use same coordinate system");
+    return;
+  }
+  origin = n;
+  params[5220] = n;
+  const int base = 5201 + 20 * n;
+  Pose next{};
+  for (int i = 0; i < kNumAxes; ++i) next[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
+  for (int i = 0; i < kNumAxes; ++i) pos[i] += origin_offset[i] - next[i];
+  // Rotation: positions are expressed in the new, unrotated frame first.
+  origin_offset = next;
+  rotation = params[static_cast<std::size_t>(base + 9)];
+  canon.set_g5x_offset(origin, origin_offset);
+  canon.set_g92_offset(axis_offset);
+  canon.set_xy_rotation(rotation);
+}
+
+void Interpreter::State::convert_control_mode(int g) {
+  if (cutter_side != 400 && false) fail("Cannot change control mode with cutter radius compensation on");
+  if (g == 610) {
+    control = MotionMode::ExactPath;
+    canon.set_motion_control_mode(MotionMode::ExactPath, 0);
+  } else if (g == 611) {
+    control = MotionMode::ExactStop;
+    canon.set_motion_control_mode(MotionMode::ExactStop, 0);
+  } else {
+    control = MotionMode::Continuous;
+    tolerance = block.has_word('p') ? block.get('p') : 0.0;
+    naive_tolerance = block.has_word('q') ? block.get('q') : tolerance;
+    canon.set_motion_control_mode(MotionMode::Continuous, tolerance);
+    canon.set_naivecam_tolerance(naive_tolerance);
+  }
+}
+
+void Interpreter::State::convert_axis_offsets(int g) {
+  if (cutter_side != 400) fail("Cannot change axis offsets with cutter radius comp");
+  static constexpr char letters[] = "xyzabcuvw";
+  if (g == 920 || g == 520) {
+    if (!block.any_axis(config.axis_mask)) fail("All axes missing with g52 or g92");
+    for (int i = 0; i < kNumAxes; ++i) {
+      const char c = letters[i];
+      if (!block.has_word(c)) continue;
+      double v = block.get(c);
+      if (i == 0 && diameter_mode) v /= 2.0;
+      if (g == 920) {
+        const double next = pos[i] + axis_offset[i] - v;
+        pos[i] = v;
+        axis_offset[i] = next;
+      } else {
+        pos[i] = pos[i] + axis_offset[i] - v;
+        axis_offset[i] = v;
+      }
+      params[static_cast<std::size_t>(5211 + i)] = to_machine_len(axis_offset[i]);
+    }
+    params[5210] = 1.0;
+  } else if (g == 921 || g == 922) {
+    for (int i = 0; i < kNumAxes; ++i) {
+      pos[i] += axis_offset[i];
+      axis_offset[i] = 0;
+      if (g == 921) params[static_cast<std::size_t>(5211 + i)] = 0;
+    }
+    params[5210] = 0;
+  } else {  // 92.3
+    for (int i = 0; i < kNumAxes; ++i) {
+      const double next = to_program_len(params[static_cast<std::size_t>(5211 + i)]);
+      pos[i] = pos[i] + axis_offset[i] - next;
+      axis_offset[i] = next;
+    }
+    params[5210] = 1.0;
+  }
+  canon.set_g92_offset(axis_offset);
+}
+
+void Interpreter::State::convert_coord_setup(int l) {
+  // G10 L2 / L20 P(1-9 or 0 for the active system) axis words, R rotation
+  if (!block.has_word('p')) fail("P word missing with G10 L2");
+  int p = static_cast<int>(std::lround(block.get('p')));
+  if (p == 0) p = origin;
+  if (p < 1 || p > 9) fail("P value out of range with G10 L2");
+  const int base = 5201 + 20 * p;
+  static constexpr char letters[] = "xyzabcuvw";
+  for (int i = 0; i < kNumAxes; ++i) {
+    const char c = letters[i];
+    if (!block.has_word(c)) continue;
+    double v = block.get(c);
+    if (i == 0 && diameter_mode) v /= 2.0;
+    if (l == 20) v = pos[i] + origin_offset[i] + axis_offset[i] - v;
+    params[static_cast<std::size_t>(base + i)] = to_machine_len(v);
+  }
+  if (block.has_word('r')) params[static_cast<std::size_t>(base + 9)] = block.get('r');
+  if (p == origin) {
+    Pose next{};
+    for (int i = 0; i < kNumAxes; ++i) next[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
+    for (int i = 0; i < kNumAxes; ++i) pos[i] += origin_offset[i] - next[i];
+    origin_offset = next;
+    rotation = params[static_cast<std::size_t>(base + 9)];
+    canon.set_g5x_offset(origin, origin_offset);
+    canon.set_xy_rotation(rotation);
+  } else if (config.linuxcnc_comments) {
+    canon.comment("interpreter: setting coordinate system origin");
+  }
+}
+
+void Interpreter::State::convert_setup_tool(int l) {
+  // G10 L1 / L10 / L11 P<tool>: write the tool table (manual 3.24.3.4).
+  if (!block.has_word('p')) fail("P word missing with G10 L1/L10/L11");
+  const int toolno = static_cast<int>(std::lround(block.get('p')));
+  std::optional<int> index = tools.find_tool_anywhere(toolno);
+  if (!tools.is_random() && index && *index == 0) index = tools.find_tool(toolno);
+  if (!index) {
+    char buf[80];
+    std::snprintf(buf, sizeof buf, "Requested tool %d not found in the tool table", toolno);
+    fail(buf);
+  }
+  ToolData t = tools.at(*index);
+  static constexpr char letters[] = "xyzabcuvw";
+  for (int i = 0; i < kNumAxes; ++i) {
+    const char c = letters[i];
+    if (!block.has_word(c)) continue;
+    double v = block.get(c);
+    if (i == 0 && diameter_mode) v /= 2.0;
+    if (l == 1) {
+      t.offset[i] = to_machine_len(v);
+    } else {
+      // L10: offset so that the current position reads v (tool offset
+      // applied); L11: as L10 but in G59.3 (coordinate system 9).
+      const double g5x = l == 11 ? to_program_len(params[static_cast<std::size_t>(5381 + i)]) : origin_offset[i];
+      const double tool_now = tool_offset[i];
+      const double machine = pos[i] + origin_offset[i] + axis_offset[i] + tool_now;
+      const double new_off = machine - g5x - (l == 11 ? 0.0 : axis_offset[i]) - v;
+      t.offset[i] = to_machine_len(new_off);
+    }
+  }
+  if (block.has_word('r')) t.diameter = to_machine_len(block.get('r') * 2.0);
+  if (block.has_word('i')) t.front_angle = block.get('i');
+  if (block.has_word('j')) t.back_angle = block.get('j');
+  if (block.has_word('q')) {
+    const int q = static_cast<int>(std::lround(block.get('q')));
+    if (q < 0 || q > 9) fail("Invalid tool orientation");
+    t.orientation = q;
+  }
+  const int written = tools.update_tool(t);
+  canon.set_tool_table_entry(written, t);
+  // Fixed buglet (manual 3.24.3.4): the spindle copy is refreshed only when
+  // the modified tool is the loaded one (ToolTable::update_tool does that),
+  // and on non-random changers the canon learns it with a second entry.
+  if (!tools.is_random() && tools.spindle().number == toolno && written != 0) {
+    canon.set_tool_table_entry(0, tools.spindle());
+  }
+}
+
+void Interpreter::State::convert_g(Status& st) {
+  if (block.g[kGNonModal] == 40) convert_dwell();
+  if (block.g[kGPlane] != -1) convert_plane(block.g[kGPlane]);
+  if (block.g[kGUnits] != -1) convert_units(block.g[kGUnits] == 200 ? Units::Inch : Units::Mm);
+  if (block.g[kGLathe] != -1) {
+    diameter_mode = block.g[kGLathe] == 70;
+    if (config.linuxcnc_comments) {
+      canon.comment(diameter_mode ? "interpreter: Lathe diameter mode changed to diameter"
+                                  : "interpreter: Lathe diameter mode changed to radius");
+    }
+  }
+  if (block.g[kGCutter] != -1) convert_cutter_comp(block.g[kGCutter]);
+  if (block.g[kGToolOffset] != -1) convert_tool_length_offset(block.g[kGToolOffset]);
+  if (block.g[kGCoordSys] != -1) convert_coordinate_system(block.g[kGCoordSys]);
+  if (block.g[kGControl] != -1) convert_control_mode(block.g[kGControl]);
+  if (block.g[kGDistance] != -1) absolute = block.g[kGDistance] == 900;
+  if (block.g[kGIjk] != -1) ijk_absolute = block.g[kGIjk] == 901;
+  if (block.g[kGRetract] != -1) {
+    if (cutter_side != 400) fail("Cannot change retract mode with cutter radius compensation on");
+    retract_old_z = block.g[kGRetract] == 980;
+  }
+  const int g0 = block.g[kGNonModal];
+  switch (g0) {
+    case 100: {
+      const int l = block.has_word('l') ? static_cast<int>(block.get('l')) : -1;
+      if (l == 2 || l == 20) {
+        convert_coord_setup(l);
+      } else if (l == 1 || l == 10 || l == 11) {
+        convert_setup_tool(l);
+        if (l != 1) st = Status::ExecuteFinish;
+      } else {
+        fail("Line with G10 does not have L0, L1, L10, L11, L2, or L20");
+      }
+      break;
+    }
+    case 280:
+    case 300:
+      convert_home(g0);
+      break;
+    case 281:
+    case 301: {
+      if (cutter_side != 400) fail("Cannot set reference point with cutter compensation in effect");
+      const int base = g0 == 281 ? 5161 : 5181;
+      for (int i = 0; i < kNumAxes; ++i) {
+        params[static_cast<std::size_t>(base + i)] = to_machine_len(pos[i] + origin_offset[i] + axis_offset[i] + tool_offset[i]);
+      }
+      break;
+    }
+    case 520:
+    case 920:
+    case 921:
+    case 922:
+    case 923:
+      convert_axis_offsets(g0);
+      break;
+    default:
+      break;
+  }
+  int motion = block.g[kGMotion];
+  if (motion == -1 && g0 != 100 && g0 != 280 && g0 != 300 && g0 != 520 && g0 != 920 && g0 != 431 &&
+      block.g[kGToolOffset] != 431 && block.g[kGToolOffset] != 432 && block.any_axis(config.axis_mask)) {
+    motion = motion_mode;
+    if (motion == -1) fail("Cannot use axis values with g80");
+  }
+  if (motion != -1) convert_motion(motion, st);
+}
+
+void Interpreter::State::convert_home(int g) {
+  if (cutter_side != 400) fail("Cannot use g28 or g30 with cutter radius comp");
+  const Pose mid = find_ends(false);
+  emit_traverse(mid);
+  const int base = g == 280 ? 5161 : 5181;
+  const bool any = block.any_axis(config.axis_mask);
+  static constexpr char letters[] = "xyzabcuvw";
+  Pose home = mid;
+  for (int i = 0; i < kNumAxes; ++i) {
+    if (any && !block.has_word(letters[i])) continue;
+    home[i] = to_program_len(params[static_cast<std::size_t>(base + i)]) - origin_offset[i] - axis_offset[i] - tool_offset[i];
+  }
+  emit_traverse(home);
+}
+
+void Interpreter::State::end_program(bool pallet) {
+  origin = 1;
+  params[5220] = 1.0;
+  for (int i = 0; i < kNumAxes; ++i) {
+    const double next = to_program_len(params[static_cast<std::size_t>(5221 + i)]);
+    pos[i] += origin_offset[i] - next;
+    origin_offset[i] = next;
+  }
+  rotation = params[5230];
+  canon.set_g5x_offset(1, origin_offset);
+  canon.set_xy_rotation(rotation);
+  if (plane != Plane::XY) {
+    plane = Plane::XY;
+    canon.select_plane(plane);
+  }
+  absolute = true;
+  feed_mode = FeedMode::UnitsPerMinute;
+  canon.set_feed_mode(0, FeedMode::UnitsPerMinute);
+  feed = 0;
+  canon.set_feed_rate(0);
+  if (!feed_override) {
+    canon.enable_feed_override();
+    feed_override = true;
+  }
+  if (!speed_override) {
+    canon.enable_speed_override(0);
+    speed_override = true;
+  }
+  if (cutter_side != 400) {
+    comp_flush();
+    cutter_side = 400;
+  }
+  canon.stop_spindle_turning(0);
+  spindle = Direction::Stopped;
+  css = false;
+  canon.set_spindle_mode(0, 0);
+  motion_mode = 10;
+  if (mist) {
+    canon.mist_off();
+    mist = false;
+  }
+  if (flood) {
+    canon.flood_off();
+    flood = false;
+  }
+  if (pallet) canon.pallet_shuttle();
+  canon.program_end();
+}
+
+void Interpreter::State::convert_stop(Status& st) {
+  const int m = block.m[kMStop];
+  if (cutter_side != 400 && (m == 0 || m == 1 || m == 60)) comp_flush();
+  switch (m) {
+    case 0: canon.program_stop(); break;
+    case 1: canon.optional_program_stop(); break;
+    case 60:
+      canon.pallet_shuttle();
+      canon.program_stop();
+      break;
+    case 2:
+    case 30:
+      end_program(m == 30);
+      program_ended = true;
+      st = Status::ProgramEnd;
+      break;
+    default: break;
+  }
+}
+
+}  // namespace cnc::interp

@@ -1,0 +1,405 @@
+// Reading lines from the program and subroutine files, and O-word control
+// flow: sub/endsub/call/return, if/elseif/else/endif, while, do/while,
+// repeat, break, continue.
+#include <cmath>
+#include <cstring>
+
+#include "core/interp/impl.hpp"
+
+namespace cnc::interp {
+
+namespace {
+uint32_t bit(OType t) { return 1u << static_cast<unsigned>(t); }
+
+bool is_percent_line(std::string_view raw) {
+  std::size_t i = 0;
+  while (i < raw.size() && (raw[i] == ' ' || raw[i] == '\t')) ++i;
+  return i < raw.size() && raw[i] == '%';
+}
+}  // namespace
+
+void Interpreter::State::open_file(const std::string& path) {
+  SourceFile f;
+  try {
+    f.reader = std::make_unique<LineReader>(path);
+  } catch (const std::exception&) {
+    fail("Unable to open file <" + path + ">");
+  }
+  f.path = path;
+  files.push_back(std::move(f));
+}
+
+void Interpreter::State::jump(int64_t offset, int line_before) { files.back().reader->seek(offset, line_before); }
+
+bool Interpreter::State::next_raw_line(std::string_view& text) {
+  for (;;) {
+    if (files.empty()) return false;
+    SourceFile& f = files.back();
+    line_offset = f.reader->offset();
+    if (f.reader->next(text)) {
+      current_line = f.reader->line_number();
+      current_file = f.path;
+      return true;
+    }
+    return false;
+  }
+}
+
+void Interpreter::State::start_skip(const std::string& label, std::initializer_list<OType> types, bool defining) {
+  skipping = true;
+  skip_label = label;
+  skip_types = 0;
+  for (OType t : types) skip_types |= bit(t);
+  skip_defining = defining;
+}
+
+bool Interpreter::State::skip_line_matches(std::string_view raw) {
+  // Cheap test first: an O-word line starts (after blanks, '/', N word) with o.
+  std::size_t i = 0;
+  auto blank = [&] {
+    while (i < raw.size() && (raw[i] == ' ' || raw[i] == '\t')) ++i;
+  };
+  blank();
+  if (i < raw.size() && raw[i] == '/') ++i;
+  blank();
+  if (i < raw.size() && (raw[i] == 'n' || raw[i] == 'N')) {
+    ++i;
+    while (i < raw.size() && (std::strchr("0123456789. \t", raw[i]) != nullptr)) ++i;
+  }
+  if (i >= raw.size() || (raw[i] != 'o' && raw[i] != 'O')) return false;
+  parse_line(raw);
+  if (block.o_type == OType::None || block.o_name != skip_label) {
+    if (skip_defining && block.o_type == OType::Sub) fail("Nested subroutine definition");
+    return false;
+  }
+  return (skip_types & bit(block.o_type)) != 0;
+}
+
+std::optional<std::string> Interpreter::State::find_sub_file(const std::string& name) const {
+  std::vector<std::filesystem::path> dirs = config.subroutine_path;
+  if (!program_path.empty()) dirs.push_back(std::filesystem::path(program_path).parent_path());
+  dirs.push_back(".");
+  for (const auto& d : dirs) {
+    for (const std::string& n : {name + ".ngc", name + ".NGC"}) {
+      const auto p = d.empty() ? std::filesystem::path(n) : d / n;
+      std::error_code ec;
+      if (std::filesystem::is_regular_file(p, ec)) return p.string();
+    }
+  }
+  return std::nullopt;
+}
+
+bool Interpreter::State::read_block() {
+  std::string_view raw;
+  for (;;) {
+    if (!next_raw_line(raw)) {
+      if (files.empty()) return false;
+      if (files.size() > 1 && files.back().path == "<mdi>") {
+        files.pop_back();
+        return false;
+      }
+      if (skipping) {
+        line_text.clear();
+        if (skip_types & bit(OType::Sub)) fail("Failed to find sub 'O" + skip_label + "' before EOF");
+        fail("File ended with no percent sign");
+      }
+      if (files.back().path == "<mdi>") {
+        files.pop_back();
+        return false;
+      }
+      if (frames.size() > 1) fail("File ended with no percent sign or program end");
+      fail(percent_seen ? "File ended with no percent sign" : "File ended with no percent sign or program end");
+    }
+    line_text.assign(raw);
+    const bool at_top = files.size() == 1 && files.back().path != "<mdi>";
+    if (first_line && at_top) {
+      first_line = false;
+      if (is_percent_line(raw)) {
+        percent_seen = true;
+        continue;
+      }
+    } else if (percent_seen && at_top && !skipping && is_percent_line(raw)) {
+      program_ended = true;
+      canon.finish();
+      return false;
+    }
+    if (skipping) {
+      if (!skip_line_matches(raw)) continue;
+      skipping = false;
+      const OType t = block.o_type;
+      // Ends of structures are consumed; else/elseif are evaluated.
+      if (t != OType::ElseIf && t != OType::Else) {
+        if (t == OType::EndSub && skip_defining) skip_defining = false;
+        continue;
+      }
+    } else {
+      parse_line(raw);
+    }
+    if (block.o_type != OType::None) {
+      handle_o_word();
+      continue;
+    }
+    // Parameter settings take effect once the whole line is read.
+    for (const Assignment& a : block.assigns) {
+      if (a.index >= 0) {
+        set_param(a.index, a.value, true);
+      } else {
+        set_named(a.name, a.value);
+      }
+    }
+    if (block.has == 0 && block.m_count == 0 && !block.has_comment && block.dollar < 0) {
+      bool any_g = false;
+      for (int g : block.g) any_g = any_g || g != -1;
+      if (!any_g) continue;
+    }
+    return true;
+  }
+}
+
+namespace {
+double eval_o_value(Interpreter::State& s) {
+  std::size_t i = s.o_args_pos;
+  const double v = s.read_expression(i);
+  return v;
+}
+}  // namespace
+
+bool Interpreter::State::handle_o_word() {
+  const std::string label = block.o_name;
+  Frame& fr = frame();
+  switch (block.o_type) {
+    case OType::Sub: {
+      SubDef d{files.back().path, files.back().reader->offset(), current_line};
+      subs[label] = d;
+      start_skip(label, {OType::EndSub}, true);
+      return true;
+    }
+    case OType::EndSub:
+    case OType::Return: {
+      bool has_value = false;
+      double value = 0;
+      std::size_t i = o_args_pos;
+      while (i < norm.size() && norm[i] == '(') read_comment(i);
+      if (i < norm.size() && norm[i] == '[') {
+        value = read_expression(i);
+        has_value = true;
+      }
+      if (frames.size() <= 1) {
+        if (block.o_type == OType::Return) fail("Bug: call stack underrun");
+        fail("Not in subroutine definition");
+      }
+      do_return(has_value, value);
+      return true;
+    }
+    case OType::Call: {
+      std::vector<double> args;
+      std::size_t i = o_args_pos;
+      while (i < norm.size()) {
+        if (norm[i] == '[') {
+          args.push_back(read_expression(i));
+        } else if (norm[i] == '(') {
+          read_comment(i);
+        } else {
+          fail("Unexpected character after O-word");
+        }
+      }
+      if (args.size() > 30) fail("Too many subroutine parameters");
+      block.call_args = std::move(args);
+      do_call();
+      return true;
+    }
+    case OType::If: {
+      const bool cond = eval_o_value(*this) != 0.0;
+      fr.if_done[label] = cond;
+      if (!cond) start_skip(label, {OType::ElseIf, OType::Else, OType::EndIf});
+      return true;
+    }
+    case OType::ElseIf: {
+      auto it = fr.if_done.find(label);
+      if (it != fr.if_done.end() && it->second) {
+        start_skip(label, {OType::EndIf});
+        return true;
+      }
+      const bool cond = eval_o_value(*this) != 0.0;
+      fr.if_done[label] = cond;
+      if (!cond) start_skip(label, {OType::ElseIf, OType::Else, OType::EndIf});
+      return true;
+    }
+    case OType::Else: {
+      auto it = fr.if_done.find(label);
+      if (it != fr.if_done.end() && it->second) {
+        start_skip(label, {OType::EndIf});
+        return true;
+      }
+      fr.if_done[label] = true;
+      return true;
+    }
+    case OType::EndIf:
+      fr.if_done.erase(label);
+      return true;
+    case OType::Do: {
+      Loop l{label, LoopKind::Do, line_offset, current_line, files.back().reader->offset(), current_line, 0};
+      fr.loops.push_back(l);
+      return true;
+    }
+    case OType::While: {
+      if (!fr.loops.empty() && fr.loops.back().label == label && fr.loops.back().kind == LoopKind::Do) {
+        const bool cond = eval_o_value(*this) != 0.0;
+        if (cond) {
+          jump(fr.loops.back().body_offset, fr.loops.back().body_line);
+        } else {
+          fr.loops.pop_back();
+        }
+        return true;
+      }
+      const bool again = !fr.loops.empty() && fr.loops.back().label == label &&
+                         fr.loops.back().kind == LoopKind::While && fr.loops.back().offset == line_offset;
+      const bool cond = eval_o_value(*this) != 0.0;
+      if (cond) {
+        if (!again) {
+          fr.loops.push_back(
+              Loop{label, LoopKind::While, line_offset, current_line, files.back().reader->offset(), current_line, 0});
+        }
+      } else {
+        if (again) fr.loops.pop_back();
+        start_skip(label, {OType::EndWhile});
+      }
+      return true;
+    }
+    case OType::EndWhile: {
+      if (fr.loops.empty() || fr.loops.back().label != label) fail("Unknown oword number");
+      jump(fr.loops.back().offset, fr.loops.back().line - 1);
+      return true;
+    }
+    case OType::Repeat: {
+      const double v = eval_o_value(*this);
+      const int count = static_cast<int>(std::lround(v));
+      if (count <= 0) {
+        start_skip(label, {OType::EndRepeat});
+        return true;
+      }
+      fr.loops.push_back(
+          Loop{label, LoopKind::Repeat, line_offset, current_line, files.back().reader->offset(), current_line, count});
+      return true;
+    }
+    case OType::EndRepeat: {
+      if (fr.loops.empty() || fr.loops.back().label != label) fail("Unknown oword number");
+      Loop& l = fr.loops.back();
+      if (--l.remaining > 0) {
+        jump(l.body_offset, l.body_line);
+      } else {
+        fr.loops.pop_back();
+      }
+      return true;
+    }
+    case OType::Break:
+    case OType::Continue: {
+      if (fr.loops.empty() || fr.loops.back().label != label) fail("Unknown oword number");
+      Loop l = fr.loops.back();
+      if (block.o_type == OType::Break) {
+        fr.loops.pop_back();
+        if (l.kind == LoopKind::While) start_skip(label, {OType::EndWhile});
+        if (l.kind == LoopKind::Repeat) start_skip(label, {OType::EndRepeat});
+        if (l.kind == LoopKind::Do) start_skip(label, {OType::While});
+        return true;
+      }
+      if (l.kind == LoopKind::While) {
+        jump(l.offset, l.line - 1);
+      } else if (l.kind == LoopKind::Do) {
+        jump(l.body_offset, l.body_line);
+      } else {
+        Loop& top = fr.loops.back();
+        if (--top.remaining > 0) {
+          jump(top.body_offset, top.body_line);
+        } else {
+          fr.loops.pop_back();
+          start_skip(label, {OType::EndRepeat});
+        }
+      }
+      return true;
+    }
+    case OType::None:
+      break;
+  }
+  return false;
+}
+
+void Interpreter::State::do_call() {
+  const std::string label = block.o_name;
+  if (frames.size() >= 64) fail("Too many subroutine levels");
+  auto it = subs.find(label);
+  if (it == subs.end()) {
+    // Look further down this file, then in a file named after the sub.
+    LineReader& r = *files.back().reader;
+    const int64_t back_offset = r.offset();
+    const int back_line = r.line_number();
+    const std::string saved_text = line_text;
+    const int saved_line = current_line;
+    std::string_view raw;
+    bool found = false;
+    if (files.back().path != "<mdi>") {
+      while (r.next(raw)) {
+        current_line = r.line_number();
+        if (skip_line_matches_sub(raw, label)) {
+          subs[label] = SubDef{files.back().path, r.offset(), r.line_number()};
+          found = true;
+          break;
+        }
+      }
+      r.seek(back_offset, back_line);
+    }
+    current_line = saved_line;
+    line_text = saved_text;
+    if (!found) {
+      const auto path = find_sub_file(label);
+      if (!path) fail("Unable to open file <" + label + ">");
+      LineReader fr(*path);
+      while (fr.next(raw)) {
+        if (skip_line_matches_sub(raw, label)) {
+          subs[label] = SubDef{*path, fr.offset(), fr.line_number()};
+          found = true;
+          break;
+        }
+      }
+      if (!found) fail("Failed to find sub 'O" + label + "' before EOF");
+    }
+    it = subs.find(label);
+  }
+  Frame f;
+  f.sub_name = label;
+  for (int k = 0; k < 30; ++k) {
+    f.saved_args[static_cast<std::size_t>(k)] = params[static_cast<std::size_t>(k + 1)];
+    params[static_cast<std::size_t>(k + 1)] =
+        k < static_cast<int>(block.call_args.size()) ? block.call_args[static_cast<std::size_t>(k)] : 0.0;
+  }
+  f.file_depth = static_cast<int>(files.size());
+  f.return_offset = files.back().reader->offset();
+  f.return_line = files.back().reader->line_number();
+  const SubDef def = it->second;
+  frames.push_back(std::move(f));
+  if (def.file != files.back().path) {
+    open_file(def.file);
+  }
+  jump(def.offset, def.line);
+}
+
+bool Interpreter::State::skip_line_matches_sub(std::string_view raw, const std::string& label) {
+  std::size_t i = 0;
+  while (i < raw.size() && (raw[i] == ' ' || raw[i] == '\t')) ++i;
+  if (i >= raw.size() || (raw[i] != 'o' && raw[i] != 'O')) return false;
+  parse_line(raw);
+  return block.o_type == OType::Sub && block.o_name == label;
+}
+
+void Interpreter::State::do_return(bool has_value, double value) {
+  Frame f = std::move(frames.back());
+  frames.pop_back();
+  for (int k = 0; k < 30; ++k) params[static_cast<std::size_t>(k + 1)] = f.saved_args[static_cast<std::size_t>(k)];
+  globals["_value"] = has_value ? value : 0.0;
+  globals["_value_returned"] = has_value ? 1.0 : 0.0;
+  if (f.saved_modal.valid) restore_modal(f.saved_modal);
+  while (static_cast<int>(files.size()) > f.file_depth) files.pop_back();
+  jump(f.return_offset, f.return_line);
+}
+
+}  // namespace cnc::interp

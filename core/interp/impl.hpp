@@ -1,0 +1,208 @@
+// Interpreter::State: everything the interpreter knows, and the member
+// functions the .cpp files of this folder implement (read.cpp: lexing and
+// expressions; flow.cpp: O-words and files; execute.cpp: blocks; motion.cpp:
+// moves, arcs, cycles, cutter compensation; params.cpp: parameters).
+#pragma once
+
+#include <string_view>
+
+#include "core/interp/state.hpp"
+
+namespace cnc::interp {
+
+struct Interpreter::State {
+  State(Canon& c, Config cfg);
+
+  Canon& canon;
+  Config config;
+
+  // ---------------- sources and flow
+  std::vector<SourceFile> files;
+  std::string program_path;
+  std::unique_ptr<LineReader> mdi;
+  int mdi_depth = -1;  // files.size() when an MDI line called into files
+  bool percent_seen = false;   // first line was '%'
+  bool first_line = true;
+  bool program_ended = false;
+  std::unordered_map<std::string, SubDef> subs;
+  std::vector<Frame> frames;  // frames[0] is the top level
+  // Skipping: read lines until one of these o-words with this label.
+  bool skipping = false;
+  std::string skip_label;
+  uint32_t skip_types = 0;  // bit per OType
+  bool skip_defining = false;  // skipping a sub definition body
+  std::string line_text;   // raw text of the block being read
+  std::string norm;        // normalized (lower case, no blanks) text
+  std::vector<std::size_t> comment_starts;  // not used by hot path
+  int current_line = 0;
+  int64_t line_offset = 0;  // offset of the line being read
+  std::size_t o_args_pos = 0;  // where an O-word's condition/arguments start in norm
+  std::string current_file;
+
+  // ---------------- the block
+  Block block;
+  bool block_ready = false;
+  bool synch_pending = false;
+
+  // ---------------- parameters
+  std::vector<double> params;
+  std::unordered_map<std::string, double> globals;
+  std::vector<bool> persistent;  // per numbered parameter
+
+  // ---------------- modal state
+  Pose pos{};  // program coordinates, program units
+  Units units = Units::Mm;
+  Plane plane = Plane::XY;
+  bool absolute = true;
+  bool ijk_absolute = false;
+  FeedMode feed_mode = FeedMode::UnitsPerMinute;
+  double feed = 0;
+  double speed = 0;
+  Direction spindle = Direction::Stopped;
+  bool css = false;
+  double css_max = 0;
+  bool mist = false, flood = false;
+  int motion_mode = 0;  // G x10; -1 for G80
+  int origin = 1;       // 1..9 = G54..G59.3
+  Pose origin_offset{};  // program units
+  Pose axis_offset{};    // G92, program units
+  double rotation = 0;   // degrees (G10 L2 R)
+  Pose tool_offset{};    // program units
+  int tool_offset_g = 490;  // 430, 431, 432, 490
+  MotionMode control = MotionMode::ExactPath;
+  double tolerance = 0, naive_tolerance = 0;
+  bool retract_old_z = true;  // G98
+  bool feed_override = true, speed_override = true, adaptive = false, feed_hold = true;
+  bool diameter_mode = false;
+  int selected_tool = -1;   // T number
+  int selected_index = -1;  // tooldata index
+  int current_index = 0;    // tooldata index the spindle tool came from
+  bool toolchange_flag = false;
+  cnc::tooltable::ToolTable tools;
+  int cutter_side = 400;  // 400 off, 410 left, 420 right
+  double cutter_radius = 0;
+  int cutter_orientation = 0;
+  bool cutter_first_move = true;
+  std::deque<CompMove> comp_queue;
+  Pose comp_program_pos{};
+  double pending_comp_feed = -1;
+  double last_tangent_x = 1, last_tangent_y = 0;  // uncompensated (programmed) position under comp
+  // canned cycles
+  double cycle_r = 0, cycle_z = 0, cycle_cc = 0;
+  int cycle_l = 1;
+  double cycle_p = 0, cycle_q = 0, cycle_i = 0, cycle_j = 0, cycle_k = 0;
+  // probe / input results
+  Pose probe_pos{};
+  bool probe_ok = false;
+  bool probe_pending = false;
+  bool input_pending = false;
+  double input_result = 0;
+  int n_number = -1;
+  ModalSnapshot saved_m70;  // M70
+
+  // ---------------- read.cpp
+  bool read_block();  // false at end of input
+  bool next_raw_line(std::string_view& text);
+  void parse_line(std::string_view raw);
+  void normalize(std::string_view raw);
+  void parse_words(std::size_t& i);
+  void read_word(std::size_t& i);
+  void read_o_word(std::size_t& i);
+  void read_parameter_setting(std::size_t& i);
+  void read_comment(std::size_t& i);
+  double read_real_value(std::size_t& i);
+  double read_real_number(std::size_t& i);
+  double read_expression(std::size_t& i);
+  double read_unary(std::size_t& i);
+  double read_parameter(std::size_t& i, bool for_exists = false);
+  int read_integer_value(std::size_t& i);
+  std::string read_name(std::size_t& i);
+  void add_g(int code);
+  void add_m(int code);
+  [[noreturn]] void fail(const std::string& message) const;
+
+  // ---------------- params.cpp
+  void init_parameters();
+  void load_parameter_file();
+  void save_parameter_file() const;
+  double get_param(int index) const;
+  void set_param(int index, double value, bool check_readonly);
+  double get_named(const std::string& name) const;
+  bool find_named(const std::string& name, double& value) const;
+  void set_named(const std::string& name, double value);
+  bool predefined(const std::string& name, double& value) const;
+  void write_position_params();
+  void write_tool_params();
+  std::string substitute_params(std::string_view text);
+
+  // ---------------- flow.cpp
+  void open_file(const std::string& path);
+  bool handle_o_word();  // true when the line needs no further execution
+  bool skip_line_matches(std::string_view raw);
+  bool skip_line_matches_sub(std::string_view raw, const std::string& label);
+  void start_skip(const std::string& label, std::initializer_list<OType> types, bool defining = false);
+  void do_call();
+  void do_return(bool has_value, double value);
+  std::optional<std::string> find_sub_file(const std::string& name) const;
+  Frame& frame() { return frames.back(); }
+  LineReader& reader() { return mdi && files.empty() ? *mdi : *files.back().reader; }
+  void jump(int64_t offset, int line_before);
+
+  // ---------------- execute.cpp
+  Status execute_block();
+  bool needs_comp_flush() const;
+  void reset_modal(bool keep_params);
+  void canon_init_calls();
+  void convert_comment();
+  void convert_feed_mode(int g);
+  void convert_spindle_mode(int g);
+  void convert_m(Status& st);
+  void convert_g(Status& st);
+  void convert_stop(Status& st);
+  void convert_tool_select();
+  void convert_tool_change(Status& st);
+  void convert_tool_length_offset(int g);
+  void convert_setup_tool(int l);
+  void convert_coord_setup(int l);
+  void convert_coordinate_system(int g);
+  void convert_axis_offsets(int g);
+  void convert_home(int g);
+  void convert_units(Units u);
+  void convert_plane(int g);
+  void convert_control_mode(int g);
+  void convert_cutter_comp(int g);
+  void convert_dwell();
+  void set_tool_offset_params();
+  void end_program(bool pallet);
+  double to_program_len(double machine_len) const;
+  double to_machine_len(double program_len) const;
+  void snapshot_modal(ModalSnapshot& s) const;
+  void restore_modal(const ModalSnapshot& s);
+  void update_tool_from_canon();
+
+  // ---------------- motion.cpp
+  void convert_motion(int g, Status& st);
+  Pose find_ends(bool g53) const;
+  void straight(int g, const Pose& end);
+  void convert_arc(int g, const Pose& end);
+  void convert_probe(int g, const Pose& end, Status& st);
+  void convert_threading(int g, const Pose& end);
+  void convert_cycle(int g, Pose end);
+  void convert_g76(const Pose& end);
+  void emit_traverse(const Pose& p);
+  void emit_feed(const Pose& p);
+  void inverse_time_feed_straight(const Pose& from, const Pose& to);
+  void inverse_time_feed_arc(double length);
+  void plane_axes(int& a1, int& a2, int& a3) const;
+  double arc_tolerance() const;
+  // cutter comp
+  void comp_straight(bool traverse, const Pose& end);
+  void comp_arc(int g, const Pose& end, double c1, double c2, int turns);
+  void comp_flush();
+  void comp_emit(const CompMove& m);
+  void comp_corner(V2Ref start, V2Ref t_new, bool new_is_arc, V2Ref center, double tool_r, int rotation);
+};
+
+const char* plane_name(Plane p);
+
+}  // namespace cnc::interp

@@ -1,0 +1,318 @@
+// The public Interpreter API over Interpreter::State.
+#include "core/interp/interp.hpp"
+
+#include <sstream>
+
+#include "core/ini/ini_file.hpp"
+#include "core/util/strings.hpp"
+#include "core/interp/impl.hpp"
+
+namespace cnc::interp {
+
+InterpError::InterpError(std::string message, std::string file, int line, std::string block_text)
+    : std::runtime_error(file.empty() ? message : file + ":" + std::to_string(line) + ": " + message),
+      message_(std::move(message)), file_(std::move(file)), line_(line), block_text_(std::move(block_text)) {}
+
+const char* to_string(Status s) noexcept {
+  switch (s) {
+    case Status::Ok: return "ok";
+    case Status::ExecuteFinish: return "execute-finish";
+    case Status::SynchRequired: return "synch-required";
+    case Status::ProgramEnd: return "program-end";
+    case Status::EndOfFile: return "end-of-file";
+  }
+  return "?";
+}
+
+const char* to_string(Units u) noexcept {
+  switch (u) {
+    case Units::Inch: return "CANON_UNITS_INCHES";
+    case Units::Mm: return "CANON_UNITS_MM";
+    case Units::Cm: return "CANON_UNITS_CM";
+  }
+  return "?";
+}
+
+const char* to_string(Plane p) noexcept {
+  switch (p) {
+    case Plane::XY: return "CANON_PLANE_XY";
+    case Plane::YZ: return "CANON_PLANE_YZ";
+    case Plane::XZ: return "CANON_PLANE_XZ";
+    case Plane::UV: return "CANON_PLANE_UV";
+    case Plane::VW: return "CANON_PLANE_VW";
+    case Plane::UW: return "CANON_PLANE_UW";
+  }
+  return "?";
+}
+
+Config Config::from_ini(const cnc::ini::IniFile& ini) {
+  Config c;
+  c.ini = &ini;
+  if (const auto v = ini.find("RS274NGC", "PARAMETER_FILE")) c.parameter_file = ini.resolve_path(*v);
+  if (const auto v = ini.find("RS274NGC", "SUBROUTINE_PATH")) {
+    for (const auto& part : cnc::split(*v, ':', true)) c.subroutine_path.push_back(ini.resolve_path(part));
+  }
+  if (const auto v = ini.find("RS274NGC", "USER_M_PATH")) {
+    for (const auto& part : cnc::split(*v, ':', true)) c.user_m_path.push_back(ini.resolve_path(part));
+  }
+  c.startup_code = ini.get_string("RS274NGC", "RS274NGC_STARTUP_CODE", "");
+  c.random_toolchanger = ini.get_bool("EMCIO", "RANDOM_TOOLCHANGER", false);
+  c.tool_change_with_spindle_on = ini.get_bool("EMCIO", "TOOL_CHANGE_WITH_SPINDLE_ON", false);
+  c.center_arc_radius_tolerance_inch =
+      ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_INCH", c.center_arc_radius_tolerance_inch, {0, 1});
+  c.center_arc_radius_tolerance_mm =
+      ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_MM", c.center_arc_radius_tolerance_mm, {0, 25});
+  if (const auto v = ini.find("TRAJ", "COORDINATES")) {
+    unsigned mask = 0;
+    for (char ch : *v) {
+      const int a = axis_index(ch);
+      if (a >= 0) mask |= 1u << a;
+    }
+    if (mask != 0) c.axis_mask = mask;
+  }
+  if (const auto v = ini.find("TRAJ", "LINEAR_UNITS")) {
+    const std::string u = cnc::to_lower(*v);
+    if (u == "inch" || u == "in" || u == "imperial") c.default_units = Units::Inch;
+  }
+  c.lathe_diameter_mode = ini.get_bool("DISPLAY", "LATHE", false) && false;
+  return c;
+}
+
+Interpreter::State::State(Canon& c, Config cfg) : canon(c), config(std::move(cfg)) {
+  tools = cnc::tooltable::ToolTable(config.random_toolchanger ? cnc::tooltable::ChangerKind::Random
+                                                              : cnc::tooltable::ChangerKind::NonRandom);
+  init_parameters();
+  frames.emplace_back();
+}
+
+Interpreter::Interpreter(Canon& canon, Config config) : s_(std::make_unique<State>(canon, std::move(config))) {}
+
+Interpreter::~Interpreter() = default;
+
+void Interpreter::init() {
+  State& s = *s_;
+  s.files.clear();
+  s.subs.clear();
+  s.init_parameters();
+  s.load_parameter_file();
+  s.reset_modal(true);
+  s.update_tool_from_canon();
+  s.canon_init_calls();
+  if (!s.config.startup_code.empty()) {
+    execute(s.config.startup_code);
+  }
+}
+
+void Interpreter::reset() {
+  State& s = *s_;
+  s.files.clear();
+  s.subs.clear();
+  s.program_path.clear();
+  s.reset_modal(true);
+  s.update_tool_from_canon();
+  s.canon.on_reset();
+}
+
+void Interpreter::open(const std::filesystem::path& program) {
+  State& s = *s_;
+  s.files.clear();
+  s.frames.clear();
+  s.frames.emplace_back();
+  s.subs.clear();
+  s.percent_seen = false;
+  s.first_line = true;
+  s.program_ended = false;
+  s.skipping = false;
+  s.current_line = 0;
+  s.current_file = program.string();
+  s.line_text.clear();
+  s.program_path = program.string();
+  s.open_file(program.string());
+}
+
+void Interpreter::open_at_line(const std::filesystem::path& program, int line) {
+  open(program);
+  State& s = *s_;
+  // Learn subroutine definitions on the way; execute nothing.
+  std::string_view raw;
+  LineReader& r = *s.files.back().reader;
+  while (r.line_number() + 1 < line) {
+    const int64_t off = r.offset();
+    if (!r.next(raw)) break;
+    s.current_line = r.line_number();
+    s.line_text.assign(raw);
+    if (s.first_line) {
+      s.first_line = false;
+      std::string_view t = cnc::trim(raw);
+      if (!t.empty() && t[0] == '%') {
+        s.percent_seen = true;
+        continue;
+      }
+    }
+    std::size_t i = 0;
+    while (i < raw.size() && (raw[i] == ' ' || raw[i] == '\t')) ++i;
+    if (i >= raw.size() || (raw[i] != 'o' && raw[i] != 'O')) continue;
+    s.parse_line(raw);
+    if (s.block.o_type == OType::Sub) {
+      s.subs[s.block.o_name] = SubDef{s.files.back().path, r.offset(), r.line_number()};
+    }
+    (void)off;
+  }
+}
+
+void Interpreter::close() {
+  s_->files.clear();
+  s_->program_path.clear();
+}
+
+bool Interpreter::is_open() const noexcept { return !s_->files.empty(); }
+
+Status Interpreter::read() {
+  State& s = *s_;
+  if (s.synch_pending) return Status::SynchRequired;
+  if (s.files.empty()) {
+    if (s.program_ended) return Status::ProgramEnd;
+    throw InterpError("File not open", "", 0, "");
+  }
+  if (!s.read_block()) {
+    s.block_ready = false;
+    if (s.program_ended) return Status::ProgramEnd;
+    return Status::EndOfFile;
+  }
+  s.block_ready = true;
+  return Status::Ok;
+}
+
+Status Interpreter::read(std::string_view mdi_line) {
+  State& s = *s_;
+  if (s.synch_pending) return Status::SynchRequired;
+  SourceFile f;
+  f.reader = std::make_unique<LineReader>(LineReader::from_string(std::string(mdi_line)));
+  f.path = "<mdi>";
+  s.files.push_back(std::move(f));
+  s.first_line = false;
+  if (!s.read_block()) {
+    s.block_ready = false;
+    return Status::EndOfFile;
+  }
+  s.block_ready = true;
+  return Status::Ok;
+}
+
+Status Interpreter::execute() {
+  State& s = *s_;
+  if (!s.block_ready) return Status::Ok;
+  s.block_ready = false;
+  const Status st = s.execute_block();
+  if (st == Status::ExecuteFinish) s.synch_pending = true;
+  if (st == Status::ProgramEnd) {
+    s.files.clear();
+    s.frames.clear();
+    s.frames.emplace_back();
+  }
+  return st;
+}
+
+Status Interpreter::execute(std::string_view mdi_line) {
+  State& s = *s_;
+  const std::size_t depth = s.files.size();
+  Status st = read(mdi_line);
+  Status last = Status::Ok;
+  while (st == Status::Ok) {
+    last = execute();
+    if (last == Status::ExecuteFinish) synch();
+    if (last == Status::ProgramEnd) return last;
+    if (s.files.size() <= depth) break;
+    st = read();
+  }
+  while (s.files.size() > depth) s.files.pop_back();
+  return last == Status::ExecuteFinish ? Status::Ok : last;
+}
+
+void Interpreter::synch() {
+  State& s = *s_;
+  s.pos = s.canon.current_position();
+  s.update_tool_from_canon();
+  if (s.probe_pending) {
+    s.probe_pending = false;
+    s.probe_pos = s.canon.probe_position();
+    s.probe_ok = s.canon.probe_tripped();
+    for (int i = 0; i < kNumAxes; ++i) s.params[static_cast<std::size_t>(5061 + i)] = s.probe_pos[i];
+    s.params[5070] = s.probe_ok ? 1.0 : 0.0;
+  }
+  s.params[5399] = s.canon.input_value();
+  s.synch_pending = false;
+}
+
+bool Interpreter::is_synch_pending() const noexcept { return s_->synch_pending; }
+
+Status Interpreter::run_to_end() {
+  for (;;) {
+    Status st = read();
+    if (st == Status::SynchRequired) {
+      synch();
+      continue;
+    }
+    if (st != Status::Ok) return st;
+    st = execute();
+    if (st == Status::ExecuteFinish) synch();
+    if (st == Status::ProgramEnd) return st;
+  }
+}
+
+void Interpreter::save_parameters() const { s_->save_parameter_file(); }
+
+int Interpreter::line() const noexcept { return s_->current_line; }
+int Interpreter::n_number() const noexcept { return s_->n_number; }
+const std::string& Interpreter::file_name() const noexcept { return s_->current_file; }
+int Interpreter::call_level() const noexcept { return static_cast<int>(s_->frames.size()) - 1; }
+
+double Interpreter::parameter(int index) const {
+  if (index < 1 || index >= kMaxParameters) return 0.0;
+  return s_->get_param(index);
+}
+
+void Interpreter::set_parameter(int index, double value) {
+  if (index < 1 || index >= kMaxParameters) return;
+  s_->params[static_cast<std::size_t>(index)] = value;
+}
+
+bool Interpreter::named_parameter(std::string_view name, double& value) const {
+  return s_->find_named(cnc::to_lower(name), value);
+}
+
+std::vector<int> Interpreter::active_g_codes() const {
+  const State& s = *s_;
+  std::vector<int> g;
+  g.push_back(s.motion_mode < 0 ? 800 : s.motion_mode);
+  static constexpr int planes[] = {170, 190, 180, 171, 191, 181};
+  g.push_back(planes[static_cast<int>(s.plane)]);
+  g.push_back(s.absolute ? 900 : 910);
+  g.push_back(s.ijk_absolute ? 901 : 911);
+  g.push_back(s.feed_mode == FeedMode::InverseTime ? 930 : s.feed_mode == FeedMode::UnitsPerRev ? 950 : 940);
+  g.push_back(s.units == Units::Inch ? 200 : 210);
+  g.push_back(s.cutter_side);
+  g.push_back(s.tool_offset_g);
+  g.push_back(s.retract_old_z ? 980 : 990);
+  static constexpr int coords[] = {540, 550, 560, 570, 580, 590, 591, 592, 593};
+  g.push_back(coords[s.origin - 1]);
+  g.push_back(s.control == MotionMode::ExactPath ? 610 : s.control == MotionMode::ExactStop ? 611 : 640);
+  g.push_back(s.css ? 960 : 970);
+  g.push_back(s.diameter_mode ? 70 : 80);
+  return g;
+}
+
+std::vector<int> Interpreter::active_m_codes() const {
+  const State& s = *s_;
+  std::vector<int> m;
+  m.push_back(s.spindle == Direction::Clockwise ? 3 : s.spindle == Direction::CounterClockwise ? 4 : 5);
+  if (s.mist) m.push_back(7);
+  if (s.flood) m.push_back(8);
+  if (!s.mist && !s.flood) m.push_back(9);
+  m.push_back(s.feed_override && s.speed_override ? 48 : 49);
+  return m;
+}
+
+Pose Interpreter::position() const { return s_->pos; }
+
+}  // namespace cnc::interp

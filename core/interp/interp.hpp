@@ -1,0 +1,161 @@
+// RS274/NGC interpreter (LinuxCNC's G-code dialect): reads a program block by
+// block, keeps the modal state, and calls a Canon for every machining effect.
+// Non-realtime (task controller side); errors throw InterpError carrying the
+// line and LinuxCNC's wording. Files are streamed, never loaded whole.
+//
+// Read-ahead and synchronisation: execute() returns Status::ExecuteFinish
+// after a block whose result depends on the machine (probe, M66 input wait,
+// tool change, M61, G10 L10/L11 reading the position). The caller must then
+// let the machine finish everything queued and call synch() before the next
+// read(); until it does, read() returns Status::SynchRequired and reads
+// nothing. synch() re-reads position, probe result, input value and the tool
+// table through the Canon queries.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/interp/canon.hpp"
+
+namespace cnc::ini {
+class IniFile;
+}
+
+namespace cnc::interp {
+
+// An interpreter error: LinuxCNC's message text, the file and line.
+class InterpError : public std::runtime_error {
+ public:
+  InterpError(std::string message, std::string file, int line, std::string block_text);
+  const std::string& message() const noexcept { return message_; }
+  const std::string& file() const noexcept { return file_; }
+  int line() const noexcept { return line_; }
+  const std::string& block_text() const noexcept { return block_text_; }
+
+ private:
+  std::string message_;
+  std::string file_;
+  int line_;
+  std::string block_text_;
+};
+
+enum class Status {
+  Ok,             // block read/executed; go on
+  ExecuteFinish,  // executed; machine must finish, then synch() before read()
+  SynchRequired,  // read() refused: call synch() first
+  ProgramEnd,     // M2/M30 executed, or end of file after %
+  EndOfFile,      // no more blocks (file ended without M2/% )
+};
+const char* to_string(Status s) noexcept;
+
+struct Config {
+  // [RS274NGC]PARAMETER_FILE; empty: no persistence.
+  std::filesystem::path parameter_file;
+  // [RS274NGC]SUBROUTINE_PATH (colon separated in the INI), searched for
+  // "name.ngc" when a subroutine is not defined in the program.
+  std::vector<std::filesystem::path> subroutine_path;
+  // [RS274NGC]USER_M_PATH: folders searched for M100-M199 programs. Empty:
+  // user M codes are unknown ("off unless configured").
+  std::vector<std::filesystem::path> user_m_path;
+  // [RS274NGC]RS274NGC_STARTUP_CODE, executed by init().
+  std::string startup_code;
+  // [EMCIO]RANDOM_TOOLCHANGER
+  bool random_toolchanger = false;
+  // [RS274NGC]CENTER_ARC_RADIUS_TOLERANCE_INCH/_MM
+  double center_arc_radius_tolerance_inch = 0.00005;
+  double center_arc_radius_tolerance_mm = 0.00127;
+  // Axes the machine has (bit i: axis i of XYZABCUVW).
+  unsigned axis_mask = 0x1ff;
+  // Length units the interpreter starts in.
+  Units default_units = Units::Mm;
+  // INI for #<_ini[section]key>; may be null.
+  const cnc::ini::IniFile* ini = nullptr;
+  // Lathe: start in diameter mode (G7).
+  bool lathe_diameter_mode = false;
+  // [EMCIO]TOOL_CHANGE_WITH_SPINDLE_ON: M6 leaves the spindle running.
+  bool tool_change_with_spindle_on = false;
+  // Block delete switch ('/' lines skipped when on).
+  bool block_delete = false;
+  // Initial feed/traverse comments ("interpreter: ...") as LinuxCNC emits.
+  bool linuxcnc_comments = true;
+  // Report deprecated / fixed LinuxCNC buglets exactly as LinuxCNC 2.9 does
+  // (see docs/interpreter.md, "Deliberate differences").
+  bool linuxcnc_buglets = false;
+
+  // Fills the fields above from [RS274NGC], [EMCIO] and [TRAJ].
+  static Config from_ini(const cnc::ini::IniFile& ini);
+};
+
+class Interpreter {
+ public:
+  Interpreter(Canon& canon, Config config = {});
+  ~Interpreter();
+  Interpreter(const Interpreter&) = delete;
+  Interpreter& operator=(const Interpreter&) = delete;
+
+  // Resets all state to power-on defaults, loads the parameter file, calls
+  // the Canon's initial calls and runs the start-up code.
+  void init();
+  // Back to the state after init() but keeps parameters; closes the
+  // program. Used on abort.
+  void reset();
+
+  // Opens a program file; throws InterpError when it cannot be read.
+  void open(const std::filesystem::path& program);
+  // Run-from-line: opens the program and positions reading at `line`
+  // (1-based). Subroutine definitions before the line are learned but
+  // nothing is executed; the task controller reconstructs modal state.
+  void open_at_line(const std::filesystem::path& program, int line);
+  void close();
+  bool is_open() const noexcept;
+
+  // Reads the next block of the open program (with O-word flow). Ok: a
+  // block is ready for execute(). Throws InterpError.
+  Status read();
+  // Reads an MDI line instead of the program.
+  Status read(std::string_view mdi_line);
+  // Executes the block last read. Throws InterpError.
+  Status execute();
+  // read(line) then execute() (and whatever subroutine it calls).
+  Status execute(std::string_view mdi_line);
+  // Re-reads the machine state after the machine caught up.
+  void synch();
+  bool is_synch_pending() const noexcept;
+
+  // Runs the whole open program to the end, calling synch() at every
+  // synch point (for tools, tests and benchmarks where the Canon answers at
+  // once). Returns ProgramEnd or EndOfFile.
+  Status run_to_end();
+
+  // Writes the persistent parameters to the parameter file (atomically).
+  void save_parameters() const;
+
+  // Line number (1-based) of the block last read; 0 for MDI.
+  int line() const noexcept;
+  // Number of the block's N word, -1 when none.
+  int n_number() const noexcept;
+  const std::string& file_name() const noexcept;
+  // Subroutine call depth (0 at top level).
+  int call_level() const noexcept;
+
+  // Numbered and named parameter access (for tools and tests).
+  double parameter(int index) const;
+  void set_parameter(int index, double value);
+  bool named_parameter(std::string_view name, double& value) const;
+
+  // The active G and M codes as LinuxCNC reports them (G x10, e.g. 641 for G64.1).
+  std::vector<int> active_g_codes() const;
+  std::vector<int> active_m_codes() const;
+  Pose position() const;  // program coordinates, program units
+
+  struct State;
+
+ private:
+  std::unique_ptr<State> s_;
+};
+
+}  // namespace cnc::interp

@@ -1,0 +1,296 @@
+// Motion: straight moves, arcs (IJK and R forms, P turns, three planes),
+// probing, spindle-synchronised moves, G28/G30 helpers, canned cycles.
+#include <cmath>
+#include <cstdio>
+
+#include "core/interp/impl.hpp"
+
+namespace cnc::interp {
+
+namespace {
+constexpr char kLetters[] = "xyzabcuvw";
+
+const char* plane_upper(int axis) {
+  static constexpr const char* names[] = {"X", "Y", "Z", "A", "B", "C", "U", "V", "W"};
+  return names[axis];
+}
+}  // namespace
+
+const char* plane_name(Plane p) {
+  switch (p) {
+    case Plane::XY: return "XY";
+    case Plane::YZ: return "YZ";
+    case Plane::XZ: return "XZ";
+    case Plane::UV: return "UV";
+    case Plane::VW: return "VW";
+    case Plane::UW: return "UW";
+  }
+  return "?";
+}
+
+void Interpreter::State::plane_axes(int& a1, int& a2, int& a3) const {
+  switch (plane) {
+    case Plane::XZ: a1 = 2; a2 = 0; a3 = 1; break;
+    case Plane::YZ: a1 = 1; a2 = 2; a3 = 0; break;
+    default: a1 = 0; a2 = 1; a3 = 2; break;
+  }
+}
+
+double Interpreter::State::arc_tolerance() const {
+  return units == Units::Inch ? config.center_arc_radius_tolerance_inch : config.center_arc_radius_tolerance_mm;
+}
+
+Pose Interpreter::State::find_ends(bool g53) const {
+  const Pose& base = cutter_side != 400 ? comp_program_pos : pos;
+  Pose end = base;
+  for (int i = 0; i < kNumAxes; ++i) {
+    const char c = kLetters[i];
+    if (!((config.axis_mask >> i) & 1u) || !block.has_word(c)) continue;
+    double v = block.get(c);
+    if (i == 0 && diameter_mode) v /= 2.0;
+    if (g53) {
+      end[i] = v - origin_offset[i] - axis_offset[i] - tool_offset[i];
+    } else if (absolute) {
+      end[i] = v;
+    } else {
+      end[i] = base[i] + v;
+    }
+  }
+  return end;
+}
+
+void Interpreter::State::emit_traverse(const Pose& p) {
+  canon.straight_traverse(current_line, p);
+  pos = p;
+}
+
+void Interpreter::State::emit_feed(const Pose& p) {
+  canon.straight_feed(current_line, p);
+  pos = p;
+}
+
+void Interpreter::State::inverse_time_feed_straight(const Pose& from, const Pose& to) {
+  double lin = 0, rot = 0;
+  for (int i : {0, 1, 2, 6, 7, 8}) lin += (to[i] - from[i]) * (to[i] - from[i]);
+  for (int i : {3, 4, 5}) rot += (to[i] - from[i]) * (to[i] - from[i]);
+  const double length = lin > 0 ? std::sqrt(lin) : std::sqrt(rot);
+  const double rate = length * block.get('f');
+  feed = rate < 0.1 ? 0.1 : rate;
+  canon.set_feed_rate(feed);
+}
+
+void Interpreter::State::inverse_time_feed_arc(double length) {
+  const double rate = length * block.get('f');
+  feed = rate < 0.1 ? 0.1 : rate;
+  canon.set_feed_rate(feed);
+}
+
+void Interpreter::State::convert_motion(int g, Status& st) {
+  const bool g53 = block.g[kGNonModal] == 530;
+  if (g53) {
+    if (g != 0 && g != 10) fail("Must use g0 or g1 with g53");
+    if (!absolute) fail("Cannot use g53 incremental");
+    if (cutter_side != 400) fail("Cannot use g53 with cutter radius comp");
+  }
+  switch (g) {
+    case 0:
+    case 10: {
+      motion_mode = g;
+      if (!block.any_axis(config.axis_mask)) return;
+      straight(g, find_ends(g53));
+      return;
+    }
+    case 20:
+    case 30:
+      motion_mode = g;
+      convert_arc(g, find_ends(false));
+      return;
+    case 382: case 383: case 384: case 385:
+      motion_mode = g;
+      convert_probe(g, find_ends(false), st);
+      return;
+    case 330:
+    case 331:
+      motion_mode = g;
+      convert_threading(g, find_ends(false));
+      return;
+    case 800:
+      motion_mode = -1;
+      return;
+    case 760:
+      motion_mode = g;
+      convert_g76(find_ends(false));
+      return;
+    case 730: case 740: case 810: case 820: case 830: case 840: case 850: case 860: case 870: case 880: case 890:
+      convert_cycle(g, pos);
+      motion_mode = g;
+      return;
+    default:
+      fail("G5.x splines are not supported");
+  }
+}
+
+void Interpreter::State::straight(int g, const Pose& end) {
+  if (g == 10) {
+    if (feed_mode == FeedMode::UnitsPerMinute && feed == 0.0) fail("Cannot do g1 with zero feed rate");
+    if (feed_mode == FeedMode::InverseTime && !block.has_word('f')) fail("F word missing with inverse time g1 move");
+    if (feed_mode == FeedMode::UnitsPerRev && speed == 0.0) fail("Cannot feed with zero spindle speed in feed per rev mode");
+  }
+  if (cutter_side != 400) {
+    comp_straight(g == 0, end);
+    return;
+  }
+  if (g == 0) {
+    emit_traverse(end);
+  } else {
+    if (feed_mode == FeedMode::InverseTime) inverse_time_feed_straight(pos, end);
+    emit_feed(end);
+  }
+}
+
+void Interpreter::State::convert_arc(int g, const Pose& end) {
+  if (plane == Plane::UV || plane == Plane::VW || plane == Plane::UW) fail("Cannot do an arc in planes G17.1, G18.1, or G19.1");
+  int a1, a2, a3;
+  plane_axes(a1, a2, a3);
+  const char l1 = kLetters[a1], l2 = kLetters[a2];
+  // centre offsets: I J K go with X Y Z
+  const char o1 = static_cast<char>('i' + a1), o2 = static_cast<char>('i' + a2);
+  const bool has_r = block.has_word('r');
+  const bool has_ij = block.has_word(o1) || block.has_word(o2);
+  if (has_r && has_ij) fail("Mixed radius ijk format for arc");
+  if (!has_r && !has_ij) fail("R i j k words all missing for arc");
+  if (has_r && !block.has_word(l1) && !block.has_word(l2)) {
+    static constexpr const char* msgs[] = {"X and y words missing for arc in xy plane", "Y and z words missing for arc in yz plane",
+                                           "X and z words missing for arc in xz plane"};
+    fail(msgs[plane == Plane::XY ? 0 : plane == Plane::YZ ? 1 : 2]);
+  }
+  if (feed_mode == FeedMode::UnitsPerMinute && feed == 0.0) fail("Cannot make arc with zero feed rate");
+  if (feed_mode == FeedMode::InverseTime && !block.has_word('f')) fail("F word missing with inverse time arc move");
+  if (feed_mode == FeedMode::UnitsPerRev && speed == 0.0) fail("Cannot feed with zero spindle speed in feed per rev mode");
+  int turns = 1;
+  if (block.has_word('p')) {
+    const double p = block.get('p');
+    turns = static_cast<int>(std::lround(p));
+    if (std::fabs(p - turns) > 0.0001 || turns < 1) fail("P value not an integer or less than one with G2/G3");
+  }
+  const Pose& start = cutter_side != 400 ? comp_program_pos : pos;
+  const double s1 = start[a1], s2 = start[a2];
+  const double e1 = end[a1], e2 = end[a2];
+  const double tol = arc_tolerance();
+  double c1 = 0, c2 = 0;
+  char buf[512];
+  if (has_r) {
+    const double radius = block.get('r');
+    if (std::fabs(s1 - e1) < tol && std::fabs(s2 - e2) < tol) fail("Current point same as end point of arc");
+    const double abs_r = std::fabs(radius);
+    const double m1 = (e1 + s1) / 2.0, m2 = (e2 + s2) / 2.0;
+    double half = std::hypot(m1 - e1, m2 - e2);
+    if (half - abs_r > tol) fail("Arc radius too small to reach end point");
+    if (half / abs_r > (1.0 - kTiny)) half = abs_r;
+    const double chord = std::atan2(e2 - s2, e1 - s1);
+    const double theta = ((g == 20 && radius > 0) || (g == 30 && radius < 0)) ? chord - kPi / 2.0 : chord + kPi / 2.0;
+    const double offset = abs_r * std::sin(std::acos(half / abs_r));
+    c1 = m1 + offset * std::cos(theta);
+    c2 = m2 + offset * std::sin(theta);
+  } else {
+    if (ijk_absolute) {
+      if (!block.has_word(o1) || !block.has_word(o2)) {
+        std::snprintf(buf, sizeof buf, "%c word missing in absolute center arc",
+                      static_cast<char>((block.has_word(o1) ? o2 : o1) - 32));
+        fail(buf);
+      }
+      c1 = block.get(o1);
+      c2 = block.get(o2);
+    } else {
+      c1 = s1 + (block.has_word(o1) ? block.get(o1) : 0.0);
+      c2 = s2 + (block.has_word(o2) ? block.get(o2) : 0.0);
+    }
+    const double r1 = std::hypot(s1 - c1, s2 - c2);
+    const double r2 = std::hypot(e1 - c1, e2 - c2);
+    const char* n1 = plane_upper(a1);
+    const char* n2 = plane_upper(a2);
+    if (r1 < tol || r2 < tol) {
+      std::snprintf(buf, sizeof buf, "Zero-radius arc: start=(%s%.4f,%s%.4f) center=(%s%.4f,%s%.4f) end=(%s%.4f,%s%.4f) r1=%.4f r2=%.4f",
+                    n1, s1, n2, s2, n1, c1, n2, c2, n1, e1, n2, e2, r1, r2);
+      fail(buf);
+    }
+    const double abs_err = std::fabs(r1 - r2);
+    const double rel_err = abs_err / std::max(r1, r2);
+    if (abs_err > tol * 100.0 || (abs_err > tol && rel_err > 0.001)) {
+      std::snprintf(buf, sizeof buf,
+                    "Radius to end of arc differs from radius to start: start=(%s%.4f,%s%.4f) center=(%s%.4f,%s%.4f) "
+                    "end=(%s%.4f,%s%.4f) r1=%.4f r2=%.4f abs_err=%.4g rel_err=%.4f%%",
+                    n1, s1, n2, s2, n1, c1, n2, c2, n1, e1, n2, e2, r1, r2, abs_err, rel_err * 100.0);
+      fail(buf);
+    }
+  }
+  const int rotation = g == 20 ? -turns : turns;
+  if (cutter_side != 400) {
+    comp_arc(g, end, c1, c2, rotation);
+    return;
+  }
+  if (feed_mode == FeedMode::InverseTime) {
+    // helix length: planar arc length and the normal travel
+    double a_start = std::atan2(s2 - c2, s1 - c1), a_end = std::atan2(e2 - c2, e1 - c1);
+    double sweep = a_end - a_start;
+    if (rotation > 0) {
+      if (sweep <= 0) sweep += 2 * kPi;
+      sweep += 2 * kPi * (rotation - 1);
+    } else {
+      if (sweep >= 0) sweep -= 2 * kPi;
+      sweep -= 2 * kPi * (-rotation - 1);
+    }
+    const double r = std::hypot(s1 - c1, s2 - c2);
+    inverse_time_feed_arc(std::hypot(std::fabs(sweep) * r, end[a3] - start[a3]));
+  }
+  canon.arc_feed(current_line, e1, e2, c1, c2, rotation, end[a3], end);
+  pos = end;
+}
+
+void Interpreter::State::convert_probe(int g, const Pose& end, Status& st) {
+  if (cutter_side != 400) fail("Cannot probe with cutter radius comp on");
+  if (feed_mode == FeedMode::UnitsPerRev) fail("Cannot probe with feed per rev mode");
+  if (feed == 0.0) fail("Cannot probe with zero feed rate");
+  if (!block.any_axis(config.axis_mask)) fail("All axes missing with motion code");
+  double d2 = 0;
+  for (int i = 0; i < 3; ++i) d2 += (end[i] - pos[i]) * (end[i] - pos[i]);
+  const double min_d = units == Units::Mm ? 0.254 : 0.01;
+  if (std::sqrt(d2) < min_d) fail("Start point too close to probe point");
+  canon.turn_probe_on();
+  const ProbeKind kind = g == 382 ? ProbeKind::TowardStopOnContact
+                       : g == 383 ? ProbeKind::TowardNoError
+                       : g == 384 ? ProbeKind::AwayStopOnLoss
+                                  : ProbeKind::AwayNoError;
+  canon.straight_probe(current_line, end, kind);
+  canon.turn_probe_off();
+  pos = end;
+  probe_pending = true;
+  st = Status::ExecuteFinish;
+}
+
+void Interpreter::State::convert_threading(int g, const Pose& end) {
+  if (!block.has_word('k')) fail("K word missing with g33/g33.1");
+  if (spindle == Direction::Stopped) fail(g == 330 ? "Spindle not turning in G33" : "Spindle not turning in G33.1");
+  if (cutter_side != 400 && g == 331) fail("G33.1 cannot be used with cutter compensation enabled");
+  canon.start_speed_feed_synch(0, block.get('k'), false);
+  if (g == 330) {
+    if (cutter_side != 400) {
+      comp_straight(false, end);
+    } else {
+      emit_feed(end);
+    }
+  } else {
+    canon.rigid_tap(current_line, end, 1.0);
+    // the tap returns to where it started
+  }
+  canon.stop_speed_feed_synch();
+}
+
+void Interpreter::State::convert_g76(const Pose& end) {
+  (void)end;
+  if (cutter_side != 400) fail("Cannot use G76 threading cycle with cutter radius compensation on");
+  if (plane != Plane::XZ) fail("G76 with lathe tool, but plane is not G18");
+  fail("G76 is not supported");
+}
+
+}  // namespace cnc::interp

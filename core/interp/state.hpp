@@ -1,0 +1,146 @@
+// Internal state of the interpreter (not a public header): the parsed block,
+// the modal settings, parameters, call frames and the streamed sources.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "core/interp/interp.hpp"
+#include "core/interp/line_reader.hpp"
+#include "core/tooltable/tool_table.hpp"
+
+namespace cnc::interp {
+
+inline constexpr int kMaxParameters = 5602;
+inline constexpr double kPi = 3.14159265358979323846;
+inline constexpr double kTiny = 1e-12;
+inline constexpr double kMmPerInch = 25.4;
+
+enum class OType : uint8_t {
+  None, Sub, EndSub, Call, Return, If, ElseIf, Else, EndIf, Do, While, EndWhile, Repeat, EndRepeat, Break, Continue
+};
+
+// Modal groups, indexed as LinuxCNC does.
+enum GGroup : int {
+  kGNonModal = 0, kGMotion = 1, kGPlane = 2, kGDistance = 3, kGIjk = 4, kGFeedMode = 5, kGUnits = 6,
+  kGCutter = 7, kGToolOffset = 8, kGRetract = 10, kGCoordSys = 12, kGControl = 13, kGSpindleMode = 14,
+  kGLathe = 15, kGNumGroups = 16
+};
+enum MGroup : int {
+  kMStop = 4, kMIo = 5, kMToolChange = 6, kMSpindle = 7, kMCoolant = 8, kMOverride = 9, kMUser = 10,
+  kMState = 3, kMNumGroups = 11
+};
+
+struct Assignment {
+  int index = -1;    // numbered parameter, or -1 for named
+  std::string name;  // named parameter (lower case)
+  double value = 0;
+};
+
+struct Block {
+  int line = 0;
+  int n_number = -1;
+  uint32_t has = 0;  // bit (letter - 'a') set when the word is present
+  std::array<double, 26> v{};
+  std::array<int, kGNumGroups> g{};  // code x10 or -1
+  std::array<int, kMNumGroups> m{};  // code or -1
+  int m_count = 0;
+  int dollar = -1;  // $ spindle number
+  bool has_comment = false;
+  std::string comment;
+  OType o_type = OType::None;
+  std::string o_name;
+  bool o_has_value = false;
+  double o_value = 0;
+  std::vector<double> call_args;
+  std::vector<Assignment> assigns;
+  int motion = -1;  // motion G code x10 used by this block (-1 none)
+
+  void clear();
+  bool has_word(char c) const noexcept { return (has >> (c - 'a')) & 1u; }
+  double get(char c) const noexcept { return v[static_cast<std::size_t>(c - 'a')]; }
+  void set(char c, double x) noexcept {
+    has |= 1u << (c - 'a');
+    v[static_cast<std::size_t>(c - 'a')] = x;
+  }
+  void unset(char c) noexcept { has &= ~(1u << (c - 'a')); }
+  bool any_axis(unsigned mask) const noexcept;
+};
+
+enum class LoopKind : uint8_t { While, Do, Repeat };
+
+struct Loop {
+  std::string label;
+  LoopKind kind;
+  int64_t offset;  // start of the loop's opening line
+  int line;        // its line number
+  int64_t body_offset;  // first line of the body
+  int body_line;
+  int remaining = 0;  // repeat
+};
+
+struct SubDef {
+  std::string file;
+  int64_t offset = 0;  // first body line
+  int line = 0;
+};
+
+// Modal state saved by M70/M73 (and restored by M72 / at return).
+struct ModalSnapshot {
+  bool valid = false;
+  Units units = Units::Mm;
+  Plane plane = Plane::XY;
+  bool absolute = true;
+  bool ijk_absolute = false;
+  FeedMode feed_mode = FeedMode::UnitsPerMinute;
+  double feed = 0;
+  double speed = 0;
+  Direction spindle = Direction::Stopped;
+  bool mist = false, flood = false;
+  MotionMode control = MotionMode::ExactPath;
+  double tolerance = 0, naive_tolerance = 0;
+  int origin = 1;
+  bool retract_old_z = true;
+  bool feed_override = true, speed_override = true;
+};
+
+struct Frame {
+  std::string sub_name;
+  std::unordered_map<std::string, double> locals;
+  std::array<double, 30> saved_args{};
+  int file_depth = 0;  // files_.size() of the caller
+  int64_t return_offset = 0;
+  int return_line = 0;
+  std::vector<Loop> loops;
+  std::unordered_map<std::string, bool> if_done;  // label -> a branch ran
+  ModalSnapshot saved_modal;  // M73
+  bool is_user_m = false;
+};
+
+struct SourceFile {
+  std::unique_ptr<LineReader> reader;
+  std::string path;
+};
+
+// Cutter compensation queue entry (LinuxCNC-style one-move look-ahead).
+struct CompMove {
+  enum Kind : uint8_t { Traverse, Feed, Arc } kind = Feed;
+  int line = 0;
+  Pose end{};
+  double first_end = 0, second_end = 0, center1 = 0, center2 = 0, axis_end = 0;
+  int rotation = 0;
+  double feed = 0;
+  double prog_center1 = 0, prog_center2 = 0;
+};
+
+struct V2Ref {
+  double x = 0, y = 0;
+};
+
+}  // namespace cnc::interp
