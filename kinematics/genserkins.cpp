@@ -1,7 +1,5 @@
 #include "kinematics/genserkins.hpp"
 
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 
@@ -68,9 +66,61 @@ Matrix6d normalised_jacobian(const Chain& c, const Frames& f) noexcept {
   return j;
 }
 
+// Tikhonov damping of the normal equations: keeps them solvable on a
+// singularity; 1e-12 is far below any threshold worth setting (sigma 1e-6).
+constexpr double kDamping = 1e-12;
+
+// Cholesky factor (lower) of a symmetric positive definite 6x6, written out
+// because Eigen's general fixed-size factorizations cost several times more
+// at this size. False when `a` is not positive definite.
+bool cholesky(const Matrix6d& a, Matrix6d& l) noexcept {
+  for (int j = 0; j < 6; ++j) {
+    double d = a(j, j);
+    for (int k = 0; k < j; ++k) d -= l(j, k) * l(j, k);
+    if (!(d > 0.0)) return false;
+    l(j, j) = std::sqrt(d);
+    for (int i = j + 1; i < 6; ++i) {
+      double s = a(i, j);
+      for (int k = 0; k < j; ++k) s -= l(i, k) * l(j, k);
+      l(i, j) = s / l(j, j);
+    }
+  }
+  return true;
+}
+
+// Solves L L^T x = b in place.
+void cholesky_solve(const Matrix6d& l, Vector6d& b) noexcept {
+  for (int i = 0; i < 6; ++i) {
+    double s = b[i];
+    for (int k = 0; k < i; ++k) s -= l(i, k) * b[k];
+    b[i] = s / l(i, i);
+  }
+  for (int i = 5; i >= 0; --i) {
+    double s = b[i];
+    for (int k = i + 1; k < 6; ++k) s -= l(k, i) * b[k];
+    b[i] = s / l(i, i);
+  }
+}
+
+// The smallest singular value of `j` by inverse iteration on J^T J (a few
+// 6x6 solves instead of a full eigen decomposition). The estimate never
+// falls below the true value; next to a singularity, where it matters, the
+// smallest eigenvalue is far below the next and four steps settle it, and
+// two small ones at once still read small.
 double smallest_singular_value(const Matrix6d& j) noexcept {
-  const Eigen::SelfAdjointEigenSolver<Matrix6d> es(j.transpose() * j, Eigen::EigenvaluesOnly);
-  return std::sqrt(std::max(0.0, es.eigenvalues()[0]));
+  Matrix6d l;
+  if (!cholesky(j.transpose() * j + kDamping * Matrix6d::Identity(), l)) return 0.0;
+  Vector6d v;
+  v << 0.9, -0.4, 0.7, 0.3, -0.8, 0.5;  // no special direction of any arm
+  double lambda = 0.0;
+  for (int i = 0; i < 4; ++i) {
+    v /= v.norm();
+    cholesky_solve(l, v);
+    const double grow = v.norm();
+    if (!(grow > 0.0) || !std::isfinite(grow)) return 0.0;
+    lambda = 1.0 / grow;
+  }
+  return std::sqrt(std::max(0.0, lambda - kDamping));
 }
 
 Chain load_chain(const GenserKins::Params& p, const GenserKins& k) noexcept {
@@ -175,8 +225,10 @@ KinResult GenserKins::inverse_own(const Pose& pose, const double* hint, double* 
     e << ep / c.length, eo;
     // Damped least squares; the damping only matters next to a singularity,
     // where plain Newton steps would be unbounded.
-    const Matrix6d jtj = jac.transpose() * jac + 1e-12 * Matrix6d::Identity();
-    Vector6d dq = jtj.ldlt().solve(jac.transpose() * e);
+    Matrix6d l;
+    if (!cholesky(jac.transpose() * jac + kDamping * Matrix6d::Identity(), l)) break;
+    Vector6d dq = jac.transpose() * e;
+    cholesky_solve(l, dq);
     double largest = 0.0;
     for (int i = 0; i < kN; ++i) largest = std::max(largest, std::abs(c.prismatic[i] ? dq[i] / c.length : dq[i]));
     if (largest > kMaxStepRad) dq *= kMaxStepRad / largest;

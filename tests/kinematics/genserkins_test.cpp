@@ -150,7 +150,7 @@ TEST(GenserKins, TheWristSingularityIsReportedNotJumpedThrough) {
   ASSERT_EQ(k.forward(zero, at), KinResult::Ok);
   double out[6];
   EXPECT_EQ(k.inverse(at, zero, out), KinResult::Singular) << "exactly on it";
-  EXPECT_LT(k.singularity_measure(zero), 1e-6) << "zero up to the rounding of an eigenvalue's square root";
+  EXPECT_LT(k.singularity_measure(zero), 1e-5) << "zero up to damping and rounding";
 }
 
 TEST(GenserKins, OutOfReachIsReported) {
