@@ -65,10 +65,8 @@ class ModuleComponent final : public KinematicsComponent, private HalBinder {
 using MakeModule = std::function<std::unique_ptr<KinematicsModule>(ComponentContext&, const LoadArgs&)>;
 
 void refuse_second_module(const ComponentContext& ctx, const std::string& who) {
-  for (hal::Component* c : ctx.hal.components()) {
-    if (dynamic_cast<KinematicsComponent*>(c) != nullptr) {
-      throw HalError(who + ": kinematics module \"" + c->name() + "\" is already loaded; load exactly one");
-    }
+  if (const KinematicsComponent* c = find_kinematics(ctx.hal)) {
+    throw HalError(who + ": kinematics module \"" + c->name() + "\" is already loaded; load exactly one");
   }
 }
 

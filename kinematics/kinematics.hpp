@@ -63,6 +63,9 @@ class KinematicsComponent : public hal::Component {
   virtual Kinematics& kinematics() noexcept = 0;
 };
 
+// The kinematics module loaded into `hal` (at most one is), or null.
+KinematicsComponent* find_kinematics(hal::Hal& hal);
+
 // Registers every kinematics module (trivkins, matrixkins, 5-axis, SCARA,
 // serial arms) with the HAL component registry.
 void register_kinematics_components(hal::ComponentRegistry& registry);

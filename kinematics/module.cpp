@@ -1,7 +1,9 @@
 #include "kinematics/module.hpp"
 
 #include <algorithm>
+#include <cmath>
 
+#include "core/hal/hal.hpp"
 #include "core/hal/types.hpp"
 
 namespace cnc::kin {
@@ -85,6 +87,13 @@ KinResult KinematicsModule::forward(const double* joints, Pose& pose) const noex
 }
 
 KinResult KinematicsModule::inverse(const Pose& pose, const double* hint, double* joints) const noexcept {
+  // A NaN or infinite coordinate is no place the machine can go.
+  for (int a = 0; a < kNumAxes; ++a) {
+    if (!std::isfinite(pose[a])) {
+      if (hint != nullptr) std::copy(hint, hint + map_.num_joints(), joints);
+      return KinResult::Unreachable;
+    }
+  }
   if (active_switch() == 1) {
     map_.pose_to_joints(pose, joints);
     return KinResult::Ok;
@@ -101,6 +110,13 @@ bool KinematicsModule::switch_to(int kins_type) noexcept {
     if (is_type_[t].valid()) is_type_[t].set(t == kins_type);
   }
   return true;
+}
+
+KinematicsComponent* find_kinematics(hal::Hal& hal) {
+  for (hal::Component* c : hal.components()) {
+    if (auto* k = dynamic_cast<KinematicsComponent*>(c)) return k;
+  }
+  return nullptr;
 }
 
 void KinematicsModule::bind(HalBinder& binder) {

@@ -93,7 +93,10 @@ TEST_F(Loaded, LoadrtErrorsNameTheModuleTheArgumentAndWhatIsExpected) {
 }
 
 TEST_F(Loaded, OnlyOneKinematicsModule) {
+  EXPECT_EQ(find_kinematics(hal), nullptr);
   run("loadrt trivkins coordinates=XYZ");
+  ASSERT_NE(find_kinematics(hal), nullptr);
+  EXPECT_STREQ(find_kinematics(hal)->kinematics().name(), "trivkins");
   EXPECT_EQ(error_of("loadrt scarakins"),
             "scarakins: kinematics module \"trivkins\" is already loaded; load exactly one");
 }

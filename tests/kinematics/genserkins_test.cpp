@@ -227,6 +227,37 @@ TEST(GenserKins, PrismaticJointsSlide) {
   }
 }
 
+TEST(GenserKins, WithoutAHintItStartsFromZeroAndStillLandsOnThePose) {
+  GenserKins k;
+  set_arm(k);
+  const double q[6] = {20, -15, 35, 10, 40, -5};
+  Pose p;
+  ASSERT_EQ(k.forward(q, p), KinResult::Ok);
+  double out[6];
+  ASSERT_EQ(k.inverse(p, nullptr, out), KinResult::Ok) << "from the singular all-zero posture";
+  Pose back;
+  ASSERT_EQ(k.forward(out, back), KinResult::Ok);
+  EXPECT_LT(linear_error(back, p), 1e-6);
+  EXPECT_TRUE(orientation_near(back, p, 1e-8));
+}
+
+TEST(GenserKins, ANonFinitePoseIsUnreachable) {
+  GenserKins k;
+  set_arm(k);
+  const double hint[6] = {20, -15, 35, 10, 40, -5};
+  Pose p;
+  ASSERT_EQ(k.forward(hint, p), KinResult::Ok);
+  double out[6];
+  const double near[6] = {21, -14, 36, 11, 41, -4};
+  ASSERT_EQ(k.inverse(p, near, out), KinResult::Ok);
+  const unsigned before = k.last_iterations();
+  ASSERT_GT(before, 0u);
+  p[Axis::X] = std::nan("");
+  EXPECT_EQ(k.inverse(p, hint, out), KinResult::Unreachable);
+  EXPECT_EQ(out[5], -5) << "the hint comes back";
+  EXPECT_EQ(k.last_iterations(), before) << "the iteration never ran";
+}
+
 TEST(GenserKins, IdentityForSetup) {
   GenserKins k;
   set_arm(k);
