@@ -101,14 +101,12 @@ void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
   pending_comp_feed = -1;
   m.end = end;
   if (cutter_first_move) {
-    // Entry: end where the tool touches the programmed end point, reached
-    // on a line tangent to the tool circle there.
+    // Entry (LinuxCNC 2.9): the tool ends beside the programmed end point,
+    // offset perpendicular to the entry move.
     const double d = len(p1 - tool);
     if (d <= r) fail("Length of cutter compensation entry move is not greater than the tool radius");
-    const double alpha = std::atan2(tool.y - p1.y, tool.x - p1.x);
-    const double theta = std::acos(r / d);
-    const double gamma = left ? alpha - theta : alpha + theta;
-    const V2 t = p1 + V2{std::cos(gamma), std::sin(gamma)} * r;
+    const V2 dir = unit(p1 - tool);
+    const V2 t = p1 + (left ? left_of(dir) : left_of(dir) * -1.0) * r;
     m.end[a1] = t.x;
     m.end[a2] = t.y;
     comp_flush();

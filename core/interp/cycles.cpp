@@ -95,6 +95,9 @@ void Interpreter::State::convert_cycle(int g, Pose) {
   auto feedto = [&](double a, double b, double c) { emit_feed(at(a, b, c)); };
   const double rapid_delta = units == Units::Inch ? 0.010 : 0.254;
 
+  // Cycles run in exact path mode; the block's mode comes back after.
+  const MotionMode saved_control = control;
+  if (control != MotionMode::ExactPath) canon.set_motion_control_mode(MotionMode::ExactPath, 0);
   if (old_cc < r) {
     trav(pos[a1], pos[a2], r);
     old_cc = r;
@@ -198,13 +201,16 @@ void Interpreter::State::convert_cycle(int g, Pose) {
       case 890:
         feedto(aa, bb, bottom);
         canon.dwell(cycle_p);
-        feedto(aa, bb, r);
-        if (clear > r) trav(aa, bb, clear);
+        feedto(aa, bb, clear);
         break;
       default:
         break;
     }
     current_cc = clear;
+  }
+  if (saved_control != MotionMode::ExactPath) {
+    canon.set_motion_control_mode(saved_control, tolerance);
+    if (saved_control == MotionMode::Continuous) canon.set_naivecam_tolerance(naive_tolerance);
   }
 }
 

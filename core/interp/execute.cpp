@@ -72,9 +72,9 @@ void Interpreter::State::reset_modal(bool keep_params) {
   }
   tool_offset = Pose{};
   tool_offset_g = 490;
-  control = MotionMode::ExactPath;
+  control = MotionMode::Continuous;
   tolerance = naive_tolerance = 0;
-  retract_old_z = true;
+  retract_old_z = false;  // LinuxCNC starts in G99
   feed_override = speed_override = true;
   adaptive = false;
   feed_hold = true;
@@ -118,13 +118,8 @@ void Interpreter::State::snapshot_modal(ModalSnapshot& m) const {
 }
 
 void Interpreter::State::restore_modal(const ModalSnapshot& m) {
+  // The order LinuxCNC 2.9 restores in (M72, M73 at return).
   if (m.units != units) convert_units(m.units);
-  if (m.plane != plane) {
-    plane = m.plane;
-    canon.select_plane(plane);
-  }
-  absolute = m.absolute;
-  ijk_absolute = m.ijk_absolute;
   if (m.feed_mode != feed_mode) {
     feed_mode = m.feed_mode;
     canon.set_feed_mode(0, feed_mode == FeedMode::UnitsPerRev ? FeedMode::UnitsPerRev : FeedMode::UnitsPerMinute);
@@ -133,6 +128,8 @@ void Interpreter::State::restore_modal(const ModalSnapshot& m) {
     feed = m.feed;
     canon.set_feed_rate(feed);
   }
+  set_distance_mode(m.absolute);
+  ijk_absolute = m.ijk_absolute;
   if (m.speed != speed) {
     speed = m.speed;
     canon.set_spindle_speed(0, speed);
@@ -143,24 +140,28 @@ void Interpreter::State::restore_modal(const ModalSnapshot& m) {
     if (spindle == Direction::CounterClockwise) canon.start_spindle_counterclockwise(0);
     if (spindle == Direction::Stopped) canon.stop_spindle_turning(0);
   }
-  if (m.mist != mist) {
-    mist = m.mist;
-    mist ? canon.mist_on() : canon.mist_off();
+  if (m.plane != plane) {
+    plane = m.plane;
+    canon.select_plane(plane);
   }
-  if (m.flood != flood) {
-    flood = m.flood;
-    flood ? canon.flood_on() : canon.flood_off();
+  if (m.origin != origin) {
+    static constexpr int codes[] = {540, 550, 560, 570, 580, 590, 591, 592, 593};
+    convert_coordinate_system(codes[m.origin - 1]);
   }
-  if (m.control != control || m.tolerance != tolerance) {
+  if (m.control != control || m.tolerance != tolerance || m.naive_tolerance != naive_tolerance) {
     control = m.control;
     tolerance = m.tolerance;
     naive_tolerance = m.naive_tolerance;
     canon.set_motion_control_mode(control, tolerance);
     if (control == MotionMode::Continuous) canon.set_naivecam_tolerance(naive_tolerance);
   }
-  if (m.origin != origin) {
-    static constexpr int codes[] = {540, 550, 560, 570, 580, 590, 591, 592, 593};
-    convert_coordinate_system(codes[m.origin - 1]);
+  if (m.mist != mist || m.flood != flood) {
+    if (m.mist) canon.mist_on();
+    if (m.flood) canon.flood_on();
+    if (!m.mist) canon.mist_off();
+    if (!m.flood) canon.flood_off();
+    mist = m.mist;
+    flood = m.flood;
   }
   retract_old_z = m.retract_old_z;
   if (m.feed_override != feed_override) {
@@ -471,6 +472,13 @@ void Interpreter::State::convert_m(Status& st) {
   }
 }
 
+void Interpreter::State::set_distance_mode(bool abs) {
+  if (abs != absolute && config.linuxcnc_comments) {
+    canon.comment(abs ? "interpreter: distance mode changed to absolute" : "interpreter: distance mode changed to incremental");
+  }
+  absolute = abs;
+}
+
 void Interpreter::State::convert_dwell() {
   if (!block.has_word('p')) fail("Dwell time missing with g4");
   canon.dwell(block.get('p'));
@@ -706,7 +714,7 @@ void Interpreter::State::convert_coord_setup(int l) {
     if (!block.has_word(c)) continue;
     double v = block.get(c);
     if (i == 0 && diameter_mode) v /= 2.0;
-    if (l == 20) v = pos[i] + origin_offset[i] + axis_offset[i] - v;
+    if (l == 20) v = pos[i] + origin_offset[i] - v;
     params[static_cast<std::size_t>(base + i)] = to_machine_len(v);
   }
   if (block.has_word('r')) params[static_cast<std::size_t>(base + 9)] = block.get('r');
@@ -746,10 +754,9 @@ void Interpreter::State::convert_setup_tool(int l) {
     } else {
       // L10: offset so that the current position reads v (tool offset
       // applied); L11: as L10 but in G59.3 (coordinate system 9).
-      const double g5x = l == 11 ? to_program_len(params[static_cast<std::size_t>(5381 + i)]) : origin_offset[i];
-      const double tool_now = tool_offset[i];
-      const double machine = pos[i] + origin_offset[i] + axis_offset[i] + tool_now;
-      const double new_off = machine - g5x - (l == 11 ? 0.0 : axis_offset[i]) - v;
+      const double machine = pos[i] + origin_offset[i] + axis_offset[i] + tool_offset[i];
+      const double new_off = l == 11 ? machine - to_program_len(params[static_cast<std::size_t>(5381 + i)]) - v
+                                     : pos[i] + tool_offset[i] - v;
       t.offset[i] = to_machine_len(new_off);
     }
   }
@@ -786,11 +793,21 @@ void Interpreter::State::convert_g(Status& st) {
   if (block.g[kGToolOffset] != -1) convert_tool_length_offset(block.g[kGToolOffset]);
   if (block.g[kGCoordSys] != -1) convert_coordinate_system(block.g[kGCoordSys]);
   if (block.g[kGControl] != -1) convert_control_mode(block.g[kGControl]);
-  if (block.g[kGDistance] != -1) absolute = block.g[kGDistance] == 900;
-  if (block.g[kGIjk] != -1) ijk_absolute = block.g[kGIjk] == 901;
+  if (block.g[kGDistance] != -1) set_distance_mode(block.g[kGDistance] == 900);
+  if (block.g[kGIjk] != -1) {
+    const bool abs_ijk = block.g[kGIjk] == 901;
+    if (abs_ijk != ijk_absolute && config.linuxcnc_comments) {
+      canon.comment(abs_ijk ? "interpreter: IJK distance mode changed to absolute"
+                            : "interpreter: IJK distance mode changed to incremental");
+    }
+    ijk_absolute = abs_ijk;
+  }
   if (block.g[kGRetract] != -1) {
     if (cutter_side != 400) fail("Cannot change retract mode with cutter radius compensation on");
     retract_old_z = block.g[kGRetract] == 980;
+    if (config.linuxcnc_comments) {
+      canon.comment(retract_old_z ? "interpreter: retract mode set to old_z" : "interpreter: retract mode set to r_plane");
+    }
   }
   const int g0 = block.g[kGNonModal];
   switch (g0) {
@@ -800,7 +817,6 @@ void Interpreter::State::convert_g(Status& st) {
         convert_coord_setup(l);
       } else if (l == 1 || l == 10 || l == 11) {
         convert_setup_tool(l);
-        if (l != 1) st = Status::ExecuteFinish;
       } else {
         fail("Line with G10 does not have L0, L1, L10, L11, L2, or L20");
       }

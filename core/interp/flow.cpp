@@ -120,6 +120,7 @@ bool Interpreter::State::read_block() {
       }
     } else if (percent_seen && at_top && !skipping && is_percent_line(raw)) {
       program_ended = true;
+      canon.begin_block(current_line, -1);
       canon.finish();
       return false;
     }
@@ -326,6 +327,7 @@ bool Interpreter::State::handle_o_word() {
 
 void Interpreter::State::do_call() {
   const std::string label = block.o_name;
+  const std::vector<double> args = block.call_args;
   if (frames.size() >= 64) fail("Too many subroutine levels");
   auto it = subs.find(label);
   if (it == subs.end()) {
@@ -370,7 +372,7 @@ void Interpreter::State::do_call() {
   for (int k = 0; k < 30; ++k) {
     f.saved_args[static_cast<std::size_t>(k)] = params[static_cast<std::size_t>(k + 1)];
     params[static_cast<std::size_t>(k + 1)] =
-        k < static_cast<int>(block.call_args.size()) ? block.call_args[static_cast<std::size_t>(k)] : 0.0;
+        k < static_cast<int>(args.size()) ? args[static_cast<std::size_t>(k)] : 0.0;
   }
   f.file_depth = static_cast<int>(files.size());
   f.return_offset = files.back().reader->offset();

@@ -172,6 +172,7 @@ struct Interpreter::State {
   void convert_control_mode(int g);
   void convert_cutter_comp(int g);
   void convert_dwell();
+  void set_distance_mode(bool abs);
   void set_tool_offset_params();
   void end_program(bool pallet);
   double to_program_len(double machine_len) const;

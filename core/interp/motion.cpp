@@ -115,6 +115,7 @@ void Interpreter::State::convert_motion(int g, Status& st) {
       convert_threading(g, find_ends(false));
       return;
     case 800:
+      if (config.linuxcnc_comments) canon.comment("interpreter: motion mode set to none");
       motion_mode = -1;
       return;
     case 760:

@@ -84,8 +84,9 @@ double Interpreter::State::get_param(int index) const {
   if (index >= 5400 && index <= 5413) {
     const ToolData& t = tools.spindle();
     if (index == 5400) return t.is_empty() ? 0.0 : t.number;
-    if (index <= 5409) return to_program_len(t.offset[index - 5401]);
-    if (index == 5410) return to_program_len(t.diameter);
+    // As LinuxCNC: tool table values, in machine units.
+    if (index <= 5409) return t.offset[index - 5401];
+    if (index == 5410) return t.diameter;
     if (index == 5411) return t.front_angle;
     if (index == 5412) return t.back_angle;
     return t.orientation;
@@ -161,7 +162,7 @@ bool Interpreter::State::predefined(const std::string& name, double& v) const {
     return true;
   }
   if (n == "_current_pocket") {
-    v = current_index;
+    v = tools.spindle().is_empty() ? 0 : tools.spindle().pocket;
     return true;
   }
   if (n == "_selected_tool") {

@@ -1,6 +1,7 @@
 #include "core/interp/text_canon.hpp"
 
 #include <charconv>
+#include <cmath>
 #include <cstring>
 
 namespace cnc::interp {
@@ -153,8 +154,6 @@ void TextCanon::select_plane(Plane p) {
 }
 
 void TextCanon::set_g5x_offset(int origin, const Pose& o) {
-  for (int i = 0; i < kNumAxes; ++i) pos_[i] += g5x_[i] - o[i];
-  g5x_ = o;
   call_ = "SET_G5X_OFFSET(";
   integer(call_, origin);
   call_ += ", ";
@@ -164,8 +163,6 @@ void TextCanon::set_g5x_offset(int origin, const Pose& o) {
 }
 
 void TextCanon::set_g92_offset(const Pose& o) {
-  for (int i = 0; i < kNumAxes; ++i) pos_[i] += g92_[i] - o[i];
-  g92_ = o;
   call_ = "SET_G92_OFFSET(";
   six_axes(call_, o);
   call_ += ')';
@@ -184,8 +181,6 @@ void TextCanon::set_feed_reference(FeedReference r) {
 }
 
 void TextCanon::use_tool_length_offset(const Pose& o) {
-  for (int i = 0; i < kNumAxes; ++i) pos_[i] += tlo_[i] - o[i];
-  tlo_ = o;
   call_ = "USE_TOOL_LENGTH_OFFSET(";
   nine_grouped(call_, o);
   call_ += ')';
@@ -274,8 +269,16 @@ void TextCanon::straight_probe(int line, const Pose& end, ProbeKind) {
   call_ += ')';
   out(call_);
   segment('P', line, end);
+  // saicanon ends a probe move backed off 0.01 inch from the target.
   probe_ = end;
-  move_to(end);
+  Pose stop = end;
+  double d2 = 0;
+  for (int i = 0; i < kNumAxes; ++i) d2 += (end[i] - pos_[i]) * (end[i] - pos_[i]);
+  if (d2 > 0) {
+    const double back = (units_ == Units::Inch ? 0.01 : 0.254) / std::sqrt(d2);
+    for (int i = 0; i < kNumAxes; ++i) stop[i] = end[i] - (end[i] - pos_[i]) * back;
+  }
+  move_to(stop);
 }
 
 void TextCanon::rigid_tap(int line, const Pose& end, double) {
@@ -421,8 +424,11 @@ void TextCanon::message(std::string_view text) {
 }
 
 void TextCanon::print(std::string_view text) {
-  flush();
-  std::fprintf(stderr, "%.*s\n", static_cast<int>(text.size()), text.data());
+  // rs274 writes (PRINT,...) text on its standard output, unnumbered.
+  if (file_ != nullptr) {
+    buf_.append(text);
+    buf_.push_back('\n');
+  }
 }
 
 void TextCanon::log_open(std::string_view path, bool append) {

@@ -1,0 +1,44 @@
+#!/bin/bash
+# Regenerates the golden canonical-call files of the interpreter tests.
+#
+#   programs/*.ngc  -> golden/<name>.canon (stdout) and golden/<name>.err
+#                      (error text and line, empty when the run succeeds),
+#                      produced by LinuxCNC 2.9's stand-alone interpreter
+#                      `rs274 -g -t tool.tbl` (apt-get install linuxcnc-uspace;
+#                      a development reference only, never a dependency).
+#   own/*.ngc       -> own/<name>.canon and own/<name>.err, produced by this
+#                      project's cnc-rs274: programs whose output deliberately
+#                      differs from LinuxCNC (docs/interpreter.md says why).
+#
+# Usage: regenerate.sh [BUILD_DIR]   (default: ../../../../build-interp)
+# Every run rewrites golden/PRODUCER with the tools and versions used.
+# Review every diff (git diff) before committing.
+set -eu
+HERE="$(cd "$(dirname "$0")" && pwd)"
+BUILD="${1:-$HERE/../../../../build-interp}"
+CNC="$BUILD/bin/cnc-rs274"
+mkdir -p "$HERE/golden"
+if command -v rs274 >/dev/null; then
+    ver=$(dpkg-query -W -f '${Version}' linuxcnc-uspace 2>/dev/null || echo unknown)
+    echo "golden/*.canon and *.err: LinuxCNC rs274 -g -t ../tool.tbl (linuxcnc-uspace $ver), run in programs/" > "$HERE/golden/PRODUCER"
+    for p in "$HERE"/programs/*.ngc; do
+        n=$(basename "$p" .ngc)
+        [ "$n" = filesub ] && continue   # a subroutine file, called by subs.ngc
+        ( cd "$HERE/programs" && rs274 -g -t ../tool.tbl "$n.ngc" > "../golden/$n.canon" 2> "../golden/$n.stderr" ) || true
+        grep -v '^executing$' "$HERE/golden/$n.stderr" > "$HERE/golden/$n.err" || true
+        rm -f "$HERE/golden/$n.stderr"
+    done
+else
+    echo "rs274 not found (apt-get install linuxcnc-uspace): golden/ left as it is" >&2
+fi
+if [ -x "$CNC" ]; then
+    echo "own/*.canon and *.err: cnc-rs274 -t ../tool.tbl (this project), run in own/" > "$HERE/own/PRODUCER"
+    for p in "$HERE"/own/*.ngc; do
+        n=$(basename "$p" .ngc)
+        ( cd "$HERE/own" && "$CNC" -t ../tool.tbl "$n.ngc" > "$n.canon" 2> "$n.stderr" ) || true
+        grep -v '^executing$' "$HERE/own/$n.stderr" > "$HERE/own/$n.err" || true
+        rm -f "$HERE/own/$n.stderr"
+    done
+else
+    echo "$CNC not built: own/ left as it is" >&2
+fi
