@@ -12,6 +12,7 @@ constexpr char kLetters[] = "xyzabcuvw";
 
 void Interpreter::State::convert_cycle(int g, Pose) {
   if (cutter_side != 400) fail("Cannot use canned cycles with cutter compensation on");
+  if (feed == 0.0) fail("Cannot feed with zero feed rate");
   if (feed_mode == FeedMode::InverseTime) fail("Cannot use inverse time feed with canned cycles");
   if (block.has_word('a')) fail("Cannot put an a in canned cycle");
   if (block.has_word('b')) fail("Cannot put a b in canned cycle");
@@ -64,7 +65,24 @@ void Interpreter::State::convert_cycle(int g, Pose) {
                                            "R less than y in cycle in xz plane"};
     fail(msgs[plane == Plane::XY ? 0 : plane == Plane::YZ ? 1 : 2]);
   }
-  if (feed == 0.0 && feed_mode == FeedMode::UnitsPerMinute) fail("Cannot feed with zero feed rate");
+  auto at = [&](double a, double b, double c) {
+    Pose p = pos;
+    p[a1] = a;
+    p[a2] = b;
+    p[a3] = c;
+    return p;
+  };
+  auto trav = [&](double a, double b, double c) { emit_traverse(at(a, b, c)); };
+  auto feedto = [&](double a, double b, double c) { emit_feed(at(a, b, c)); };
+  const double rapid_delta = units == Units::Inch ? 0.010 : 0.254;
+
+  if (old_cc < r) {
+    trav(pos[a1], pos[a2], r);
+    old_cc = r;
+  }
+  // Cycles run in exact path mode; the block's mode comes back after.
+  const MotionMode saved_control = control;
+  if (control != MotionMode::ExactPath) canon.set_motion_control_mode(MotionMode::ExactPath, 0);
   switch (g) {
     case 820: case 860: case 880: case 890:
       if (!block.has_word('p') && !same) {
@@ -79,29 +97,10 @@ void Interpreter::State::convert_cycle(int g, Pose) {
     default:
       break;
   }
-  if (g == 860 && spindle == Direction::Stopped) fail("Spindle not turning in g86");
-  if (g == 880 && spindle == Direction::Stopped) fail("Spindle not turning in g88");
   if (g == 840 && spindle == Direction::CounterClockwise) fail("Spindle turning counterclockwise in G84");
   if (g == 740 && spindle == Direction::Clockwise) fail("Spindle turning clockwise in G74");
 
-  auto at = [&](double a, double b, double c) {
-    Pose p = pos;
-    p[a1] = a;
-    p[a2] = b;
-    p[a3] = c;
-    return p;
-  };
-  auto trav = [&](double a, double b, double c) { emit_traverse(at(a, b, c)); };
-  auto feedto = [&](double a, double b, double c) { emit_feed(at(a, b, c)); };
-  const double rapid_delta = units == Units::Inch ? 0.010 : 0.254;
 
-  // Cycles run in exact path mode; the block's mode comes back after.
-  const MotionMode saved_control = control;
-  if (control != MotionMode::ExactPath) canon.set_motion_control_mode(MotionMode::ExactPath, 0);
-  if (old_cc < r) {
-    trav(pos[a1], pos[a2], r);
-    old_cc = r;
-  }
   double current_cc = old_cc;
   for (int rep = 0; rep < repeats; ++rep) {
     if (!absolute) {
@@ -109,6 +108,8 @@ void Interpreter::State::convert_cycle(int g, Pose) {
       bb += bb_inc;
     }
     trav(aa, bb, current_cc);
+    if (g == 860 && spindle == Direction::Stopped) fail("Spindle not turning in g86");
+    if (g == 880 && spindle == Direction::Stopped) fail("Spindle not turning in g88");
     if (old_cc != r) trav(aa, bb, r);
     switch (g) {
       case 810:

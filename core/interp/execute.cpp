@@ -80,7 +80,7 @@ void Interpreter::State::reset_modal(bool keep_params) {
   feed_hold = true;
   diameter_mode = config.lathe_diameter_mode;
   selected_tool = -1;
-  selected_index = -1;
+  selected_index = 0;  // M6 without T "changes" to the empty index 0
   current_index = 0;
   toolchange_flag = false;
   cutter_side = 400;
@@ -176,6 +176,11 @@ void Interpreter::State::restore_modal(const ModalSnapshot& m) {
 
 Status Interpreter::State::execute_block() {
   Status st = Status::Ok;
+  if (block.g[kGNonModal] == 530) {
+    const int m = block.g[kGMotion] != -1 ? block.g[kGMotion] : motion_mode;
+    if (m != 0 && m != 10) fail("Must use g0 or g1 with g53");
+    if (block.g[kGDistance] == 910 || (block.g[kGDistance] == -1 && !absolute)) fail("Cannot use g53 incremental");
+  }
   canon.begin_block(block.line, block.n_number);
   n_number = block.n_number;
   if (block.has_comment) convert_comment();
@@ -846,6 +851,10 @@ void Interpreter::State::convert_g(Status& st) {
       break;
   }
   int motion = block.g[kGMotion];
+  if (motion == 800 && block.any_axis(config.axis_mask) && g0 != 100 && g0 != 280 && g0 != 300 && g0 != 520 &&
+      g0 != 920 && block.g[kGToolOffset] != 431 && block.g[kGToolOffset] != 432) {
+    fail("Cannot use axis values with g80");
+  }
   if (motion == -1 && g0 != 100 && g0 != 280 && g0 != 300 && g0 != 520 && g0 != 920 && g0 != 431 &&
       block.g[kGToolOffset] != 431 && block.g[kGToolOffset] != 432 && block.any_axis(config.axis_mask)) {
     motion = motion_mode;

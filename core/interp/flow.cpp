@@ -186,8 +186,9 @@ bool Interpreter::State::handle_o_word() {
         has_value = true;
       }
       if (frames.size() <= 1) {
-        if (block.o_type == OType::Return) fail("Bug: call stack underrun");
-        fail("Not in subroutine definition");
+        std::string src = line_text;
+        while (!src.empty() && (src.front() == ' ' || src.front() == '\t')) src.erase(0, 1);
+        fail(std::to_string(current_line) + ": not in a subroutine definition: '" + src + "'");
       }
       do_return(has_value, value);
       return true;
@@ -339,8 +340,10 @@ void Interpreter::State::do_call() {
     const int saved_line = current_line;
     std::string_view raw;
     bool found = false;
+    std::string last_text = saved_text;
     if (files.back().path != "<mdi>") {
       while (r.next(raw)) {
+        last_text.assign(raw);
         current_line = r.line_number();
         if (skip_line_matches_sub(raw, label)) {
           subs[label] = SubDef{files.back().path, r.offset(), r.line_number()};
@@ -354,7 +357,13 @@ void Interpreter::State::do_call() {
     line_text = saved_text;
     if (!found) {
       const auto path = find_sub_file(label);
-      if (!path) fail("Unable to open file <" + label + ">");
+      if (!path) {
+        // LinuxCNC's wording: it searched to the end of the file.
+        line_text = last_text;
+        std::string shown = files.back().path;
+        if (!program_path.empty() && shown == program_path) shown = program_display_name;
+        fail("EOF in file:" + shown + " seeking o-word: o<" + label + "> from line: " + std::to_string(saved_line));
+      }
       LineReader fr(*path);
       while (fr.next(raw)) {
         if (skip_line_matches_sub(raw, label)) {

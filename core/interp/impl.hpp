@@ -19,6 +19,7 @@ struct Interpreter::State {
   // ---------------- sources and flow
   std::vector<SourceFile> files;
   std::string program_path;
+  std::string program_display_name;  // the name as given to open()
   std::unique_ptr<LineReader> mdi;
   int mdi_depth = -1;  // files.size() when an MDI line called into files
   bool percent_seen = false;   // first line was '%'

@@ -127,6 +127,7 @@ void Interpreter::open(const std::filesystem::path& program) {
   s.current_file = program.string();
   s.line_text.clear();
   s.program_path = program.string();
+  s.program_display_name = program.string();
   s.open_file(program.string());
 }
 

@@ -96,7 +96,6 @@ void Interpreter::State::convert_motion(int g, Status& st) {
     case 0:
     case 10: {
       motion_mode = g;
-      if (!block.any_axis(config.axis_mask)) return;
       straight(g, find_ends(g53));
       return;
     }
@@ -172,7 +171,8 @@ void Interpreter::State::convert_arc(int g, const Pose& end) {
   if (block.has_word('p')) {
     const double p = block.get('p');
     turns = static_cast<int>(std::lround(p));
-    if (std::fabs(p - turns) > 0.0001 || turns < 1) fail("P value not an integer or less than one with G2/G3");
+    if (std::fabs(p - turns) > 0.0001) fail("P value not an integer with M19 G2 or G3");
+    if (turns < 1) fail("P value should be 1 or greater with G2 or G3");
   }
   const Pose& start = cutter_side != 400 ? comp_program_pos : pos;
   const double s1 = start[a1], s2 = start[a2];
@@ -253,10 +253,6 @@ void Interpreter::State::convert_probe(int g, const Pose& end, Status& st) {
   if (feed_mode == FeedMode::UnitsPerRev) fail("Cannot probe with feed per rev mode");
   if (feed == 0.0) fail("Cannot probe with zero feed rate");
   if (!block.any_axis(config.axis_mask)) fail("All axes missing with motion code");
-  double d2 = 0;
-  for (int i = 0; i < 3; ++i) d2 += (end[i] - pos[i]) * (end[i] - pos[i]);
-  const double min_d = units == Units::Mm ? 0.254 : 0.01;
-  if (std::sqrt(d2) < min_d) fail("Start point too close to probe point");
   canon.turn_probe_on();
   const ProbeKind kind = g == 382 ? ProbeKind::TowardStopOnContact
                        : g == 383 ? ProbeKind::TowardNoError

@@ -197,7 +197,8 @@ void Interpreter::State::add_g(int code) {
 
 void Interpreter::State::add_m(int code) {
   const int group = m_group(code);
-  if (group < 0) fail("Unknown m code used");
+  if (code > 199) fail("M-code greater than 199: M" + std::to_string(code));
+  if (group < 0) fail("Unknown m code used: M" + std::to_string(code));
   if (block.m[static_cast<std::size_t>(group)] != -1) fail("Two m codes used from same modal group");
   if (++block.m_count > 4) fail("Too many m codes on line");
   block.m[static_cast<std::size_t>(group)] = code;
@@ -322,7 +323,10 @@ double Interpreter::State::read_real_number(std::size_t& i) {
     }
     ++j;
   }
-  if (digits == 0) fail(j == i ? "No characters found in reading real value" : "Bad number format");
+  if (digits == 0) {
+    if (j == i && i >= norm.size()) fail("No characters found in reading real value");
+    fail("bad number format (conversion failed) parsing '" + norm.substr(i, j - i) + "'");
+  }
   double v = 0;
   const char* first = norm.data() + start;
   const char* last = norm.data() + j;

@@ -1,7 +1,8 @@
 #!/bin/bash
 # Regenerates the golden canonical-call files of the interpreter tests.
 #
-#   programs/*.ngc  -> golden/<name>.canon (stdout) and golden/<name>.err
+#   programs/*.ngc, errors/*.ngc
+#                   -> golden/<dir>/<name>.canon (stdout) and .err
 #                      (error text and line, empty when the run succeeds),
 #                      produced by LinuxCNC 2.9's stand-alone interpreter
 #                      `rs274 -g -t tool.tbl` (apt-get install linuxcnc-uspace;
@@ -20,13 +21,17 @@ CNC="$BUILD/bin/cnc-rs274"
 mkdir -p "$HERE/golden"
 if command -v rs274 >/dev/null; then
     ver=$(dpkg-query -W -f '${Version}' linuxcnc-uspace 2>/dev/null || echo unknown)
-    echo "golden/*.canon and *.err: LinuxCNC rs274 -g -t ../tool.tbl (linuxcnc-uspace $ver), run in programs/" > "$HERE/golden/PRODUCER"
-    for p in "$HERE"/programs/*.ngc; do
-        n=$(basename "$p" .ngc)
-        [ "$n" = filesub ] && continue   # a subroutine file, called by subs.ngc
-        ( cd "$HERE/programs" && rs274 -g -t ../tool.tbl "$n.ngc" > "../golden/$n.canon" 2> "../golden/$n.stderr" ) || true
-        grep -v '^executing$' "$HERE/golden/$n.stderr" > "$HERE/golden/$n.err" || true
-        rm -f "$HERE/golden/$n.stderr"
+    echo "golden/<dir>/*.canon and *.err: LinuxCNC rs274 -g -t ../tool.tbl (linuxcnc-uspace $ver), run in programs/" > "$HERE/golden/PRODUCER"
+    for dir in programs errors; do
+        mkdir -p "$HERE/golden/$dir"
+        for p in "$HERE"/$dir/*.ngc; do
+            n=$(basename "$p" .ngc)
+            [ "$n" = filesub ] && continue   # a subroutine file, called by subs.ngc
+            out="$HERE/golden/$dir/$n"
+            ( cd "$HERE/$dir" && rs274 -g -t ../tool.tbl "$n.ngc" > "$out.canon" 2> "$out.stderr" ) || true
+            grep -v '^executing$' "$out.stderr" > "$out.err" || true
+            rm -f "$out.stderr"
+        done
     done
 else
     echo "rs274 not found (apt-get install linuxcnc-uspace): golden/ left as it is" >&2

@@ -1,0 +1,31 @@
+// Runs a program the way LinuxCNC's `rs274 -g` does (init, ON_RESET, the
+// program, two ON_RESETs at the end) with the rs274-format TextCanon. Shared
+// by the cnc-rs274 tool and the golden tests.
+#pragma once
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include "core/interp/interp.hpp"
+
+namespace cnc::interp {
+
+struct Rs274Options {
+  std::filesystem::path program;
+  std::filesystem::path tool_table;      // empty: no tools
+  std::filesystem::path parameter_file;  // empty: no persistence
+  std::filesystem::path ini;             // empty: none
+  bool block_delete = false;
+  bool random_toolchanger = false;
+  Units machine_units = Units::Inch;  // rs274's saicanon works in inches
+  std::string axes = "XYZABC";         // rs274's saicanon axes
+};
+
+// Writes the canonical calls to `out` (may be null). On an interpreter
+// error returns false and sets `error` to "message\nline text" as rs274
+// prints it, and writes that text to `err_out` when not null (before the
+// closing calls, as rs274 does). Throws for unreadable tool table / INI.
+bool run_rs274(const Rs274Options& options, std::FILE* out, std::string& error, std::FILE* err_out = nullptr);
+
+}  // namespace cnc::interp
