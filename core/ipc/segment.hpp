@@ -12,10 +12,10 @@
 
 #include "core/ipc/broadcast_ring.hpp"
 #include "core/ipc/command.hpp"
-#include "core/ipc/spsc_ring.hpp"
 #include "core/ipc/status.hpp"
 #include "core/util/messages.hpp"
 #include "core/util/seqlock.hpp"
+#include "core/util/spsc_ring.hpp"
 
 namespace cnc::ipc {
 

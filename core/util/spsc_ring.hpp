@@ -1,13 +1,14 @@
-// Single-producer single-consumer ring for trivially copyable entries; in
-// shared memory it carries one client's commands to the controller. push
-// and pop never block and never allocate.
+// Single-producer single-consumer ring for trivially copyable entries:
+// task -> servo thread commands, and (in shared memory) one client's
+// commands to the controller. push, front and pop never block and never
+// allocate.
 #pragma once
 
 #include <atomic>
 #include <cstdint>
 #include <type_traits>
 
-namespace cnc::ipc {
+namespace cnc {
 
 template <class T, std::size_t N>
 class SpscRing {
@@ -26,6 +27,14 @@ class SpscRing {
     head_.store(h + 1, std::memory_order_release);
     return true;
   }
+  // The oldest entry without taking it, or nullptr when empty (consumer only).
+  const T* front() const noexcept {
+    const uint64_t t = tail_.load(std::memory_order_relaxed);
+    if (t == head_.load(std::memory_order_acquire)) return nullptr;
+    return &items_[t & (N - 1)];
+  }
+  // Drops the entry front() returned (consumer only).
+  void pop_front() noexcept { tail_.store(tail_.load(std::memory_order_relaxed) + 1, std::memory_order_release); }
   bool pop(T& out) noexcept {
     const uint64_t t = tail_.load(std::memory_order_relaxed);
     if (t == head_.load(std::memory_order_acquire)) return false;
@@ -33,6 +42,7 @@ class SpscRing {
     tail_.store(t + 1, std::memory_order_release);
     return true;
   }
+  static constexpr std::size_t capacity() noexcept { return N; }
   std::size_t size() const noexcept {
     return static_cast<std::size_t>(head_.load(std::memory_order_acquire) - tail_.load(std::memory_order_acquire));
   }
@@ -43,4 +53,4 @@ class SpscRing {
   T items_[N];
 };
 
-}  // namespace cnc::ipc
+}  // namespace cnc

@@ -1,0 +1,80 @@
+// The motion controller's configuration: [KINS], [TRAJ], [EMCMOT],
+// [JOINT_n] and [AXIS_L] of the INI file, with LinuxCNC's keys and
+// defaults, validated on load (errors name file, line and key). Plain data:
+// the servo thread keeps its own copy and changes it only through the
+// table-driven SET_xxx command (params.hpp).
+#pragma once
+
+#include <array>
+#include <string>
+
+#include "core/util/pose.hpp"
+
+namespace cnc::ini {
+class IniFile;
+}
+
+namespace cnc::motion {
+
+enum class JointType : uint8_t { Linear = 0, Angular = 1 };
+enum class HomeMode : uint8_t { Motion = 0, Drive = 1 };  // drive: CiA-402 homing through the drive
+
+struct HomingConfig {
+  double home = 0;            // HOME: where the joint goes after homing
+  double offset = 0;          // HOME_OFFSET: joint position of the switch/index
+  double search_vel = 0;      // HOME_SEARCH_VEL (sign: direction)
+  double latch_vel = 0;       // HOME_LATCH_VEL (same sign: latch on approach; opposite: on release)
+  double final_vel = -1;      // HOME_FINAL_VEL (< 0: the joint's maximum velocity)
+  bool use_index = false;     // HOME_USE_INDEX
+  bool ignore_limits = false; // HOME_IGNORE_LIMITS
+  bool is_shared = false;     // HOME_IS_SHARED
+  bool has_sequence = false;  // HOME_SEQUENCE given (joints without one are not homed by "home all")
+  int sequence = 0;           // HOME_SEQUENCE (negative: synchronised group, e.g. gantry)
+  bool volatile_home = false; // VOLATILE_HOME
+  bool locking_indexer = false;  // LOCKING_INDEXER
+  int absolute_encoder = 0;   // HOME_ABSOLUTE_ENCODER 0/1/2
+  HomeMode mode = HomeMode::Motion;  // HOME_MODE = MOTION | DRIVE
+};
+
+struct JointConfig {
+  JointType type = JointType::Linear;
+  double min_limit = -1e99, max_limit = 1e99;
+  double max_velocity = 1, max_acceleration = 1, max_jerk = 50;
+  double ferror = 1, min_ferror = 1;
+  double backlash = 0;
+  std::string comp_file;
+  int comp_file_type = 0;
+  HomingConfig homing;
+};
+
+struct AxisConfig {
+  bool present = false;
+  double min_limit = -1e99, max_limit = 1e99;
+  double max_velocity = 1, max_acceleration = 1, max_jerk = 50;
+};
+
+struct MotionConfig {
+  int num_joints = 3;
+  std::array<JointConfig, kMaxJoints> joints{};
+  std::array<AxisConfig, kNumAxes> axes{};
+  double servo_period_s = 0.001;      // [EMCMOT]SERVO_PERIOD (ns in the INI)
+  double comm_timeout_s = 1.0;        // [EMCMOT]COMM_TIMEOUT
+  double max_linear_velocity = 1e99;  // [TRAJ]MAX_LINEAR_VELOCITY
+  double max_linear_acceleration = 1e99;
+  double max_linear_jerk = 1e99;
+  double default_linear_velocity = 0;
+  double max_angular_velocity = 1e99;
+  double linear_units_per_mm = 1;     // [TRAJ]LINEAR_UNITS: mm -> 1, inch -> 1/25.4
+  double angular_units_per_degree = 1;
+  bool no_force_homing = false;       // [TRAJ]NO_FORCE_HOMING
+  int spindles = 1;                   // [TRAJ]SPINDLES
+  int num_dio = 4, num_aio = 4;       // motmod num_dio= / num_aio=
+  // Fraction of each joint's velocity and acceleration kept free for
+  // backlash and screw compensation (the planners use the rest).
+  double comp_reserve = 0.05;
+};
+
+// Reads the configuration for `num_joints` joints. Throws ConfigError.
+MotionConfig load_motion_config(const ini::IniFile& ini, int num_joints);
+
+}  // namespace cnc::motion

@@ -1,0 +1,88 @@
+// The motion controller as a HAL component, loaded like LinuxCNC's motmod:
+//   loadrt motmod servo_period_nsec=[EMCMOT]SERVO_PERIOD num_joints=[KINS]JOINTS
+// It exports LinuxCNC's motion pins (motion.*, joint.N.*, axis.L.*,
+// spindle.N.*) and the functions motion-command-handler and
+// motion-controller for the servo thread. The task side talks to it through
+// submit()/poll_result()/status(): lock-free queues and a sequence lock, so
+// the servo thread never waits for it.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "core/hal/component.hpp"
+#include "core/ipc/service.hpp"
+#include "core/motion/motion_controller.hpp"
+#include "core/util/seqlock.hpp"
+#include "core/util/spsc_ring.hpp"
+
+namespace cnc::motion {
+
+// Makes the coordinated-mode planner (core/tp's, or a test planner).
+using PlannerFactory = std::function<std::unique_ptr<tp::TrajectoryPlanner>(const tp::PlannerConfig&)>;
+
+// The planner configuration a motion configuration implies.
+tp::PlannerConfig planner_config(const MotionConfig& config, uint32_t axis_mask);
+
+class MotionComponent : public hal::Component, public ipc::ControllerService {
+ public:
+  static constexpr std::size_t kQueueDepth = 1024;
+
+  MotionComponent(hal::ComponentContext& ctx, const hal::LoadArgs& args, PlannerFactory planner_factory);
+  ~MotionComponent() override;
+
+  void on_ready() override;
+  void on_shutdown() override;
+
+  // --- task side (one thread) ---
+  // Queues a command; returns its serial, or 0 when the queue is full.
+  uint64_t submit(MotionCommand cmd);
+  bool poll_result(MotionResult& out) { return results_.pop(out); }
+  MotionStatus status() const { return status_.read(); }
+  const MotionConfig& config() const noexcept { return config_; }
+  bool ready() const noexcept { return controller_ != nullptr; }
+  int free_queue_slots() const noexcept { return static_cast<int>(kQueueDepth - commands_.size()); }
+  // Screw compensation for a joint; only before the threads start.
+  void set_compensation(int joint, JointCompensation* comp);
+
+  // --- ControllerService ---
+  int service_order() const noexcept override { return 10; }
+  void contribute_status(ipc::Status& status) override;
+  bool is_safe_to_stop() const override;
+
+  // --- servo thread ---
+  void command_handler(const rt::CycleInfo& info) noexcept;
+  void controller(const rt::CycleInfo& info) noexcept;
+
+ private:
+  struct JointPins;
+  struct AxisPins;
+  struct SpindlePins;
+  void make_pins();
+  void read_pins() noexcept;
+  void write_pins() noexcept;
+
+  hal::ComponentContext ctx_;
+  MotionConfig config_;
+  PlannerFactory planner_factory_;
+  std::unique_ptr<tp::TrajectoryPlanner> planner_;
+  std::unique_ptr<MotionController> controller_;
+  SpscRing<MotionCommand, kQueueDepth> commands_;
+  SpscRing<MotionResult, kQueueDepth> results_;
+  SeqLock<MotionStatus> status_;
+  MotionStatus scratch_status_;
+  uint64_t next_serial_ = 1;
+  std::vector<std::unique_ptr<JointPins>> joint_pins_;
+  std::vector<std::unique_ptr<AxisPins>> axis_pins_;
+  std::vector<std::unique_ptr<SpindlePins>> spindle_pins_;
+  struct MotionPins;
+  std::unique_ptr<MotionPins> pins_;
+  std::vector<hal::BitPin> din_, dout_;
+  std::vector<hal::FloatPin> ain_, aout_;
+};
+
+// Registers motmod and the simulation components (sim_joint).
+void register_components(hal::ComponentRegistry& registry, PlannerFactory planner_factory);
+
+}  // namespace cnc::motion

@@ -1,0 +1,196 @@
+// The motion controller (the manual's chapter 3): commands, the free,
+// teleop and coord modes, homing, limits, following error, the seven
+// position forms, backlash and compensation, watchdog. It runs in the servo
+// thread: handle() and update() never allocate, block or throw. Inputs and
+// outputs are plain structs (io.hpp); the HAL component maps them to pins.
+#pragma once
+
+#include <array>
+
+#include "core/motion/command.hpp"
+#include "core/motion/compensation.hpp"
+#include "core/motion/config.hpp"
+#include "core/motion/free_planner.hpp"
+#include "core/motion/io.hpp"
+#include "core/motion/motion_status.hpp"
+#include "core/tp/planner.hpp"
+#include "kinematics/kinematics.hpp"
+
+namespace cnc {
+class MessageQueue;
+}
+
+namespace cnc::motion {
+
+enum class HomeState : uint8_t {
+  Idle = 0,
+  Start,
+  UnlockWait,
+  InitialBackoff,
+  InitialSearch,
+  FinalBackoff,
+  RiseSearch,
+  FallSearch,
+  IndexSearch,
+  StopAfterLatch,
+  WaitGroup,
+  FinalMove,
+  LockWait,
+  DriveHoming,
+  Finished,
+};
+const char* to_string(HomeState s) noexcept;
+
+class MotionController {
+ public:
+  // Non-realtime construction. `messages` may be null (tests).
+  MotionController(const MotionConfig& config, kin::Kinematics& kinematics, tp::TrajectoryPlanner& planner,
+                   MessageQueue* messages);
+
+  // Screw compensation for a joint (before the servo thread starts).
+  void set_compensation(int joint, JointCompensation* comp) noexcept { comp_[static_cast<std::size_t>(joint)] = comp; }
+
+  // --- servo thread ---
+  // Handles one command. Returns false when it cannot be taken now (the
+  // planner queue is full): the caller offers it again next cycle.
+  bool handle(const MotionCommand& cmd, MotionResult& result) noexcept;
+  // One servo period: reads in(), writes out().
+  void update(double dt) noexcept;
+  void fill_status(MotionStatus& s) const noexcept;
+
+  MotionInputs& in() noexcept { return in_; }
+  const MotionOutputs& out() const noexcept { return out_; }
+  const MotionConfig& config() const noexcept { return cfg_; }
+  ipc::MotionMode mode() const noexcept { return mode_; }
+  bool enabled() const noexcept { return enabled_; }
+  bool all_homed() const noexcept;
+  bool in_position() const noexcept;
+  const Pose& carte_pos_cmd() const noexcept { return carte_cmd_; }
+
+ private:
+  struct Joint {
+    bool active = true;
+    bool amp_enabled = false;
+    bool homed = false;
+    HomeState home_state = HomeState::Idle;
+    bool jogging = false;
+    bool jog_override_limits = false;
+    double coarse_pos = 0, pos_cmd = 0, pos_fb = 0, vel_cmd = 0, acc_cmd = 0;
+    double motor_offset = 0;
+    double backlash_corr = 0, backlash_filt = 0, backlash_vel = 0;
+    FreePlanner backlash;  // moves backlash_filt to backlash_corr within the reserved limits
+    double screw_comp = 0;
+    double ferror = 0, ferror_limit = 0, ferror_high = 0;
+    bool ferror_fault = false, amp_fault = false;
+    bool on_pos_limit = false, on_neg_limit = false;
+    bool soft_min = false, soft_max = false;
+    FreePlanner free;
+    // homing scratch
+    bool stopping = false;          // waiting for the planner to stop before next_state
+    HomeState next_state = HomeState::Idle;
+    bool index_armed = false;
+    bool drive_home_request = false;
+    bool unlock_request = false;
+    int32_t prev_jog_counts = 0;
+    bool jog_counts_valid = false;
+  };
+
+  // commands
+  const char* cmd_mode(ipc::MotionMode target) noexcept;
+  const char* cmd_enable(bool enable) noexcept;
+  const char* cmd_home(int joint) noexcept;
+  const char* cmd_unhome(int joint) noexcept;
+  const char* cmd_jog(const MotionCommand& c) noexcept;
+  const char* cmd_jog_joint(const MotionCommand& c) noexcept;
+  const char* cmd_jog_axis(const MotionCommand& c) noexcept;
+  const char* cmd_segment(const MotionCommand& c, bool& retry) noexcept;
+  void abort_all() noexcept;
+
+  // cycle parts
+  void read_feedback() noexcept;
+  void resync_from_feedback() noexcept;
+  void check_faults() noexcept;
+  void run_free(double dt) noexcept;
+  void run_teleop(double dt) noexcept;
+  void run_coord(double dt) noexcept;
+  void run_homing(double dt) noexcept;
+  void home_step(int j, double dt) noexcept;
+  void start_home_sequence(int sequence) noexcept;
+  void finish_joint_home(int j) noexcept;
+  void abort_homing(int j, const char* why) noexcept;
+  void latch_home(int j, double joint_pos_at_latch) noexcept;
+  void update_jog_wheels() noexcept;
+  void apply_inverse_kinematics() noexcept;
+  void check_soft_limits() noexcept;
+  void compute_outputs(double dt) noexcept;
+  void update_backlash(Joint& j, const JointConfig& c, double dt) noexcept;
+  FreeLimits joint_limits(int j, double vel) const noexcept;
+  // Disables motion after a fault and says why on the error channel.
+  void fault(const char* fmt, ...) noexcept __attribute__((format(printf, 2, 3)));
+  const char* reason(const char* fmt, ...) noexcept __attribute__((format(printf, 2, 3)));
+  void begin_search(int j) noexcept;
+  void enter_home_state(int j, HomeState state) noexcept;
+  void stop_then(int j, HomeState state) noexcept;
+  void on_latch_event(int j) noexcept;
+  void start_final_move(int j) noexcept;
+  void run_sync_groups(double dt) noexcept;
+  void post_error(const char* fmt, ...) noexcept __attribute__((format(printf, 2, 3)));
+  void post_text(const char* fmt, ...) noexcept __attribute__((format(printf, 2, 3)));
+  bool joint_in_sync_group(int j) const noexcept;
+  double search_span(int j) const noexcept;
+
+  MotionConfig cfg_;
+  kin::Kinematics& kins_;
+  tp::TrajectoryPlanner& tp_;
+  MessageQueue* messages_;
+  std::array<JointCompensation*, kMaxJoints> comp_{};
+  MotionInputs in_;
+  MotionOutputs out_;
+  std::array<Joint, kMaxJoints> joints_{};
+  ipc::MotionMode mode_ = ipc::MotionMode::Free;
+  bool enabled_ = false;
+  bool faulted_ = false;
+  bool resync_ = true;                // take the command from fresh feedback on the next cycle
+  bool watchdog_enabled_ = false;
+  bool override_limits_ = false;      // armed by OVERRIDE_LIMITS, consumed by the next jog
+  double feed_scale_ = 1, rapid_scale_ = 1, max_velocity_ = 1e99;
+  bool feed_override_enabled_ = true, adaptive_enabled_ = false, feed_hold_enabled_ = true;
+  Pose carte_cmd_, carte_fb_, tool_offset_;
+  bool carte_fb_valid_ = false;
+  // teleop: one planner per axis in Cartesian space
+  std::array<FreePlanner, kNumAxes> axis_free_{};
+  // coord
+  tp::CycleOutputs tp_out_{};
+  bool probing_ = false, probe_tripped_ = false;
+  Pose probed_pos_;
+  uint64_t probe_serial_ = 0;
+  // homing sequence
+  int home_sequence_ = -1;            // |sequence| being homed by "home all", -1 none
+  bool home_all_ = false;
+  int max_sequence_ = 0;
+  std::array<FreePlanner, kMaxJoints> group_planner_{};  // synchronised final moves, per |sequence|
+  std::array<double, kMaxJoints> group_start_{};
+  // spindles
+  struct Spindle {
+    double speed = 0;
+    bool on = false, brake = true;
+    double override_scale = 1;
+    bool orient = false;
+    double orient_angle = 0;
+    int32_t orient_mode = 0;
+  };
+  std::array<Spindle, kMaxSpindles> spindles_{};
+  uint32_t last_queued_id_ = 0;       // id of the last segment given to the planner
+  std::array<uint32_t, kMaxDio> dout_after_id_{};
+  std::array<uint32_t, kMaxAio> aout_after_id_{};
+  std::array<bool, kMaxDio> dout_pending_{};
+  std::array<int8_t, kMaxDio> dout_sync_value_{};
+  std::array<double, kMaxAio> aout_sync_value_{};
+  std::array<bool, kMaxAio> aout_pending_{};
+  FixedString<200> reason_;
+  uint64_t cycles_ = 0;
+  uint64_t last_serial_ = 0;
+  double dt_ = 0.001;
+};
+
+}  // namespace cnc::motion

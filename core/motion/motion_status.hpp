@@ -1,0 +1,29 @@
+// What the motion controller publishes each servo cycle for the task side
+// and the status block: trajectory, joints, axes, spindles, plus the
+// bookkeeping the task needs to synchronise (last command answered,
+// planner queue depth). Written under a sequence lock; plain data.
+#pragma once
+
+#include <cstdint>
+
+#include "core/ipc/status.hpp"
+
+namespace cnc::motion {
+
+struct MotionStatus {
+  ipc::TrajStatus traj;
+  ipc::JointStatus joints[kMaxJoints];
+  ipc::AxisStatus axes[kNumAxes];
+  ipc::SpindleStatus spindles[ipc::kMaxSpindles];
+  uint64_t cycles = 0;
+  uint64_t last_serial = 0;   // last command the servo thread answered
+  bool all_homed = false;
+  bool any_homing = false;
+  bool tp_done = true;
+  bool jogging = false;
+  bool faulted = false;       // a fault disabled motion and is not cleared yet
+  int32_t homing_sequence_active = -1;
+  double servo_exec_ns = 0;
+};
+
+}  // namespace cnc::motion
