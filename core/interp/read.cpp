@@ -2,6 +2,7 @@
 // with LinuxCNC's operators, precedence and messages.
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 
 #include "core/interp/impl.hpp"
@@ -240,7 +241,11 @@ void Interpreter::State::read_word(std::size_t& i) {
   }
   const int axis = axis_index(letter);
   if (axis >= 0 && !((config.axis_mask >> axis) & 1u)) fail(std::string("Bad character '") + letter + "' used");
-  if (!std::strchr("abcdefhijklpqrstuvwxyz", letter)) fail(std::string("Bad character '") + letter + "' used");
+  static constexpr uint32_t kWordLetters = 0x3ffffff & ~((1u << ('g' - 'a')) | (1u << ('m' - 'a')) | (1u << ('n' - 'a')) |
+                                                          (1u << ('o' - 'a')));
+  if (letter < 'a' || letter > 'z' || !((kWordLetters >> (letter - 'a')) & 1u)) {
+    fail(std::string("Bad character '") + letter + "' used");
+  }
   if (block.has_word(letter)) multiple(letter);
   double value = 0;
   switch (letter) {
@@ -330,18 +335,34 @@ double Interpreter::State::read_real_number(std::size_t& i) {
   double v = 0;
   const char* first = norm.data() + start;
   const char* last = norm.data() + j;
-  if (*first == '.') {
-    // from_chars accepts ".5"; keep one code path.
-  }
-  const auto r = std::from_chars(first, last, v, std::chars_format::fixed);
-  if (r.ec != std::errc() || r.ptr != last) {
-    // "5." is valid G-code; from_chars stops before a trailing point.
-    if (r.ec == std::errc() && r.ptr + 1 == last && *r.ptr == '.') {
-      // ok
-    } else if (r.ec == std::errc::result_out_of_range) {
-      fail("Calculation resulted in 'infinity'");
-    } else {
-      fail("Bad number format");
+  // Fast path (exact, as strtod): up to 15 significant digits scaled by an
+  // exact power of ten is one correctly rounded division.
+  static constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
+                                      1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+  if (digits <= 15) {
+    uint64_t mantissa = 0;
+    int frac = 0;
+    bool after_point = false;
+    for (const char* c = first; c < last; ++c) {
+      if (*c == '.') {
+        after_point = true;
+        continue;
+      }
+      mantissa = mantissa * 10 + static_cast<uint64_t>(*c - '0');
+      frac += after_point ? 1 : 0;
+    }
+    v = static_cast<double>(mantissa) / kPow10[frac];
+  } else {
+    const auto r = std::from_chars(first, last, v, std::chars_format::fixed);
+    if (r.ec != std::errc() || r.ptr != last) {
+      // "5." is valid G-code; from_chars stops before a trailing point.
+      if (r.ec == std::errc() && r.ptr + 1 == last && *r.ptr == '.') {
+        // ok
+      } else if (r.ec == std::errc::result_out_of_range) {
+        fail("Calculation resulted in 'infinity'");
+      } else {
+        fail("Bad number format");
+      }
     }
   }
   i = j;

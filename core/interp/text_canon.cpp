@@ -55,14 +55,29 @@ void TextCanon::flush() {
 void TextCanon::out(std::string_view call) {
   ++index_;
   if (file_ != nullptr) {
-    char head[32];
-    int n = 0;
+    // "%5ld N%-5d " or "%5ld N..... ", without printf
+    char head[40];
+    char* h = head;
+    char num[24];
+    auto r = std::to_chars(num, num + sizeof num, index_);
+    const int width = static_cast<int>(r.ptr - num);
+    for (int k = width; k < 5; ++k) *h++ = ' ';
+    std::memcpy(h, num, static_cast<std::size_t>(width));
+    h += width;
+    *h++ = ' ';
+    *h++ = 'N';
     if (n_number_ >= 0) {
-      n = std::snprintf(head, sizeof head, "%5ld N%-5d ", index_, n_number_);
+      r = std::to_chars(num, num + sizeof num, n_number_);
+      const int w = static_cast<int>(r.ptr - num);
+      std::memcpy(h, num, static_cast<std::size_t>(w));
+      h += w;
+      for (int k = w; k < 5; ++k) *h++ = ' ';
     } else {
-      n = std::snprintf(head, sizeof head, "%5ld N..... ", index_);
+      std::memcpy(h, ".....", 5);
+      h += 5;
     }
-    buf_.append(head, static_cast<std::size_t>(n));
+    *h++ = ' ';
+    buf_.append(head, static_cast<std::size_t>(h - head));
     buf_.append(call);
     buf_.push_back('\n');
     if (buf_.size() > (1 << 16)) {
