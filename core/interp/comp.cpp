@@ -216,11 +216,12 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
     return;
   }
   if (convex || (std::fabs(turn) < 1e-12 && along < 0)) {
-    comp_flush();
+    const CompMove before = prev;
+    comp_flush();  // prev is gone after this
     CompMove a;
     a.kind = CompMove::Arc;
     a.line = current_line;
-    a.end = prev.end;
+    a.end = before.end;
     a.end[a1] = start.x;
     a.end[a2] = start.y;
     a.first_end = start.x;
@@ -228,7 +229,7 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
     a.center1 = corner.x;
     a.center2 = corner.y;
     a.rotation = left ? -1 : 1;
-    a.axis_end = prev.end[a3];
+    a.axis_end = before.end[a3];
     a.feed = -1;
     comp_emit(a);
     pos = a.end;
@@ -264,8 +265,9 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
     prev.first_end = x.x;
     prev.second_end = x.y;
   }
-  comp_flush();
-  pos = prev.end;
+  const Pose joined = prev.end;
+  comp_flush();  // prev is gone after this
+  pos = joined;
 }
 
 }  // namespace cnc::interp

@@ -26,7 +26,23 @@ void Interpreter::State::open_file(const std::string& path) {
     fail("Unable to open file <" + path + ">");
   }
   f.path = path;
+  push_source(std::move(f));
+}
+
+void Interpreter::State::push_source(SourceFile f) {
+  f.id = next_source_id++;
   files.push_back(std::move(f));
+}
+
+// Loops and skips never outlive the source they started in.
+void Interpreter::State::pop_source() {
+  const int id = files.back().id;
+  for (Frame& fr : frames) {
+    std::erase_if(fr.loops, [id](const Loop& l) { return l.source == id; });
+  }
+  files.pop_back();
+  skipping = false;
+  skip_defining = false;
 }
 
 void Interpreter::State::jump(int64_t offset, int line_before) { files.back().reader->seek(offset, line_before); }
@@ -95,7 +111,7 @@ bool Interpreter::State::read_block() {
     if (!next_raw_line(raw)) {
       if (files.empty()) return false;
       if (files.size() > 1 && files.back().path == "<mdi>") {
-        files.pop_back();
+        pop_source();
         return false;
       }
       if (skipping) {
@@ -104,7 +120,7 @@ bool Interpreter::State::read_block() {
         fail("File ended with no percent sign");
       }
       if (files.back().path == "<mdi>") {
-        files.pop_back();
+        pop_source();
         return false;
       }
       if (frames.size() > 1) fail("File ended with no percent sign or program end");
@@ -168,6 +184,11 @@ double eval_o_value(Interpreter::State& s) {
 bool Interpreter::State::handle_o_word() {
   const std::string label = block.o_name;
   Frame& fr = frame();
+  const int src = files.back().id;
+  auto top_is = [&](LoopKind k) {
+    return !fr.loops.empty() && fr.loops.back().label == label && fr.loops.back().kind == k && fr.loops.back().source == src;
+  };
+  auto top_label = [&] { return !fr.loops.empty() && fr.loops.back().label == label && fr.loops.back().source == src; };
   switch (block.o_type) {
     case OType::Sub: {
       SubDef d{files.back().path, files.back().reader->offset(), current_line};
@@ -240,12 +261,12 @@ bool Interpreter::State::handle_o_word() {
       fr.if_done.erase(label);
       return true;
     case OType::Do: {
-      Loop l{label, LoopKind::Do, line_offset, current_line, files.back().reader->offset(), current_line, 0};
+      Loop l{label, LoopKind::Do, line_offset, current_line, files.back().reader->offset(), current_line, 0, files.back().id};
       fr.loops.push_back(l);
       return true;
     }
     case OType::While: {
-      if (!fr.loops.empty() && fr.loops.back().label == label && fr.loops.back().kind == LoopKind::Do) {
+      if (top_is(LoopKind::Do)) {
         const bool cond = eval_o_value(*this) != 0.0;
         if (cond) {
           jump(fr.loops.back().body_offset, fr.loops.back().body_line);
@@ -254,13 +275,13 @@ bool Interpreter::State::handle_o_word() {
         }
         return true;
       }
-      const bool again = !fr.loops.empty() && fr.loops.back().label == label &&
-                         fr.loops.back().kind == LoopKind::While && fr.loops.back().offset == line_offset;
+      const bool again = top_is(LoopKind::While) && fr.loops.back().offset == line_offset;
       const bool cond = eval_o_value(*this) != 0.0;
       if (cond) {
         if (!again) {
           fr.loops.push_back(
-              Loop{label, LoopKind::While, line_offset, current_line, files.back().reader->offset(), current_line, 0});
+              Loop{label, LoopKind::While, line_offset, current_line, files.back().reader->offset(), current_line, 0,
+                   files.back().id});
         }
       } else {
         if (again) fr.loops.pop_back();
@@ -269,7 +290,7 @@ bool Interpreter::State::handle_o_word() {
       return true;
     }
     case OType::EndWhile: {
-      if (fr.loops.empty() || fr.loops.back().label != label) fail("Unknown oword number");
+      if (!top_label()) fail("Unknown oword number");
       jump(fr.loops.back().offset, fr.loops.back().line - 1);
       return true;
     }
@@ -281,11 +302,12 @@ bool Interpreter::State::handle_o_word() {
         return true;
       }
       fr.loops.push_back(
-          Loop{label, LoopKind::Repeat, line_offset, current_line, files.back().reader->offset(), current_line, count});
+          Loop{label, LoopKind::Repeat, line_offset, current_line, files.back().reader->offset(), current_line, count,
+               files.back().id});
       return true;
     }
     case OType::EndRepeat: {
-      if (fr.loops.empty() || fr.loops.back().label != label) fail("Unknown oword number");
+      if (!top_label()) fail("Unknown oword number");
       Loop& l = fr.loops.back();
       if (--l.remaining > 0) {
         jump(l.body_offset, l.body_line);
@@ -296,7 +318,7 @@ bool Interpreter::State::handle_o_word() {
     }
     case OType::Break:
     case OType::Continue: {
-      if (fr.loops.empty() || fr.loops.back().label != label) fail("Unknown oword number");
+      if (!top_label()) fail("Unknown oword number");
       Loop l = fr.loops.back();
       if (block.o_type == OType::Break) {
         fr.loops.pop_back();
@@ -409,7 +431,7 @@ void Interpreter::State::do_return(bool has_value, double value) {
   globals["_value"] = has_value ? value : 0.0;
   globals["_value_returned"] = has_value ? 1.0 : 0.0;
   if (f.saved_modal.valid) restore_modal(f.saved_modal);
-  while (static_cast<int>(files.size()) > f.file_depth) files.pop_back();
+  while (static_cast<int>(files.size()) > f.file_depth) pop_source();
   jump(f.return_offset, f.return_line);
 }
 

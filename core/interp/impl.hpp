@@ -18,6 +18,9 @@ struct Interpreter::State {
 
   // ---------------- sources and flow
   std::vector<SourceFile> files;
+  int next_source_id = 1;
+  void push_source(SourceFile f);
+  void pop_source();
   std::string program_path;
   std::string program_display_name;  // the name as given to open()
   std::unique_ptr<LineReader> mdi;

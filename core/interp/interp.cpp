@@ -190,7 +190,7 @@ Status Interpreter::read(std::string_view mdi_line) {
   SourceFile f;
   f.reader = std::make_unique<LineReader>(LineReader::from_string(std::string(mdi_line)));
   f.path = "<mdi>";
-  s.files.push_back(std::move(f));
+  s.push_source(std::move(f));
   s.first_line = false;
   if (!s.read_block()) {
     s.block_ready = false;
@@ -226,7 +226,7 @@ Status Interpreter::execute(std::string_view mdi_line) {
     if (s.files.size() <= depth) break;
     st = read();
   }
-  while (s.files.size() > depth) s.files.pop_back();
+  while (s.files.size() > depth) s.pop_source();
   return last == Status::ExecuteFinish ? Status::Ok : last;
 }
 

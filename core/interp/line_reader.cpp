@@ -61,7 +61,7 @@ bool LineReader::fill() {
 bool LineReader::next(std::string_view& line) {
   for (;;) {
     const char* start = buf_.data() + pos_;
-    const void* nl = std::memchr(start, '\n', len_ - pos_);
+    const void* nl = len_ > pos_ ? std::memchr(start, '\n', len_ - pos_) : nullptr;
     if (nl != nullptr) {
       const std::size_t n = static_cast<std::size_t>(static_cast<const char*>(nl) - start);
       std::size_t m = n;

@@ -83,6 +83,7 @@ struct Loop {
   int64_t body_offset;  // first line of the body
   int body_line;
   int remaining = 0;  // repeat
+  int source = 0;     // SourceFile::id the loop lives in
 };
 
 struct SubDef {
@@ -126,6 +127,7 @@ struct Frame {
 struct SourceFile {
   std::unique_ptr<LineReader> reader;
   std::string path;
+  int id = 0;  // unique per opened source
 };
 
 // Cutter compensation queue entry (LinuxCNC-style one-move look-ahead).
