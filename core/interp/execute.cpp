@@ -62,7 +62,7 @@ void Interpreter::State::reset_modal(bool keep_params) {
   css_max = 0;
   mist = flood = false;
   motion_mode = 0;
-  origin = static_cast<int>(params[5220]);
+  origin = round_to_int(params[5220]);
   if (origin < 1 || origin > 9) origin = 1;
   const int base = 5201 + 20 * origin;
   for (int i = 0; i < kNumAxes; ++i) origin_offset[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
@@ -307,7 +307,7 @@ void Interpreter::State::convert_tool_change(Status& st) {
   }
   // M61 Q
   if (!block.has_word('q') || block.get('q') < 0) fail("Need non-negative Q-word to specify tool number with M61");
-  const int t = static_cast<int>(std::lround(block.get('q')));
+  const int t = static_cast<int>(round_to_int(block.get('q')));
   int index = 0;
   if (t != 0 || tools.is_random()) {
     const auto i = tools.find_tool(t);
@@ -331,7 +331,7 @@ void Interpreter::State::convert_m(Status& st) {
     if ((io >= 62 && io <= 65) && (!block.has_word('p') || block.get('p') < 0)) {
       fail("No valid P word with M" + std::to_string(io));
     }
-    const int p = static_cast<int>(std::lround(block.get('p')));
+    const int p = static_cast<int>(round_to_int(block.get('p')));
     switch (io) {
       case 62:
         if (cutter_side != 400) fail("Cannot set motion digital output with cutter radius compensation on");
@@ -357,7 +357,7 @@ void Interpreter::State::convert_m(Status& st) {
           fail(has_p ? "Cannot wait for digital input with cutter radius compensation on"
                      : "Cannot wait for analog input with cutter radius compensation on");
         }
-        const int index = static_cast<int>(std::lround(has_p ? block.get('p') : block.get('e')));
+        const int index = static_cast<int>(round_to_int(has_p ? block.get('p') : block.get('e')));
         canon.wait_input(index, has_p, static_cast<WaitType>(type), timeout);
         st = Status::ExecuteFinish;
         break;
@@ -365,7 +365,7 @@ void Interpreter::State::convert_m(Status& st) {
       case 67:
       case 68: {
         if (!block.has_word('e') || block.get('e') < 0) fail(io == 67 ? "Invalid analog index with M67" : "Invalid analog index with M68");
-        const int e = static_cast<int>(std::lround(block.get('e')));
+        const int e = static_cast<int>(round_to_int(block.get('e')));
         const double q = block.get('q');
         if (io == 67) {
           if (cutter_side != 400) fail("Cannot set motion analog output with cutter radius compensation on");
@@ -394,7 +394,7 @@ void Interpreter::State::convert_m(Status& st) {
       break;
     case 19: {
       const double r = block.has_word('r') ? block.get('r') : 0.0;
-      const int q = block.has_word('p') ? static_cast<int>(block.get('p')) : 0;
+      const int q = block.has_word('p') ? round_to_int(block.get('p')) : 0;
       canon.orient_spindle(0, r, q);
       spindle = Direction::Stopped;
       break;
@@ -544,7 +544,7 @@ void Interpreter::State::convert_cutter_comp(int g) {
     if (block.has_word('d')) {
       const double d = block.get('d');
       if (d < 0) fail("Negative d word tool radius index used");
-      const int t = static_cast<int>(std::lround(d));
+      const int t = static_cast<int>(round_to_int(d));
       // Manual 3.24.3.6: D names a tool number; D0 or no D: the spindle.
       if (t != 0) {
         const auto i = tools.find_tool_anywhere(t);
@@ -709,7 +709,7 @@ void Interpreter::State::convert_axis_offsets(int g) {
 void Interpreter::State::convert_coord_setup(int l) {
   // G10 L2 / L20 P(1-9 or 0 for the active system) axis words, R rotation
   if (!block.has_word('p')) fail("P word missing with G10 L2");
-  int p = static_cast<int>(std::lround(block.get('p')));
+  int p = static_cast<int>(round_to_int(block.get('p')));
   if (p == 0) p = origin;
   if (p < 1 || p > 9) fail("P value out of range with G10 L2");
   const int base = 5201 + 20 * p;
@@ -739,7 +739,7 @@ void Interpreter::State::convert_coord_setup(int l) {
 void Interpreter::State::convert_setup_tool(int l) {
   // G10 L1 / L10 / L11 P<tool>: write the tool table (manual 3.24.3.4).
   if (!block.has_word('p')) fail("P word missing with G10 L1/L10/L11");
-  const int toolno = static_cast<int>(std::lround(block.get('p')));
+  const int toolno = static_cast<int>(round_to_int(block.get('p')));
   std::optional<int> index = tools.find_tool_anywhere(toolno);
   if (!tools.is_random() && index && *index == 0) index = tools.find_tool(toolno);
   if (!index) {
@@ -769,7 +769,7 @@ void Interpreter::State::convert_setup_tool(int l) {
   if (block.has_word('i')) t.front_angle = block.get('i');
   if (block.has_word('j')) t.back_angle = block.get('j');
   if (block.has_word('q')) {
-    const int q = static_cast<int>(std::lround(block.get('q')));
+    const int q = static_cast<int>(round_to_int(block.get('q')));
     if (q < 0 || q > 9) fail("Invalid tool orientation");
     t.orientation = q;
   }

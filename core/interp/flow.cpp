@@ -296,7 +296,7 @@ bool Interpreter::State::handle_o_word() {
     }
     case OType::Repeat: {
       const double v = eval_o_value(*this);
-      const int count = static_cast<int>(std::lround(v));
+      const int count = round_to_int((v));
       if (count <= 0) {
         start_skip(label, {OType::EndRepeat});
         return true;

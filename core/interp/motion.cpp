@@ -170,7 +170,7 @@ void Interpreter::State::convert_arc(int g, const Pose& end) {
   int turns = 1;
   if (block.has_word('p')) {
     const double p = block.get('p');
-    turns = static_cast<int>(std::lround(p));
+    turns = round_to_int((p));
     if (std::fabs(p - turns) > 0.0001) fail("P value not an integer with M19 G2 or G3");
     if (turns < 1) fail("P value should be 1 or greater with G2 or G3");
   }

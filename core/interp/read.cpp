@@ -216,6 +216,7 @@ void Interpreter::State::read_word(std::size_t& i) {
   switch (letter) {
     case 'g': {
       const double v = read_real_value(i) * 10.0;
+      if (v > 1e7 || v < -1e7) fail(v < 0 ? "Negative g code used" : "Unknown g code used");
       const int code = static_cast<int>(std::floor(v + 0.5));
       if (v < code - 0.0001 || v > code + 0.0001) fail("Unknown g code used");
       if (code < 0) fail("Negative g code used");

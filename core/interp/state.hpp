@@ -22,6 +22,13 @@ inline constexpr double kPi = 3.14159265358979323846;
 inline constexpr double kTiny = 1e-12;
 inline constexpr double kMmPerInch = 25.4;
 
+// Rounds to the nearest int, saturating (never undefined for huge values).
+inline int round_to_int(double v) {
+  if (!(v > -2147483647.0)) return -2147483647;
+  if (!(v < 2147483647.0)) return 2147483647;
+  return static_cast<int>(v < 0 ? v - 0.5 : v + 0.5);
+}
+
 enum class OType : uint8_t {
   None, Sub, EndSub, Call, Return, If, ElseIf, Else, EndIf, Do, While, EndWhile, Repeat, EndRepeat, Break, Continue
 };
