@@ -36,8 +36,11 @@ struct Sim {
   // Steps until pred() holds or max_ns passed; returns pred().
   bool run_until(const std::function<bool()>& pred, int64_t max_ns = 2'000'000'000) {
     const int64_t end = now() + max_ns;
-    while (!pred() && now() < end) step();
-    return pred();
+    for (;;) {
+      if (pred()) return true;  // evaluated once per step: predicates may consume
+      if (now() >= end) return false;
+      step();
+    }
   }
   std::vector<can::Frame> frames_with_id(uint32_t id) const {
     std::vector<can::Frame> out;

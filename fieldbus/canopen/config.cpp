@@ -1,0 +1,498 @@
+#include "fieldbus/canopen/config.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <set>
+#include <stdexcept>
+
+#include "core/ini/ini_file.hpp"
+#include "core/util/strings.hpp"
+
+namespace cnc::canopen {
+namespace {
+
+std::string hex(uint32_t v, int width) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "0x%0*X", width, v);
+  return buf;
+}
+
+std::string addr_text(ObjectAddress a) {
+  char buf[16];
+  return format(a, buf, sizeof buf);
+}
+
+struct TypeToken {
+  const char* name;
+  DataType type;
+  ValueKind kind;
+  uint8_t bits;
+};
+constexpr TypeToken kTypes[] = {
+    {"u8", DataType::Unsigned8, ValueKind::Unsigned, 8},    {"u16", DataType::Unsigned16, ValueKind::Unsigned, 16},
+    {"u32", DataType::Unsigned32, ValueKind::Unsigned, 32}, {"u64", DataType::Unsigned64, ValueKind::Unsigned, 64},
+    {"s8", DataType::Integer8, ValueKind::Signed, 8},       {"s16", DataType::Integer16, ValueKind::Signed, 16},
+    {"s32", DataType::Integer32, ValueKind::Signed, 32},    {"s64", DataType::Integer64, ValueKind::Signed, 64},
+    {"f32", DataType::Real32, ValueKind::Real, 32},         {"f64", DataType::Real64, ValueKind::Real, 64},
+    {"bool", DataType::Boolean, ValueKind::Bit, 1},
+};
+
+const TypeToken* find_type(std::string_view t) {
+  for (const auto& k : kTypes) {
+    if (iequals(t, k.name)) return &k;
+  }
+  return nullptr;
+}
+
+ValueKind kind_of(DataType t) {
+  if (t == DataType::Boolean) return ValueKind::Bit;
+  if (t == DataType::Real32 || t == DataType::Real64) return ValueKind::Real;
+  return is_signed(t) ? ValueKind::Signed : ValueKind::Unsigned;
+}
+
+std::optional<ObjectAddress> parse_address(std::string_view idx, std::string_view sub) {
+  const auto i = parse_uint(trim(idx));
+  const auto s = parse_uint(trim(sub));
+  if (!i || !s || *i > 0xFFFF || *s > 0xFF) return std::nullopt;
+  return ObjectAddress{static_cast<uint16_t>(*i), static_cast<uint8_t>(*s)};
+}
+
+}  // namespace
+
+std::string NodeConfig::label() const {
+  return "node " + std::to_string(id) + (name.empty() ? "" : " (" + name + ")");
+}
+
+std::optional<ParsedMapEntry> parse_map_entry(const std::string& text, const DeviceDescription* eds, std::string& error) {
+  const std::string t(trim(text));
+  ParsedMapEntry out;
+  for (const char* pad : {"pad8", "pad16", "pad32"}) {
+    if (iequals(t, pad)) {
+      const uint8_t bits = static_cast<uint8_t>(std::stoi(std::string(pad + 3)));
+      out.entry = PdoMapEntry{static_cast<uint16_t>(bits == 8 ? 0x0005 : bits == 16 ? 0x0006 : 0x0007), 0, bits};
+      return out;
+    }
+  }
+  const auto parts = split(t, ':');
+  if (parts.size() == 1) {  // raw 0xIIIISSLL
+    const auto v = parse_uint(t);
+    if (!v || *v > 0xFFFFFFFF || (*v & 0xFF) == 0) {
+      error = "\"" + t + "\": expected index:sub:type (0x6040:0:u16), a raw entry (0x60400010) or pad8/pad16/pad32";
+      return std::nullopt;
+    }
+    out.entry = PdoMapEntry::decode(static_cast<uint32_t>(*v));
+    if (out.entry.bits > 64) {
+      error = "\"" + t + "\": more than 64 bits";
+      return std::nullopt;
+    }
+    const EdsEntry* e = eds ? eds->find({out.entry.index, out.entry.sub}) : nullptr;
+    out.kind = e ? kind_of(e->type) : (out.entry.bits == 1 ? ValueKind::Bit : ValueKind::Unsigned);
+    return out;
+  }
+  if (parts.size() != 2 && parts.size() != 3) {
+    error = "\"" + t + "\": expected index:sub:type, e.g. 0x6040:0:u16";
+    return std::nullopt;
+  }
+  const auto a = parse_address(parts[0], parts[1]);
+  if (!a) {
+    error = "\"" + t + "\": index 0..0xFFFF and sub-index 0..0xFF expected";
+    return std::nullopt;
+  }
+  out.entry.index = a->index;
+  out.entry.sub = a->sub;
+  if (parts.size() == 3) {
+    const TypeToken* k = find_type(trim(parts[2]));
+    if (!k) {
+      error = "\"" + t + "\": type \"" + std::string(trim(parts[2])) + "\" is not one of u8 u16 u32 u64 s8 s16 s32 s64 f32 f64 bool";
+      return std::nullopt;
+    }
+    out.entry.bits = k->bits;
+    out.kind = k->kind;
+    return out;
+  }
+  const EdsEntry* e = eds ? eds->find(*a) : nullptr;
+  if (!e || !is_fixed_size(e->type)) {
+    error = "\"" + t + "\": give the type (index:sub:type); no device description says it";
+    return std::nullopt;
+  }
+  out.entry.bits = static_cast<uint8_t>(data_type_size(e->type) * 8);
+  out.kind = kind_of(e->type);
+  return out;
+}
+
+std::optional<SdoWrite> parse_sdo_write(const std::string& text, const DeviceDescription* eds, std::string& error) {
+  const std::string t(trim(text));
+  const auto space = t.find_first_of(" \t");
+  if (space == std::string::npos) {
+    error = "\"" + t + "\": expected index:sub[:type] value, e.g. 0x6060:0:s8 8";
+    return std::nullopt;
+  }
+  const std::string target = t.substr(0, space);
+  const std::string value(trim(std::string_view(t).substr(space)));
+  const auto parts = split(target, ':');
+  if (parts.size() != 2 && parts.size() != 3) {
+    error = "\"" + target + "\": expected index:sub[:type]";
+    return std::nullopt;
+  }
+  const auto a = parse_address(parts[0], parts[1]);
+  if (!a) {
+    error = "\"" + target + "\": index 0..0xFFFF and sub-index 0..0xFF expected";
+    return std::nullopt;
+  }
+  SdoWrite w;
+  w.addr = *a;
+  std::string type_name = parts.size() == 3 ? to_lower(trim(parts[2])) : "";
+  DataType type = DataType::Unsigned8;
+  if (type_name.empty()) {
+    const EdsEntry* e = eds ? eds->find(*a) : nullptr;
+    if (!e) {
+      error = "\"" + target + "\": give the type (index:sub:type); no device description says it";
+      return std::nullopt;
+    }
+    type = e->type;
+    if (type == DataType::VisibleString) type_name = "str";
+    else if (type == DataType::Domain || type == DataType::OctetString) type_name = "hex";
+    if (e->access == Access::WriteOnly) w.verify = false;
+  } else if (type_name != "str" && type_name != "hex") {
+    const TypeToken* k = find_type(type_name);
+    if (!k || k->type == DataType::Boolean) {
+      error = "\"" + target + "\": type \"" + type_name + "\" is not one of u8 u16 u32 u64 s8 s16 s32 s64 f32 f64 str hex";
+      return std::nullopt;
+    }
+    type = k->type;
+  }
+  if (type_name == "str") {
+    w.data.assign(value.begin(), value.end());
+    return w;
+  }
+  if (type_name == "hex") {
+    for (const auto& b : split_blanks(value)) {
+      const auto v = parse_uint("0x" + b);
+      if (!v || *v > 0xFF || b.size() > 2) {
+        error = "\"" + value + "\": expected hex bytes separated by blanks";
+        return std::nullopt;
+      }
+      w.data.push_back(static_cast<uint8_t>(*v));
+    }
+    return w;
+  }
+  const std::size_t size = data_type_size(type);
+  w.data.assign(size, 0);
+  if (type == DataType::Real32 || type == DataType::Real64) {
+    const auto d = parse_double(value);
+    if (!d) {
+      error = "\"" + value + "\": expected a number";
+      return std::nullopt;
+    }
+    if (type == DataType::Real32) put_le<float>(w.data.data(), static_cast<float>(*d));
+    else put_le<double>(w.data.data(), *d);
+    return w;
+  }
+  const auto v = parse_int(value);
+  const auto u = parse_uint(value);
+  if (!v && !u) {
+    error = "\"" + value + "\": expected an integer";
+    return std::nullopt;
+  }
+  if (size < 8) {
+    const int64_t lo = is_signed(type) ? -(int64_t{1} << (8 * size - 1)) : 0;
+    const int64_t hi = is_signed(type) ? (int64_t{1} << (8 * size - 1)) - 1 : (int64_t{1} << (8 * size)) - 1;
+    if (!v || *v < lo || *v > hi) {
+      error = "\"" + value + "\": out of range for " + to_string(type);
+      return std::nullopt;
+    }
+  }
+  const uint64_t bits = u ? *u : static_cast<uint64_t>(*v);
+  for (std::size_t i = 0; i < size; ++i) w.data[i] = static_cast<uint8_t>(bits >> (8 * i));
+  return w;
+}
+
+// ------------------------------------------------------------------ BusConfig
+
+const NodeConfig* BusConfig::node(uint8_t id) const noexcept {
+  for (const auto& n : nodes) {
+    if (n.id == id) return &n;
+  }
+  return nullptr;
+}
+
+std::vector<can::ScheduledFrame> BusConfig::schedule() const {
+  std::vector<can::ScheduledFrame> out;
+  out.push_back({"SYNC", sync_overflow ? 1u : 0u, false, 1, 0});
+  for (const auto& n : nodes) {
+    for (const auto& p : n.rpdos) out.push_back({n.label() + " RPDO" + std::to_string(p.number), p.bytes(), false, 1, 0});
+    for (const auto& p : n.tpdos) {
+      can::ScheduledFrame f{n.label() + " TPDO" + std::to_string(p.number), p.bytes(), false, 1, 0};
+      if (p.transmission >= 1 && p.transmission <= kTransmissionSyncMax) f.every_n_cycles = p.transmission;
+      else if (!is_sync_transmission(p.transmission) && p.event_ms > 0) f.period_ns = int64_t{p.event_ms} * 1'000'000;
+      out.push_back(f);
+    }
+    if (n.heartbeat_ms > 0) out.push_back({n.label() + " heartbeat", 1, false, 1, int64_t{n.heartbeat_ms} * 1'000'000});
+  }
+  if (master_heartbeat_ms > 0) out.push_back({"master heartbeat", 1, false, 1, int64_t{master_heartbeat_ms} * 1'000'000});
+  return out;
+}
+
+can::BusLoad BusConfig::load() const { return can::compute_bus_load(schedule(), cycle_ns, bitrate); }
+
+void BusConfig::validate() const {
+  auto fail = [&](const std::string& what) { throw std::runtime_error(name + ": " + what); };
+  if (interface.empty()) fail("no INTERFACE (socketcan:<if> or virtual:<bus>)");
+  if (cycle_ns <= 0) fail("the SYNC period must be positive");
+  if (bitrate == 0 || bitrate > 1'000'000) fail("BITRATE must be 1..1000000");
+  if (!is_valid_node_id(master_node_id)) fail("MASTER_NODE_ID must be 1..127");
+  if (sync_overflow == 1 || sync_overflow > 240) fail("SYNC_COUNTER_OVERFLOW must be 0 or 2..240");
+  std::set<uint8_t> ids;
+  std::map<uint32_t, std::string> cobs;
+  auto claim = [&](uint32_t id, const std::string& who) {
+    const auto [it, fresh] = cobs.emplace(id, who);
+    if (!fresh) fail("COB-ID " + hex(id, 3) + " used by both " + it->second + " and " + who);
+  };
+  claim(sync_cob_id & 0x7FF, "SYNC");
+  claim(cob::heartbeat(master_node_id), "the master heartbeat");
+  for (const auto& n : nodes) {
+    if (!is_valid_node_id(n.id)) fail(n.origin + ": node-ID " + std::to_string(n.id) + " is not 1..127");
+    if (!ids.insert(n.id).second) fail(n.label() + " configured twice");
+    if (n.id == master_node_id) fail(n.label() + " has the master's node-ID " + std::to_string(master_node_id));
+    claim(cob::emcy(n.id), n.label() + " EMCY");
+    claim(cob::sdo_response(n.id), n.label() + " SDO");
+    claim(cob::sdo_request(n.id), n.label() + " SDO");
+    claim(cob::heartbeat(n.id), n.label() + " heartbeat");
+    for (bool tpdo : {false, true}) {
+      const auto& list = tpdo ? n.tpdos : n.rpdos;
+      std::set<uint16_t> numbers;
+      for (const auto& p : list) {
+        const std::string what = n.label() + (tpdo ? " TPDO" : " RPDO") + std::to_string(p.number);
+        if (p.number < 1 || p.number > 512) fail(what + ": PDO number must be 1..512");
+        if (!numbers.insert(p.number).second) fail(what + " configured twice");
+        if (p.map.size() > 64) fail(what + ": more than 64 mapped objects");
+        if (p.total_bits() > 64) fail(what + ": " + std::to_string(p.total_bits()) + " bits mapped, a classic CAN PDO holds 64");
+        if (!is_valid_transmission(p.transmission, tpdo)) fail(what + ": transmission type " + std::to_string(p.transmission) + " is reserved or not allowed");
+        const uint32_t id = p.cob_id ? (p.cob_id & 0x7FF) : default_pdo_cob(tpdo, p.number, n.id);
+        if (id == 0) fail(what + ": PDOs above 4 need a COB_ID");
+        claim(id, what);
+        if (!n.eds) continue;
+        for (const auto& e : p.map) {
+          if (e.is_dummy()) continue;
+          const EdsEntry* d = n.eds->find({e.index, e.sub});
+          const std::string obj = addr_text({e.index, e.sub});
+          if (!d) fail(what + ": " + obj + " is not in " + n.eds->file);
+          if (!d->pdo_mapping) fail(what + ": " + obj + " (" + d->name + ") is not PDO-mappable according to " + n.eds->file);
+          const std::size_t size = data_type_size(d->type) * 8;
+          if (e.bits != size && !(d->type == DataType::Boolean && e.bits == 1)) {
+            fail(what + ": " + obj + " is " + to_string(d->type) + " (" + std::to_string(size) + " bits), mapped with " + std::to_string(e.bits));
+          }
+          if (tpdo ? !is_readable(d->access) : !is_writable(d->access)) {
+            fail(what + ": " + obj + " (" + d->name + ") cannot be " + (tpdo ? "read" : "written") + " according to " + n.eds->file);
+          }
+        }
+      }
+    }
+  }
+  const can::BusLoad l = load();
+  if (l.worst_case() > max_bus_load) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "bus load %.1f %% in the worst case (%.1f %% nominal) exceeds the budget of %.0f %% "
+                  "(SYNC period %lld us, %u kbit/s): use fewer or shorter PDOs, a longer period or a second bus",
+                  l.worst_case() * 100, l.nominal() * 100, max_bus_load * 100, static_cast<long long>(cycle_ns / 1000),
+                  bitrate / 1000);
+    fail(buf);
+  }
+}
+
+// ------------------------------------------------------------------ INI
+
+namespace {
+
+// PDO `number` from the description's communication and mapping objects,
+// when they are there and enable it (ParameterValue of a DCF, else the
+// EDS default).
+std::optional<PdoConfig> pdo_from_description(const DeviceDescription& d, bool tpdo, unsigned number, uint8_t node_id,
+                                              std::vector<ValueKind>& kinds) {
+  const uint16_t comm = tpdo ? tpdo_comm_index(number) : rpdo_comm_index(number);
+  const uint16_t map = tpdo ? tpdo_map_index(number) : rpdo_map_index(number);
+  const EdsEntry* cob_entry = d.find({comm, 1});
+  const EdsEntry* count_entry = d.find({map, 0});
+  if (!cob_entry || !count_entry) return std::nullopt;
+  auto u32 = [&](const EdsEntry& e) {
+    const auto b = d.value_bytes(e, node_id, true);
+    uint32_t v = 0;
+    for (std::size_t i = 0; i < b.size() && i < 4; ++i) v |= static_cast<uint32_t>(b[i]) << (8 * i);
+    return v;
+  };
+  const uint32_t cob = u32(*cob_entry);
+  if (cob & cob::kPdoInvalid) return std::nullopt;
+  PdoConfig p;
+  p.number = static_cast<uint16_t>(number);
+  p.cob_id = cob & 0x7FF;
+  if (const EdsEntry* t = d.find({comm, 2})) p.transmission = static_cast<uint8_t>(u32(*t));
+  if (const EdsEntry* t = d.find({comm, 3}); t && tpdo) p.inhibit_100us = static_cast<uint16_t>(u32(*t));
+  if (const EdsEntry* t = d.find({comm, 5})) p.event_ms = static_cast<uint16_t>(u32(*t));
+  if (const EdsEntry* t = d.find({comm, 6}); t && tpdo) p.sync_start = static_cast<uint8_t>(u32(*t));
+  const uint32_t count = u32(*count_entry);
+  for (uint32_t s = 1; s <= count; ++s) {
+    const EdsEntry* e = d.find({map, static_cast<uint8_t>(s)});
+    if (!e) throw ConfigError(d.file, count_entry->line, "[" + addr_text({map, 0}) + "] maps " + std::to_string(count) + " objects but sub-index " + std::to_string(s) + " is missing");
+    const PdoMapEntry m = PdoMapEntry::decode(u32(*e));
+    p.map.push_back(m);
+    const EdsEntry* obj = d.find({m.index, m.sub});
+    kinds.push_back(obj ? kind_of(obj->type) : ValueKind::Unsigned);
+  }
+  return p;
+}
+
+bool is_pdo_object(uint16_t index) { return index >= 0x1400 && index <= 0x1BFF; }
+
+}  // namespace
+
+BusConfig load_bus_config(const ini::IniFile& ini, const std::string& section, const std::string& name) {
+  BusConfig c;
+  c.name = name;
+  c.origin = "[" + section + "]";
+  if (!ini.has_section(section)) ini.fail(nullptr, "no [" + section + "] section for the CANopen bus " + name);
+  c.interface = ini.require_string(section, "INTERFACE");
+  c.bitrate = static_cast<uint32_t>(ini.get_int(section, "BITRATE", 1'000'000, {10'000, 1'000'000}));
+  c.master_node_id = static_cast<uint8_t>(ini.get_int(section, "MASTER_NODE_ID", 127, {1, 127}));
+  c.master_heartbeat_ms = static_cast<uint16_t>(ini.get_int(section, "MASTER_HEARTBEAT_MS", 100, {0, 65535}));
+  c.sync_cob_id = static_cast<uint32_t>(ini.get_int(section, "SYNC_COB_ID", 0x80, {1, 0x7FF}));
+  const int64_t overflow = ini.get_int(section, "SYNC_COUNTER_OVERFLOW", 0, {0, 240});
+  if (overflow == 1) ini.fail(ini.find_entry(section, "SYNC_COUNTER_OVERFLOW"), "expected 0 (no counter) or 2..240");
+  c.sync_overflow = static_cast<uint8_t>(overflow);
+  const int64_t servo_ns = ini.get_int("EMCMOT", "SERVO_PERIOD", 1'000'000, {10'000, 1e9});
+  c.cycle_ns = ini.get_int(section, "SYNC_PERIOD_US", servo_ns / 1000, {100, 1e6}) * 1000;
+  c.sdo_timeout_ns = ini.get_int(section, "SDO_TIMEOUT_MS", 500, {10, 60'000}) * 1'000'000;
+  c.boot_timeout_ns = ini.get_int(section, "BOOT_TIMEOUT_MS", 5000, {10, 600'000}) * 1'000'000;
+  c.reset_nodes = ini.get_bool(section, "RESET_NODES", true);
+  c.start_all = ini.get_bool(section, "START_ALL_NODES", false);
+  c.max_bus_load = ini.get_double(section, "MAX_BUS_LOAD", 80, {1, 100}) / 100.0;
+  c.pdo_miss_limit = static_cast<uint32_t>(ini.get_int(section, "PDO_MISS_LIMIT", 3, {0, 1000}));
+
+  std::vector<std::pair<uint8_t, const ini::Entry*>> ids;
+  for (const ini::Entry* e : ini.find_all_entries(section, "NODE")) {
+    for (const auto& w : split_blanks(e->value)) {
+      const auto v = parse_uint(w);
+      if (!v || !is_valid_node_id(static_cast<unsigned>(*v)) || *v > 127) ini.fail(e, "\"" + w + "\": expected node-IDs 1..127");
+      ids.emplace_back(static_cast<uint8_t>(*v), e);
+    }
+  }
+  if (ids.empty()) ini.fail(ini.find_entry(section, "INTERFACE"), "no NODE = <id> lines in [" + section + "]");
+
+  for (const auto& [id, where] : ids) {
+    NodeConfig n;
+    n.id = id;
+    const std::string ns = section + "_NODE_" + std::to_string(id);
+    n.origin = "[" + ns + "]";
+    if (!ini.has_section(ns)) ini.fail(where, "node " + std::to_string(id) + " has no [" + ns + "] section");
+    n.name = ini.get_string(ns, "NAME", "");
+    n.mandatory = ini.get_bool(ns, "MANDATORY", true);
+    const ini::Entry* dcf = ini.find_entry(ns, "DCF");
+    const ini::Entry* eds = ini.find_entry(ns, "EDS");
+    if (dcf && eds) ini.fail(eds, "give DCF or EDS, not both (a DCF is an EDS with values)");
+    if (dcf || eds) {
+      const ini::Entry* file = dcf ? dcf : eds;
+      auto d = std::make_shared<DeviceDescription>(load_eds(ini.resolve_path(file->value)));
+      if (d->node_id && *d->node_id != id) {
+        ini.fail(file, d->file + " is for node-ID " + std::to_string(*d->node_id) + " ([DeviceComissioning] NodeID)");
+      }
+      n.eds = d;
+      if (d->vendor_number) n.vendor_id = d->vendor_number;
+      if (d->product_number) n.product_code = d->product_number;
+    }
+    auto opt_u32 = [&](const char* key, std::optional<uint32_t>& out) {
+      if (const ini::Entry* e = ini.find_entry(ns, key)) {
+        const auto v = parse_uint(e->value);
+        if (!v || *v > 0xFFFFFFFF) ini.fail(e, "expected an unsigned 32-bit number");
+        out = static_cast<uint32_t>(*v);
+      }
+    };
+    opt_u32("DEVICE_TYPE", n.device_type);
+    opt_u32("VENDOR_ID", n.vendor_id);
+    opt_u32("PRODUCT_CODE", n.product_code);
+    opt_u32("REVISION", n.revision);
+    opt_u32("SERIAL", n.serial);
+    n.heartbeat_ms = static_cast<uint16_t>(ini.get_int(ns, "HEARTBEAT_MS", 100, {0, 65535}));
+    n.heartbeat_timeout_ms = static_cast<uint16_t>(ini.get_int(ns, "HEARTBEAT_TIMEOUT_MS", 0, {0, 65535}));
+    n.master_heartbeat_timeout_ms = static_cast<uint16_t>(ini.get_int(ns, "MASTER_HEARTBEAT_TIMEOUT_MS", 0, {0, 65535}));
+    n.disable_unused_pdos = ini.get_bool(ns, "DISABLE_UNUSED_PDOS", true);
+    n.export_pins = ini.get_bool(ns, "EXPORT_PINS", false);
+
+    for (bool tpdo : {false, true}) {
+      for (unsigned number = 1; number <= 8; ++number) {
+        const std::string key = std::string(tpdo ? "TPDO" : "RPDO") + std::to_string(number);
+        const ini::Entry* m = ini.find_entry(ns, key);
+        std::vector<ValueKind> kinds;
+        std::optional<PdoConfig> p;
+        if (m) {
+          p = PdoConfig{};
+          p->number = static_cast<uint16_t>(number);
+          for (const auto& w : split_blanks(m->value)) {
+            std::string err;
+            const auto e = parse_map_entry(w, n.eds.get(), err);
+            if (!e) ini.fail(m, err);
+            p->map.push_back(e->entry);
+            kinds.push_back(e->kind);
+          }
+          if (p->map.empty()) ini.fail(m, "no objects mapped");
+        } else if (n.eds) {
+          p = pdo_from_description(*n.eds, tpdo, number, id, kinds);
+        }
+        auto key_int = [&](const std::string& suffix, int64_t def, int64_t lo, int64_t hi) {
+          const std::string k = key + "_" + suffix;
+          const ini::Entry* e = ini.find_entry(ns, k);
+          if (e && !p) ini.fail(e, key + " is not configured");
+          return ini.get_int(ns, k, def, {static_cast<double>(lo), static_cast<double>(hi)});
+        };
+        const int64_t transmission = key_int("TRANSMISSION", p ? p->transmission : 1, 0, 255);
+        const int64_t cob = key_int("COB_ID", p ? p->cob_id : 0, 0, 0x7FF);
+        const int64_t event = key_int("EVENT_MS", p ? p->event_ms : 0, 0, 65535);
+        const int64_t inhibit = tpdo ? key_int("INHIBIT_100US", p ? p->inhibit_100us : 0, 0, 65535) : 0;
+        const int64_t start = tpdo ? key_int("SYNC_START", p ? p->sync_start : 0, 0, 240) : 0;
+        if (!p) continue;
+        p->transmission = static_cast<uint8_t>(transmission);
+        p->cob_id = static_cast<uint32_t>(cob);
+        p->event_ms = static_cast<uint16_t>(event);
+        p->inhibit_100us = static_cast<uint16_t>(inhibit);
+        p->sync_start = static_cast<uint8_t>(start);
+        (tpdo ? n.tpdos : n.rpdos).push_back(*p);
+        (tpdo ? n.tpdo_kinds : n.rpdo_kinds).push_back(kinds);
+      }
+    }
+
+    // A DCF's configured values, except what the keys above configure.
+    if (n.eds && n.eds->is_dcf) {
+      for (const EdsEntry& e : n.eds->entries) {
+        if (e.parameter_value.empty() || !is_writable(e.access)) continue;
+        if (is_pdo_object(e.addr.index) || e.addr.index == 0x1017 || e.addr.index == 0x1016) continue;
+        SdoWrite w;
+        w.addr = e.addr;
+        w.data = n.eds->value_bytes(e, id, true);
+        w.origin = n.eds->file + ":" + std::to_string(e.line);
+        w.verify = e.access != Access::WriteOnly;
+        n.sdo.push_back(std::move(w));
+      }
+      if (const EdsEntry* hb = n.eds->find({0x1017, 0}); hb && !hb->parameter_value.empty() && !ini.find_entry(ns, "HEARTBEAT_MS")) {
+        const auto b = n.eds->value_bytes(*hb, id, true);
+        n.heartbeat_ms = static_cast<uint16_t>(b[0] | (b.size() > 1 ? b[1] << 8 : 0));
+      }
+    }
+    for (const ini::Entry* e : ini.find_all_entries(ns, "SDO")) {
+      std::string err;
+      auto w = parse_sdo_write(e->value, n.eds.get(), err);
+      if (!w) ini.fail(e, err);
+      w->origin = e->file + ":" + std::to_string(e->line);
+      n.sdo.push_back(std::move(*w));
+    }
+    c.nodes.push_back(std::move(n));
+  }
+  try {
+    c.validate();
+  } catch (const std::runtime_error& e) {
+    ini.fail(ini.find_entry(section, "INTERFACE"), e.what());
+  }
+  return c;
+}
+
+}  // namespace cnc::canopen

@@ -1,0 +1,219 @@
+// The CANopen master of one bus (CiA 301 / 302-2). Two halves, each with
+// its own transport so they never share one:
+//   - cyclic (servo thread, realtime-safe, no allocation): read() takes the
+//     TPDOs that answered the last SYNC into the input image; write() sends
+//     the RPDOs from the output image, then SYNC (with counter).
+//   - acyclic (its own thread, or poll() in tests): NMT, the boot of every
+//     node (identity check 0x1000/0x1018, configuration download, read-back
+//     verification, start), SDO clients for all nodes at once, heartbeat
+//     producer and consumer, EMCY consumer into the error channel.
+// One-cycle transport delay, made explicit: outputs written in cycle k are
+// applied by the devices at the SYNC that ends cycle k; inputs read in cycle
+// k+1 were sampled at that same SYNC. So feedback read in a cycle belongs to
+// the SYNC at which the previous cycle's outputs took effect
+// (transport_delay_cycles() == 1, and CyclicStatus tells the SYNC serials).
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <condition_variable>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "fieldbus/can/transport.hpp"
+#include "fieldbus/canopen/config.hpp"
+#include "fieldbus/canopen/process_data.hpp"
+#include "fieldbus/canopen/sdo_client.hpp"
+
+namespace cnc {
+class MessageQueue;
+}
+
+namespace cnc::canopen {
+
+enum class BootState : uint8_t { Idle, Running, Succeeded, Failed };
+const char* to_string(BootState s) noexcept;
+
+// Readable from any thread (atomics behind it).
+struct NodeStatus {
+  uint8_t id = 0;
+  NmtState state = NmtState::Unknown;  // last heartbeat / boot-up
+  bool booted = false;                 // boot sequence done, in the cycle
+  bool operational = false;            // booted and reporting Operational
+  bool fault = false;                  // heartbeat lost, reset, left Operational, PDOs missing
+  bool heartbeat_lost = false;
+  uint16_t emcy_code = 0;              // last EMCY (0 after an error reset)
+  uint8_t error_register = 0;
+  uint32_t emcy_count = 0;
+  uint32_t pdo_missed = 0;             // TPDOs that did not answer their SYNC
+};
+
+// Servo-thread view of the cyclic exchange (read it from the servo thread).
+struct CyclicStatus {
+  uint64_t sync_serial = 0;        // SYNCs sent so far
+  uint8_t sync_counter = 0;        // counter byte of the last SYNC (0 without counter)
+  bool inputs_fresh = false;       // every synchronous TPDO answered the last SYNC
+  uint64_t inputs_sync_serial = 0; // SYNC at which the oldest current input was sampled
+  uint32_t send_errors = 0;        // RPDO/SYNC frames the transport refused
+  uint32_t pdo_missed = 0;
+  uint32_t pdo_length_errors = 0;
+  uint32_t rx_overruns = 0;
+  can::BusState bus_state = can::BusState::ErrorActive;
+};
+
+// A realtime SDO request (expedited, at most 4 bytes), answered by the
+// acyclic thread; see Master::rt_sdo_*.
+struct RtSdoResult {
+  uint32_t abort_code = 0;
+  uint32_t value = 0;
+  uint8_t size = 0;
+};
+
+class Master {
+ public:
+  static constexpr std::size_t kMaxRtSdo = 16;
+
+  // Opens two transports on config.interface. Throws (configuration,
+  // interface) std::runtime_error.
+  Master(BusConfig config, MessageQueue* messages);
+  // With given transports (tests, custom interfaces).
+  Master(BusConfig config, std::unique_ptr<can::Transport> cyclic, std::unique_ptr<can::Transport> acyclic,
+         MessageQueue* messages);
+  ~Master();
+  Master(const Master&) = delete;
+  Master& operator=(const Master&) = delete;
+
+  const BusConfig& config() const noexcept { return config_; }
+  const std::string& name() const noexcept { return config_.name; }
+
+  // ---- acyclic side ----
+  void start_thread();
+  void stop_thread();
+  bool thread_running() const noexcept { return thread_.joinable(); }
+  // One step of the acyclic engine at time now_ns (tests drive it by hand).
+  void poll(int64_t now_ns);
+  // Starts the boot of every node (posted to the acyclic side).
+  void begin_boot();
+  BootState boot_state() const noexcept { return boot_state_.load(std::memory_order_acquire); }
+  // Why the boot failed: "node 3 (x-axis): identity 0x1018:01 ...".
+  std::string boot_error() const;
+  // Runs the boot and waits for it (the thread must run). Throws
+  // std::runtime_error "<bus>: start-up stopped: <node>: <object>: <reason>".
+  void boot();
+  // Re-runs one node's boot (after it reset or was replaced), in the background.
+  void reboot_node(uint8_t node);
+  // The same, requested from the servo thread (no allocation): the acyclic
+  // side picks the request up on its next step.
+  void request_reboot(uint8_t node) noexcept;
+  // NMT command to one node (0 = all), sent by the acyclic side.
+  void nmt(NmtCommand command, uint8_t node);
+
+  // SDO from any non-realtime thread; `done` runs in the acyclic thread.
+  void sdo_upload(uint8_t node, ObjectAddress a, SdoClient::Done done, SdoMode mode = SdoMode::Auto);
+  void sdo_download(uint8_t node, ObjectAddress a, std::vector<uint8_t> data, SdoClient::Done done,
+                    SdoMode mode = SdoMode::Auto);
+  // Blocking forms (never from the acyclic thread or a `done` callback).
+  SdoResult sdo_upload_wait(uint8_t node, ObjectAddress a, SdoMode mode = SdoMode::Auto);
+  SdoResult sdo_download_wait(uint8_t node, ObjectAddress a, std::vector<uint8_t> data, SdoMode mode = SdoMode::Auto);
+
+  // ---- cyclic side (servo thread) ----
+  void cyclic_read(int64_t now_ns) noexcept;
+  void cyclic_write(int64_t now_ns) noexcept;
+  // false: write() sends nothing (no SYNC, no RPDO); the boot enables it.
+  void set_cyclic_enabled(bool on) noexcept { cyclic_enabled_.store(on, std::memory_order_release); }
+  bool is_cyclic_running() const noexcept;
+  const CyclicStatus& cyclic_status() const noexcept { return cyclic_; }
+  static constexpr int transport_delay_cycles() noexcept { return 1; }
+
+  // Process data of a node, found once (non-realtime) and used each cycle.
+  // Outputs: objects the master writes (RPDO); inputs: objects it reads (TPDO).
+  PdoSlot output(uint8_t node, uint16_t index, uint8_t sub) const noexcept;
+  PdoSlot input(uint8_t node, uint16_t index, uint8_t sub) const noexcept;
+  // SYNC serial at which this node's inputs were last sampled (servo thread).
+  uint64_t inputs_sync_serial(uint8_t node) const noexcept;
+
+  // Realtime SDO (expedited, <= 4 bytes): returns a handle or -1 when all
+  // kMaxRtSdo slots are busy; rt_sdo_poll() returns true once, with the result.
+  int rt_sdo_read(uint8_t node, ObjectAddress a) noexcept;
+  int rt_sdo_write(uint8_t node, ObjectAddress a, uint32_t value, uint8_t size) noexcept;
+  bool rt_sdo_poll(int handle, RtSdoResult& out) noexcept;
+
+  // ---- status (any thread) ----
+  std::size_t node_count() const noexcept { return nodes_.size(); }
+  NodeStatus node_status_at(std::size_t i) const noexcept;
+  NodeStatus node_status(uint8_t node) const noexcept;
+  bool is_ready() const noexcept;   // booted, every mandatory node operational and healthy
+  bool has_fault() const noexcept;  // a mandatory node faulted or the bus is off
+
+ private:
+  struct NodeRt;
+  struct Step;
+  struct RtSdoSlot {
+    std::atomic<int> state{0};  // 0 free, 1 claimed, 2 requested, 3 running, 4 done
+    uint8_t node = 0;
+    ObjectAddress addr;
+    bool write = false;
+    uint32_t value = 0;
+    uint8_t size = 0;
+    RtSdoResult result;
+  };
+
+  void init();
+  void build_steps(NodeRt& n);
+  void handle_frame(const can::Frame& f, int64_t now_ns);
+  void handle_heartbeat(NodeRt& n, uint8_t state, int64_t now_ns);
+  void handle_emcy(uint8_t node, const can::Frame& f);
+  void run_boot(int64_t now_ns);
+  void boot_node(NodeRt& n, int64_t now_ns);
+  void node_failed(NodeRt& n, const std::string& why);
+  void send_nmt(NmtCommand c, uint8_t node);
+  void service_rt_sdo();
+  void post(std::function<void(int64_t)> job);
+  void thread_main();
+  NodeRt* find(uint8_t node) const noexcept;
+  void message(bool error, const std::string& source, const std::string& text);
+  void set_fault(NodeRt& n, const std::string& why);
+
+  BusConfig config_;
+  MessageQueue* messages_;
+  std::unique_ptr<can::Transport> cyclic_port_;
+  std::unique_ptr<can::Transport> acyclic_port_;
+  std::vector<std::unique_ptr<NodeRt>> nodes_;
+
+  // acyclic
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+  std::thread::id acyclic_thread_id_;
+  std::mutex post_mutex_;
+  std::vector<std::function<void(int64_t)>> posted_;
+  std::atomic<BootState> boot_state_{BootState::Idle};
+  mutable std::mutex boot_mutex_;
+  std::condition_variable boot_cv_;
+  std::string boot_error_;
+  bool booting_ = false;
+  bool start_sent_ = false;
+  int64_t boot_started_ns_ = 0;
+  int64_t next_heartbeat_ns_ = 0;
+  int64_t last_poll_ns_ = 0;
+
+  // cyclic
+  std::atomic<bool> cyclic_enabled_{false};
+  struct TpdoRt;
+  struct RpdoRt;
+  std::vector<TpdoRt> tpdos_;
+  std::vector<RpdoRt> rpdos_;
+  std::array<int16_t, 2048> tpdo_by_cob_{};
+  CyclicStatus cyclic_;
+  uint64_t cycle_ = 0;
+  can::BusStateTracker bus_tracker_;
+  std::atomic<uint64_t> sync_serial_{0};
+  std::atomic<int> bus_state_{0};
+
+  std::array<RtSdoSlot, kMaxRtSdo> rt_sdo_{};
+};
+
+}  // namespace cnc::canopen
