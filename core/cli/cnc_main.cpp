@@ -211,6 +211,46 @@ int cmd_wait_ready(const Context& c) {
   return 1;
 }
 
+// Follows a running program until it ends; prints progress and a summary.
+int cmd_wait_program(const Context& c) {
+  ipc::Client client(c.instance);
+  const int64_t start = monotonic_ns();
+  int last_line = -1;
+  int64_t last_print = 0;
+  bool seen_running = false;
+  for (;;) {
+    if (!client.controller_alive()) {
+      std::fprintf(stderr, "cnc: the controller stopped\n");
+      return 1;
+    }
+    const ipc::Status s = client.status();
+    const bool running = s.task.interp_state != ipc::InterpState::Idle;
+    seen_running = seen_running || running;
+    const int64_t now = monotonic_ns();
+    if (running && (s.task.current_line != last_line) && now - last_print > 250'000'000) {
+      std::printf("  line %5d of %d   X%9.3f Y%9.3f Z%9.3f   tool %d   %s%s\n", s.task.current_line,
+                  s.task.total_lines, s.motion.position[0], s.motion.position[1], s.motion.position[2],
+                  s.io.tool_in_spindle, ipc::to_string(s.task.exec_state), s.task.paused ? " PAUSED" : "");
+      std::fflush(stdout);
+      last_line = s.task.current_line;
+      last_print = now;
+    }
+    if (!running && (seen_running || now - start > 2'000'000'000)) {
+      std::printf("program done: %s\n  time %.2f s, %lld blocks, %d errors, tool %d in the spindle\n",
+                  s.task.file.c_str(), static_cast<double>(s.task.program_elapsed_ns) * 1e-9,
+                  static_cast<long long>(s.task.blocks_executed), s.task.errors_since_start, s.io.tool_in_spindle);
+      std::printf("  final position X%.4f Y%.4f Z%.4f (machine)\n", s.motion.position[0], s.motion.position[1],
+                  s.motion.position[2]);
+      return s.task.errors_since_start == 0 ? 0 : 1;
+    }
+    if (c.timeout_s > 0 && static_cast<double>(now - start) * 1e-9 > c.timeout_s) {
+      std::fprintf(stderr, "cnc: the program is still running after %.0f s\n", c.timeout_s);
+      return 3;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
 struct Entry {
   const char* usage;
   const char* help;
@@ -223,6 +263,8 @@ std::map<std::string, Entry> commands() {
   m["watch"] = {"watch [--interval S] [--count N] [--json]", "print the status repeatedly", cmd_watch};
   m["messages"] = {"messages [--follow] [--all]", "print the error/message channel", cmd_messages};
   m["wait-ready"] = {"wait-ready", "wait until the controller is up (see --timeout)", cmd_wait_ready};
+  m["wait-program"] = {"wait-program", "follow the running program to its end, then print a summary (see --timeout)",
+                       cmd_wait_program};
   m["ping"] = {"ping", "check that the controller answers commands",
                [](Context& c) { return send(c, cmd_of(CommandType::Ping)); }};
   m["shutdown"] = {"shutdown", "stop the controller (drives to a safe state first)",

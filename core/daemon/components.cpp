@@ -8,6 +8,12 @@
 #ifdef CNC_HAVE_MOTION
 #include "core/motion/motion_component.hpp"
 #endif
+#ifdef CNC_HAVE_TP
+#include "core/tp/lookahead_planner.hpp"
+#endif
+#ifdef CNC_HAVE_IO
+#include "core/io/io_controller.hpp"
+#endif
 #ifdef CNC_HAVE_CANOPEN
 #include "fieldbus/canopen/components.hpp"
 #endif
@@ -20,7 +26,18 @@ void register_all_components(hal::ComponentRegistry& registry) {
   kin::register_kinematics_components(registry);
 #endif
 #ifdef CNC_HAVE_MOTION
-  motion::register_components(registry);
+  motion::PlannerFactory planner;
+#ifdef CNC_HAVE_TP
+  planner = [](const tp::PlannerConfig& c) { return tp::make_planner(c); };
+#else
+  planner = [](const tp::PlannerConfig&) -> std::unique_ptr<tp::TrajectoryPlanner> {
+    throw hal::HalError("motmod: this build has no trajectory planner (core/tp)");
+  };
+#endif
+  motion::register_components(registry, planner);
+#endif
+#ifdef CNC_HAVE_IO
+  io::register_components(registry);
 #endif
 #ifdef CNC_HAVE_CANOPEN
   canopen::register_components(registry);

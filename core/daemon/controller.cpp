@@ -9,6 +9,12 @@
 #include <thread>
 
 #include "core/rt/periodic_task.hpp"
+#ifdef CNC_HAVE_IO
+#include "core/io/io_controller.hpp"
+#endif
+#ifdef CNC_HAVE_TASK
+#include "core/task/task_controller.hpp"
+#endif
 #include "core/util/strings.hpp"
 #include "core/util/time.hpp"
 
@@ -44,6 +50,13 @@ Controller::Controller(const Options& options) : options_(options), status_(std:
   register_all_components(registry_);
   interp_ = std::make_unique<hal::CommandInterpreter>(hal_, registry_, &ini_, &messages_);
   try {
+#ifdef CNC_HAVE_IO
+    // The I/O controller exists before the HAL files run so that they can
+    // net its pins (LinuxCNC starts iocontrol the same way, from [EMCIO]).
+    if (ini_.has_section("EMCIO")) {
+      hal_.add_component(std::make_unique<io::IoController>(hal_, io::IoConfig::from_ini(ini_), &messages_));
+    }
+#endif
     for (const ini::Entry* e : ini_.find_all_entries("HAL", "HALFILE")) {
       std::string file = e->value;
       if (file.rfind("LIB:", 0) == 0) file = file.substr(4);
@@ -67,6 +80,25 @@ Controller::Controller(const Options& options) : options_(options), status_(std:
   for (hal::Component* c : hal_.components()) {
     if (auto* s = dynamic_cast<ipc::ControllerService*>(c)) services_.push_back(s);
   }
+#ifdef CNC_HAVE_TASK
+  // The task controller joins when the machine has motion and I/O.
+  {
+    auto* motion = hal_.find<motion::MotionComponent>("motmod");
+    auto* io = hal_.find<io::IoController>("iocontrol");
+    if (motion && io) {
+      try {
+        task_ = std::make_unique<task::TaskController>(ini_, hal_, *motion, *io, messages_);
+      } catch (...) {
+        hal_.stop_threads();
+        interp_->stop_user_programs();
+        throw;
+      }
+      services_.push_back(task_.get());
+    } else if (motion) {
+      log_line("warning", "cncd", "no [EMCIO] section: no I/O controller, so no task controller (programs and MDI)");
+    }
+  }
+#endif
   std::stable_sort(services_.begin(), services_.end(),
                    [](const ipc::ControllerService* a, const ipc::ControllerService* b) {
                      return a->service_order() < b->service_order();
@@ -248,6 +280,7 @@ void Controller::shutdown() {
   hal_.stop_threads();
   interp_->stop_user_programs();
   services_.clear();
+  task_.reset();
   hal_.clear();
   log_line("info", "cncd", "stopped");
   server_.reset();  // removes the segment: clients now see "not running"

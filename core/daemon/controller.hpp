@@ -59,6 +59,7 @@ class Controller : private ipc::CommandReporter {
   std::unique_ptr<hal::CommandInterpreter> interp_;
   std::unique_ptr<ipc::AdminServer> admin_;
   std::vector<ipc::ControllerService*> services_;
+  std::unique_ptr<ipc::ControllerService> task_;  // the task controller, when motion is loaded
   std::unique_ptr<ipc::Status> status_;  // large: kept off the stack
   std::atomic<bool> stop_requested_{false};
   bool shut_down_ = false;

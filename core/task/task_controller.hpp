@@ -1,0 +1,146 @@
+// The task controller (the manual's 3.10 and chapter 4's TASK group): the
+// E-stop / machine-on state machine, the MANUAL / AUTO / MDI modes, program
+// execution with the interpreter's read-ahead synchronised where it must
+// wait, MDI with [MDI_COMMAND_LIST] macros, run from line, and every
+// operator command of the command channel. It runs in the controller's
+// task cycle and talks to motion and I/O through their non-realtime APIs.
+#pragma once
+
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/interp/interp.hpp"
+#include "core/io/io_controller.hpp"
+#include "core/ipc/service.hpp"
+#include "core/motion/motion_component.hpp"
+#include "core/task/task_canon.hpp"
+#include "core/util/messages.hpp"
+
+namespace cnc::task {
+
+struct TaskConfig {
+  bool no_force_homing = false;          // [TRAJ]NO_FORCE_HOMING
+  std::vector<std::string> mdi_macros;   // [MDI_COMMAND_LIST]MDI_COMMAND_MACROn
+  int max_queued_mdi = 16;
+  std::size_t readahead_items = 2000;    // execution-list depth the interpreter may run ahead
+  std::string on_abort_command;          // [RS274NGC]ON_ABORT_COMMAND (an MDI line)
+  static TaskConfig from_ini(const ini::IniFile& ini);
+};
+
+class TaskController : public ipc::ControllerService {
+ public:
+  TaskController(const ini::IniFile& ini, hal::Hal& hal, motion::MotionComponent& motion, io::IoController& io,
+                 MessageQueue& messages);
+  ~TaskController() override;
+
+  int service_order() const noexcept override { return 30; }
+  bool handle_command(const ipc::Command& cmd, ipc::CommandReporter& reporter) override;
+  void update(int64_t now_ns) override;
+  void contribute_status(ipc::Status& status) override;
+  bool is_safe_to_stop() const override;
+
+  ipc::TaskState state() const noexcept { return state_; }
+  ipc::TaskMode mode() const noexcept { return mode_; }
+  ipc::InterpState interp_state() const noexcept { return interp_state_; }
+
+ private:
+  // A command answered later: `check` runs every cycle until it returns
+  // true, after reporting through `done`.
+  struct Waiter {
+    ipc::Command cmd;
+    std::function<bool()> check;
+  };
+
+  // command handlers; return a rejection reason or empty
+  std::string set_state(const ipc::Command& c);
+  std::string set_mode(const ipc::Command& c);
+  std::string jog(const ipc::Command& c);
+  std::string home(const ipc::Command& c);
+  std::string program_open(const std::string& path);
+  std::string program_run(const ipc::Command& c);
+  std::string mdi(const ipc::Command& c);
+  std::string run_from_line_preview(int line);
+  std::string set_parameter(const ipc::Command& c);
+  std::string tool_command(const ipc::Command& c);
+
+  uint64_t send(motion::MotionCommand c);
+  // Waits for the answer to a motion command, then reports it.
+  void answer_after(const ipc::Command& cmd, uint64_t serial, std::function<bool()> also_wait = nullptr);
+  bool motion_answered(uint64_t serial) const { return serial <= last_answered_; }
+  const motion::MotionResult* motion_result(uint64_t serial) const;
+  bool motion_idle() const;
+  void ensure_motion_mode(ipc::MotionMode m);
+
+  void enter_estop(const std::string& why);
+  void machine_off(const std::string& why);
+  void abort_all(const std::string& why, bool quiet = false);
+  void program_error(const std::string& what);
+  void program_finished();
+  void run_interpreter();
+  void execute_items(int64_t now_ns);
+  bool execute_item(Item& it, int64_t now_ns);  // true: done, pop it
+  void start_mdi_line(const std::string& line, const ipc::Command& cmd);
+  void pause(bool operator_request);
+  void resume();
+  void reconstruct_until(int line);
+  void post(MessageKind kind, const std::string& text);
+  bool machine_homed() const;
+  double read_input(int index, bool digital) const;
+
+  const ini::IniFile& ini_;
+  hal::Hal& hal_;
+  motion::MotionComponent& motion_;
+  io::IoController& io_;
+  MessageQueue& messages_;
+  TaskConfig cfg_;
+  ipc::CommandReporter* reporter_ = nullptr;
+
+  ipc::TaskState state_ = ipc::TaskState::Estop;
+  ipc::TaskMode mode_ = ipc::TaskMode::Manual;
+  ipc::InterpState interp_state_ = ipc::InterpState::Idle;
+  ipc::ExecState exec_state_ = ipc::ExecState::Done;
+  bool optional_stop_ = false;
+  bool block_delete_ = false;
+  bool paused_ = false;
+  bool stepping_ = false;
+  bool program_ended_ = false;
+  bool running_mdi_ = false;
+
+  motion::MotionStatus ms_;
+  uint64_t last_submitted_ = 0;
+  uint64_t last_answered_ = 0;
+  std::map<uint64_t, motion::MotionResult> results_;
+  std::vector<Waiter> waiters_;
+
+  std::deque<Item> items_;
+  MachineView view_;
+  std::unique_ptr<TaskCanon> canon_;
+  std::unique_ptr<interp::Interpreter> interp_;
+  interp::Config interp_config_;
+  std::string file_;
+  int total_lines_ = 0;
+  int read_line_ = 0;
+  int current_line_ = 0;
+  bool waiting_synch_ = false;
+  std::deque<std::pair<ipc::Command, std::string>> mdi_queue_;
+  ipc::Command mdi_current_;
+  std::string mdi_text_;
+  int64_t program_started_ns_ = 0;
+  int64_t program_elapsed_ns_ = 0;
+  int64_t blocks_ = 0;
+  int errors_ = 0;
+  // items in progress
+  bool item_started_ = false;
+  int64_t item_started_ns_ = 0;
+  int user_m_pid_ = 0;
+  // run from line
+  int run_from_line_ = 0;
+  Pose run_from_start_;
+  bool was_enabled_ = false;
+};
+
+}  // namespace cnc::task
