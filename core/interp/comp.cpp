@@ -27,25 +27,32 @@ V2 unit(V2 a) {
 V2 left_of(V2 d) { return {-d.y, d.x}; }
 
 // Intersections of two circles / a line and a circle, nearest to `near`.
-bool line_circle(V2 p, V2 d, V2 c, double r, V2 near, V2& out) {
+// Of two intersections, the one the held-back move reaches first going
+// backwards from its end (a concave corner shortens that move).
+V2 pick(V2 a1, V2 a2, V2 prev_end, V2 t_prev) {
+  const double k1 = dot(a1 - prev_end, t_prev), k2 = dot(a2 - prev_end, t_prev);
+  const bool b1 = k1 <= 1e-9, b2 = k2 <= 1e-9;
+  if (b1 != b2) return b1 ? a1 : a2;
+  return len(a1 - prev_end) <= len(a2 - prev_end) ? a1 : a2;
+}
+
+bool line_circle(V2 p, V2 d, V2 c, double r, V2 prev_end, V2 t_prev, V2& out) {
   const V2 f = p - c;
   const double b = dot(f, d), cc = dot(f, f) - r * r;
   const double disc = b * b - cc;
   if (disc < 0) return false;
   const double s = std::sqrt(disc);
-  const V2 a1 = p + d * (-b - s), a2 = p + d * (-b + s);
-  out = len(a1 - near) < len(a2 - near) ? a1 : a2;
+  out = pick(p + d * (-b - s), p + d * (-b + s), prev_end, t_prev);
   return true;
 }
-bool circle_circle(V2 c1, double r1, V2 c2, double r2, V2 near, V2& out) {
+bool circle_circle(V2 c1, double r1, V2 c2, double r2, V2 prev_end, V2 t_prev, V2& out) {
   const double d = len(c2 - c1);
   if (d < 1e-12 || d > r1 + r2 || d < std::fabs(r1 - r2)) return false;
   const double a = (r1 * r1 - r2 * r2 + d * d) / (2 * d);
   const double h = std::sqrt(std::max(0.0, r1 * r1 - a * a));
   const V2 u = unit(c2 - c1);
   const V2 m = c1 + u * a;
-  const V2 p1 = m + left_of(u) * h, p2 = m - left_of(u) * h;
-  out = len(p1 - near) < len(p2 - near) ? p1 : p2;
+  out = pick(m + left_of(u) * h, m - left_of(u) * h, prev_end, t_prev);
   return true;
 }
 }  // namespace
@@ -111,8 +118,10 @@ void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
     m.end[a2] = t.y;
     comp_flush();
     comp_queue.push_back(m);
-    last_tangent_x = unit(t - tool).x;
-    last_tangent_y = unit(t - tool).y;
+    // Corners after the entry treat it as the programmed direction, offset
+    // to pass through its end (LinuxCNC 2.9).
+    last_tangent_x = dir.x;
+    last_tangent_y = dir.y;
     cutter_first_move = false;
     comp_program_pos = end;
     pos = m.end;
@@ -210,12 +219,21 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
     comp_flush();
     return;
   }
-  const bool convex = left ? turn < 0 : turn > 0;
+  bool convex = left ? turn < 0 : turn > 0;
   if (std::fabs(turn) < 1e-12 && along > 0) {
     comp_flush();
     return;
   }
-  if (convex || (std::fabs(turn) < 1e-12 && along < 0)) {
+  if (std::fabs(turn) < 1e-12) {
+    // Reversal: a line turns around the tool (convex); an arc bending
+    // towards the tool side cuts into the corner (concave).
+    convex = true;
+    if (new_is_arc) {
+      const double side = cross(t_prev, V2{center_ref.x, center_ref.y} - corner);
+      convex = left ? side < 0 : side > 0;
+    }
+  }
+  if (convex) {
     const CompMove before = prev;
     comp_flush();  // prev is gone after this
     CompMove a;
@@ -246,13 +264,13 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
     x = prev_end + t_prev * k;
     ok = true;
   } else if (!prev_arc && new_is_arc) {
-    ok = line_circle(prev_end, t_prev, V2{center_ref.x, center_ref.y}, tool_r, corner, x);
+    ok = line_circle(prev_end, t_prev, V2{center_ref.x, center_ref.y}, tool_r, prev_end, t_prev, x);
   } else if (prev_arc && !new_is_arc) {
     const V2 pc{prev.center1, prev.center2};
-    ok = line_circle(start, t_new, pc, len(prev_end - pc), corner, x);
+    ok = line_circle(start, t_new, pc, len(prev_end - pc), prev_end, t_prev, x);
   } else {
     const V2 pc{prev.center1, prev.center2};
-    ok = circle_circle(pc, len(prev_end - pc), V2{center_ref.x, center_ref.y}, tool_r, corner, x);
+    ok = circle_circle(pc, len(prev_end - pc), V2{center_ref.x, center_ref.y}, tool_r, prev_end, t_prev, x);
   }
   (void)rotation;
   if (!ok) {
