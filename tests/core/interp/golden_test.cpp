@@ -32,6 +32,18 @@ struct Result {
 };
 
 Result run(const fs::path& program) {
+  // Per-program options (own/*.args): "-r" and "-t table" as cnc-rs274 takes.
+  fs::path table = data_dir() / "tool.tbl";
+  bool random = false;
+  const fs::path args = fs::path(program).replace_extension(".args");
+  if (fs::exists(args)) {
+    std::istringstream in(slurp(args));
+    std::string word;
+    while (in >> word) {
+      if (word == "-r") random = true;
+      if (word == "-t" && in >> word) table = program.parent_path() / word;
+    }
+  }
   char* buf = nullptr;
   std::size_t size = 0;
   std::FILE* mem = open_memstream(&buf, &size);
@@ -44,7 +56,8 @@ Result run(const fs::path& program) {
   fs::current_path(program.parent_path());
   Rs274Options o;
   o.program = program.filename();
-  o.tool_table = data_dir() / "tool.tbl";
+  o.tool_table = table;
+  o.random_toolchanger = random;
   std::string error;
   cnc::interp::run_rs274(o, mem, error, emem);
   fs::current_path(back);

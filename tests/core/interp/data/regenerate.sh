@@ -40,7 +40,10 @@ if [ -x "$CNC" ]; then
     echo "own/*.canon and *.err: cnc-rs274 -t ../tool.tbl (this project), run in own/" > "$HERE/own/PRODUCER"
     for p in "$HERE"/own/*.ngc; do
         n=$(basename "$p" .ngc)
-        ( cd "$HERE/own" && "$CNC" -t ../tool.tbl "$n.ngc" > "$n.canon" 2> "$n.stderr" ) || true
+        args="-t ../tool.tbl"
+        [ -f "$HERE/own/$n.args" ] && args=$(cat "$HERE/own/$n.args")   # per-program options
+        # shellcheck disable=SC2086
+        ( cd "$HERE/own" && "$CNC" $args "$n.ngc" > "$n.canon" 2> "$n.stderr" ) || true
         grep -v '^executing$' "$HERE/own/$n.stderr" > "$HERE/own/$n.err" || true
         rm -f "$HERE/own/$n.stderr"
     done
