@@ -277,15 +277,16 @@ void BusConfig::validate() const {
         for (const auto& e : p.map) {
           if (e.is_dummy()) continue;
           const EdsEntry* d = n.eds->find({e.index, e.sub});
-          const std::string obj = addr_text({e.index, e.sub});
+          std::string obj = addr_text({e.index, e.sub});
           if (!d) fail(what + ": " + obj + " is not in " + n.eds->file);
-          if (!d->pdo_mapping) fail(what + ": " + obj + " (" + d->name + ") is not PDO-mappable according to " + n.eds->file);
+          if (!d->name.empty()) obj += " (" + d->name + ")";
+          if (!d->pdo_mapping) fail(what + ": " + obj + " is not PDO-mappable according to " + n.eds->file);
           const std::size_t size = data_type_size(d->type) * 8;
           if (e.bits != size && !(d->type == DataType::Boolean && e.bits == 1)) {
             fail(what + ": " + obj + " is " + to_string(d->type) + " (" + std::to_string(size) + " bits), mapped with " + std::to_string(e.bits));
           }
           if (tpdo ? !is_readable(d->access) : !is_writable(d->access)) {
-            fail(what + ": " + obj + " (" + d->name + ") cannot be " + (tpdo ? "read" : "written") + " according to " + n.eds->file);
+            fail(what + ": " + obj + " cannot be " + (tpdo ? "read" : "written") + " according to " + n.eds->file);
           }
         }
       }
@@ -469,7 +470,7 @@ BusConfig load_bus_config(const ini::IniFile& ini, const std::string& section, c
         SdoWrite w;
         w.addr = e.addr;
         w.data = n.eds->value_bytes(e, id, true);
-        w.origin = n.eds->file + ":" + std::to_string(e.line);
+        w.origin = n.eds->file + ":" + std::to_string(e.value_line);
         w.verify = e.access != Access::WriteOnly;
         n.sdo.push_back(std::move(w));
       }

@@ -312,7 +312,11 @@ DeviceDescription parse_eds(std::string_view text, const std::string& filename) 
       e.pdo_mapping = m == 1;
     }
     if (auto v = s.get("defaultvalue")) e.default_value = v->first;
-    if (auto v = s.get("parametervalue")) e.parameter_value = v->first;
+    e.value_line = s.line;
+    if (auto v = s.get("parametervalue")) {
+      e.parameter_value = v->first;
+      e.value_line = v->second;
+    }
     if (auto v = s.get("lowlimit")) e.low_limit = v->first;
     if (auto v = s.get("highlimit")) e.high_limit = v->first;
     // Check the values now, so the error points at this file and line.

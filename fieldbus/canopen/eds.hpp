@@ -31,6 +31,7 @@ struct EdsEntry {
   std::string parameter_value;      // DCF only
   std::string low_limit, high_limit;
   int line = 0;                     // of the section
+  int value_line = 0;               // of ParameterValue (DCF), else of the section
 };
 
 struct DeviceDescription {
