@@ -787,7 +787,7 @@ void Interpreter::State::convert_g(Status& st) {
   if (block.g[kGNonModal] == 40) convert_dwell();
   if (block.g[kGPlane] != -1) convert_plane(block.g[kGPlane]);
   if (block.g[kGUnits] != -1) convert_units(block.g[kGUnits] == 200 ? Units::Inch : Units::Mm);
-  if (block.g[kGLathe] != -1) {
+  if (block.g[kGLathe] != -1 && (block.g[kGLathe] == 70) != diameter_mode) {
     diameter_mode = block.g[kGLathe] == 70;
     if (config.linuxcnc_comments) {
       canon.comment(diameter_mode ? "interpreter: Lathe diameter mode changed to diameter"

@@ -118,8 +118,8 @@ void Interpreter::State::convert_motion(int g, Status& st) {
       motion_mode = -1;
       return;
     case 760:
-      motion_mode = g;
       convert_g76(find_ends(false));
+      motion_mode = g;
       return;
     case 730: case 740: case 810: case 820: case 830: case 840: case 850: case 860: case 870: case 880: case 890:
       convert_cycle(g, pos);
@@ -284,10 +284,68 @@ void Interpreter::State::convert_threading(int g, const Pose& end) {
 }
 
 void Interpreter::State::convert_g76(const Pose& end) {
-  (void)end;
+  // Lathe threading in the XZ plane, passes of depth J * n^(1/R) until the
+  // full depth K, then H spring passes; Q compound angle, E/L tapers.
   if (cutter_side != 400) fail("Cannot use G76 threading cycle with cutter radius compensation on");
-  if (plane != Plane::XZ) fail("G76 with lathe tool, but plane is not G18");
-  fail("G76 is not supported");
+  if (!block.has_word('p')) fail("P word missing with G76");
+  if (!block.has_word('i') || !block.has_word('j') || !block.has_word('k')) fail("I J or K words missing with G76");
+  if (block.has_word('a') || block.has_word('b') || block.has_word('c')) fail("Cannot move rotary axes with G76");
+  const double pitch = block.get('p');
+  const double i = block.get('i'), j = block.get('j'), k = block.get('k');
+  if (i == 0.0) fail("In G76, I must not be 0");
+  if (j <= 0.0) fail("In G76, J must be greater than 0");
+  if (k <= j) fail("In G76, K must be greater than J");
+  if (spindle == Direction::Stopped) fail("Chosen spindle (0) not turning in G76");
+  const double degression = block.has_word('r') ? block.get('r') : 1.0;
+  const double t = std::tan((block.has_word('q') ? block.get('q') : 0.0) * kPi / 180.0);
+  const int spring = block.has_word('h') ? round_to_int(block.get('h')) : 0;
+  const double e = block.has_word('e') ? block.get('e') : 0.0;
+  const int l = block.has_word('l') ? round_to_int(block.get('l')) : 0;
+  const bool entry_taper = e > 0 && (l == 1 || l == 3);
+  const bool exit_taper = e > 0 && (l == 2 || l == 3);
+  const double s = i < 0 ? -1.0 : 1.0;
+  const double start_x = pos[0], zs = pos[2], ze = end[2];
+  const double dir = ze < zs ? -1.0 : 1.0;
+  const double peak_x = start_x + i;
+  const double taper_pitch = e > 0 ? pitch * std::hypot(e, k) / e : pitch;
+  auto at = [&](double x, double z) {
+    Pose p = pos;
+    p[0] = x;
+    p[2] = z;
+    return p;
+  };
+  auto pass = [&](double depth) {
+    const double cut_x = peak_x + s * depth;
+    const double safe_x = start_x - s * (k - depth);
+    const double zs_pass = zs + dir * depth * t;
+    const double ze_pass = ze - dir * (k - depth) * t;
+    emit_traverse(at(safe_x, zs_pass));
+    if (!entry_taper) emit_traverse(at(cut_x, zs_pass));
+    canon.disable_feed_override();
+    if (entry_taper) {
+      canon.start_speed_feed_synch(0, taper_pitch, false);
+      emit_feed(at(cut_x - s * k, zs_pass));
+      emit_feed(at(cut_x, zs_pass + dir * e));
+    }
+    canon.start_speed_feed_synch(0, pitch, false);
+    if (exit_taper) {
+      emit_feed(at(cut_x, ze_pass - dir * e));
+      canon.start_speed_feed_synch(0, taper_pitch, false);
+      emit_feed(at(cut_x - s * k, ze_pass));
+    } else {
+      emit_feed(at(cut_x, ze_pass));
+    }
+    canon.stop_speed_feed_synch();
+    emit_traverse(at(safe_x, ze_pass));
+    canon.enable_feed_override();
+  };
+  for (int n = 1;; ++n) {
+    const double depth = j * std::pow(static_cast<double>(n), 1.0 / degression);
+    if (depth >= k) break;
+    pass(depth);
+  }
+  for (int h = 0; h <= spring; ++h) pass(k);
+  emit_traverse(at(start_x, pos[2]));
 }
 
 }  // namespace cnc::interp
