@@ -67,8 +67,9 @@ busybox=/bin/busybox
 modinfo=/sbin/modinfo
 command -v modinfo >/dev/null && modinfo="$(command -v modinfo)"
 
+mkdir -p "$build_dir/vm"
+build_dir="$(cd "$build_dir" && pwd)"
 vmdir="$build_dir/vm"
-mkdir -p "$vmdir"
 initrd="$vmdir/initramfs-$kver.cpio.gz"
 
 # Modules in load order: each after the modules it depends on (modinfo).
@@ -167,7 +168,7 @@ trap 'rm -rf "$jobdir"' EXIT
 job="$jobdir/job.sh"
 {
   echo "export PATH=$(printf '%q' "$PATH")"
-  echo "export HOME=/tmp TMPDIR=/tmp CNC_IN_VM=1"
+  echo "export HOME=/tmp TMPDIR=/tmp CNC_IN_VM=1 GTEST_COLOR=no TERM=dumb"
   for v in GTEST_FILTER GTEST_COLOR CNC_NO_REALTIME CNC_TEST_SEED; do
     [ -n "${!v:-}" ] && echo "export $v=$(printf '%q' "${!v}")"
   done
