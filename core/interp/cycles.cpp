@@ -90,6 +90,11 @@ void Interpreter::State::convert_cycle(int g, Pose) {
              : g == 880 ? "Dwell time p word missing with g88" : "Dwell time p word missing with g89");
       }
       break;
+    case 870:
+      if (!block.has_word('i') && !same) fail("I word missing with g87");
+      if (!block.has_word('j') && !same) fail("J word missing with g87");
+      if (!block.has_word('k') && !same) fail("K word missing with g87");
+      break;
     case 730: case 830:
       if (!block.has_word('q') && !same) fail(g == 730 ? "Q word missing with g73" : "Q word missing with g83");
       if (cycle_q <= 0) fail("Negative or zero q value used");
@@ -110,6 +115,7 @@ void Interpreter::State::convert_cycle(int g, Pose) {
     trav(aa, bb, current_cc);
     if (g == 860 && spindle == Direction::Stopped) fail("Spindle not turning in g86");
     if (g == 880 && spindle == Direction::Stopped) fail("Spindle not turning in g88");
+    if (g == 870 && spindle == Direction::Stopped) fail("Spindle not turning in g87");
     if (old_cc != r) trav(aa, bb, r);
     switch (g) {
       case 810:
@@ -138,23 +144,19 @@ void Interpreter::State::convert_cycle(int g, Pose) {
       }
       case 740:
       case 840: {
-        const double pitch = speed != 0.0 ? feed / speed : 0.0;
-        canon.start_speed_feed_synch(0, pitch, false);
+        // Floating-holder tapping as LinuxCNC 2.9: overrides off, reverse
+        // the spindle at the bottom, feed out, restore.
+        canon.disable_feed_override();
+        canon.disable_speed_override(0);
         feedto(aa, bb, bottom);
-        if (block.has_word('p') || cycle_p > 0) canon.dwell(cycle_p);
-        if (g == 840) {
-          canon.start_spindle_counterclockwise(0);
-        } else {
-          canon.start_spindle_clockwise(0);
-        }
-        feedto(aa, bb, r);
-        if (g == 840) {
-          canon.start_spindle_clockwise(0);
-        } else {
-          canon.start_spindle_counterclockwise(0);
-        }
-        canon.stop_speed_feed_synch();
-        if (clear > r) trav(aa, bb, clear);
+        canon.stop_spindle_turning(0);
+        g == 840 ? canon.start_spindle_counterclockwise(0) : canon.start_spindle_clockwise(0);
+        canon.dwell(cycle_p);
+        feedto(aa, bb, clear);
+        canon.stop_spindle_turning(0);
+        g == 840 ? canon.start_spindle_clockwise(0) : canon.start_spindle_counterclockwise(0);
+        canon.enable_feed_override();
+        canon.enable_speed_override(0);
         break;
       }
       case 850:
@@ -174,29 +176,34 @@ void Interpreter::State::convert_cycle(int g, Pose) {
         }
         break;
       case 870: {
-        // back boring: I/J offset move, orient-free approximation of LinuxCNC
-        const double middle = cycle_k;
+        // Back boring: in beside the bore with the spindle oriented, down,
+        // over, bore up to K and back, out the same way.
         const double oa = aa + cycle_i, ob = bb + cycle_j;
+        auto restart = [&] {
+          spindle == Direction::Clockwise ? canon.start_spindle_clockwise(0) : canon.start_spindle_counterclockwise(0);
+        };
+        trav(oa, ob, r);
         canon.stop_spindle_turning(0);
-        trav(oa, ob, current_cc);
+        canon.orient_spindle(0, 0.0, 2);
         trav(oa, ob, bottom);
         trav(aa, bb, bottom);
-        spindle == Direction::Clockwise ? canon.start_spindle_clockwise(0) : canon.start_spindle_counterclockwise(0);
-        feedto(aa, bb, middle);
+        restart();
+        feedto(aa, bb, cycle_k);
         feedto(aa, bb, bottom);
         canon.stop_spindle_turning(0);
+        canon.orient_spindle(0, 0.0, 2);
         trav(oa, ob, bottom);
         trav(oa, ob, clear);
         trav(aa, bb, clear);
-        spindle == Direction::Clockwise ? canon.start_spindle_clockwise(0) : canon.start_spindle_counterclockwise(0);
+        restart();
         break;
       }
       case 880:
+        // Boring with a manual way out: the operator jogs after M0.
         feedto(aa, bb, bottom);
         canon.dwell(cycle_p);
         canon.stop_spindle_turning(0);
         canon.program_stop();
-        trav(aa, bb, clear);
         spindle == Direction::Clockwise ? canon.start_spindle_clockwise(0) : canon.start_spindle_counterclockwise(0);
         break;
       case 890:
