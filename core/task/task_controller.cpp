@@ -237,8 +237,7 @@ bool TaskController::handle_command(const ipc::Command& cmd, ipc::CommandReporte
       break;
     case CommandType::TaskPlanSetOptionalStop: optional_stop_ = cmd.i[0] != 0; break;
     case CommandType::TaskPlanSetBlockDelete:
-      block_delete_ = cmd.i[0] != 0;
-      interp_config_.block_delete = block_delete_;
+      block_delete_ = cmd.i[0] != 0;  // takes effect when a program starts
       if (!idle) why = "block delete changes take effect when the program is next started";
       break;
     case CommandType::TrajSetScale: motion_cmd(Cmd::Scale, cmd.d[0]); break;
@@ -618,8 +617,16 @@ std::string TaskController::program_run(const ipc::Command& c) {
   if (!machine_homed() && !cfg_.no_force_homing) return "home all joints before running a program";
   if (!motion_idle()) return "the machine is still moving";
   items_.clear();
-  interp_config_.block_delete = block_delete_;
   try {
+    if (interp_config_.block_delete != block_delete_) {
+      // The interpreter takes block delete from its configuration: start a
+      // fresh one (parameters go through the parameter file).
+      interp_->save_parameters();
+      interp_config_.block_delete = block_delete_;
+      interp_ = std::make_unique<interp::Interpreter>(*canon_, interp_config_);
+      interp_->init();
+      items_.clear();
+    }
     interp_->reset();
     interp_->open(file_);
   } catch (const interp::InterpError& e) {
@@ -867,11 +874,15 @@ void TaskController::abort_all(const std::string& why, bool quiet) {
   }
   io_.abort();
   items_.clear();
+  if (running_mdi_ && reporter_ && mdi_current_.serial) {
+    reporter_->report(mdi_current_, CommandState::Rejected, "aborted: " + why);
+  }
   for (auto& q : mdi_queue_) {
     if (reporter_) reporter_->report(q.first, CommandState::Rejected, "aborted: " + why);
   }
   mdi_queue_.clear();
   running_mdi_ = false;
+  mdi_current_ = ipc::Command{};
   try {
     interp_->reset();
   } catch (const interp::InterpError&) {
@@ -1258,7 +1269,9 @@ void TaskController::update(int64_t now_ns) {
       if (running_mdi_) execute_items(now_ns);
       if (running_mdi_ && items_.empty() && !waiting_synch_ && motion_idle() && !paused_) {
         running_mdi_ = false;
-        if (reporter_ && mdi_current_.serial) reporter_->report(mdi_current_, CommandState::Done);
+        bool more = false;  // a macro's later lines belong to the same command
+        for (const auto& q : mdi_queue_) more = more || q.first.serial == mdi_current_.serial;
+        if (reporter_ && mdi_current_.serial && !more) reporter_->report(mdi_current_, CommandState::Done);
         mdi_current_ = ipc::Command{};
         mdi_text_.clear();
         try {

@@ -1,0 +1,309 @@
+// The task controller: machine states, modes, MDI, program control, run
+// from line, against the simulated mill in-process.
+#include <gtest/gtest.h>
+
+#include "tests/core/task/fixture.hpp"
+
+using cnc::ipc::CommandState;
+using cnc::ipc::CommandType;
+using cnc::ipc::InterpState;
+using cnc::ipc::TaskMode;
+using cnc::ipc::TaskState;
+using cnc::testing::TaskMachine;
+
+namespace {
+constexpr int kEstop = 1, kReset = 2, kOff = 3, kOn = 4;
+constexpr int kManual = 1, kAuto = 2, kMdi = 3;
+
+const char* kProgram =
+    "G10 L2 P1 X0 Y0 Z-80\n"             // 1  stock top at machine Z-80
+    "G21 G90 G17 G54 G64 P0.01\n"        // 2
+    "T2 M6\n"                            // 3
+    "G43 H2\n"                           // 4
+    "S1200 M3\n"                         // 5
+    "M8\n"                               // 6
+    "G0 X10 Y10 Z5\n"                    // 7
+    "G1 Z-1 F300\n"                      // 8
+    "G1 X30 F900\n"                      // 9
+    "M1\n"                               // 10
+    "G1 Y30\n"                           // 11
+    "/G1 X10\n"                          // 12
+    "G1 Y10\n"                           // 13
+    "G0 Z5\n"                            // 14
+    "M5 M9\n"                            // 15
+    "M2\n";                              // 16
+}  // namespace
+
+TEST(TaskStates, EveryTransitionOfTheDiagram) {
+  TaskMachine m;
+  EXPECT_EQ(m.task().state(), TaskState::Estop);
+  auto r = m.send(CommandType::TaskSetState, kOn);
+  EXPECT_EQ(r.first, CommandState::Rejected);
+  EXPECT_EQ(r.second, "the machine is in E-stop: reset it first (estop-reset)");
+  r = m.send(CommandType::TaskSetState, kOff);
+  EXPECT_EQ(r.second, "the machine is in E-stop");
+  m.ok(m.send(CommandType::TaskSetState, kReset), "reset");
+  EXPECT_EQ(m.task().state(), TaskState::EstopReset);
+  EXPECT_TRUE(m.io().user_enabled());
+  m.ok(m.send(CommandType::TaskSetState, kOn), "on");
+  EXPECT_EQ(m.task().state(), TaskState::On);
+  EXPECT_TRUE(m.status().motion.enabled);
+  m.ok(m.send(CommandType::TaskSetState, kOff), "off");
+  EXPECT_EQ(m.task().state(), TaskState::Off);
+  m.step(3);
+  EXPECT_FALSE(m.status().motion.enabled);
+  m.ok(m.send(CommandType::TaskSetState, kOn), "on again");
+  m.ok(m.send(CommandType::TaskSetState, kEstop), "estop");
+  EXPECT_EQ(m.task().state(), TaskState::Estop);
+  m.step(3);
+  EXPECT_FALSE(m.status().motion.enabled);
+  EXPECT_FALSE(m.io().user_enabled());
+  r = m.send(CommandType::TaskSetState, 9);
+  EXPECT_EQ(r.second, "unknown state 9: expected 1 (E-stop), 2 (reset), 3 (off) or 4 (on)");
+}
+
+TEST(TaskStates, ResetIsRefusedWhileTheEstopChainStaysOpen) {
+  // Break the simulated loop: emc-enable-in is held false.
+  TaskMachine m({{"EMCIO", "ESTOP_RESET_TIMEOUT", "0.05"}}, "delsig estop-loop\nsetp iocontrol.0.emc-enable-in FALSE\n");
+  const auto r = m.send(CommandType::TaskSetState, kReset);
+  EXPECT_EQ(r.first, CommandState::Rejected);
+  EXPECT_NE(r.second.find("the E-stop chain did not close"), std::string::npos) << r.second;
+  EXPECT_EQ(m.task().state(), TaskState::Estop);
+}
+
+TEST(TaskStates, AnOpeningChainIsAnEstop) {
+  TaskMachine m({}, "delsig estop-loop\nnet chain iocontrol.0.emc-enable-in\nsets chain TRUE\n");
+  m.power_up_and_home();
+  m.hal().set_signal("chain", "FALSE");
+  m.step(3);
+  EXPECT_EQ(m.task().state(), TaskState::Estop);
+  EXPECT_NE(m.errors().find("E-stop chain opened"), std::string::npos);
+}
+
+TEST(TaskStates, AMotionFaultTurnsTheMachineOff) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.hal().set_value("motion.enable", "FALSE");
+  m.step(5);
+  EXPECT_EQ(m.task().state(), TaskState::Off);
+  EXPECT_NE(m.errors().find("motion.enable went false"), std::string::npos);
+}
+
+TEST(TaskModes, AutoAndMdiNeedAHomedMachineThatIsOn) {
+  TaskMachine m;
+  auto r = m.send(CommandType::TaskSetMode, kMdi);
+  EXPECT_EQ(r.second, "the machine is not on (state ESTOP)");
+  m.ok(m.send(CommandType::TaskSetState, kReset), "reset");
+  m.ok(m.send(CommandType::TaskSetState, kOn), "on");
+  r = m.send(CommandType::TaskSetMode, kAuto);
+  EXPECT_EQ(r.second, "home all joints before AUTO (or set [TRAJ]NO_FORCE_HOMING = 1)");
+  m.ok(m.send(CommandType::JointHome, -1), "home");
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  EXPECT_EQ(m.task().mode(), TaskMode::Auto);
+  EXPECT_EQ(m.status().motion.mode, cnc::ipc::MotionMode::Coord);
+  m.ok(m.send(CommandType::TaskSetMode, kManual), "manual");
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  r = m.send(CommandType::TaskSetMode, 7);
+  EXPECT_EQ(r.second, "unknown mode 7: expected 1 (MANUAL), 2 (AUTO) or 3 (MDI)");
+}
+
+TEST(TaskModes, JoggingAndHomingNeedManualMode) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  cnc::ipc::Command jog;
+  jog.type = CommandType::JogIncr;
+  jog.i[0] = 0;
+  jog.i[1] = 0;
+  jog.d[0] = 10;
+  jog.d[1] = 1;
+  EXPECT_EQ(m.send(jog).second, "jogging needs MANUAL mode (now MDI)");
+  EXPECT_EQ(m.send(CommandType::JointHome, 0).second, "homing needs MANUAL mode (now MDI)");
+  m.ok(m.send(CommandType::TaskSetMode, kManual), "manual");
+  const double x0 = m.status().motion.position[0];
+  m.ok(m.send(jog), "axis jog (teleop)");
+  m.run_until([&] { return m.status().motion.inpos; });
+  m.step(2);
+  EXPECT_NEAR(m.status().motion.position[0], x0 - 0 + 1, 1e-9);
+}
+
+TEST(TaskMdi, QueuedLinesRunInOrderAndErrorsSayWhy) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  m.ok(m.mdi("G0 X100 Y50"), "G0");
+  m.ok(m.mdi("G1 Z-10 F600"), "G1");
+  auto s = m.status();
+  EXPECT_NEAR(s.motion.position[0], 100, 1e-9);
+  EXPECT_NEAR(s.motion.position[2], -10, 1e-9);
+  const auto r = m.mdi("G1 X10 Y10 G2");
+  EXPECT_EQ(r.first, CommandState::Rejected);
+  EXPECT_NE(r.second.find("modal group"), std::string::npos) << r.second;
+  const auto r2 = m.mdi("G0 X500");
+  EXPECT_EQ(r2.first, CommandState::Rejected);
+  EXPECT_NE(r2.second.find("outside the soft limits"), std::string::npos) << r2.second;
+}
+
+TEST(TaskMdi, MacrosFromTheMdiCommandList) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  m.ok(m.mdi("G0 X10 Y10 Z-5"), "move");
+  cnc::ipc::Command macro;
+  macro.type = CommandType::TaskPlanExecute;
+  macro.i[0] = 0;  // "G0 Z0;G0 X280 Y180, Park"
+  m.ok(m.send(macro), "macro 0");
+  const auto s = m.status();
+  EXPECT_NEAR(s.motion.position[0], 280, 1e-9);
+  EXPECT_NEAR(s.motion.position[2], 0, 1e-9);
+  macro.i[0] = 9;
+  EXPECT_EQ(m.send(macro).second, "no [MDI_COMMAND_LIST]MDI_COMMAND_MACRO9 (there are 2)");
+}
+
+TEST(TaskProgram, RunsToTheEndWithToolSpindleAndCoolant) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("p.ngc", kProgram), "open");
+  m.ok(m.send(CommandType::TaskPlanRun, 0), "run");
+  bool saw_spindle = false, saw_flood = false;
+  ASSERT_TRUE(m.run_until([&] {
+    const auto s = m.status();
+    saw_spindle = saw_spindle || s.spindles[0].enabled;
+    saw_flood = saw_flood || s.io.flood;
+    return !m.program_running();
+  }, 400000)) << m.errors();
+  const auto s = m.status();
+  EXPECT_EQ(m.errors(), "");
+  EXPECT_EQ(s.io.tool_in_spindle, 2);
+  EXPECT_TRUE(saw_spindle);
+  EXPECT_TRUE(saw_flood);
+  EXPECT_FALSE(s.spindles[0].enabled);
+  EXPECT_FALSE(s.io.flood);
+  // Final position: X10 Y10 Z5 with G54 Z-80 and T2's length offset 42.5.
+  EXPECT_NEAR(s.motion.position[0], 10, 1e-9);
+  EXPECT_NEAR(s.motion.position[1], 10, 1e-9);
+  EXPECT_NEAR(s.motion.position[2], -80 + 5 + 42.5, 1e-9);
+  EXPECT_NE(m.log.find("program finished"), std::string::npos);
+}
+
+TEST(TaskProgram, PauseHoldsResumeFinishes) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("p.ngc", "G0 X0 Y0 Z0\nG1 X200 F3000\nG1 Y150\nM2\n"), "open");
+  m.ok(m.send(CommandType::TaskPlanRun, 0), "run");
+  ASSERT_TRUE(m.run_until([&] { return m.status().motion.position[0] > 50; }));
+  m.ok(m.send(CommandType::TaskPlanPause), "pause");
+  m.step(500);
+  const double x = m.status().motion.position[0];
+  m.step(200);
+  EXPECT_EQ(m.status().motion.position[0], x);
+  EXPECT_EQ(m.task().interp_state(), InterpState::Paused);
+  EXPECT_EQ(m.send(CommandType::TaskSetMode, kManual).second,
+            "cannot change to MANUAL mode while a program or MDI runs: abort it first");
+  m.ok(m.send(CommandType::TaskPlanResume), "resume");
+  ASSERT_TRUE(m.run_until([&] { return !m.program_running(); }, 400000));
+  EXPECT_NEAR(m.status().motion.position[1], 150, 1e-9);
+}
+
+TEST(TaskProgram, AbortStopsMotionAndTheProgram) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("p.ngc", "G0 X0 Y0\nS1000 M3\nG1 X200 F2000\nG1 Y150\nM2\n"), "open");
+  m.ok(m.send(CommandType::TaskPlanRun, 0), "run");
+  ASSERT_TRUE(m.run_until([&] { return m.status().task.current_line == 3 && m.status().motion.position[0] > 20; }));
+  m.ok(m.send(CommandType::TaskAbort), "abort");
+  EXPECT_FALSE(m.program_running());
+  ASSERT_TRUE(m.run_until([&] { return m.status().motion.inpos; }));
+  EXPECT_LT(m.status().motion.position[0], 200);
+  EXPECT_FALSE(m.status().spindles[0].enabled) << "abort stops the spindle";
+}
+
+TEST(TaskProgram, OptionalStopAndBlockDelete) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("p.ngc", kProgram), "open");
+  m.ok(m.send(CommandType::TaskPlanSetOptionalStop, 1), "M1 on");
+  m.ok(m.send(CommandType::TaskPlanSetBlockDelete, 1), "block delete on");
+  m.ok(m.send(CommandType::TaskPlanRun, 0), "run");
+  ASSERT_TRUE(m.run_until([&] { return m.task().interp_state() == InterpState::Paused; }, 400000)) << m.errors();
+  const auto s = m.status();
+  EXPECT_NEAR(s.motion.position[0], 30, 1e-9) << "stopped at M1 after line 9";
+  m.ok(m.send(CommandType::TaskPlanResume), "resume");
+  double min_x = 1e9;
+  ASSERT_TRUE(m.run_until([&] {
+    const auto st = m.status();
+    if (st.motion.position[1] > 29) min_x = std::min(min_x, st.motion.position[0]);
+    return !m.program_running();
+  }, 400000));
+  EXPECT_NEAR(min_x, 30, 1e-9) << "the /G1 X10 line was skipped";
+}
+
+TEST(TaskProgram, SingleStepRunsOneBlockAtATime) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("p.ngc", "G0 X10 Y10\nG0 X20\nG0 X30\nM2\n"), "open");
+  m.ok(m.send(CommandType::TaskPlanStep), "step 1");
+  ASSERT_TRUE(m.run_until([&] { return m.task().interp_state() == InterpState::Paused; }));
+  EXPECT_NEAR(m.status().motion.position[0], 10, 1e-9);
+  m.ok(m.send(CommandType::TaskPlanStep), "step 2");
+  ASSERT_TRUE(m.run_until([&] {
+    return m.task().interp_state() == InterpState::Paused && m.status().motion.position[0] > 19;
+  }));
+  EXPECT_NEAR(m.status().motion.position[0], 20, 1e-9);
+}
+
+TEST(TaskProgram, RunFromLineRestoresToolOffsetsSpindleAndCoolant) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("p.ngc", kProgram), "open");
+  cnc::ipc::Command preview;
+  preview.type = CommandType::TaskPlanRunPreview;
+  preview.i[0] = 11;
+  m.ok(m.send(preview), "preview");
+  m.errors();
+  EXPECT_NE(m.log.find("run from line 11"), std::string::npos) << m.log;
+  EXPECT_EQ(m.status().task.run_from_line_pending, 11);
+  EXPECT_NEAR(m.status().task.run_from_line_start[0], 30, 1e-9) << "where line 10 leaves the tool";
+  m.ok(m.send(CommandType::TaskPlanRun, 11), "run from 11");
+  bool spindle = false, flood = false;
+  ASSERT_TRUE(m.run_until([&] {
+    const auto s = m.status();
+    spindle = spindle || s.spindles[0].enabled;
+    flood = flood || s.io.flood;
+    return !m.program_running();
+  }, 400000)) << m.errors();
+  EXPECT_EQ(m.status().io.tool_in_spindle, 2) << "the tool of line 3 was loaded";
+  EXPECT_TRUE(spindle);
+  EXPECT_TRUE(flood);
+  EXPECT_NEAR(m.status().motion.position[2], -80 + 5 + 42.5, 1e-9) << "G54 and G43 H2 were restored";
+}
+
+TEST(TaskProgram, ProgramErrorsNameTheLineAndStopTheProgram) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("bad.ngc", "G0 X10\nG1 X20 F100\nG2 X30 Y0\nM2\n"), "open");
+  m.ok(m.send(CommandType::TaskPlanRun, 0), "run");
+  ASSERT_TRUE(m.run_until([&] { return !m.program_running(); }, 100000));
+  const std::string e = m.errors();
+  EXPECT_NE(e.find("bad.ngc:3:"), std::string::npos) << e;
+}
+
+TEST(TaskRules, CommandsAreRefusedWithReasons) {
+  TaskMachine m;
+  EXPECT_EQ(m.send(CommandType::TaskPlanRun, 0).second, "running a program needs AUTO mode (now MANUAL)");
+  EXPECT_EQ(m.send(CommandType::TaskPlanPause).second, "nothing is running to pause");
+  EXPECT_EQ(m.send(CommandType::TaskPlanResume).second, "nothing is paused");
+  EXPECT_EQ(m.send(CommandType::CoolantFloodOn).second, "the machine is not on (state ESTOP)");
+  EXPECT_EQ(m.send(CommandType::JointHome, 0).second, "the machine is not on (state ESTOP)");
+  cnc::ipc::Command open;
+  open.type = CommandType::TaskPlanOpen;
+  open.text.assign("/nonexistent/x.ngc");
+  EXPECT_EQ(m.send(open).second, "cannot read program /nonexistent/x.ngc");
+}
