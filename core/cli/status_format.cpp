@@ -55,8 +55,15 @@ std::string format_status(const ipc::Status& s) {
     o << fmt("Motion: mode %s, %s, %s, queue %d, line %d, velocity %.3f\n", to_string(s.motion.mode),
              s.motion.enabled ? "enabled" : "disabled", s.motion.inpos ? "in position" : "moving", s.motion.queue,
              s.motion.motion_line, s.motion.current_vel);
-    o << fmt("  overrides  feed %.0f%%, rapid %.0f%%, max velocity %.3f\n", s.motion.feed_scale * 100,
-             s.motion.rapid_scale * 100, s.motion.max_velocity);
+    if (s.motion.max_velocity < 1e90) {
+      o << fmt("  overrides  feed %.0f%%, rapid %.0f%%, max velocity %.3f\n", s.motion.feed_scale * 100,
+               s.motion.rapid_scale * 100, s.motion.max_velocity);
+    } else {
+      o << fmt("  overrides  feed %.0f%%, rapid %.0f%%, max velocity not limited\n", s.motion.feed_scale * 100,
+               s.motion.rapid_scale * 100);
+    }
+    o << fmt("  tool       %d in the spindle%s%s%s\n", s.io.tool_in_spindle, s.io.flood ? ", flood on" : "",
+             s.io.mist ? ", mist on" : "", s.spindles[0].enabled ? ", spindle on" : "");
     o << axes_line("commanded", s.motion.position, s.motion.axis_mask);
     if (s.motion.carte_fb_valid) o << axes_line("actual", s.motion.actual_position, s.motion.axis_mask);
     else o << "  actual     unknown (forward kinematics not usable until homed)\n";
