@@ -718,7 +718,9 @@ void MotionController::check_faults() noexcept {
       return;
     }
     const bool homing_ignores = jt.home_state != HomeState::Idle && c.homing.ignore_limits;
-    const bool overridden = override_limits_ || jt.jog_override_limits;
+    // OVERRIDE_LIMITS serves jogging off a switch: it counts in free mode
+    // (and for the jog that consumed it), never under coordinated motion.
+    const bool overridden = (override_limits_ && mode_ == ipc::MotionMode::Free) || jt.jog_override_limits;
     if ((jt.on_pos_limit || jt.on_neg_limit) && !homing_ignores && !overridden) {
       fault("joint %d on its %s limit switch%s (send override-limits, then jog off it)", j,
             jt.on_pos_limit ? "positive" : "negative", jt.home_state != HomeState::Idle ? " while homing" : "");
