@@ -41,8 +41,9 @@ class Canon {
  public:
   virtual ~Canon() = default;
 
-  // --- block context (lets a printer show the N word; default no-op)
-  virtual void begin_block(int /*line*/, int /*n_number*/) {}
+  // --- block context: source line, N word number (-1: none) and the N
+  // word's digits as written ("0010"); default no-op
+  virtual void begin_block(int /*line*/, int /*n_number*/, std::string_view /*n_text*/) {}
 
   // --- representation
   virtual void use_length_units(Units u) = 0;

@@ -44,7 +44,15 @@ void Interpreter::State::convert_cycle(int g, Pose) {
   if (block.has_word('i')) cycle_i = block.get('i');
   if (block.has_word('j')) cycle_j = block.get('j');
   if (block.has_word('k')) cycle_k = block.get('k');
-  double old_cc = pos[a3];
+  // The "initial level" of a run of cycle blocks: where the first one
+  // started, lowered when a G99 retract left the tool below it (this
+  // reproduces LinuxCNC 2.9's observable behaviour; other motion ends a run).
+  double current_cc = pos[a3];
+  if (!cycle_il_valid || current_cc < cycle_il) {
+    cycle_il = current_cc;
+    cycle_il_valid = true;
+  }
+  double old_cc = cycle_il;
   double r = cycle_r, bottom = cycle_cc;
   double clear = 0;
   double aa = pos[a1], bb = pos[a2];
@@ -79,6 +87,7 @@ void Interpreter::State::convert_cycle(int g, Pose) {
   if (old_cc < r) {
     trav(pos[a1], pos[a2], r);
     old_cc = r;
+    current_cc = old_cc;
   }
   // Cycles run in exact path mode; the block's mode comes back after.
   const MotionMode saved_control = control;
@@ -106,9 +115,14 @@ void Interpreter::State::convert_cycle(int g, Pose) {
   if (g == 740 && spindle == Direction::Clockwise) fail("Spindle turning clockwise in G74");
 
 
-  double current_cc = old_cc;
   for (int rep = 0; rep < repeats; ++rep) {
-    if (!absolute) {
+    if (!absolute && (block.has_polar_r || block.has_polar_a)) {
+      // a polar step is repeated around the origin, not along a line
+      const double r_now = std::hypot(aa, bb) + (block.has_polar_r ? block.polar_r : 0.0);
+      const double a_now = std::atan2(bb, aa) * 180.0 / kPi + (block.has_polar_a ? block.polar_a : 0.0);
+      aa = r_now * std::cos(a_now * kPi / 180.0);
+      bb = r_now * std::sin(a_now * kPi / 180.0);
+    } else if (!absolute) {
       aa += aa_inc;
       bb += bb_inc;
     }

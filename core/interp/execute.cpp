@@ -61,7 +61,7 @@ void Interpreter::State::reset_modal(bool keep_params) {
   css = false;
   css_max = 0;
   mist = flood = false;
-  motion_mode = 0;
+  motion_mode = -1;  // G80 until a motion code is given
   origin = round_to_int(params[5220]);
   if (origin < 1 || origin > 9) origin = 1;
   const int base = 5201 + 20 * origin;
@@ -128,12 +128,12 @@ void Interpreter::State::restore_modal(const ModalSnapshot& m) {
     feed = m.feed;
     canon.set_feed_rate(feed);
   }
-  set_distance_mode(m.absolute);
-  ijk_absolute = m.ijk_absolute;
   if (m.speed != speed) {
     speed = m.speed;
     canon.set_spindle_speed(0, speed);
   }
+  set_distance_mode(m.absolute);
+  ijk_absolute = m.ijk_absolute;
   if (m.spindle != spindle) {
     spindle = m.spindle;
     if (spindle == Direction::Clockwise) canon.start_spindle_clockwise(0);
@@ -181,7 +181,8 @@ Status Interpreter::State::execute_block() {
     if (m != 0 && m != 10) fail("Must use g0 or g1 with g53");
     if (block.g[kGDistance] == 910 || (block.g[kGDistance] == -1 && !absolute)) fail("Cannot use g53 incremental");
   }
-  canon.begin_block(block.line, block.n_number);
+  canon.begin_block(block.line, block.n_number, block.n_text);
+  if (block.has_polar_r || block.has_polar_a) convert_polar();
   n_number = block.n_number;
   if (block.has_comment) convert_comment();
   if (block.g[kGSpindleMode] != -1) convert_spindle_mode(block.g[kGSpindleMode]);
@@ -234,7 +235,7 @@ void Interpreter::State::convert_comment() {
   } else if (cnc::iequals(cnc::trim(c), "logclose")) {
     canon.log_close();
   } else {
-    canon.comment(c);
+    canon.comment(skip_blanks(c));  // LinuxCNC drops the leading blanks
   }
 }
 
@@ -855,10 +856,11 @@ void Interpreter::State::convert_g(Status& st) {
       g0 != 920 && block.g[kGToolOffset] != 431 && block.g[kGToolOffset] != 432) {
     fail("Cannot use axis values with g80");
   }
+  const bool has_axes = block.any_axis(config.axis_mask);
   if (motion == -1 && g0 != 100 && g0 != 280 && g0 != 300 && g0 != 520 && g0 != 920 && g0 != 431 &&
-      block.g[kGToolOffset] != 431 && block.g[kGToolOffset] != 432 && block.any_axis(config.axis_mask)) {
+      block.g[kGToolOffset] != 431 && block.g[kGToolOffset] != 432 && has_axes) {
     motion = motion_mode;
-    if (motion == -1) fail("Cannot use axis values with g80");
+    if (motion == -1) fail("Cannot use axis values without a g code that uses them");
   }
   if (motion != -1) convert_motion(motion, st);
 }

@@ -136,7 +136,7 @@ bool Interpreter::State::read_block() {
       }
     } else if (percent_seen && at_top && !skipping && is_percent_line(raw)) {
       program_ended = true;
-      canon.begin_block(current_line, -1);
+      canon.begin_block(current_line, -1, {});
       canon.finish();
       return false;
     }
@@ -164,7 +164,8 @@ bool Interpreter::State::read_block() {
         set_named(a.name, a.value);
       }
     }
-    if (block.has == 0 && block.m_count == 0 && !block.has_comment && block.dollar < 0) {
+    if (block.has == 0 && block.m_count == 0 && !block.has_comment && block.dollar < 0 && !block.has_polar_r &&
+        !block.has_polar_a) {
       bool any_g = false;
       for (int g : block.g) any_g = any_g || g != -1;
       if (!any_g) continue;

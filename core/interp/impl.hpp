@@ -94,6 +94,8 @@ struct Interpreter::State {
   // canned cycles
   double cycle_r = 0, cycle_z = 0, cycle_cc = 0;
   int cycle_l = 1;
+  double cycle_il = 0;  // initial level of a run of cycle blocks
+  bool cycle_il_valid = false;
   double cycle_p = 0, cycle_q = 0, cycle_i = 0, cycle_j = 0, cycle_k = 0;
   // probe / input results
   Pose probe_pos{};
@@ -187,6 +189,7 @@ struct Interpreter::State {
 
   // ---------------- motion.cpp
   void convert_motion(int g, Status& st);
+  void convert_polar();
   Pose find_ends(bool g53) const;
   void straight(int g, const Pose& end);
   void convert_arc(int g, const Pose& end);

@@ -59,6 +59,34 @@ Pose Interpreter::State::find_ends(bool g53) const {
   return end;
 }
 
+void Interpreter::State::convert_polar() {
+  // @ radius and ^ angle in the XY plane become X and Y words before
+  // anything else (so canned cycles repeat them too): from the origin in
+  // G90, added to the current point's polar coordinates in G91.
+  if (block.g[kGNonModal] == 530) fail("Cannot use polar coordinates with G53");
+  if (block.has_word('x')) fail("Cannot specify both polar coordinate and X word");
+  if (block.has_word('y')) fail("Cannot specify both polar coordinate and Y word");
+  const bool abs_mode = block.g[kGDistance] == 900 || (block.g[kGDistance] == -1 && absolute);
+  const double bx = pos[0], by = pos[1];
+  const bool at_origin = bx == 0.0 && by == 0.0;
+  double r = 0, a = 0;
+  if (abs_mode) {
+    if (!block.has_polar_a && at_origin) fail("Must specify angle in polar coordinate if at the origin");
+    r = block.has_polar_r ? block.polar_r : std::hypot(bx, by);
+    a = block.has_polar_a ? block.polar_a : std::atan2(by, bx) * 180.0 / kPi;
+  } else {
+    if (at_origin) fail("G91 motion with polar coordinates is indeterminate when at the origin");
+    r = std::hypot(bx, by) + (block.has_polar_r ? block.polar_r : 0.0);
+    a = std::atan2(by, bx) + (block.has_polar_a ? block.polar_a : 0.0) * kPi / 180.0;  // radians
+  }
+  if (abs_mode) a = a * kPi / 180.0;
+  const double x = r * std::cos(a);
+  const double y = r * std::sin(a);
+  block.set('x', abs_mode ? x : x - bx);
+  block.set('y', abs_mode ? y : y - by);
+  // has_polar_* stay set: incremental canned cycles repeat the polar step.
+}
+
 void Interpreter::State::emit_traverse(const Pose& p) {
   canon.straight_traverse(current_line, p);
   pos = p;
@@ -92,6 +120,8 @@ void Interpreter::State::convert_motion(int g, Status& st) {
     if (!absolute) fail("Cannot use g53 incremental");
     if (cutter_side != 400) fail("Cannot use g53 with cutter radius comp");
   }
+  const bool is_cycle = g == 730 || g == 740 || (g >= 810 && g <= 890);
+  if (!is_cycle) cycle_il_valid = false;
   switch (g) {
     case 0:
     case 10: {
@@ -253,6 +283,9 @@ void Interpreter::State::convert_probe(int g, const Pose& end, Status& st) {
   if (feed_mode == FeedMode::UnitsPerRev) fail("Cannot probe with feed per rev mode");
   if (feed == 0.0) fail("Cannot probe with zero feed rate");
   if (!block.any_axis(config.axis_mask)) fail("All axes missing with motion code");
+  double moved = 0;
+  for (int i = 0; i < kNumAxes; ++i) moved += std::fabs(end[i] - pos[i]);
+  if (moved == 0.0) fail("Start point too close to probe point");
   canon.turn_probe_on();
   const ProbeKind kind = g == 382 ? ProbeKind::TowardStopOnContact
                        : g == 383 ? ProbeKind::TowardNoError

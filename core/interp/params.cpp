@@ -203,11 +203,11 @@ bool Interpreter::State::predefined(const std::string& name, double& v) const {
     return true;
   }
   if (n == "_vmajor") {
-    v = 2.0;
+    v = 2.9;  // LinuxCNC 2.9 dialect
     return true;
   }
   if (n == "_vminor") {
-    v = 9.0;
+    v = 0.0;
     return true;
   }
   if (n.starts_with("_ini[")) {

@@ -70,7 +70,9 @@ bool starts(const std::string& s, std::size_t i, const char* word) {
 void Block::clear() {
   line = 0;
   n_number = -1;
+  n_text.clear();
   has = 0;
+  has_polar_r = has_polar_a = false;
   g.fill(-1);
   m.fill(-1);
   m_count = 0;
@@ -147,6 +149,7 @@ void Interpreter::State::parse_line(std::string_view raw) {
       ++i;
     }
     if (i == start) fail("Bad format unsigned integer");
+    block.n_text.assign(norm, start, i - start);
     // LinuxCNC accepts and ignores a fractional N (N10.1).
     if (i < norm.size() && norm[i] == '.') {
       ++i;
@@ -170,6 +173,21 @@ void Interpreter::State::parse_words(std::size_t& i) {
       read_parameter_setting(i);
     } else if (is_lower(c) || c == '$') {
       read_word(i);
+    } else if (c == '@' || c == '^') {
+      // polar coordinates: @ radius, ^ angle (degrees)
+      ++i;
+      const bool radius = c == '@';
+      if (radius ? block.has_polar_r : block.has_polar_a) {
+        fail(radius ? "Multiple @ words on one line" : "Multiple ^ words on one line");
+      }
+      const double v = read_real_value(i);
+      if (radius) {
+        block.has_polar_r = true;
+        block.polar_r = v;
+      } else {
+        block.has_polar_a = true;
+        block.polar_a = v;
+      }
     } else {
       char buf[64];
       if (static_cast<unsigned char>(c) < 32 || static_cast<unsigned char>(c) > 126) {
@@ -455,23 +473,27 @@ double Interpreter::State::read_unary(std::size_t& i) {
     return v;
   }
   double x = read_expression(i);
-  constexpr double d2r = kPi / 180.0;
+  // In long double, as LinuxCNC (its M_PIl makes sin(180) -5e-20, not
+  // +1.2e-16: the sign shows in "%.4f" output as -0.0000).
+  constexpr long double kPiL = 3.141592653589793238462643383279502884L;
+  auto rad = [](double d) { return static_cast<long double>(d) * kPiL / 180.0L; };
+  auto deg = [](long double r) { return static_cast<double>(r * 180.0L / kPiL); };
   switch (id) {
     case 1: return std::fabs(x);
     case 2:
       if (x < -1.0 || x > 1.0) fail("Argument to acos out of range");
-      return std::acos(x) / d2r;
+      return deg(std::acos(static_cast<long double>(x)));
     case 3:
       if (x < -1.0 || x > 1.0) fail("Argument to asin out of range");
-      return std::asin(x) / d2r;
+      return deg(std::asin(static_cast<long double>(x)));
     case 4: {
       if (i >= norm.size() || norm[i] != '/') fail("Slash missing after first atan argument");
       ++i;
       if (i >= norm.size() || norm[i] != '[') fail("Left bracket missing after slash with atan");
       const double y = read_expression(i);
-      return std::atan2(x, y) / d2r;
+      return deg(std::atan2(static_cast<long double>(x), static_cast<long double>(y)));
     }
-    case 5: return std::cos(x * d2r);
+    case 5: return static_cast<double>(std::cos(rad(x)));
     case 7: return std::exp(x);
     case 8: return std::floor(x);
     case 9: return std::ceil(x);
@@ -479,11 +501,11 @@ double Interpreter::State::read_unary(std::size_t& i) {
       if (x <= 0.0) fail("Zero or negative argument to ln");
       return std::log(x);
     case 11: return static_cast<double>(static_cast<long long>(x + ((x < 0.0) ? -0.5 : 0.5)));
-    case 12: return std::sin(x * d2r);
+    case 12: return static_cast<double>(std::sin(rad(x)));
     case 13:
       if (x < 0.0) fail("Negative argument to sqrt");
       return std::sqrt(x);
-    case 14: return std::tan(x * d2r);
+    case 14: return static_cast<double>(std::tan(rad(x)));
     default: return x;
   }
 }

@@ -53,12 +53,15 @@ struct Assignment {
 struct Block {
   int line = 0;
   int n_number = -1;
+  std::string n_text;  // the N word's digits as written
   uint32_t has = 0;  // bit (letter - 'a') set when the word is present
   std::array<double, 26> v{};
   std::array<int, kGNumGroups> g{};  // code x10 or -1
   std::array<int, kMNumGroups> m{};  // code or -1
   int m_count = 0;
   int dollar = -1;  // $ spindle number
+  bool has_polar_r = false, has_polar_a = false;  // @ radius, ^ angle
+  double polar_r = 0, polar_a = 0;
   bool has_comment = false;
   std::string comment;
   OType o_type = OType::None;

@@ -1,5 +1,6 @@
 #include "core/interp/text_canon.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstring>
@@ -66,10 +67,9 @@ void TextCanon::out(std::string_view call) {
     h += width;
     *h++ = ' ';
     *h++ = 'N';
-    if (n_number_ >= 0) {
-      r = std::to_chars(num, num + sizeof num, n_number_);
-      const int w = static_cast<int>(r.ptr - num);
-      std::memcpy(h, num, static_cast<std::size_t>(w));
+    if (!n_text_.empty()) {
+      const int w = static_cast<int>(std::min<std::size_t>(n_text_.size(), 20));
+      std::memcpy(h, n_text_.data(), static_cast<std::size_t>(w));
       h += w;
       for (int k = w; k < 5; ++k) *h++ = ' ';
     } else {
@@ -88,7 +88,7 @@ void TextCanon::out(std::string_view call) {
   emit(call);
 }
 
-void TextCanon::begin_block(int, int n_number) { n_number_ = n_number; }
+void TextCanon::begin_block(int, int, std::string_view n_text) { n_text_.assign(n_text); }
 
 void TextCanon::move_to(const Pose& end) { pos_ = end; }
 

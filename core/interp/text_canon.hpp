@@ -22,14 +22,14 @@ class TextCanon : public Canon {
 
   void flush();
   // Sets the N column to "....." (as between blocks or after the end).
-  void clear_block() noexcept { n_number_ = -1; }
+  void clear_block() noexcept { n_text_.clear(); }
   // Values the queries return.
   void set_probe_tripped(bool v) noexcept { probe_tripped_ = v; }
   void set_input_value(double v) noexcept { input_value_ = v; }
   long call_count() const noexcept { return index_; }
 
   // Canon
-  void begin_block(int line, int n_number) override;
+  void begin_block(int line, int n_number, std::string_view n_text) override;
   void use_length_units(Units u) override;
   void select_plane(Plane p) override;
   void set_g5x_offset(int origin, const Pose& offset) override;
@@ -117,7 +117,7 @@ class TextCanon : public Canon {
   std::string buf_;
   std::string call_;
   long index_ = 0;
-  int n_number_ = -1;
+  std::string n_text_;  // N word as written; empty: "....."
   cnc::tooltable::ToolTable tools_;
   Units machine_units_;
   Units units_ = Units::Mm;
