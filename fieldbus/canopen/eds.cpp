@@ -204,7 +204,8 @@ void DeviceDescription::build_dictionary(ObjectDictionary& od, uint8_t node_id) 
         od.set_limits(e.addr, lo.value_or(INT64_MIN), hi.value_or(INT64_MAX));
       }
     } else {
-      od.add_bytes(e.addr, e.type, e.access, value, std::max<uint32_t>(static_cast<uint32_t>(value.size()), 256), e.name);
+      // Strings and domains get room to grow: a description gives no maximum.
+      od.add_bytes(e.addr, e.type, e.access, value, std::max<uint32_t>(static_cast<uint32_t>(value.size()), 4096), e.name);
     }
   }
 }

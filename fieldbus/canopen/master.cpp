@@ -562,10 +562,10 @@ void Master::run_boot(int64_t now_ns) {
         other->sdo->cancel_all(abort_code::kGeneral, now_ns);
         ++other->generation;
       }
-      const std::string why = config_.name + ": start-up stopped: " + n->error;
+      const std::string why = "start-up stopped: " + n->error;
       {
         std::lock_guard<std::mutex> lock(boot_mutex_);
-        boot_error_ = why;
+        boot_error_ = config_.name + ": " + why;
       }
       message(true, config_.name, why);
       boot_state_.store(BootState::Failed, std::memory_order_release);

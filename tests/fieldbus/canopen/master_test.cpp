@@ -204,7 +204,7 @@ TEST_F(MasterTest, WrongIdentityStopsTheStartUp) {
             "0x00000CC1 (wrong device at this node-ID?)");
   const auto e = errors();
   ASSERT_EQ(e.size(), 1u);
-  EXPECT_EQ(e[0], master->boot_error());
+  EXPECT_EQ("canopen.0: " + e[0], master->boot_error()) << "the message source names the bus";
   EXPECT_EQ(a.node->state(), NmtState::PreOperational) << "never started";
   EXPECT_FALSE(master->is_cyclic_running());
   EXPECT_TRUE(master->has_fault());
