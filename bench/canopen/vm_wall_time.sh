@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# Wall time of the virtual-CAN tests (label vm): each boots Debian's kernel
+# under qemu (software emulation) or runs in a namespace with vcan.
+# usage: bench/canopen/vm_wall_time.sh [BUILD_DIR]   (default: build)
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
+build="${1:-$root/build}"
+cd "$build"
+start=$(date +%s.%N)
+ctest -L vm --output-on-failure 2>&1 | grep -E "Test +#|tests passed|tests failed|Total Test time"
+end=$(date +%s.%N)
+printf 'vm tests wall time: %.1f s (machine load average: %s)\n' "$(echo "$end - $start" | bc)" "$(cut -d' ' -f1-3 /proc/loadavg)"
