@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "core/tooltable/tool_table.hpp"
 #include "core/util/pose.hpp"
@@ -68,6 +69,12 @@ class Canon {
   // first_end, second_end and axis_end).
   virtual void arc_feed(int line, double first_end, double second_end, double first_axis, double second_axis,
                         int rotation, double axis_end, const Pose& end) = 0;
+  // A NURBS curve in the XY plane (G5 cubic / G5.1 quadratic splines):
+  // control points x, y and weight, the first being the current position.
+  struct ControlPoint {
+    double x, y, weight;
+  };
+  virtual void nurbs_feed(int line, int order, const std::vector<ControlPoint>& points, const Pose& end) = 0;
   virtual void straight_probe(int line, const Pose& end, ProbeKind kind) = 0;
   virtual void turn_probe_on() {}
   virtual void turn_probe_off() {}

@@ -181,8 +181,8 @@ Status Interpreter::State::execute_block() {
     if (m != 0 && m != 10) fail("Must use g0 or g1 with g53");
     if (block.g[kGDistance] == 910 || (block.g[kGDistance] == -1 && !absolute)) fail("Cannot use g53 incremental");
   }
+  check_other_words();
   canon.begin_block(block.line, block.n_number, block.n_text);
-  if (block.has_polar_r || block.has_polar_a) convert_polar();
   n_number = block.n_number;
   if (block.has_comment) convert_comment();
   if (block.g[kGSpindleMode] != -1) convert_spindle_mode(block.g[kGSpindleMode]);
@@ -205,6 +205,62 @@ Status Interpreter::State::execute_block() {
   convert_g(st);
   if (block.m[kMStop] != -1) convert_stop(st);
   return st;
+}
+
+// Words no code of the block uses are errors, as in LinuxCNC.
+void Interpreter::State::check_other_words() const {
+  const bool axes = block.any_axis(config.axis_mask) || block.has_polar_r || block.has_polar_a;
+  const int mg = block.g[kGMotion] != -1 ? block.g[kGMotion] : (axes ? motion_mode : -1);
+  const int g0 = block.g[kGNonModal];
+  const int m_io = block.m[kMIo];
+  const bool user_m = block.m[kMUser] != -1;
+  const bool cycle = mg == 730 || mg == 740 || (mg >= 810 && mg <= 890);
+  auto motion_in = [&](std::initializer_list<int> codes) {
+    for (int c : codes) {
+      if (mg == c) return true;
+    }
+    return false;
+  };
+  if (g0 != -1 && g0 != 40 && g0 != 530 && g0 != 281 && g0 != 301 && g0 != 921 && g0 != 922 && g0 != 923 &&
+      block.g[kGMotion] != -1 && block.g[kGMotion] != 800 && axes) {
+    fail("Cannot use two g codes that both use axis values");
+  }
+  const int cutter = block.g[kGCutter];
+  if (block.has_word('d') && !(cutter == 410 || cutter == 411 || cutter == 420 || cutter == 421) &&
+      block.g[kGSpindleMode] != 960) {
+    fail("D word with no G41, G41.1, G42, G42.1, G71, G71.1, G71.2 or G96 to use it");
+  }
+  if ((cutter == 411 || cutter == 421) && !block.has_word('d')) fail(cutter == 411 ? "G41.1 with no D word" : "G42.1 with no D word");
+  if (block.has_word('e') && mg != 760 && m_io != 66 && m_io != 67 && m_io != 68) {
+    fail("E word with no G70, G76, M66, M67 or M68 to use it");
+  }
+  const int tlo = block.g[kGToolOffset];
+  if (block.has_word('h') && tlo != 430 && tlo != 432 && mg != 760) fail("H word with no G43 or G76 to use it");
+  if (block.has_word('i') && !motion_in({20, 30, 50, 51, 331, 760, 870}) && g0 != 100) {
+    fail("I word with no G2, G3, G5, G5.1, G10, G33.1, G76, or G87 to use it");
+  }
+  if (block.has_word('j') && !motion_in({20, 30, 50, 51, 760, 870}) && g0 != 100) {
+    fail("J word with no G2, G3, G5, G5.1, G10, G76 or G87 to use it");
+  }
+  if (block.has_word('k') && !motion_in({20, 30, 330, 331, 760, 870})) {
+    fail("K word with no G2, G3, G33, G33.1, G76, or G87 to use it");
+  }
+  if (block.has_word('l') && g0 != 100 && !cycle && cutter != 411 && cutter != 421 && m_io != 66 && mg != 760) {
+    fail("L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 or NURBS code");
+  }
+  const int ov = block.m[kMOverride];
+  if (block.has_word('p') && !motion_in({20, 30, 50, 740, 760, 820, 840, 860, 880, 890}) && g0 != 40 && g0 != 100 &&
+      block.g[kGControl] != 640 && !(ov >= 50 && ov <= 53) && !(m_io >= 62 && m_io <= 66) && !user_m &&
+      block.m[kMSpindle] != 19) {
+    fail("P word with no G2 G3 G4 G10 G64 G5 G5.2 G76 G82 G86 G88 G89 or M50 M51 M52 M53 M62 M63 M64 M65 M66 M98 or user M code to use it");
+  }
+  if (block.has_word('q') && !motion_in({50, 730, 760, 830}) && g0 != 100 && block.g[kGControl] != 640 &&
+      block.m[kMSpindle] != 19 && m_io != 66 && m_io != 67 && m_io != 68 && !user_m && block.m[kMToolChange] != 61) {
+    fail("Q word with no G5, G10, G64, G73, G76, G83, M19, M66, M67, M68 or user M code that uses it");
+  }
+  if (block.has_word('r') && !motion_in({20, 30, 760}) && !cycle && g0 != 100 && block.m[kMSpindle] != 19) {
+    fail("R word with no g code that uses it");
+  }
 }
 
 bool Interpreter::State::needs_comp_flush() const {
@@ -537,7 +593,6 @@ void Interpreter::State::convert_cutter_comp(int g) {
   double radius = 0;
   int orientation = 0;
   if (g == 411 || g == 421) {
-    if (!block.has_word('d')) fail("D word missing with G41.1/G42.1");  // LinuxCNC needs D here too
     radius = block.get('d') / 2.0;
     orientation = block.has_word('l') ? static_cast<int>(block.get('l')) : 0;
   } else {
@@ -856,7 +911,7 @@ void Interpreter::State::convert_g(Status& st) {
       g0 != 920 && block.g[kGToolOffset] != 431 && block.g[kGToolOffset] != 432) {
     fail("Cannot use axis values with g80");
   }
-  const bool has_axes = block.any_axis(config.axis_mask);
+  const bool has_axes = block.any_axis(config.axis_mask) || block.has_polar_r || block.has_polar_a;
   if (motion == -1 && g0 != 100 && g0 != 280 && g0 != 300 && g0 != 520 && g0 != 920 && g0 != 431 &&
       block.g[kGToolOffset] != 431 && block.g[kGToolOffset] != 432 && has_axes) {
     motion = motion_mode;

@@ -94,6 +94,7 @@ struct Interpreter::State {
   // canned cycles
   double cycle_r = 0, cycle_z = 0, cycle_cc = 0;
   int cycle_l = 1;
+  double spline_last_p = 0, spline_last_q = 0;  // G5 without I/J mirrors these
   double cycle_il = 0;  // initial level of a run of cycle blocks
   bool cycle_il_valid = false;
   double cycle_p = 0, cycle_q = 0, cycle_i = 0, cycle_j = 0, cycle_k = 0;
@@ -197,6 +198,8 @@ struct Interpreter::State {
   void convert_threading(int g, const Pose& end);
   void convert_cycle(int g, Pose end);
   void convert_g76(const Pose& end);
+  void convert_spline(int g, const Pose& end);
+  void check_other_words() const;
   void emit_traverse(const Pose& p);
   void emit_feed(const Pose& p);
   void inverse_time_feed_straight(const Pose& from, const Pose& to);

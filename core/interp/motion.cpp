@@ -66,7 +66,7 @@ void Interpreter::State::convert_polar() {
   if (block.g[kGNonModal] == 530) fail("Cannot use polar coordinates with G53");
   if (block.has_word('x')) fail("Cannot specify both polar coordinate and X word");
   if (block.has_word('y')) fail("Cannot specify both polar coordinate and Y word");
-  const bool abs_mode = block.g[kGDistance] == 900 || (block.g[kGDistance] == -1 && absolute);
+  const bool abs_mode = absolute;
   const double bx = pos[0], by = pos[1];
   const bool at_origin = bx == 0.0 && by == 0.0;
   double r = 0, a = 0;
@@ -75,7 +75,7 @@ void Interpreter::State::convert_polar() {
     r = block.has_polar_r ? block.polar_r : std::hypot(bx, by);
     a = block.has_polar_a ? block.polar_a : std::atan2(by, bx) * 180.0 / kPi;
   } else {
-    if (at_origin) fail("G91 motion with polar coordinates is indeterminate when at the origin");
+    if (at_origin) fail("Incremental motion with polar coordinates is indeterminate when at the origin");
     r = std::hypot(bx, by) + (block.has_polar_r ? block.polar_r : 0.0);
     a = std::atan2(by, bx) + (block.has_polar_a ? block.polar_a : 0.0) * kPi / 180.0;  // radians
   }
@@ -120,6 +120,7 @@ void Interpreter::State::convert_motion(int g, Status& st) {
     if (!absolute) fail("Cannot use g53 incremental");
     if (cutter_side != 400) fail("Cannot use g53 with cutter radius comp");
   }
+  if (block.has_polar_r || block.has_polar_a) convert_polar();
   const bool is_cycle = g == 730 || g == 740 || (g >= 810 && g <= 890);
   if (!is_cycle) cycle_il_valid = false;
   switch (g) {
@@ -155,9 +156,50 @@ void Interpreter::State::convert_motion(int g, Status& st) {
       convert_cycle(g, pos);
       motion_mode = g;
       return;
+    case 50:
+    case 51:
+      motion_mode = g;
+      convert_spline(g, find_ends(false));
+      return;
     default:
-      fail("G5.x splines are not supported");
+      fail("G5.2/G5.3 NURBS blocks are not supported");
   }
+}
+
+void Interpreter::State::convert_spline(int g, const Pose& end) {
+  // G5: cubic Bezier, first control point current + (I,J) (or the previous
+  // G5's last tangent mirrored), second end + (P,Q). G5.1: quadratic with
+  // control point current + (I,J).
+  if (cutter_side != 400) fail("Cannot convert spline with cutter radius compensation");
+  if (plane != Plane::XY) fail("Splines must be in the XY plane");
+  for (char c : {'z', 'a', 'b', 'c'}) {
+    if (block.has_word(c) && block.get(c) != (absolute ? pos[axis_index(c)] : 0.0)) {
+      fail("Splines may not have motion in Z, A, B, or C");
+    }
+  }
+  if (feed == 0.0 && feed_mode == FeedMode::UnitsPerMinute) fail("Cannot make a NURBS with 0 feedrate");
+  const bool has_i = block.has_word('i'), has_j = block.has_word('j');
+  std::vector<Canon::ControlPoint> pts;
+  pts.push_back({pos[0], pos[1], 1.0});
+  if (g == 50) {
+    if (!block.has_word('p') || !block.has_word('q')) fail("Must specify both P and Q with G5");
+    if (has_i != has_j) fail("Must specify both I and J, or neither");
+    double i = block.get('i'), j = block.get('j');
+    if (!has_i) {
+      i = -spline_last_p;
+      j = -spline_last_q;
+    }
+    pts.push_back({pos[0] + i, pos[1] + j, 1.0});
+    pts.push_back({end[0] + block.get('p'), end[1] + block.get('q'), 1.0});
+    spline_last_p = block.get('p');
+    spline_last_q = block.get('q');
+  } else {
+    if (!has_i || !has_j) fail("Must specify both I and J with G5.1");
+    pts.push_back({pos[0] + block.get('i'), pos[1] + block.get('j'), 1.0});
+  }
+  pts.push_back({end[0], end[1], 1.0});
+  canon.nurbs_feed(current_line, g == 50 ? 4 : 3, pts, end);
+  pos = end;
 }
 
 void Interpreter::State::straight(int g, const Pose& end) {
@@ -285,7 +327,7 @@ void Interpreter::State::convert_probe(int g, const Pose& end, Status& st) {
   if (!block.any_axis(config.axis_mask)) fail("All axes missing with motion code");
   double moved = 0;
   for (int i = 0; i < kNumAxes; ++i) moved += std::fabs(end[i] - pos[i]);
-  if (moved == 0.0) fail("Start point too close to probe point");
+  if (moved == 0.0 && (g == 382 || g == 383)) fail("Start point too close to probe point");
   canon.turn_probe_on();
   const ProbeKind kind = g == 382 ? ProbeKind::TowardStopOnContact
                        : g == 383 ? ProbeKind::TowardNoError

@@ -278,6 +278,16 @@ void TextCanon::arc_feed(int line, double first_end, double second_end, double f
   move_to(end);
 }
 
+void TextCanon::nurbs_feed(int line, int order, const std::vector<ControlPoint>&, const Pose& end) {
+  // rs274 prints only the order
+  call_ = "NURBS_FEED(";
+  integer(call_, order);
+  call_ += ", ...)";
+  out(call_);
+  segment('N', line, end);
+  move_to(end);
+}
+
 void TextCanon::straight_probe(int line, const Pose& end, ProbeKind) {
   call_ = "STRAIGHT_PROBE(";
   six_axes(call_, end);

@@ -45,6 +45,7 @@ class TextCanon : public Canon {
   void straight_feed(int line, const Pose& end) override;
   void arc_feed(int line, double first_end, double second_end, double first_axis, double second_axis, int rotation,
                 double axis_end, const Pose& end) override;
+  void nurbs_feed(int line, int order, const std::vector<ControlPoint>& points, const Pose& end) override;
   void straight_probe(int line, const Pose& end, ProbeKind kind) override;
   void turn_probe_on() override;
   void turn_probe_off() override;
