@@ -35,6 +35,19 @@ void need(const std::vector<std::string>& w, std::size_t min, const char* usage)
 
 }  // namespace
 
+RemoteComponent::RemoteComponent(Hal& hal, const std::string& name) : Component(hal, name) {}
+
+void RemoteComponent::add_pin(const std::string& name, Type type, PinDir dir) {
+  switch (type) {
+    case Type::Bit: make_pin<bool>(name, dir); break;
+    case Type::Float: make_pin<double>(name, dir); break;
+    case Type::S32: make_pin<int32_t>(name, dir); break;
+    case Type::U32: make_pin<uint32_t>(name, dir); break;
+    case Type::S64: make_pin<int64_t>(name, dir); break;
+    case Type::U64: make_pin<uint64_t>(name, dir); break;
+  }
+}
+
 std::vector<std::string> tokenize_hal_line(std::string_view line) {
   std::vector<std::string> out;
   std::string cur;
@@ -269,6 +282,32 @@ std::string CommandInterpreter::dispatch(const std::vector<std::string>& w) {
     std::string out;
     for (std::size_t i = 1; i < w.size(); ++i) out += (i > 1 ? " " : "") + w[i];
     return out + "\n";
+  }
+  // Remote components: a client process (the HMI, a panel) owns pins in the
+  // controller's HAL and reads/writes them over this channel.
+  if (cmd == "newcomp") {
+    need(w, 2, "newcomp <name>");
+    if (auto why = check_name(w[1]); !why.empty()) throw HalError("newcomp: " + why);
+    hal_.add_component(std::make_unique<RemoteComponent>(hal_, w[1]));
+    return {};
+  }
+  if (cmd == "newpin") {
+    need(w, 5, "newpin <component> <pin> bit|float|s32|u32|s64|u64 in|out|io");
+    auto* rc = dynamic_cast<RemoteComponent*>(hal_.find_component(w[1]));
+    if (!rc) throw HalError("newpin: \"" + w[1] + "\" is not a component made with newcomp");
+    if (w[2].rfind(w[1] + ".", 0) != 0) throw HalError("newpin: pin names of " + w[1] + " start with \"" + w[1] + ".\"");
+    const auto t = parse_type(w[3]);
+    if (!t) throw HalError("newpin: type \"" + w[3] + "\": expected bit, float, s32, u32, s64 or u64");
+    const std::string d = to_lower(w[4]);
+    const PinDir dir = d == "in" ? PinDir::In : d == "out" ? PinDir::Out : d == "io" ? PinDir::IO : PinDir::In;
+    if (d != "in" && d != "out" && d != "io") throw HalError("newpin: direction \"" + w[4] + "\": expected in, out or io");
+    rc->add_pin(w[2], *t, dir);
+    return {};
+  }
+  if (cmd == "setr") {
+    need(w, 3, "setr <pin of a newcomp component> <value>");
+    hal_.set_owned_pin(w[1], w[2], [](const Component* owner) { return dynamic_cast<const RemoteComponent*>(owner) != nullptr; });
+    return {};
   }
   if (cmd == "source") {
     need(w, 2, "source <file.hal>");

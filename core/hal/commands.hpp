@@ -15,6 +15,15 @@
 
 namespace cnc::hal {
 
+// A component made at run time by a client process with `newcomp` and
+// `newpin`; the client writes its pins with `setr` and reads them with
+// `getp`. It has no realtime function.
+class RemoteComponent : public Component {
+ public:
+  RemoteComponent(Hal& hal, const std::string& name);
+  void add_pin(const std::string& name, Type type, PinDir dir);
+};
+
 class CommandInterpreter {
  public:
   CommandInterpreter(Hal& hal, const ComponentRegistry& registry, const ini::IniFile* ini, MessageQueue* messages);

@@ -320,6 +320,16 @@ void Hal::set_value(const std::string& name, const std::string& text) {
   throw HalError("pin or parameter \"" + name + "\" does not exist");
 }
 
+void Hal::set_owned_pin(const std::string& name, const std::string& text, bool (*is_owner)(const Component*)) {
+  std::lock_guard lock(mutex_);
+  PinObj* p = pin_locked(name);
+  if (!is_owner(p->owner)) throw HalError("pin " + name + " does not belong to a component made with newcomp");
+  if (p->dir == PinDir::In && p->signal) throw HalError("pin " + name + " is an input connected to signal " + p->signal->name);
+  const auto v = parse_value(p->type, text);
+  if (!v) throw HalError("value \"" + text + "\" is not a valid " + to_string(p->type) + " for pin " + name);
+  p->cell.load(std::memory_order_acquire)->set_raw(*v);
+}
+
 std::string Hal::get_value(const std::string& name) const {
   std::lock_guard lock(mutex_);
   if (const auto pit = pins_.find(name); pit != pins_.end()) {

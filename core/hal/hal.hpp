@@ -97,6 +97,9 @@ class Hal {
   // setp: an unconnected IN or I/O pin, or an RW parameter.
   void set_value(const std::string& pin_or_param, const std::string& text);
   std::string get_value(const std::string& pin_or_param) const;
+  // Writes a pin of any direction whose owner passes `is_owner` (remote
+  // components writing their own outputs).
+  void set_owned_pin(const std::string& pin, const std::string& text, bool (*is_owner)(const Component*));
   void set_signal(const std::string& signal, const std::string& text);
   std::string get_signal(const std::string& signal) const;
   Type type_of_name(const std::string& pin_or_param) const;

@@ -204,6 +204,69 @@ void TaskCanon::arc_feed(int line, double first_end, double second_end, double f
   queue_motion(line, c);
 }
 
+void TaskCanon::nurbs_feed(int line, int order, const std::vector<ControlPoint>& pts, const Pose& end) {
+  const int n = static_cast<int>(pts.size());
+  if (order < 2 || n < order) {
+    error_ = "line " + std::to_string(line) + ": a NURBS curve of order " + std::to_string(order) + " needs at least " +
+             std::to_string(order) + " control points";
+    return;
+  }
+  // Clamped uniform knots: the curve starts and ends at the end points.
+  std::vector<double> knots(static_cast<std::size_t>(n + order));
+  for (int i = 0; i < n + order; ++i) {
+    knots[static_cast<std::size_t>(i)] =
+        i < order ? 0.0 : i >= n ? 1.0 : static_cast<double>(i - order + 1) / static_cast<double>(n - order + 1);
+  }
+  const auto eval = [&](double u) {
+    int span = order - 1;
+    while (span < n - 1 && u >= knots[static_cast<std::size_t>(span + 1)]) ++span;
+    // de Boor on homogeneous coordinates (x*w, y*w, w).
+    std::vector<std::array<double, 3>> d(static_cast<std::size_t>(order));
+    for (int j = 0; j < order; ++j) {
+      const ControlPoint& c = pts[static_cast<std::size_t>(span - order + 1 + j)];
+      d[static_cast<std::size_t>(j)] = {c.x * c.weight, c.y * c.weight, c.weight};
+    }
+    for (int r = 1; r < order; ++r) {
+      for (int j = order - 1; j >= r; --j) {
+        const int i = span - order + 1 + j;
+        const double denom = knots[static_cast<std::size_t>(i + order - r)] - knots[static_cast<std::size_t>(i)];
+        const double a = denom > 0 ? (u - knots[static_cast<std::size_t>(i)]) / denom : 0.0;
+        for (int c = 0; c < 3; ++c) {
+          d[static_cast<std::size_t>(j)][static_cast<std::size_t>(c)] =
+              (1 - a) * d[static_cast<std::size_t>(j - 1)][static_cast<std::size_t>(c)] + a * d[static_cast<std::size_t>(j)][static_cast<std::size_t>(c)];
+        }
+      }
+    }
+    const auto& p = d[static_cast<std::size_t>(order - 1)];
+    return std::array<double, 2>{p[0] / p[2], p[1] / p[2]};
+  };
+  const Pose start = to_program(end_);
+  const double tol = std::max(tolerance_ > 0 ? tolerance_ / 2 : 0.001, 1e-6) / length_factor();
+  // Subdivide until every chord stays within the tolerance of the curve.
+  std::vector<std::pair<double, double>> todo{{0.0, 1.0}};
+  std::vector<double> accepted;
+  while (!todo.empty()) {
+    const auto [u0, u1] = todo.back();
+    todo.pop_back();
+    const auto p0 = eval(u0), p1 = eval(u1), pm = eval((u0 + u1) / 2);
+    const double cx = (p0[0] + p1[0]) / 2 - pm[0], cy = (p0[1] + p1[1]) / 2 - pm[1];
+    if ((cx * cx + cy * cy > tol * tol || u1 - u0 > 0.25) && u1 - u0 > 1e-4) {
+      todo.emplace_back((u0 + u1) / 2, u1);
+      todo.emplace_back(u0, (u0 + u1) / 2);
+    } else {
+      accepted.push_back(u1);
+    }
+  }
+  for (const double u : accepted) {
+    Pose p;
+    for (int a = 0; a < kNumAxes; ++a) p[a] = start[a] + (end[a] - start[a]) * u;
+    const auto xy = eval(std::min(u, 1.0 - 1e-15));
+    p[0] = u >= 1.0 ? end[0] : xy[0];
+    p[1] = u >= 1.0 ? end[1] : xy[1];
+    straight_feed(line, p);
+  }
+}
+
 void TaskCanon::straight_probe(int line, const Pose& end, interp::ProbeKind kind) {
   motion::MotionCommand c;
   c.type = motion::Cmd::Probe;

@@ -8,6 +8,7 @@
 
 #include <deque>
 #include <functional>
+#include <vector>
 
 #include "core/interp/canon.hpp"
 #include "core/motion/config.hpp"
@@ -77,6 +78,8 @@ class TaskCanon : public interp::Canon {
   void straight_feed(int line, const Pose& end) override;
   void arc_feed(int line, double first_end, double second_end, double first_axis, double second_axis, int rotation,
                 double axis_end, const Pose& end) override;
+  // Sampled into line segments within a chord tolerance (G64 P, or 1 um).
+  void nurbs_feed(int line, int order, const std::vector<ControlPoint>& points, const Pose& end) override;
   void straight_probe(int line, const Pose& end, interp::ProbeKind kind) override;
   void rigid_tap(int line, const Pose& end, double scale) override;
   void start_speed_feed_synch(int spindle, double feed_per_rev, bool velocity_mode) override;

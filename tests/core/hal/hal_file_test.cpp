@@ -141,3 +141,16 @@ TEST(HalFile, LoadusrRunsAProgram) {
   EXPECT_NE(error_of([&] { f.interp.execute("loadusr -w false"); }).find("exited with status 1"), std::string::npos);
   EXPECT_NE(error_of([&] { f.interp.execute("loadusr -W halui"); }).find("not supported"), std::string::npos);
 }
+
+TEST(HalFile, RemoteComponentsOwnPinsWrittenWithSetr) {
+  Fixture f;
+  f.interp.run_text("loadrt not\nnewcomp panel\nnewpin panel panel.button bit out\nnewpin panel panel.lamp bit in\n"
+                    "net b panel.button => not.0.in\nnet l not.0.out => panel.lamp\n", "p.hal");
+  f.interp.execute("setr panel.button TRUE");
+  EXPECT_EQ(f.hal.get_signal("b"), "TRUE");
+  EXPECT_THROW(f.interp.execute("setr not.0.in TRUE"), HalError) << "only newcomp pins";
+  EXPECT_THROW(f.interp.execute("setr panel.lamp TRUE"), HalError) << "a connected input belongs to its writer";
+  EXPECT_THROW(f.interp.execute("newpin panel other.x bit in"), HalError);
+  EXPECT_THROW(f.interp.execute("newpin nosuch nosuch.x bit in"), HalError);
+  EXPECT_THROW(f.interp.execute("newpin panel panel.y colour in"), HalError);
+}

@@ -92,7 +92,10 @@ TEST(HalThread, AddfWhileRunningIsSafe) {
     for (int i = 0; i < 8; ++i) hal.add_function("not." + std::to_string(i), "servo-thread");
     for (int i = 0; i < 8; ++i) hal.remove_function("not." + std::to_string(i), "servo-thread");
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  // Liveness, not timing: wait (up to 10 s on a loaded machine) for cycles.
+  for (int i = 0; i < 1000 && std::stoul(hal.get_value("counter.out")) <= 10; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
   hal.stop_threads();
   EXPECT_GT(std::stoul(hal.get_value("counter.out")), 10u);
   EXPECT_EQ(hal.thread_views()[0].functions.size(), 1u);

@@ -144,6 +144,18 @@ TEST(TaskMdi, QueuedLinesRunInOrderAndErrorsSayWhy) {
   EXPECT_NE(r2.second.find("outside the soft limits"), std::string::npos) << r2.second;
 }
 
+TEST(TaskMdi, SplinesBecomeShortLinesEndingOnTheEndPoint) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  m.ok(m.mdi("G17 G0 X10 Y10 Z-10"), "start");
+  m.ok(m.mdi("G5 I10 J0 P-10 Q0 X30 Y30 F1200"), "cubic spline");
+  const auto s = m.status();
+  EXPECT_NEAR(s.motion.position[0], 30, 1e-9);
+  EXPECT_NEAR(s.motion.position[1], 30, 1e-9);
+  EXPECT_EQ(m.errors(), "");
+}
+
 TEST(TaskMdi, MacrosFromTheMdiCommandList) {
   TaskMachine m;
   m.power_up_and_home();
