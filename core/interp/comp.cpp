@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "core/interp/impl.hpp"
+#include "core/interp/queueing_canon.hpp"
 
 namespace cnc::interp {
 
@@ -74,24 +75,38 @@ V2 arc_tangent(V2 center, V2 p, int rotation) {
 }  // namespace
 
 void Interpreter::State::comp_emit(const CompMove& m) {
-  if (m.feed >= 0 && m.kind != CompMove::Traverse) {
-    canon.set_feed_rate(m.feed);
-  }
+  Canon& out = queueing.real();
   if (m.kind == CompMove::Traverse) {
-    canon.straight_traverse(m.line, m.end);
+    out.straight_traverse(m.line, m.end);
   } else if (m.kind == CompMove::Feed) {
-    canon.straight_feed(m.line, m.end);
+    out.straight_feed(m.line, m.end);
   } else {
-    canon.arc_feed(m.line, m.first_end, m.second_end, m.center1, m.center2, m.rotation, m.axis_end, m.end);
+    out.arc_feed(m.line, m.first_end, m.second_end, m.center1, m.center2, m.rotation, m.axis_end, m.end);
   }
 }
 
 void Interpreter::State::comp_flush() {
-  while (!comp_queue.empty()) {
-    comp_emit(comp_queue.front());
-    comp_queue.pop_front();
+  auto& q = queueing.queue();
+  while (!q.empty()) {
+    QueuedCall c = std::move(q.front());
+    q.pop_front();
+    if (c.is_move) {
+      comp_emit(c.move);
+    } else {
+      c.call();
+    }
   }
 }
+
+CompMove* Interpreter::State::held_move() {
+  auto& q = queueing.queue();
+  for (auto it = q.rbegin(); it != q.rend(); ++it) {
+    if (it->is_move) return &it->move;
+  }
+  return nullptr;
+}
+
+void Interpreter::State::hold_move(const CompMove& m) { queueing.queue().push_back(QueuedCall{true, m, {}}); }
 
 void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
   int a1, a2, a3;
@@ -104,8 +119,6 @@ void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
   CompMove m;
   m.kind = traverse ? CompMove::Traverse : CompMove::Feed;
   m.line = current_line;
-  m.feed = pending_comp_feed;
-  pending_comp_feed = -1;
   m.end = end;
   if (cutter_first_move) {
     // Entry (LinuxCNC 2.9): the tool ends beside the programmed end point,
@@ -117,7 +130,7 @@ void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
     m.end[a1] = t.x;
     m.end[a2] = t.y;
     comp_flush();
-    comp_queue.push_back(m);
+    hold_move(m);
     // Corners after the entry treat it as the programmed direction, offset
     // to pass through its end (LinuxCNC 2.9).
     last_tangent_x = dir.x;
@@ -136,7 +149,7 @@ void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
     }
     m.end = e;
     comp_flush();
-    comp_queue.push_back(m);
+    hold_move(m);
     comp_program_pos = end;
     pos = e;
     return;
@@ -150,7 +163,7 @@ void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
   // comp_corner may have changed where this move starts (concave corner)
   m.end[a1] = g.end.x;
   m.end[a2] = g.end.y;
-  comp_queue.push_back(m);
+  hold_move(m);
   last_tangent_x = d.x;
   last_tangent_y = d.y;
   comp_program_pos = end;
@@ -179,8 +192,6 @@ void Interpreter::State::comp_arc(int g, const Pose& end, double c1, double c2, 
   CompMove m;
   m.kind = CompMove::Arc;
   m.line = current_line;
-  m.feed = pending_comp_feed;
-  pending_comp_feed = -1;
   m.end = end;
   m.end[a1] = e.x;
   m.end[a2] = e.y;
@@ -192,7 +203,7 @@ void Interpreter::State::comp_arc(int g, const Pose& end, double c1, double c2, 
   m.axis_end = end[a3];
   m.prog_center1 = c.x;
   m.prog_center2 = c.y;
-  comp_queue.push_back(m);
+  hold_move(m);
   const V2 t1 = arc_tangent(c, p1, rotation);
   last_tangent_x = t1.x;
   last_tangent_y = t1.y;
@@ -209,8 +220,9 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
   const V2 t_new{t_new_ref.x, t_new_ref.y};
   const V2 corner{comp_program_pos[a1], comp_program_pos[a2]};
   const bool left = cutter_side == 410;
-  if (comp_queue.empty()) return;
-  CompMove& prev = comp_queue.back();
+  CompMove* held = held_move();
+  if (held == nullptr) return;
+  CompMove& prev = *held;
   const V2 prev_end{prev.end[a1], prev.end[a2]};
   const V2 t_prev{last_tangent_x, last_tangent_y};
   const double turn = cross(t_prev, t_new);

@@ -85,7 +85,7 @@ void Interpreter::State::reset_modal(bool keep_params) {
   toolchange_flag = false;
   cutter_side = 400;
   cutter_radius = 0;
-  comp_queue.clear();
+  queueing.queue().clear();
   cycle_l = 1;
   frames.clear();
   frames.emplace_back();
@@ -187,14 +187,9 @@ Status Interpreter::State::execute_block() {
   if (block.has_comment) convert_comment();
   if (block.g[kGSpindleMode] != -1) convert_spindle_mode(block.g[kGSpindleMode]);
   if (block.g[kGFeedMode] != -1) convert_feed_mode(block.g[kGFeedMode]);
-  if (cutter_side != 400 && !comp_queue.empty() && needs_comp_flush()) comp_flush();
   if (block.has_word('f') && feed_mode != FeedMode::InverseTime) {
     feed = block.get('f');
-    if (cutter_side != 400 && !comp_queue.empty()) {
-      pending_comp_feed = feed;  // emitted with the next compensated move
-    } else {
-      canon.set_feed_rate(feed);
-    }
+    canon.set_feed_rate(feed);
   }
   if (block.has_word('s')) {
     speed = block.get('s');
@@ -261,16 +256,6 @@ void Interpreter::State::check_other_words() const {
   if (block.has_word('r') && !motion_in({20, 30, 760}) && !cycle && g0 != 100 && block.m[kMSpindle] != 19) {
     fail("R word with no g code that uses it");
   }
-}
-
-bool Interpreter::State::needs_comp_flush() const {
-  // Only plain motion blocks may pass a held-back compensated move.
-  if (block.has_comment || block.m_count > 0 || block.has_word('s') || block.has_word('t')) return true;
-  for (int gr = 0; gr < kGNumGroups; ++gr) {
-    if (block.g[static_cast<std::size_t>(gr)] != -1 && gr != kGMotion && gr != kGDistance && gr != kGIjk) return true;
-  }
-  const int m = block.g[kGMotion] != -1 ? block.g[kGMotion] : motion_mode;
-  return !(m == 10 || m == 20 || m == 30 || m == 0);
 }
 
 void Interpreter::State::convert_comment() {

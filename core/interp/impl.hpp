@@ -6,6 +6,7 @@
 
 #include <string_view>
 
+#include "core/interp/queueing_canon.hpp"
 #include "core/interp/state.hpp"
 
 namespace cnc::interp {
@@ -13,7 +14,8 @@ namespace cnc::interp {
 struct Interpreter::State {
   State(Canon& c, Config cfg);
 
-  Canon& canon;
+  QueueingCanon queueing;  // holds calls back behind a compensated move
+  Canon& canon;            // = queueing; queueing.real() is the caller's Canon
   Config config;
 
   // ---------------- sources and flow
@@ -87,9 +89,7 @@ struct Interpreter::State {
   double cutter_radius = 0;
   int cutter_orientation = 0;
   bool cutter_first_move = true;
-  std::deque<CompMove> comp_queue;
   Pose comp_program_pos{};
-  double pending_comp_feed = -1;
   double last_tangent_x = 1, last_tangent_y = 0;  // uncompensated (programmed) position under comp
   // canned cycles
   double cycle_r = 0, cycle_z = 0, cycle_cc = 0;
@@ -157,7 +157,6 @@ struct Interpreter::State {
 
   // ---------------- execute.cpp
   Status execute_block();
-  bool needs_comp_flush() const;
   void reset_modal(bool keep_params);
   void canon_init_calls();
   void convert_comment();
@@ -211,6 +210,8 @@ struct Interpreter::State {
   void comp_arc(int g, const Pose& end, double c1, double c2, int turns);
   void comp_flush();
   void comp_emit(const CompMove& m);
+  CompMove* held_move();
+  void hold_move(const CompMove& m);
   void comp_corner(V2Ref start, V2Ref t_new, bool new_is_arc, V2Ref center, double tool_r, int rotation);
 };
 

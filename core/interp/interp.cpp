@@ -78,7 +78,7 @@ Config Config::from_ini(const cnc::ini::IniFile& ini) {
   return c;
 }
 
-Interpreter::State::State(Canon& c, Config cfg) : canon(c), config(std::move(cfg)) {
+Interpreter::State::State(Canon& c, Config cfg) : queueing(c), canon(queueing), config(std::move(cfg)) {
   tools = cnc::tooltable::ToolTable(config.random_toolchanger ? cnc::tooltable::ChangerKind::Random
                                                               : cnc::tooltable::ChangerKind::NonRandom);
   init_parameters();
