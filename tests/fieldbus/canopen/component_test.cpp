@@ -93,6 +93,21 @@ TEST(CanopenComponent, LoadrtBootsTheBusAndRunsInTheServoThread) {
     seen = hal.get_value("canopen.0.node.03.6064-00") == "-12345";
   }
   EXPECT_TRUE(seen) << "the position followed the target through the device";
+  {
+    // The servo thread's functions (read, pins, write) never allocate.
+    uint64_t allocations = 0;
+    for (int i = 0; i < 200; ++i) {
+      info.now_ns = monotonic_ns();
+      cnc::testing::ScopedAllocationCheck check;
+      servo->run_cycle(info);
+      allocations += check.allocations();
+      ++info.cycle;
+      std::this_thread::sleep_for(std::chrono::microseconds(500));
+    }
+    if (cnc::testing::AllocationCounter::available()) {
+      EXPECT_EQ(allocations, 0u);
+    }
+  }
   EXPECT_EQ(hal.get_value("canopen.0.node.03.60fd-00"), "4");
   EXPECT_EQ(hal.get_value("canopen.0.node.03.operational"), "TRUE");
   EXPECT_EQ(hal.get_value("canopen.0.ready"), "TRUE");
