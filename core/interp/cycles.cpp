@@ -117,11 +117,21 @@ void Interpreter::State::convert_cycle(int g, Pose) {
 
   for (int rep = 0; rep < repeats; ++rep) {
     if (!absolute && (block.has_polar_r || block.has_polar_a)) {
-      // a polar step is repeated around the origin, not along a line
-      const double r_now = std::hypot(aa, bb) + (block.has_polar_r ? block.polar_r : 0.0);
-      const double a_now = std::atan2(bb, aa) * 180.0 / kPi + (block.has_polar_a ? block.polar_a : 0.0);
-      aa = r_now * std::cos(a_now * kPi / 180.0);
-      bb = r_now * std::sin(a_now * kPi / 180.0);
+      // a polar step is repeated around the origin, not along a line:
+      // radius step, then angle step
+      if (aa == 0.0 && bb == 0.0) fail("Incremental motion with polar coordinates is indeterminate when at the origin");
+      if (block.has_polar_r) {
+        const double theta = std::atan2(bb, aa);
+        const double radius = std::hypot(bb, aa) + block.polar_r;
+        aa = radius * std::cos(theta);
+        bb = radius * std::sin(theta);
+      }
+      if (block.has_polar_a) {
+        const double theta = std::atan2(bb, aa) + block.polar_a * kPi / 180.0;
+        const double radius = std::hypot(bb, aa);
+        aa = radius * std::cos(theta);
+        bb = radius * std::sin(theta);
+      }
     } else if (!absolute) {
       aa += aa_inc;
       bb += bb_inc;

@@ -94,6 +94,7 @@ struct Interpreter::State {
   // canned cycles
   double cycle_r = 0, cycle_z = 0, cycle_cc = 0;
   int cycle_l = 1;
+  double polar_end_x = 0, polar_end_y = 0;  // end point of this block's @/^ words
   double spline_last_p = 0, spline_last_q = 0;  // G5 without I/J mirrors these
   double cycle_il = 0;  // initial level of a run of cycle blocks
   bool cycle_il_valid = false;

@@ -56,34 +56,59 @@ Pose Interpreter::State::find_ends(bool g53) const {
       end[i] = base[i] + v;
     }
   }
+  if ((block.has_polar_r || block.has_polar_a) && !g53) {
+    end[0] = polar_end_x;
+    end[1] = polar_end_y;
+  }
   return end;
 }
 
 void Interpreter::State::convert_polar() {
-  // @ radius and ^ angle in the XY plane become X and Y words before
-  // anything else (so canned cycles repeat them too): from the origin in
-  // G90, added to the current point's polar coordinates in G91.
+  // @ radius and ^ angle in the XY plane become X and Y words before the
+  // motion (so canned cycles repeat them too). G90: from the origin, a
+  // missing radius or angle is the current one. G91: the radius step, then
+  // the angle step, around the origin from the current point.
   if (block.g[kGNonModal] == 530) fail("Cannot use polar coordinates with G53");
   if (block.has_word('x')) fail("Cannot specify both polar coordinate and X word");
   if (block.has_word('y')) fail("Cannot specify both polar coordinate and Y word");
-  const bool abs_mode = absolute;
-  const double bx = pos[0], by = pos[1];
-  const bool at_origin = bx == 0.0 && by == 0.0;
-  double r = 0, a = 0;
-  if (abs_mode) {
-    if (!block.has_polar_a && at_origin) fail("Must specify angle in polar coordinate if at the origin");
-    r = block.has_polar_r ? block.polar_r : std::hypot(bx, by);
-    a = block.has_polar_a ? block.polar_a : std::atan2(by, bx) * 180.0 / kPi;
+  auto d2r = [](double deg) { return deg * kPi / 180.0; };
+  double px = pos[0], py = pos[1];
+  if (absolute) {
+    if (block.has_polar_r && block.has_polar_a) {
+      px = block.polar_r * std::cos(d2r(block.polar_a));
+      py = block.polar_r * std::sin(d2r(block.polar_a));
+    } else if (block.has_polar_r) {
+      if (px == 0.0 && py == 0.0) fail("Must specify angle in polar coordinate if at the origin");
+      const double theta = std::atan2(py, px);
+      px = block.polar_r * std::cos(theta);
+      py = block.polar_r * std::sin(theta);
+    } else {
+      const double radius = std::hypot(py, px);
+      px = radius * std::cos(d2r(block.polar_a));
+      py = radius * std::sin(d2r(block.polar_a));
+    }
+    block.set('x', px);
+    block.set('y', py);
   } else {
-    if (at_origin) fail("Incremental motion with polar coordinates is indeterminate when at the origin");
-    r = std::hypot(bx, by) + (block.has_polar_r ? block.polar_r : 0.0);
-    a = std::atan2(by, bx) + (block.has_polar_a ? block.polar_a : 0.0) * kPi / 180.0;  // radians
+    if (block.has_polar_r) {
+      if (px == 0.0 && py == 0.0) fail("Incremental motion with polar coordinates is indeterminate when at the origin");
+      const double theta = std::atan2(py, px);
+      const double radius = std::hypot(py, px) + block.polar_r;
+      px = radius * std::cos(theta);
+      py = radius * std::sin(theta);
+    }
+    if (block.has_polar_a) {
+      if (px == 0.0 && py == 0.0) fail("G91 motion with polar coordinates is indeterminate when at the origin");
+      const double theta = std::atan2(py, px) + d2r(block.polar_a);
+      const double radius = std::hypot(py, px);
+      px = radius * std::cos(theta);
+      py = radius * std::sin(theta);
+    }
+    block.set('x', px - pos[0]);
+    block.set('y', py - pos[1]);
   }
-  if (abs_mode) a = a * kPi / 180.0;
-  const double x = r * std::cos(a);
-  const double y = r * std::sin(a);
-  block.set('x', abs_mode ? x : x - bx);
-  block.set('y', abs_mode ? y : y - by);
+  polar_end_x = px;  // exact end (pos + (px - pos) may lose the sign of a zero)
+  polar_end_y = py;
   // has_polar_* stay set: incremental canned cycles repeat the polar step.
 }
 
@@ -98,10 +123,15 @@ void Interpreter::State::emit_feed(const Pose& p) {
 }
 
 void Interpreter::State::inverse_time_feed_straight(const Pose& from, const Pose& to) {
-  double lin = 0, rot = 0;
-  for (int i : {0, 1, 2, 6, 7, 8}) lin += (to[i] - from[i]) * (to[i] - from[i]);
-  for (int i : {3, 4, 5}) rot += (to[i] - from[i]) * (to[i] - from[i]);
-  const double length = lin > 0 ? std::sqrt(lin) : std::sqrt(rot);
+  // XYZ length if XYZ move, else UVW, else ABC (LinuxCNC's rule)
+  auto moved = [&](int a, int b, int c) {
+    return std::fabs(to[a] - from[a]) > 1e-7 || std::fabs(to[b] - from[b]) > 1e-7 || std::fabs(to[c] - from[c]) > 1e-7;
+  };
+  auto dist = [&](int a, int b, int c) {
+    return std::sqrt((to[a] - from[a]) * (to[a] - from[a]) + (to[b] - from[b]) * (to[b] - from[b]) +
+                     (to[c] - from[c]) * (to[c] - from[c]));
+  };
+  const double length = moved(0, 1, 2) ? dist(0, 1, 2) : moved(6, 7, 8) ? dist(6, 7, 8) : dist(3, 4, 5);
   const double rate = length * block.get('f');
   feed = rate < 0.1 ? 0.1 : rate;
   canon.set_feed_rate(feed);
@@ -260,9 +290,14 @@ void Interpreter::State::convert_arc(int g, const Pose& end) {
     double half = std::hypot(m1 - e1, m2 - e2);
     if (half - abs_r > tol) fail("Arc radius too small to reach end point");
     if (half / abs_r > (1.0 - kTiny)) half = abs_r;
-    const double chord = std::atan2(e2 - s2, e1 - s1);
-    const double theta = ((g == 20 && radius > 0) || (g == 30 && radius < 0)) ? chord - kPi / 2.0 : chord + kPi / 2.0;
-    const double offset = abs_r * std::sin(std::acos(half / abs_r));
+    // As LinuxCNC computes it (the tiny residue of cos(asin(1)) decides the
+    // sign of a zero in the printed centre): perpendicular from the chord's
+    // midpoint, quarter turn in long double.
+    constexpr long double kHalfPiL = 1.570796326794896619231321691639751442L;
+    const long double chord = std::atan2(e2 - s2, e1 - s1);
+    const double theta = static_cast<double>(((g == 20 && radius > 0) || (g == 30 && radius < 0)) ? chord - kHalfPiL
+                                                                                                    : chord + kHalfPiL);
+    const double offset = abs_r * std::cos(std::asin(half / abs_r));
     c1 = m1 + offset * std::cos(theta);
     c2 = m2 + offset * std::sin(theta);
   } else {
