@@ -384,7 +384,7 @@ void TextCanon::change_tool_number(int index) {
   integer(call_, index);
   call_ += ')';
   out(call_);
-  tools_.set_spindle_tool(index);
+  if (m61_loads_tool_data_) tools_.set_spindle_tool(index);
 }
 
 void TextCanon::set_tool_table_entry(int index, const ToolData& t) {

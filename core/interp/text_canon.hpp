@@ -26,6 +26,10 @@ class TextCanon : public Canon {
   // Values the queries return.
   void set_probe_tripped(bool v) noexcept { probe_tripped_ = v; }
   void set_input_value(double v) noexcept { input_value_ = v; }
+  // LinuxCNC's stand-alone canon does not load a tool's data into the
+  // spindle on M61 (CHANGE_TOOL_NUMBER); a real I/O controller does. Default:
+  // like rs274.
+  void set_m61_loads_tool_data(bool v) noexcept { m61_loads_tool_data_ = v; }
   long call_count() const noexcept { return index_; }
 
   // Canon
@@ -128,6 +132,7 @@ class TextCanon : public Canon {
   bool probe_tripped_ = false;
   double input_value_ = 0;
   int selected_ = -1;
+  bool m61_loads_tool_data_ = false;
 };
 
 }  // namespace cnc::interp

@@ -307,6 +307,21 @@ TEST(Interpreter, RandomChangerIndexIsThePocket) {
             "USE_TOOL_LENGTH_OFFSET(0.0000 0.0000 10.0000, 0.0000 0.0000 0.0000, 0.0000 0.0000 0.0000)");
 }
 
+TEST(Interpreter, M61TakesTheSpindleToolFromTheMachineAfterSynch) {
+  RecordingCanon canon(tools(), cnc::interp::Units::Mm);
+  canon.set_m61_loads_tool_data(true);  // as a real I/O controller
+  Interpreter in(canon);
+  in.init();
+  EXPECT_EQ(in.execute("G21 M61 Q7"), Status::Ok) << "MDI synchronises by itself";
+  in.execute("G43");
+  EXPECT_EQ(canon.calls_starting("CHANGE_TOOL_NUMBER").back(), "CHANGE_TOOL_NUMBER(3)");
+  EXPECT_EQ(canon.calls_starting("USE_TOOL_LENGTH_OFFSET").back(),
+            "USE_TOOL_LENGTH_OFFSET(0.0000 0.0000 7.0000, 0.0000 0.0000 0.0000, 0.0000 0.0000 0.0000)");
+  EXPECT_DOUBLE_EQ(in.parameter(5400), 7);
+  in.execute("M61 Q0");
+  EXPECT_DOUBLE_EQ(in.parameter(5400), 0) << "M61 Q0 empties the spindle";
+}
+
 TEST(Interpreter, G10L1OfAnotherToolLeavesTheLoadedToolsParametersAlone) {
   // Manual 3.24.3.4 buglet, fixed: only the loaded tool's update touches
   // the spindle and #5400-#5413.
