@@ -133,7 +133,7 @@ FreeLimits MotionController::joint_limits(int j, double vel) const noexcept {
   FreeLimits l;
   l.max_velocity = std::min(std::fabs(vel), c.max_velocity * k);
   l.max_acceleration = c.max_acceleration * k;
-  l.max_jerk = c.max_jerk;
+  l.max_jerk = c.max_jerk * k;
   return l;
 }
 
@@ -882,25 +882,40 @@ void MotionController::check_soft_limits() noexcept {
   out_.on_soft_limit = on_limit;
 }
 
-void MotionController::update_backlash(Joint& jt, const JointConfig& c, double dt) noexcept {
-  if (c.backlash <= 0) {
+void MotionController::update_backlash(int j, double dt) noexcept {
+  Joint& jt = joints_[static_cast<std::size_t>(j)];
+  const JointConfig& c = cfg_.joints[static_cast<std::size_t>(j)];
+  JointCompensation* comp = comp_[static_cast<std::size_t>(j)];
+  if (c.backlash <= 0 && comp == nullptr) {
     jt.backlash_corr = jt.backlash_filt = jt.backlash_vel = 0;
+    jt.comp_ramp.reset(0);
     return;
   }
-  // The direction of travel decides which side of the backlash the
-  // correction takes; at rest the last correction stays. The correction
-  // moves within the share of the joint's limits the planners leave free
-  // (comp_reserve), so the joint never exceeds its own limits.
-  double corr = jt.backlash_corr;
-  if (jt.vel_cmd > 1e-9) corr = c.backlash / 2;
-  else if (jt.vel_cmd < -1e-9) corr = -c.backlash / 2;
-  if (corr != jt.backlash_corr || !jt.backlash.enabled()) {
-    jt.backlash_corr = corr;
-    const double r = cfg_.comp_reserve;
-    jt.backlash.set_target(corr, FreeLimits{c.max_velocity * r, c.max_acceleration * r, c.max_jerk * r});
+  // What the direction of travel asks for: the screw table's correction once
+  // the joint is homed (a table replaces BACKLASH, as in LinuxCNC), else
+  // +-BACKLASH/2; at rest the last direction stays.
+  double table = 0;
+  const bool has_table = comp != nullptr && comp->correction(jt.pos_cmd, jt.vel_cmd, table);
+  double corr;
+  if (has_table && jt.homed) {
+    corr = table;
+  } else if (c.backlash > 0) {
+    corr = jt.backlash_corr > 0 ? c.backlash / 2 : jt.backlash_corr < 0 ? -c.backlash / 2 : 0;
+    if (jt.vel_cmd > 1e-9) corr = c.backlash / 2;
+    else if (jt.vel_cmd < -1e-9) corr = -c.backlash / 2;
+  } else {
+    corr = 0;
   }
-  jt.backlash_filt = jt.backlash.update(dt);
-  jt.backlash_vel = jt.backlash.velocity();
+  jt.backlash_corr = corr;
+  // The ramp moves within the share of the joint's limits the planners
+  // leave free (COMP_RESERVE) and is clamped so that joint command plus
+  // correction never exceed the joint's own limits.
+  const double r = cfg_.comp_reserve;
+  const RampLimits own{c.max_velocity * r, c.max_acceleration * r, c.max_jerk * r};
+  const JointMotion motion{jt.vel_cmd, jt.acc_cmd, c.max_velocity, c.max_acceleration};
+  jt.backlash_filt = jt.comp_ramp.update(corr, dt, own, motion);
+  jt.backlash_vel = jt.comp_ramp.velocity();
+  jt.screw_comp = 0;
 }
 
 void MotionController::compute_outputs(double dt) noexcept {
@@ -914,15 +929,12 @@ void MotionController::compute_outputs(double dt) noexcept {
   for (int j = 0; j < kMaxJoints; ++j) q[j] = joints_[static_cast<std::size_t>(j)].pos_fb;
   for (int j = 0; j < cfg_.num_joints; ++j) {
     Joint& jt = joints_[static_cast<std::size_t>(j)];
-    const JointConfig& c = cfg_.joints[static_cast<std::size_t>(j)];
     JointOutputs& o = out_.joints[static_cast<std::size_t>(j)];
     const double prev_vel = jt.vel_cmd;
     jt.vel_cmd = (jt.pos_cmd - o.pos_cmd) / dt;
     jt.acc_cmd = (jt.vel_cmd - prev_vel) / dt;
     if (!enabled_) jt.vel_cmd = jt.acc_cmd = 0;
-    update_backlash(jt, c, dt);
-    JointCompensation* comp = comp_[static_cast<std::size_t>(j)];
-    jt.screw_comp = comp && jt.homed ? comp->correction(jt.pos_cmd, jt.vel_cmd) : 0;
+    update_backlash(j, dt);
     o.pos_cmd = jt.pos_cmd;
     o.coarse_pos_cmd = mode_ == ipc::MotionMode::Free ? jt.pos_cmd : jt.coarse_pos;
     o.motor_pos_cmd = jt.pos_cmd + jt.backlash_filt + jt.screw_comp + jt.motor_offset;

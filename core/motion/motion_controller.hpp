@@ -77,9 +77,11 @@ class MotionController {
     bool jog_override_limits = false;
     double coarse_pos = 0, pos_cmd = 0, pos_fb = 0, vel_cmd = 0, acc_cmd = 0;
     double motor_offset = 0;
+    // backlash_corr: the correction asked for (+-BACKLASH/2 or the screw
+    // table's); backlash_filt: the one applied, ramped within the limits.
     double backlash_corr = 0, backlash_filt = 0, backlash_vel = 0;
-    FreePlanner backlash;  // moves backlash_filt to backlash_corr within the reserved limits
-    double screw_comp = 0;
+    CompensationRamp comp_ramp;
+    double screw_comp = 0;  // stays 0: the ramped total is in backlash_filt
     double ferror = 0, ferror_limit = 0, ferror_high = 0;
     bool ferror_fault = false, amp_fault = false;
     bool on_pos_limit = false, on_neg_limit = false;
@@ -123,7 +125,7 @@ class MotionController {
   void apply_inverse_kinematics() noexcept;
   void check_soft_limits() noexcept;
   void compute_outputs(double dt) noexcept;
-  void update_backlash(Joint& j, const JointConfig& c, double dt) noexcept;
+  void update_backlash(int j, double dt) noexcept;
   FreeLimits joint_limits(int j, double vel) const noexcept;
   // Disables motion after a fault and says why on the error channel.
   void fault(const char* fmt, ...) noexcept __attribute__((format(printf, 2, 3)));
