@@ -17,6 +17,9 @@
 #ifdef CNC_HAVE_CANOPEN
 #include "fieldbus/canopen/components.hpp"
 #endif
+#ifdef CNC_HAVE_CIA402
+#include "cia402/components.hpp"
+#endif
 
 namespace cnc::daemon {
 
@@ -41,6 +44,9 @@ void register_all_components(hal::ComponentRegistry& registry) {
 #endif
 #ifdef CNC_HAVE_CANOPEN
   canopen::register_components(registry);
+#endif
+#ifdef CNC_HAVE_CIA402
+  cia402::register_components(registry);
 #endif
 }
 

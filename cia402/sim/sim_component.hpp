@@ -1,0 +1,20 @@
+// The drive simulator as a HAL component, for simulated machines:
+//   loadrt cia402_sim [sections=CIA402_SIM[,CIA402_SIM_1]]
+// Each section's drives run on its INTERFACE (an in-process virtual bus, or
+// a SocketCAN interface) in a thread of their own, started at load time so
+// that the fieldbus master loaded next finds them booting. Pins per drive,
+// cia402-sim.<g>.node.<id>.*: table-position (the true position, mm, as an
+// interferometer reads it), following-error (increments), temperature,
+// state, and probe-in (an external probe signal). Fault injection through
+// the `sim-inject` command (`cnc inject "drive 1 overcurrent"`).
+#pragma once
+
+namespace cnc::hal {
+class ComponentRegistry;
+}
+
+namespace cnc::cia402::sim {
+
+void register_sim_component(hal::ComponentRegistry& registry);
+
+}  // namespace cnc::cia402::sim
