@@ -70,6 +70,9 @@ void Interpreter::State::reset_modal(bool keep_params) {
   for (int i = 0; i < kNumAxes; ++i) {
     axis_offset[i] = params[5210] != 0.0 ? to_program_len(params[static_cast<std::size_t>(5211 + i)]) : 0.0;
   }
+  // Until the first synch the machine is taken to be at its origin, so the
+  // program position is minus the stored offsets (as LinuxCNC starts).
+  for (int i = 0; i < kNumAxes; ++i) pos[i] = 0.0 - (origin_offset[i] + axis_offset[i]);
   tool_offset = Pose{};
   tool_offset_g = 490;
   control = MotionMode::Continuous;

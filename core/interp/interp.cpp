@@ -74,7 +74,6 @@ Config Config::from_ini(const cnc::ini::IniFile& ini) {
     const std::string u = cnc::to_lower(*v);
     if (u == "inch" || u == "in" || u == "imperial") c.default_units = Units::Inch;
   }
-  c.lathe_diameter_mode = ini.get_bool("DISPLAY", "LATHE", false) && false;
   return c;
 }
 

@@ -5,7 +5,7 @@
 //
 // Read-ahead and synchronisation: execute() returns Status::ExecuteFinish
 // after a block whose result depends on the machine (probe, M66 input wait,
-// tool change, M61, G10 L10/L11 reading the position). The caller must then
+// tool change M6, M61). The caller must then
 // let the machine finish everything queued and call synch() before the next
 // read(); until it does, read() returns Status::SynchRequired and reads
 // nothing. synch() re-reads position, probe result, input value and the tool
@@ -80,11 +80,9 @@ struct Config {
   bool tool_change_with_spindle_on = false;
   // Block delete switch ('/' lines skipped when on).
   bool block_delete = false;
-  // Initial feed/traverse comments ("interpreter: ...") as LinuxCNC emits.
+  // The informational COMMENT calls LinuxCNC emits ("interpreter: feed mode
+  // set to ...", "... cutter radius compensation on left", ...).
   bool linuxcnc_comments = true;
-  // Report deprecated / fixed LinuxCNC buglets exactly as LinuxCNC 2.9 does
-  // (see docs/interpreter.md, "Deliberate differences").
-  bool linuxcnc_buglets = false;
 
   // Fills the fields above from [RS274NGC], [EMCIO] and [TRAJ].
   static Config from_ini(const cnc::ini::IniFile& ini);

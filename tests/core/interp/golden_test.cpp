@@ -108,4 +108,23 @@ TEST(InterpGolden, ProgramsMatchLinuxCncRs274) { check_dir("programs", data_dir(
 // before the error.
 TEST(InterpGolden, ErrorsMatchLinuxCncRs274) { check_dir("errors", data_dir() / "golden/errors", {}); }
 
+// The parameter file LinuxCNC's rs274 -v leaves behind after params.ngc.
+TEST(InterpGolden, ParameterFileMatchesLinuxCncRs274) {
+  cnc::testing::TempDir dir;
+  const fs::path var = dir / "p.var";
+  fs::copy_file(data_dir() / "params/start.var", var);
+  const fs::path back = fs::current_path();
+  fs::current_path(data_dir() / "params");
+  Rs274Options o;
+  o.program = "params.ngc";
+  o.parameter_file = var;
+  std::string error;
+  const bool ok = cnc::interp::run_rs274(o, nullptr, error);
+  fs::current_path(back);
+  ASSERT_TRUE(ok) << error;
+  const std::string want = slurp(data_dir() / "golden/params/expected.var");
+  const std::string got = slurp(var);
+  EXPECT_EQ(want, got) << first_difference(want, got);
+}
+
 TEST(InterpGolden, DeliberateDifferencesAreStable) { check_dir("own", data_dir() / "own", {}); }

@@ -33,6 +33,9 @@ if command -v rs274 >/dev/null; then
             rm -f "$out.stderr"
         done
     done
+    # parameter file: start.var -> golden/params/expected.var
+    cp "$HERE/params/start.var" "$HERE/golden/params/expected.var"
+    ( cd "$HERE/params" && rs274 -g -v ../golden/params/expected.var params.ngc > /dev/null 2>&1 ) || true
 else
     echo "rs274 not found (apt-get install linuxcnc-uspace): golden/ left as it is" >&2
 fi
