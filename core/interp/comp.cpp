@@ -201,8 +201,6 @@ void Interpreter::State::comp_arc(int g, const Pose& end, double c1, double c2, 
   m.center2 = c.y;
   m.rotation = rotation;
   m.axis_end = end[a3];
-  m.prog_center1 = c.x;
-  m.prog_center2 = c.y;
   hold_move(m);
   const V2 t1 = arc_tangent(c, p1, rotation);
   last_tangent_x = t1.x;
@@ -260,7 +258,6 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
     a.center2 = corner.y;
     a.rotation = left ? -1 : 1;
     a.axis_end = before.end[a3];
-    a.feed = -1;
     comp_emit(a);
     pos = a.end;
     return;

@@ -25,8 +25,6 @@ struct Interpreter::State {
   void pop_source();
   std::string program_path;
   std::string program_display_name;  // the name as given to open()
-  std::unique_ptr<LineReader> mdi;
-  int mdi_depth = -1;  // files.size() when an MDI line called into files
   bool percent_seen = false;   // first line was '%'
   bool first_line = true;
   bool program_ended = false;
@@ -39,7 +37,6 @@ struct Interpreter::State {
   bool skip_defining = false;  // skipping a sub definition body
   std::string line_text;   // raw text of the block being read
   std::string norm;        // normalized (lower case, no blanks) text
-  std::vector<std::size_t> comment_starts;  // not used by hot path
   int current_line = 0;
   int64_t line_offset = 0;  // offset of the line being read
   std::size_t o_args_pos = 0;  // where an O-word's condition/arguments start in norm
@@ -153,7 +150,6 @@ struct Interpreter::State {
   void do_return(bool has_value, double value);
   std::optional<std::string> find_sub_file(const std::string& name) const;
   Frame& frame() { return frames.back(); }
-  LineReader& reader() { return mdi && files.empty() ? *mdi : *files.back().reader; }
   void jump(int64_t offset, int line_before);
 
   // ---------------- execute.cpp

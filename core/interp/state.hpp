@@ -147,8 +147,6 @@ struct CompMove {
   Pose end{};
   double first_end = 0, second_end = 0, center1 = 0, center2 = 0, axis_end = 0;
   int rotation = 0;
-  double feed = 0;
-  double prog_center1 = 0, prog_center2 = 0;
 };
 
 struct V2Ref {
