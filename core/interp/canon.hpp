@@ -69,8 +69,9 @@ class Canon {
   // first_end, second_end and axis_end).
   virtual void arc_feed(int line, double first_end, double second_end, double first_axis, double second_axis,
                         int rotation, double axis_end, const Pose& end) = 0;
-  // A NURBS curve in the XY plane (G5 cubic / G5.1 quadratic splines):
-  // control points x, y and weight, the first being the current position.
+  // A NURBS curve in the XY plane (G5 cubic and G5.1 quadratic splines,
+  // G5.2/G5.3 NURBS blocks) of the given order: control points x, y and
+  // weight, the first being the current position.
   struct ControlPoint {
     double x, y, weight;
   };

@@ -243,11 +243,12 @@ void Interpreter::State::check_other_words() const {
   if (block.has_word('k') && !motion_in({20, 30, 330, 331, 760, 870})) {
     fail("K word with no G2, G3, G33, G33.1, G76, or G87 to use it");
   }
-  if (block.has_word('l') && g0 != 100 && !cycle && cutter != 411 && cutter != 421 && m_io != 66 && mg != 760) {
+  if (block.has_word('l') && g0 != 100 && !cycle && cutter != 411 && cutter != 421 && m_io != 66 && mg != 760 &&
+      mg != 52) {
     fail("L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 or NURBS code");
   }
   const int ov = block.m[kMOverride];
-  if (block.has_word('p') && !motion_in({20, 30, 50, 740, 760, 820, 840, 860, 880, 890}) && g0 != 40 && g0 != 100 &&
+  if (block.has_word('p') && !motion_in({20, 30, 50, 52, 740, 760, 820, 840, 860, 880, 890}) && g0 != 40 && g0 != 100 &&
       block.g[kGControl] != 640 && !(ov >= 50 && ov <= 53) && !(m_io >= 62 && m_io <= 66) && !user_m &&
       block.m[kMSpindle] != 19) {
     fail("P word with no G2 G3 G4 G10 G64 G5 G5.2 G76 G82 G86 G88 G89 or M50 M51 M52 M53 M62 M63 M64 M65 M66 M98 or user M code to use it");
@@ -903,7 +904,7 @@ void Interpreter::State::convert_g(Status& st) {
   if (motion == -1 && g0 != 100 && g0 != 280 && g0 != 300 && g0 != 520 && g0 != 920 && g0 != 431 &&
       block.g[kGToolOffset] != 431 && block.g[kGToolOffset] != 432 && has_axes) {
     motion = motion_mode;
-    if (motion == -1) fail("Cannot use axis values without a g code that uses them");
+    if (motion < 0) fail("Cannot use axis values without a g code that uses them");
   }
   if (motion != -1) convert_motion(motion, st);
 }

@@ -91,6 +91,9 @@ struct Interpreter::State {
   // canned cycles
   double cycle_r = 0, cycle_z = 0, cycle_cc = 0;
   int cycle_l = 1;
+  bool nurbs_active = false;  // between G5.2 and G5.3
+  int nurbs_order = 3;
+  std::vector<Canon::ControlPoint> nurbs_points;
   double polar_end_x = 0, polar_end_y = 0;  // end point of this block's @/^ words
   double spline_last_p = 0, spline_last_q = 0;  // G5 without I/J mirrors these
   double cycle_il = 0;  // initial level of a run of cycle blocks
@@ -195,6 +198,7 @@ struct Interpreter::State {
   void convert_cycle(int g, Pose end);
   void convert_g76(const Pose& end);
   void convert_spline(int g, const Pose& end);
+  void convert_nurbs(int g);
   void check_other_words() const;
   void emit_traverse(const Pose& p);
   void emit_feed(const Pose& p);

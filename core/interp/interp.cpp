@@ -284,7 +284,7 @@ bool Interpreter::named_parameter(std::string_view name, double& value) const {
 std::vector<int> Interpreter::active_g_codes() const {
   const State& s = *s_;
   std::vector<int> g;
-  g.push_back(s.motion_mode < 0 ? 800 : s.motion_mode);
+  g.push_back(s.motion_mode < 0 ? 800 : s.motion_mode);  // G80 or none
   static constexpr int planes[] = {170, 190, 180, 171, 191, 181};
   g.push_back(planes[static_cast<int>(s.plane)]);
   g.push_back(s.absolute ? 900 : 910);

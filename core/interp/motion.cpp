@@ -153,6 +153,10 @@ void Interpreter::State::convert_motion(int g, Status& st) {
   if (block.has_polar_r || block.has_polar_a) convert_polar();
   const bool is_cycle = g == 730 || g == 740 || (g >= 810 && g <= 890);
   if (!is_cycle) cycle_il_valid = false;
+  if (nurbs_active && g != 52 && g != 53) {
+    nurbs_active = false;  // another motion abandons an unfinished NURBS list
+    nurbs_points.clear();
+  }
   switch (g) {
     case 0:
     case 10: {
@@ -191,9 +195,52 @@ void Interpreter::State::convert_motion(int g, Status& st) {
       motion_mode = g;
       convert_spline(g, find_ends(false));
       return;
+    case 52:
+    case 53:
+      convert_nurbs(g);
+      return;
     default:
-      fail("G5.2/G5.3 NURBS blocks are not supported");
+      fail("Bug unknown motion code");
   }
+}
+
+void Interpreter::State::convert_nurbs(int g) {
+  // G5.2 starts (and continues) a list of control points X Y with weight P
+  // and order L; G5.3 sends the curve. Other motion abandons the list.
+  if (g == 53) {
+    if (!nurbs_active) fail("Cannot use G5.3 without G5.2 first");
+    if (static_cast<int>(nurbs_points.size()) < nurbs_order) {
+      fail("You must specify a number of control points at least equal to the order L = " +
+           std::to_string(nurbs_order));
+    }
+    Pose end = pos;
+    end[0] = nurbs_points.back().x;
+    end[1] = nurbs_points.back().y;
+    canon.nurbs_feed(current_line, nurbs_order, nurbs_points, end);
+    pos = end;
+    nurbs_active = false;
+    nurbs_points.clear();
+    motion_mode = kMotionNone;  // LinuxCNC leaves no motion mode (reads -1)
+    return;
+  }
+  if (cutter_side != 400) fail("Cannot convert spline with cutter radius compensation");
+  if (plane != Plane::XY) fail("Splines must be in the XY plane");
+  const bool hx = block.has_word('x'), hy = block.has_word('y');
+  auto coord = [&](char c, int axis) { return absolute ? block.get(c) : pos[axis] + block.get(c); };
+  if (!nurbs_active) {
+    if (hx != hy) fail("You must specify both X and Y coordinates for Control Points");
+    nurbs_active = true;
+    nurbs_order = block.has_word('l') ? static_cast<int>(block.get('l')) : 3;
+    nurbs_points.clear();
+    nurbs_points.push_back({pos[0], pos[1], block.has_word('p') ? block.get('p') : 1.0});
+    if (hx) nurbs_points.push_back({coord('x', 0), coord('y', 1), block.has_word('p') ? block.get('p') : 1.0});
+  } else {
+    if (!hx && !hy && block.has_word('p')) fail("Can specify P without X and Y only for the first control point");
+    if (hx != hy) fail("You must specify both X and Y coordinates for Control Points");
+    if (!block.has_word('p') || block.get('p') <= 0) fail("Must specify positive weight P for every Control Point");
+    nurbs_points.push_back({coord('x', 0), coord('y', 1), block.get('p')});
+  }
+  motion_mode = 52;
 }
 
 void Interpreter::State::convert_spline(int g, const Pose& end) {

@@ -174,7 +174,7 @@ bool Interpreter::State::predefined(const std::string& name, double& v) const {
     return true;
   }
   if (n == "_motion_mode") {
-    v = motion_mode < 0 ? 800 : motion_mode;
+    v = motion_mode == kMotionNone ? -1 : motion_mode < 0 ? 800 : motion_mode;
     return true;
   }
   if (n == "_plane") {

@@ -18,6 +18,8 @@
 namespace cnc::interp {
 
 inline constexpr int kMaxParameters = 5602;
+// Motion mode values besides G codes x10: -1 is G80; after G5.3 there is none.
+inline constexpr int kMotionNone = -2;
 inline constexpr double kPi = 3.14159265358979323846;
 inline constexpr double kTiny = 1e-12;
 inline constexpr double kMmPerInch = 25.4;

@@ -278,10 +278,10 @@ void TextCanon::arc_feed(int line, double first_end, double second_end, double f
   move_to(end);
 }
 
-void TextCanon::nurbs_feed(int line, int order, const std::vector<ControlPoint>&, const Pose& end) {
-  // rs274 prints only the order
+void TextCanon::nurbs_feed(int line, int, const std::vector<ControlPoint>& points, const Pose& end) {
+  // rs274 prints only the number of control points
   call_ = "NURBS_FEED(";
-  integer(call_, order);
+  integer(call_, static_cast<long>(points.size()));
   call_ += ", ...)";
   out(call_);
   segment('N', line, end);
