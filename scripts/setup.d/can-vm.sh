@@ -9,9 +9,17 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cache="${CNC_VM_CACHE:-$root/.cache/can-vm}"
 
 # The versioned package behind the meta-package, e.g. linux-image-6.1.0-56-amd64.
-pkg="$(apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-[0-9]/ {print $2; exit}')"
+versioned() { apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-[0-9]/ {print $2; exit}'; }
+pkg="$(versioned)"
 if [ -z "$pkg" ]; then
-  echo "can-vm: apt-cache does not know linux-image-amd64; run apt-get update" >&2
+  # No package lists yet (fresh system): fetch them once.
+  if [ "$(id -u)" -eq 0 ]; then apt-get update -qq || true
+  elif command -v sudo >/dev/null; then sudo apt-get update -qq || true
+  fi
+  pkg="$(versioned)"
+fi
+if [ -z "$pkg" ]; then
+  echo "can-vm: apt-cache does not know linux-image-amd64 (no package lists?); the vm tests need it" >&2
   exit 1
 fi
 version="$(apt-cache policy "$pkg" 2>/dev/null | awk '/Candidate:/ {print $2; exit}')"

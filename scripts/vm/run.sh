@@ -141,8 +141,10 @@ sync
 poweroff -f
 INIT
   chmod +x "$staging/init"
-  ( cd "$staging" && find . | cpio -o -H newc --quiet | gzip -1 > "$initrd.tmp" )
-  mv "$initrd.tmp" "$initrd"
+  # Parallel runs (ctest -j) may build it at once: each writes its own file
+  # and renames it into place atomically.
+  ( cd "$staging" && find . | cpio -o -H newc --quiet | gzip -1 > "$initrd.tmp.$$" )
+  mv "$initrd.tmp.$$" "$initrd"
   rm -rf "$staging"
 fi
 
@@ -152,13 +154,13 @@ kernel="$vmdir/vmlinux-$kver"
 if [ ! -f "$kernel" ] || [ "$kernel" -ot "$vmlinuz" ]; then
   off="$(grep -abo $'\xfd7zXZ\x00' "$vmlinuz" | head -n1 | cut -d: -f1 || true)"
   if [ -n "$off" ] && command -v xz >/dev/null; then
-    { tail -c +$((off + 1)) "$vmlinuz" | xz -dc > "$kernel.tmp"; } 2>/dev/null || true
+    { tail -c +$((off + 1)) "$vmlinuz" | xz -dc > "$kernel.tmp.$$"; } 2>/dev/null || true
   fi
-  if [ -s "$kernel.tmp" ] && [ "$(head -c 4 "$kernel.tmp" | od -An -tx1 | tr -d ' ')" = 7f454c46 ]; then
-    mv "$kernel.tmp" "$kernel"
+  if [ -s "$kernel.tmp.$$" ] && [ "$(head -c 4 "$kernel.tmp.$$" | od -An -tx1 | tr -d ' ')" = 7f454c46 ]; then
+    mv "$kernel.tmp.$$" "$kernel"
   else
-    rm -f "$kernel.tmp"
-    cp "$vmlinuz" "$kernel"
+    rm -f "$kernel.tmp.$$"
+    cp "$vmlinuz" "$kernel.tmp.$$" && mv "$kernel.tmp.$$" "$kernel"
   fi
 fi
 

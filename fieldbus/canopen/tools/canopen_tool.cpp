@@ -113,7 +113,7 @@ int cmd_boot(const BusConfig& c, double run_s, std::optional<std::pair<ObjectAdd
   const int64_t cycles = static_cast<int64_t>(run_s * 1e9) / period;
   timespec next;
   clock_gettime(CLOCK_MONOTONIC, &next);
-  uint64_t fresh = 0, overruns = 0;
+  uint64_t fresh = 0, overruns = 0, skipped = 0;
   for (int64_t k = 0; k < cycles; ++k) {
     const int64_t now = monotonic_ns();
     m.cyclic_read(now);
@@ -140,8 +140,10 @@ int cmd_boot(const BusConfig& c, double run_s, std::optional<std::pair<ObjectAdd
     int64_t next_ns = static_cast<int64_t>(next.tv_sec) * 1'000'000'000 + next.tv_nsec + period;
     const int64_t after = monotonic_ns();
     if (next_ns < after) {
+      const int64_t slots = (after - next_ns) / period + 1;
       ++overruns;
-      next_ns += ((after - next_ns) / period + 1) * period;
+      skipped += static_cast<uint64_t>(slots);
+      next_ns += slots * period;
     }
     next = to_timespec(next_ns);
     clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr);
@@ -149,10 +151,10 @@ int cmd_boot(const BusConfig& c, double run_s, std::optional<std::pair<ObjectAdd
   drain_messages(messages);
   const CyclicStatus& s = m.cyclic_status();
   std::printf("run: %lld cycles, %llu SYNC, inputs fresh in %.1f %% of cycles, %u TPDOs missed, %u send errors, "
-              "%llu overruns\n",
+              "%llu overruns (%llu SYNC slots skipped)\n",
               static_cast<long long>(cycles), static_cast<unsigned long long>(s.sync_serial),
               cycles ? 100.0 * static_cast<double>(fresh) / static_cast<double>(cycles) : 0.0, s.pdo_missed, s.send_errors,
-              static_cast<unsigned long long>(overruns));
+              static_cast<unsigned long long>(overruns), static_cast<unsigned long long>(skipped));
   bool ok = true;
   for (const Track& t : tracks) {
     std::printf("node %u: feedback matched a command in %llu cycles (exactly 2 cycles late in %llu, later in %llu)\n", t.id,
