@@ -563,12 +563,13 @@ void Master::run_boot(int64_t now_ns) {
         ++other->generation;
       }
       const std::string why = "start-up stopped: " + n->error;
+      message(true, config_.name, why);
       {
+        // Under the lock, so that boot() cannot miss the notification.
         std::lock_guard<std::mutex> lock(boot_mutex_);
         boot_error_ = config_.name + ": " + why;
+        boot_state_.store(BootState::Failed, std::memory_order_release);
       }
-      message(true, config_.name, why);
-      boot_state_.store(BootState::Failed, std::memory_order_release);
       boot_cv_.notify_all();
       return;
     }
@@ -602,7 +603,10 @@ void Master::run_boot(int64_t now_ns) {
                   nodes_.size(), static_cast<double>(now_ns - boot_started_ns_) / 1e6, l.worst_case() * 100);
     message(false, config_.name, text);
     cyclic_enabled_.store(true, std::memory_order_release);
-    boot_state_.store(BootState::Succeeded, std::memory_order_release);
+    {
+      std::lock_guard<std::mutex> lock(boot_mutex_);
+      boot_state_.store(BootState::Succeeded, std::memory_order_release);
+    }
     boot_cv_.notify_all();
   }
 }
