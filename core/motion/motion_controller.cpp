@@ -258,27 +258,19 @@ bool MotionController::handle(const MotionCommand& c, MotionResult& result) noex
       break;
     }
     case Cmd::SetDigitalOut:
-      if (c.joint < 0 || c.joint >= cfg_.num_dio) {
-        why = reason("no digital output %d (there are %d)", c.joint, cfg_.num_dio);
+    case Cmd::SetAnalogOut: {
+      const bool digital = c.type == Cmd::SetDigitalOut;
+      const int count = digital ? cfg_.num_dio : cfg_.num_aio;
+      if (c.joint < 0 || c.joint >= count) {
+        why = reason("no %s output %d (there are %d)", digital ? "digital" : "analog", c.joint, count);
       } else if (c.value[1] != 0) {
-        dout_pending_[static_cast<std::size_t>(c.joint)] = true;
-        dout_after_id_[static_cast<std::size_t>(c.joint)] = last_queued_id_;
-        dout_sync_value_[static_cast<std::size_t>(c.joint)] = c.value[0] != 0;
+        PendingOutput& p = (digital ? dout_pending_ : aout_pending_)[static_cast<std::size_t>(c.joint)];
+        p = PendingOutput{true, last_queued_id_, c.value[0]};
       } else {
-        out_.digital_out[static_cast<std::size_t>(c.joint)] = c.value[0] != 0;
+        set_output(digital, c.joint, c.value[0]);
       }
       break;
-    case Cmd::SetAnalogOut:
-      if (c.joint < 0 || c.joint >= cfg_.num_aio) {
-        why = reason("no analog output %d (there are %d)", c.joint, cfg_.num_aio);
-      } else if (c.value[1] != 0) {
-        aout_pending_[static_cast<std::size_t>(c.joint)] = true;
-        aout_after_id_[static_cast<std::size_t>(c.joint)] = last_queued_id_;
-        aout_sync_value_[static_cast<std::size_t>(c.joint)] = c.value[0];
-      } else {
-        out_.analog_out[static_cast<std::size_t>(c.joint)] = c.value[0];
-      }
-      break;
+    }
     case Cmd::SetSpindle:
     case Cmd::SpindleBrake:
     case Cmd::SpindleOverride:
@@ -844,24 +836,27 @@ void MotionController::run_coord(double /*dt*/) noexcept {
     probe_tripped_ = true;
     probed_pos_ = tp_out_.probed_position;
   }
-  {
-    // Outputs synchronised with motion (M62-M65, M67) change as the first
-    // move queued after them starts (the task numbers segments in order).
-    const bool moving_on = !tp_out_.done;
-    for (int i = 0; i < cfg_.num_dio; ++i) {
-      if (dout_pending_[static_cast<std::size_t>(i)] && moving_on && tp_out_.id > dout_after_id_[static_cast<std::size_t>(i)]) {
-        out_.digital_out[static_cast<std::size_t>(i)] = dout_sync_value_[static_cast<std::size_t>(i)] != 0;
-        dout_pending_[static_cast<std::size_t>(i)] = false;
-      }
-    }
-    for (int i = 0; i < cfg_.num_aio; ++i) {
-      if (aout_pending_[static_cast<std::size_t>(i)] && moving_on && tp_out_.id > aout_after_id_[static_cast<std::size_t>(i)]) {
-        out_.analog_out[static_cast<std::size_t>(i)] = aout_sync_value_[static_cast<std::size_t>(i)];
-        aout_pending_[static_cast<std::size_t>(i)] = false;
+  // Outputs synchronised with motion (M62-M65, M67) change as the first
+  // move queued after them starts (the task numbers segments in order).
+  if (!tp_out_.done) {
+    for (int digital = 0; digital < 2; ++digital) {
+      auto& pending = digital ? dout_pending_ : aout_pending_;
+      const int count = digital ? cfg_.num_dio : cfg_.num_aio;
+      for (int i = 0; i < count; ++i) {
+        PendingOutput& p = pending[static_cast<std::size_t>(i)];
+        if (p.pending && tp_out_.id > p.after_id) {
+          set_output(digital != 0, i, p.value);
+          p.pending = false;
+        }
       }
     }
   }
   apply_inverse_kinematics();
+}
+
+void MotionController::set_output(bool digital, int index, double value) noexcept {
+  if (digital) out_.digital_out[static_cast<std::size_t>(index)] = value != 0;
+  else out_.analog_out[static_cast<std::size_t>(index)] = value;
 }
 
 void MotionController::check_soft_limits() noexcept {

@@ -124,6 +124,7 @@ class MotionController {
   void update_jog_wheels() noexcept;
   void apply_inverse_kinematics() noexcept;
   void check_soft_limits() noexcept;
+  void set_output(bool digital, int index, double value) noexcept;
   void compute_outputs(double dt) noexcept;
   void update_backlash(int j, double dt) noexcept;
   FreeLimits joint_limits(int j, double vel) const noexcept;
@@ -183,12 +184,14 @@ class MotionController {
   };
   std::array<Spindle, kMaxSpindles> spindles_{};
   uint32_t last_queued_id_ = 0;       // id of the last segment given to the planner
-  std::array<uint32_t, kMaxDio> dout_after_id_{};
-  std::array<uint32_t, kMaxAio> aout_after_id_{};
-  std::array<bool, kMaxDio> dout_pending_{};
-  std::array<int8_t, kMaxDio> dout_sync_value_{};
-  std::array<double, kMaxAio> aout_sync_value_{};
-  std::array<bool, kMaxAio> aout_pending_{};
+  // M62-M65/M67: set when the first move queued after the command starts.
+  struct PendingOutput {
+    bool pending = false;
+    uint32_t after_id = 0;
+    double value = 0;
+  };
+  std::array<PendingOutput, kMaxDio> dout_pending_{};
+  std::array<PendingOutput, kMaxDio> aout_pending_{};
   FixedString<200> reason_;
   uint64_t cycles_ = 0;
   uint64_t last_serial_ = 0;

@@ -823,7 +823,7 @@ std::string TaskController::mdi(const ipc::Command& c) {
 
 // ------------------------------------------------------------ running
 
-void TaskController::enter_estop(const std::string& why) {
+void TaskController::stop_motion() {
   motion::MotionCommand a;
   a.type = Cmd::Abort;
   send(a);
@@ -832,6 +832,10 @@ void TaskController::enter_estop(const std::string& why) {
   a.type = Cmd::Unhome;
   a.joint = -2;  // VOLATILE_HOME joints forget their home
   send(a);
+}
+
+void TaskController::enter_estop(const std::string& why) {
+  stop_motion();
   io_.set_user_enable(false);
   io_.set_flood(false);
   io_.set_mist(false);
@@ -843,14 +847,7 @@ void TaskController::enter_estop(const std::string& why) {
 }
 
 void TaskController::machine_off(const std::string& why) {
-  motion::MotionCommand a;
-  a.type = Cmd::Abort;
-  send(a);
-  a.type = Cmd::Disable;
-  send(a);
-  a.type = Cmd::Unhome;
-  a.joint = -2;
-  send(a);
+  stop_motion();
   abort_all(why, true);
   state_ = ipc::TaskState::Off;
   was_enabled_ = false;

@@ -75,6 +75,7 @@ class TaskController : public ipc::ControllerService {
   bool motion_idle() const;
   void ensure_motion_mode(ipc::MotionMode m);
 
+  void stop_motion();  // abort, disable, forget VOLATILE_HOME homes
   void enter_estop(const std::string& why);
   void machine_off(const std::string& why);
   void abort_all(const std::string& why, bool quiet = false);
