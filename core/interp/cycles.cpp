@@ -186,7 +186,7 @@ void Interpreter::State::convert_cycle(int g, Pose) {
       case 850:
         feedto(aa, bb, bottom);
         feedto(aa, bb, r);
-        if (clear > r) trav(aa, bb, clear);
+        trav(aa, bb, clear);
         break;
       case 860:
         feedto(aa, bb, bottom);
@@ -239,6 +239,7 @@ void Interpreter::State::convert_cycle(int g, Pose) {
         break;
     }
     current_cc = clear;
+    old_cc = clear;  // later repeats start from the retract plane
   }
   if (saved_control != MotionMode::ExactPath) {
     canon.set_motion_control_mode(saved_control, tolerance);

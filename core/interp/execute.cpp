@@ -647,11 +647,16 @@ void Interpreter::State::convert_tool_length_offset(int g) {
     }
   } else {  // 431, or 432 with axis words
     if (g == 432 && !block.any_axis(config.axis_mask)) fail("G43.2: No axes specified and H word missing");
+    // G43.1 replaces the offsets of the axes given and keeps the others;
+    // G43.2 adds to them.
     static constexpr char letters[] = "xyzabcuvw";
     for (int i = 0; i < kNumAxes; ++i) {
       const char c = letters[i];
-      if (block.has_word(c)) off[i] = block.get(c);
-      if (g == 432) off[i] += tool_offset[i];
+      if (g == 431) {
+        off[i] = block.has_word(c) ? block.get(c) : tool_offset[i];
+      } else {
+        off[i] = tool_offset[i] + (block.has_word(c) ? block.get(c) : 0.0);
+      }
     }
     if (g == 431 && diameter_mode && block.has_word('x')) off[0] /= 2.0;
   }

@@ -182,6 +182,26 @@ double eval_o_value(Interpreter::State& s) {
 }
 }  // namespace
 
+// LinuxCNC: a label that opens if/while/repeat must not open another
+// structure at a different line (of the same file and subroutine).
+void Interpreter::State::check_label_unique(const std::string& label) {
+  std::string key = files.back().path;
+  key += '\x1f';
+  key += frame().sub_name;
+  key += '\x1f';
+  key += label;
+  const auto [it, inserted] = o_label_lines.emplace(std::move(key), current_line);
+  if (inserted || it->second == current_line) return;
+  std::string src = line_text;
+  while (!src.empty() && (src.front() == ' ' || src.front() == '\t')) src.erase(0, 1);
+  const std::string here = std::to_string(current_line);
+  const std::string there = std::to_string(it->second);
+  if (block.o_type == OType::If) {
+    fail(here + ": duplicate O-word label - already defined in line " + there + ": '" + src + "'");
+  }
+  fail(here + ": duplicate O-word label: '" + src + "' - defined in line " + there);
+}
+
 bool Interpreter::State::handle_o_word() {
   const std::string label = block.o_name;
   Frame& fr = frame();
@@ -193,6 +213,11 @@ bool Interpreter::State::handle_o_word() {
   switch (block.o_type) {
     case OType::Sub: {
       SubDef d{files.back().path, files.back().reader->offset(), current_line};
+      if (const auto it = subs.find(label); it != subs.end() && (it->second.file != d.file || it->second.line != d.line)) {
+        auto shown = [&](const std::string& f) { return f == program_path ? program_display_name : f; };
+        fail("File:" + shown(d.file) + " line:" + std::to_string(current_line) + " redefining sub: o|" + label +
+             "| already defined in file:" + shown(it->second.file));
+      }
       subs[label] = d;
       start_skip(label, {OType::EndSub}, true);
       return true;
@@ -233,6 +258,7 @@ bool Interpreter::State::handle_o_word() {
       return true;
     }
     case OType::If: {
+      check_label_unique(label);
       const bool cond = eval_o_value(*this) != 0.0;
       fr.if_done[label] = cond;
       if (!cond) start_skip(label, {OType::ElseIf, OType::Else, OType::EndIf});
@@ -276,6 +302,7 @@ bool Interpreter::State::handle_o_word() {
         }
         return true;
       }
+      check_label_unique(label);
       const bool again = top_is(LoopKind::While) && fr.loops.back().offset == line_offset;
       const bool cond = eval_o_value(*this) != 0.0;
       if (cond) {
@@ -296,6 +323,7 @@ bool Interpreter::State::handle_o_word() {
       return true;
     }
     case OType::Repeat: {
+      check_label_unique(label);
       const double v = eval_o_value(*this);
       const int count = round_to_int((v));
       if (count <= 0) {

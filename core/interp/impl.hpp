@@ -146,6 +146,8 @@ struct Interpreter::State {
   // ---------------- flow.cpp
   void open_file(const std::string& path);
   bool handle_o_word();  // true when the line needs no further execution
+  void check_label_unique(const std::string& label);
+  std::unordered_map<std::string, int> o_label_lines;  // file+sub+label -> line it opened at
   bool skip_line_matches(std::string_view raw);
   bool skip_line_matches_sub(std::string_view raw, const std::string& label);
   void start_skip(const std::string& label, std::initializer_list<OType> types, bool defining = false);

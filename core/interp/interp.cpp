@@ -118,6 +118,7 @@ void Interpreter::open(const std::filesystem::path& program) {
   s.frames.clear();
   s.frames.emplace_back();
   s.subs.clear();
+  s.o_label_lines.clear();
   s.percent_seen = false;
   s.first_line = true;
   s.program_ended = false;

@@ -285,7 +285,7 @@ std::string Interpreter::State::substitute_params(std::string_view text) {
       }
       double v = 0;
       if (find_named(name, v)) {
-        std::snprintf(buf, sizeof buf, "%f", v);
+        std::snprintf(buf, sizeof buf, "%f", v + 0.0);  // LinuxCNC shows -0 as 0
         out += buf;
       } else {
         out += "######";
@@ -301,7 +301,7 @@ std::string Interpreter::State::substitute_params(std::string_view text) {
       ++i;
       continue;
     }
-    std::snprintf(buf, sizeof buf, "%f", get_param(index));
+    std::snprintf(buf, sizeof buf, "%f", get_param(index) + 0.0);
     out += buf;
     i = j;
   }

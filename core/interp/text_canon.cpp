@@ -169,6 +169,10 @@ void TextCanon::select_plane(Plane p) {
 }
 
 void TextCanon::set_g5x_offset(int origin, const Pose& o) {
+  // saicanon keeps its position in program coordinates through G5x and G92
+  // changes (not through tool length offset changes).
+  for (int i = 0; i < kNumAxes; ++i) pos_[i] += g5x_[i] - o[i];
+  g5x_ = o;
   call_ = "SET_G5X_OFFSET(";
   integer(call_, origin);
   call_ += ", ";
@@ -178,6 +182,8 @@ void TextCanon::set_g5x_offset(int origin, const Pose& o) {
 }
 
 void TextCanon::set_g92_offset(const Pose& o) {
+  for (int i = 0; i < kNumAxes; ++i) pos_[i] += g92_[i] - o[i];
+  g92_ = o;
   call_ = "SET_G92_OFFSET(";
   six_axes(call_, o);
   call_ += ')';
