@@ -20,6 +20,9 @@
 #ifdef CNC_HAVE_CIA402
 #include "cia402/components.hpp"
 #endif
+#ifdef CNC_HAVE_COMP
+#include "comp/screwcomp_component.hpp"
+#endif
 
 namespace cnc::daemon {
 
@@ -47,6 +50,9 @@ void register_all_components(hal::ComponentRegistry& registry) {
 #endif
 #ifdef CNC_HAVE_CIA402
   cia402::register_components(registry);
+#endif
+#ifdef CNC_HAVE_COMP
+  comp::register_components(registry);
 #endif
 }
 

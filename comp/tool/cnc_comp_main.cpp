@@ -1,0 +1,350 @@
+// cnc-comp: measurement in, compensation out.
+//   report   ISO 230-2 figures of a measurement (text and plot)
+//   compare  two measurements' figures side by side (before / after)
+//   fit      the error model, compensation tables, exports, report and plots
+//   cycle    the measurement programs (ISO 230-2 cycle, periodic runs)
+//   load     hands a COMP_FILE to a running controller (JOINT_LOAD_COMP)
+//   synth    a synthetic measurement with known errors (demonstrations)
+// See docs/compensation.md. Files are written atomically.
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "comp/cycle.hpp"
+#include "comp/exports.hpp"
+#include "comp/fit.hpp"
+#include "comp/iso230.hpp"
+#include "comp/measurement.hpp"
+#include "comp/plot.hpp"
+#include "comp/report.hpp"
+#include "comp/synthetic.hpp"
+#include "comp/tables.hpp"
+#include "core/ipc/client.hpp"
+#include "core/util/atomic_file.hpp"
+#include "core/util/strings.hpp"
+
+using namespace cnc;
+using namespace cnc::comp;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Usage : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+const char* kUsage =
+    "usage: cnc-comp <command> [options]\n"
+    "  report  MEAS.csv [--out FILE.txt] [--plot FILE.png]\n"
+    "  compare BEFORE.csv AFTER.csv [--out FILE.txt] [--plot FILE.png]\n"
+    "  fit     MEAS.csv [MORE.csv...] --out-dir DIR [--axis X] [--lead MM] [--harmonics 1|2]\n"
+    "          [--knot-spacing MM] [--smoothness UM] [--loss cauchy|huber|none] [--noise UM]\n"
+    "          [--no-thermal] [--constant-backlash] [--reference MM] [--range MIN:MAX]\n"
+    "          [--spacing MM | --points N] [--tolerance UM] [--type 0|1]\n"
+    "  cycle   --min MM --max MM --out FILE.ngc [--axis X] [--targets N] [--runs 5] [--overshoot MM]\n"
+    "          [--dwell S] [--feed MM/MIN] [--seed N] [--output N] [--lead MM --periodic-out FILE.ngc]\n"
+    "          [--places N] [--leads N] [--steps-per-lead N] [--periodic-runs N]\n"
+    "  load    --joint N FILE [--type 0|1] [-i INSTANCE] [--timeout S]\n"
+    "  synth   --out FILE.csv [--seed N] [--periodic-out FILE.csv] [--no-temperature]\n";
+
+// Options: --name value pairs and --flags; everything else is positional.
+struct Args {
+  std::vector<std::string> positional;
+  std::map<std::string, std::string> values;
+  std::vector<std::string> flags;
+
+  bool flag(const std::string& f) const { return std::find(flags.begin(), flags.end(), f) != flags.end(); }
+  std::optional<std::string> get(const std::string& k) const {
+    const auto it = values.find(k);
+    if (it == values.end()) return std::nullopt;
+    return it->second;
+  }
+  double number(const std::string& k, double def) const {
+    const auto v = get(k);
+    if (!v) return def;
+    const auto d = parse_double(*v);
+    if (!d) throw Usage("--" + k + ": '" + *v + "' is not a number");
+    return *d;
+  }
+  int integer(const std::string& k, int def) const {
+    const auto v = get(k);
+    if (!v) return def;
+    const auto d = parse_int(*v);
+    if (!d) throw Usage("--" + k + ": '" + *v + "' is not a whole number");
+    return static_cast<int>(*d);
+  }
+  std::string text(const std::string& k, const std::string& def = {}) const { return get(k).value_or(def); }
+};
+
+Args parse(int argc, char** argv, int first, const std::vector<std::string>& flag_names) {
+  Args a;
+  for (int i = first; i < argc; ++i) {
+    std::string s = argv[i];
+    if (s == "-i") s = "--instance";
+    if (s.rfind("--", 0) == 0 && s.size() > 2) {
+      const std::string name = s.substr(2);
+      if (std::find(flag_names.begin(), flag_names.end(), name) != flag_names.end()) {
+        a.flags.push_back(name);
+      } else {
+        if (i + 1 >= argc) throw Usage(s + " needs a value");
+        a.values[name] = argv[++i];
+      }
+    } else {
+      a.positional.push_back(s);
+    }
+  }
+  return a;
+}
+
+void check_known(const Args& a, const std::vector<std::string>& known) {
+  for (const auto& [k, v] : a.values) {
+    if (std::find(known.begin(), known.end(), k) == known.end()) throw Usage("unknown option --" + k);
+  }
+}
+
+void write_text(const std::optional<std::string>& path, const std::string& text) {
+  if (path) write_file_atomically(*path, text);
+  else std::fputs(text.c_str(), stdout);
+}
+
+int cmd_report(const Args& a) {
+  check_known(a, {"out", "plot"});
+  if (a.positional.size() != 1) throw Usage("report takes one measurement file");
+  const Measurement m = load_measurement(a.positional[0]);
+  const Iso230Result r = evaluate_iso230(m);
+  write_text(a.get("out"), iso230_report(r, "Measurement " + a.positional[0] + (m.axis.empty() ? "" : ", axis " + m.axis)));
+  if (const auto p = a.get("plot")) write_plot(*p, {PlotPanel{"Measured: " + a.positional[0], &m, &r}});
+  return 0;
+}
+
+int cmd_compare(const Args& a) {
+  check_known(a, {"out", "plot"});
+  if (a.positional.size() != 2) throw Usage("compare takes two measurement files: before and after");
+  const Measurement b = load_measurement(a.positional[0]), c = load_measurement(a.positional[1]);
+  const Iso230Result rb = evaluate_iso230(b), rc = evaluate_iso230(c);
+  std::string text = iso230_comparison(rb, rc, "before", "after") + "\n";
+  text += iso230_report(rb, "Before: " + a.positional[0]) + "\n" + iso230_report(rc, "After: " + a.positional[1]);
+  write_text(a.get("out"), text);
+  if (const auto p = a.get("plot")) {
+    write_plot(*p, {PlotPanel{"Before: " + a.positional[0], &b, &rb}, PlotPanel{"After: " + a.positional[1], &c, &rc}});
+  }
+  return 0;
+}
+
+// The measurement as the compensated machine would show it: every
+// deviation plus the table's correction at its target and direction.
+Measurement predicted_after(const Measurement& m, const CompTable& t) {
+  Measurement p = m;
+  for (MeasurementPoint& q : p.points) q.deviation_um += t.at(q.target, q.direction) * 1000;
+  return p;
+}
+
+int cmd_fit(const Args& a) {
+  check_known(a, {"out-dir", "axis", "lead", "harmonics", "knot-spacing", "smoothness", "loss", "noise", "reference",
+                  "range", "spacing", "points", "tolerance", "type"});
+  if (a.positional.empty()) throw Usage("fit needs at least one measurement file");
+  const auto dir = a.get("out-dir");
+  if (!dir) throw Usage("fit needs --out-dir DIR");
+  std::vector<Measurement> data;
+  for (const std::string& f : a.positional) data.push_back(load_measurement(f));
+  FitOptions fo;
+  fo.lead_mm = a.number("lead", 0);
+  fo.harmonics = a.integer("harmonics", 1);
+  fo.knot_spacing_mm = a.number("knot-spacing", 0);
+  fo.smoothness_um = a.number("smoothness", fo.smoothness_um);
+  fo.noise_um = a.number("noise", 0);
+  fo.thermal = !a.flag("no-thermal");
+  fo.backlash_varies = !a.flag("constant-backlash");
+  const std::string loss = to_lower(a.text("loss", "cauchy"));
+  if (loss == "cauchy") fo.loss = RobustLoss::Cauchy;
+  else if (loss == "huber") fo.loss = RobustLoss::Huber;
+  else if (loss == "none") fo.loss = RobustLoss::None;
+  else throw Usage("--loss: cauchy, huber or none");
+  if (const auto r = a.get("range")) {
+    const auto parts = split(*r, ':');
+    const auto lo = parts.size() == 2 ? parse_double(parts[0]) : std::nullopt;
+    const auto hi = parts.size() == 2 ? parse_double(parts[1]) : std::nullopt;
+    if (!lo || !hi || !(*hi > *lo)) throw Usage("--range MIN:MAX");
+    fo.x_min = *lo;
+    fo.x_max = *hi;
+  }
+  const int type = a.integer("type", 1);
+  if (type != 0 && type != 1) throw Usage("--type 0 or 1");
+  const std::string axis = a.text("axis", data[0].axis.empty() ? "X" : data[0].axis);
+
+  const auto t0 = std::chrono::steady_clock::now();
+  const FitResult fit = fit_error_model(data, fo);
+  const double fit_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+
+  TableOptions to;
+  to.spacing_mm = a.number("spacing", 0);
+  to.points = a.integer("points", 0);
+  to.tolerance_um = a.number("tolerance", to.tolerance_um);
+  to.reference_mm = a.number("reference", data[0].points.front().target);
+  const CompTable table = make_comp_table(fit.model, to);
+  const double offset = reference_offset_um(fit.model, to);
+  const double interp = interpolation_error_um(table, fit.model, offset);
+
+  fs::create_directories(*dir);
+  const fs::path out(*dir);
+  std::vector<std::string> notes = {
+      "COMP_FILE_TYPE = " + std::to_string(type) + ": compensation fitted by cnc-comp from " +
+          std::to_string(fit.points) + " points",
+      std::to_string(table.size()) + " entries; linear interpolation within " + std::to_string(interp) +
+          " um of the model; mean correction 0 at " + std::to_string(to.reference_mm) + " mm"};
+  write_file_atomically(out / "comp.txt", format_comp_table(table, type == 0 ? CompFileType::Positions : CompFileType::Trims, notes));
+  ExportOptions eo;
+  eo.axis = axis;
+  eo.reference_mm = to.reference_mm;
+  eo.x_min = fo.x_min;
+  eo.x_max = fo.x_max;
+  write_file_atomically(out / "linuxcnc.comp", export_linuxcnc(fit.model, eo, type));
+  write_file_atomically(out / "siemens_lec.spf", export_siemens_lec(fit.model, eo));
+  write_file_atomically(out / (axis + ".COM"), export_heidenhain_com(fit.model, eo));
+  write_file_atomically(out / "fanuc_pitch.txt", export_fanuc_pitch(fit.model, eo));
+
+  std::string report = fit_report(fit);
+  char b[200];
+  std::snprintf(b, sizeof b, "  fit time %.1f ms\n\n", fit_ms);
+  report += b;
+  std::vector<PlotPanel> panels;
+  std::vector<Iso230Result> before, after;
+  std::vector<Measurement> predicted;
+  before.reserve(data.size());
+  after.reserve(data.size());
+  predicted.reserve(data.size());
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    try {
+      before.push_back(evaluate_iso230(data[i]));
+      predicted.push_back(predicted_after(data[i], table));
+      after.push_back(evaluate_iso230(predicted.back()));
+    } catch (const std::exception& e) {
+      report += "(" + a.positional[i] + ": no ISO 230-2 figures: " + e.what() + ")\n";
+      continue;
+    }
+    report += "Measurement " + a.positional[i] + ": measured, and predicted with the table applied\n";
+    report += iso230_comparison(before.back(), after.back(), "measured", "predicted") + "\n";
+    report += iso230_report(before.back(), "Measured: " + a.positional[i]) + "\n";
+    report += iso230_report(after.back(), "Predicted after compensation: " + a.positional[i]) + "\n";
+    panels.push_back(PlotPanel{"Measured: " + fs::path(a.positional[i]).filename().string(), &data[i], &before.back(),
+                               &fit.model, 0});
+    panels.push_back(PlotPanel{"Predicted after compensation", &predicted.back(), &after.back()});
+  }
+  write_file_atomically(out / "report.txt", report);
+  if (!panels.empty()) write_plot(out / "iso230.png", panels);
+  std::fputs(report.c_str(), stdout);
+  std::printf("wrote %s: comp.txt (%zu entries), linuxcnc.comp, siemens_lec.spf, %s.COM, fanuc_pitch.txt, report.txt%s\n",
+              out.c_str(), table.size(), axis.c_str(), panels.empty() ? "" : ", iso230.png");
+  return 0;
+}
+
+int cmd_cycle(const Args& a) {
+  check_known(a, {"min", "max", "out", "axis", "targets", "runs", "overshoot", "dwell", "feed", "seed", "output", "lead",
+                  "periodic-out", "places", "leads", "steps-per-lead", "periodic-runs"});
+  CycleOptions o;
+  if (!a.get("min") || !a.get("max")) throw Usage("cycle needs --min and --max (the first and last target)");
+  o.x_min = a.number("min", 0);
+  o.x_max = a.number("max", 0);
+  const std::string axis = a.text("axis", "X");
+  if (axis.size() != 1 || !std::isalpha(static_cast<unsigned char>(axis[0]))) throw Usage("--axis: one letter");
+  o.axis = static_cast<char>(std::toupper(static_cast<unsigned char>(axis[0])));
+  o.targets = a.integer("targets", 0);
+  o.runs = a.integer("runs", 5);
+  o.overshoot_mm = a.number("overshoot", o.overshoot_mm);
+  o.dwell_s = a.number("dwell", o.dwell_s);
+  o.feed_mm_min = a.number("feed", o.feed_mm_min);
+  o.seed = static_cast<uint64_t>(a.integer("seed", 1));
+  o.digital_out = a.integer("output", 0);
+  o.lead_mm = a.number("lead", o.lead_mm);
+  o.periodic_places = a.integer("places", o.periodic_places);
+  o.periodic_leads = a.number("leads", o.periodic_leads);
+  o.periodic_steps_per_lead = a.integer("steps-per-lead", o.periodic_steps_per_lead);
+  o.periodic_runs = a.integer("periodic-runs", o.periodic_runs);
+  const auto out = a.get("out");
+  if (!out) throw Usage("cycle needs --out FILE.ngc");
+  write_file_atomically(*out, iso_cycle_gcode(o));
+  if (const auto p = a.get("periodic-out")) write_file_atomically(*p, periodic_cycle_gcode(o));
+  std::printf("wrote %s (%zu targets)\n", out->c_str(), iso_targets(o).size());
+  return 0;
+}
+
+int cmd_load(const Args& a) {
+  check_known(a, {"joint", "type", "instance", "timeout"});
+  if (a.positional.size() != 1 || !a.get("joint")) throw Usage("load needs --joint N and one COMP_FILE");
+  ipc::Client client(a.text("instance", ipc::default_instance()));
+  ipc::Command c = ipc::make_command(ipc::CommandType::JointLoadComp);
+  c.i[0] = a.integer("joint", 0);
+  c.i[1] = a.integer("type", 1);
+  const std::string path = fs::absolute(a.positional[0]).string();
+  c.text.assign(path);
+  const auto timeout = std::chrono::milliseconds(static_cast<int64_t>(a.number("timeout", 10) * 1000));
+  const ipc::CommandResult r = client.execute(c, timeout);
+  if (r.state != ipc::CommandState::Done) {
+    std::fprintf(stderr, "cnc-comp: load rejected: %s\n", r.reason.c_str());
+    return 1;
+  }
+  std::printf("%s\n", r.reason.c_str());
+  return 0;
+}
+
+int cmd_synth(const Args& a) {
+  check_known(a, {"out", "seed", "periodic-out"});
+  const auto out = a.get("out");
+  if (!out) throw Usage("synth needs --out FILE.csv");
+  const uint64_t seed = static_cast<uint64_t>(a.integer("seed", 1));
+  const bool temp = !a.flag("no-temperature");
+  SyntheticAxis axis;
+  CycleOptions co;
+  co.x_min = axis.x_min;
+  co.x_max = axis.x_max;
+  co.seed = seed;
+  const Measurement m = synthesize_cycle(axis, iso_targets(co), 5, seed, temp);
+  write_file_atomically(*out, format_measurement(m));
+  if (const auto p = a.get("periodic-out")) {
+    Measurement all;
+    all.axis = "X";
+    double t = m.points.back().time_s;
+    for (int place = 0; place < co.periodic_places; ++place) {
+      Measurement part = synthesize_cycle(axis, periodic_targets(co, place), co.periodic_runs, seed + 1 + place, temp, t);
+      t = part.points.back().time_s;
+      all.points.insert(all.points.end(), part.points.begin(), part.points.end());
+    }
+    write_file_atomically(*p, format_measurement(all));
+  }
+  std::printf("wrote %s (seed %llu)\n", out->c_str(), static_cast<unsigned long long>(seed));
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "help") {
+    std::fputs(kUsage, argc < 2 ? stderr : stdout);
+    return argc < 2 ? 2 : 0;
+  }
+  const std::string cmd = argv[1];
+  try {
+    const Args a = parse(argc, argv, 2, {"no-thermal", "constant-backlash", "no-temperature"});
+    if (cmd == "report") return cmd_report(a);
+    if (cmd == "compare") return cmd_compare(a);
+    if (cmd == "fit") return cmd_fit(a);
+    if (cmd == "cycle") return cmd_cycle(a);
+    if (cmd == "load") return cmd_load(a);
+    if (cmd == "synth") return cmd_synth(a);
+    throw Usage("unknown command '" + cmd + "'");
+  } catch (const Usage& e) {
+    std::fprintf(stderr, "cnc-comp: %s\n%s", e.what(), kUsage);
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "cnc-comp: %s\n", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,128 @@
+// COMP_FILE tables: LinuxCNC's two file types read unchanged, lookups as
+// LinuxCNC's (linear between entries, ends held), no size limit, and
+// errors that name the file and the line.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "comp/comp_table.hpp"
+#include "core/util/error.hpp"
+#include "tests/support/testing.hpp"
+
+using namespace cnc;
+using namespace cnc::comp;
+
+namespace {
+
+std::string error_of(const std::string& text, CompFileType type = CompFileType::Trims) {
+  try {
+    parse_comp_table(text, type, "x.comp");
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+}  // namespace
+
+TEST(CompTable, TypeZeroPositionsBecomeTrimsAsLinuxCncConvertsThem) {
+  // The reference's example: type 0 "1.00 1.01 0.99" is type 1 "1.00 -0.01 0.01".
+  const CompTable t0 = parse_comp_table("1.00 1.01 0.99\n", CompFileType::Positions, "a");
+  const CompTable t1 = parse_comp_table("1.00 -0.01 0.01\n", CompFileType::Trims, "b");
+  ASSERT_EQ(t0.size(), 1u);
+  EXPECT_NEAR(t0.forward[0], -0.01, 1e-12);
+  EXPECT_NEAR(t0.reverse[0], 0.01, 1e-12);
+  EXPECT_NEAR(t0.forward[0], t1.forward[0], 1e-12);
+  EXPECT_NEAR(t0.reverse[0], t1.reverse[0], 1e-12);
+}
+
+TEST(CompTable, LookupIsLinearBetweenEntriesAndHoldsTheEnds) {
+  const CompTable t = parse_comp_table("0 0.000 0.010\n10 0.020 0.030\n20 -0.020 0.000\n", CompFileType::Trims, "t");
+  EXPECT_DOUBLE_EQ(t.forward_at(-100), 0.0) << "held below the first entry";
+  EXPECT_DOUBLE_EQ(t.reverse_at(-1), 0.010);
+  EXPECT_DOUBLE_EQ(t.forward_at(5), 0.010);
+  EXPECT_DOUBLE_EQ(t.reverse_at(15), 0.015);
+  EXPECT_DOUBLE_EQ(t.forward_at(10), 0.020) << "exactly on an entry";
+  EXPECT_DOUBLE_EQ(t.forward_at(20), -0.020);
+  EXPECT_DOUBLE_EQ(t.forward_at(1e6), -0.020) << "held above the last entry";
+  EXPECT_DOUBLE_EQ(t.at(5, 1), 0.010);
+  EXPECT_DOUBLE_EQ(t.at(5, -1), 0.020);
+  EXPECT_DOUBLE_EQ(t.at(5, 0), 0.015) << "no direction yet: the mean of both";
+  EXPECT_DOUBLE_EQ(t.forward_at(std::nan("")), 0.0) << "NaN reads the first entry, never out of bounds";
+}
+
+TEST(CompTable, HasNoTwoHundredFiftySixEntryLimit) {
+  std::string text;
+  for (int i = 0; i < 20000; ++i) text += std::to_string(i * 0.015) + " " + std::to_string(1e-6 * i) + " -0.001\n";
+  const CompTable t = parse_comp_table(text, CompFileType::Trims, "big");
+  ASSERT_EQ(t.size(), 20000u);
+  EXPECT_NEAR(t.forward_at(19999 * 0.015), 1e-6 * 19999, 1e-9);
+  EXPECT_NEAR(t.forward_at(150.0075), 1e-6 * 10000.5, 1e-9);
+}
+
+TEST(CompTable, CommentsBlankLinesAndNotesAfterTheTableAreRead) {
+  const std::string text =
+      "# X axis, measured 2024\n"
+      "\n"
+      "0 0 0   ; start\r\n"
+      "100 0.001 -0.001\n"
+      "\n"
+      "Measured with a laser; values in mm.\n"  // LinuxCNC stops reading here: fine after the table
+      "Operator: someone\n";
+  const CompTable t = parse_comp_table(text, CompFileType::Trims, "notes");
+  ASSERT_EQ(t.size(), 2u);
+  EXPECT_DOUBLE_EQ(t.reverse[1], -0.001);
+}
+
+TEST(CompTable, ErrorsNameTheFileAndTheLine) {
+  EXPECT_EQ(error_of("0 0 0\n10 0 0\n10 0.001 0\n"),
+            "x.comp:3: nominal 10 is not greater than the previous one (10, line 2): entries must be in ascending order");
+  EXPECT_EQ(error_of("0 0 0\n10 0 0\n5 0 0\n").substr(0, 9), "x.comp:3:");
+  EXPECT_NE(error_of("X 0 0 0\n").find("x.comp:1: expected three numbers 'nominal forward-trim reverse-trim'"),
+            std::string::npos);
+  EXPECT_NE(error_of("0 0 0 0\n").find("x.comp:1: expected three numbers"), std::string::npos) << "four numbers";
+  EXPECT_NE(error_of("0 0 0\nend\n20 0 0\n")
+                .find("x.comp:3: an entry after the end of the table: line 2 ('end') is not three numbers"),
+            std::string::npos);
+  EXPECT_EQ(error_of("# nothing\n\n"), "x.comp: no entries (expected lines of three numbers 'nominal a b')");
+  EXPECT_EQ(error_of(""), "x.comp: no entries (expected lines of three numbers 'nominal a b')");
+  EXPECT_NE(error_of("0 0 nan\n").find("x.comp:1:"), std::string::npos) << "NaN is not a number here";
+  // A type 1 file read as type 0 gives trims as large as the positions.
+  EXPECT_NE(error_of("0 0.001 -0.001\n100 0.002 0.000\n", CompFileType::Positions)
+                .find("x.comp:2: correction 99.998 at nominal 100 is larger than 1 machine units; is COMP_FILE_TYPE right?"),
+            std::string::npos);
+}
+
+TEST(CompTable, MissingFileSaysSo) {
+  try {
+    load_comp_file("/nonexistent/x.comp", CompFileType::Trims);
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.file(), "/nonexistent/x.comp");
+    EXPECT_NE(std::string(e.what()).find("cannot read the compensation file"), std::string::npos) << e.what();
+  }
+}
+
+TEST(CompTable, WrittenFilesReadBackInBothTypes) {
+  CompTable t;
+  for (int i = 0; i < 50; ++i) {
+    t.nominal.push_back(-10 + i * 6.25);
+    t.forward.push_back(1e-3 * std::sin(i * 0.3));
+    t.reverse.push_back(1e-3 * std::cos(i * 0.3) - 0.004);
+  }
+  for (const CompFileType type : {CompFileType::Positions, CompFileType::Trims}) {
+    const std::string text = format_comp_table(t, type, {"a note", "another"});
+    const CompTable back = parse_comp_table(text, type, "rt");
+    ASSERT_EQ(back.size(), t.size());
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      EXPECT_NEAR(back.nominal[i], t.nominal[i], 1e-9);
+      EXPECT_NEAR(back.forward[i], t.forward[i], 1e-9);
+      EXPECT_NEAR(back.reverse[i], t.reverse[i], 1e-9);
+    }
+    EXPECT_NE(text.find("# a note\n# another\n"), std::string::npos);
+    EXPECT_EQ(text.find('#'), text.rfind("# a note")) << "notes come after the table, where LinuxCNC no longer reads";
+  }
+  EXPECT_NEAR(t.max_abs_trim(), 0.005, 1e-3);
+  EXPECT_GT(t.max_abs_slope(), 0);
+}
