@@ -68,6 +68,13 @@ void Interpreter::State::convert_cycle(int g, Pose) {
     aa_inc = block.has_word(l1) ? block.get(l1) : 0.0;
     bb_inc = block.has_word(l2) ? block.get(l2) : 0.0;
   }
+  // Guard against programs that would never end (LinuxCNC would loop):
+  // a peck depth too small to make progress, or absurd counts.
+  constexpr double kMaxMoves = 1e6;
+  if ((g == 730 || g == 830) && cycle_q > 0 && ((r - bottom) / cycle_q > kMaxMoves || r - cycle_q == r)) {
+    fail("Canned cycle would need more than 1000000 pecks");
+  }
+  if (repeats > kMaxMoves) fail("Canned cycle L repeat count too large");
   if (r < bottom) {
     static constexpr const char* msgs[] = {"R less than z in cycle in xy plane", "R less than x in cycle in yz plane",
                                            "R less than y in cycle in xz plane"};
