@@ -377,3 +377,21 @@ TEST(Interpreter, FileWithoutEndIsAnErrorWithTheLastLine) {
   in.open(dir.write("p.ngc", "G0 X1\nG0 X2\n"));
   EXPECT_EQ(error_of(in), "2: File ended with no percent sign or program end");
 }
+
+TEST(Interpreter, LongLinesAndLoopsAcrossBufferBoundaries) {
+  // Lines longer than the reader's 64 KiB buffer, and a loop whose start is
+  // far behind the buffer when it jumps back.
+  cnc::testing::TempDir dir;
+  std::string text = "G21 G90 F100\n(" + std::string(100000, 'x') + ")\n#1 = 0\no1 while [#1 LT 3]\n";
+  for (int i = 0; i < 3000; ++i) text += "(filler " + std::to_string(i) + " " + std::string(40, 'y') + ")\n";
+  text += "G1 X#1\n#1 = [#1 + 1]\no1 endwhile\nM2\n";
+  RecordingCanon canon(tools());
+  Interpreter in(canon);
+  in.init();
+  in.open(dir.write("long.ngc", text));
+  EXPECT_EQ(in.run_to_end(), Status::ProgramEnd);
+  ASSERT_EQ(canon.segments.size(), 3u);
+  EXPECT_DOUBLE_EQ(canon.segments[2].end.x(), 2);
+  EXPECT_EQ(canon.segments[0].line, 3005);
+  EXPECT_EQ(canon.calls_starting("COMMENT(\"xxxx").size(), 1u);
+}
