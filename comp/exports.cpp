@@ -131,11 +131,13 @@ std::string export_fanuc_pitch(const ErrorModel& model, const ExportOptions& o) 
   const int above = static_cast<int>(std::ceil((r.x1 - r.ref) / interval - 1e-9));
   const int ref_no = std::max(o.fanuc_reference_point, below);
   const int k_min = ref_no - below, k_max = ref_no + above;
-  // Absolute corrections in units, rounded once each so that the sums of
+  // Absolute corrections in units, 0 at the reference approached moving +
+  // (where the axis is referenced), rounded once each so that the sums of
   // the increments never drift.
+  const double at_ref = model.deviation_um(r.ref, 1);
   const auto absolute = [&](int k, int d) {
     const double x = r.ref + (k - ref_no) * interval;
-    return static_cast<long>(std::lround(-error_um(model, x, d, r.ref) / unit_um));
+    return static_cast<long>(std::lround(-(model.deviation_um(x, d) - at_ref) / unit_um));
   };
   const int ax = o.fanuc_axis;
   std::string out = "%\n";
