@@ -108,7 +108,7 @@ struct Master::NodeRt {
   bool monitor = false;
   std::string error;
   std::string source;  // "canopen.0.node.03"
-  uint64_t reboot_token = 0;
+  bool rebooting = false;
   std::atomic<bool> reboot_request{false};
   // published
   std::atomic<uint8_t> state{static_cast<uint8_t>(NmtState::Unknown)};
@@ -127,8 +127,19 @@ struct Master::NodeRt {
 
 // ------------------------------------------------------------ construction
 
+namespace {
+// An in-process bus runs at the configured bit rate unless the interface
+// names one itself ("virtual:sim,bitrate=500000").
+std::string transport_spec(const BusConfig& c) {
+  if (c.interface.rfind("virtual:", 0) == 0 && c.interface.find("bitrate=") == std::string::npos) {
+    return c.interface + ",bitrate=" + std::to_string(c.bitrate);
+  }
+  return c.interface;
+}
+}  // namespace
+
 Master::Master(BusConfig config, MessageQueue* messages)
-    : Master(config, can::open_transport(config.interface), can::open_transport(config.interface), messages) {}
+    : Master(config, can::open_transport(transport_spec(config)), can::open_transport(transport_spec(config)), messages) {}
 
 Master::Master(BusConfig config, std::unique_ptr<can::Transport> cyclic, std::unique_ptr<can::Transport> acyclic,
                MessageQueue* messages)
@@ -343,6 +354,9 @@ void Master::poll(int64_t now_ns) {
   }
   for (const auto& n : nodes_) n->sdo->poll(now_ns);
   if (booting_) run_boot(now_ns);
+  for (const auto& n : nodes_) {
+    if (n->rebooting && !booting_) continue_reboot(*n, now_ns);
+  }
   // Heartbeat producer.
   if (config_.master_heartbeat_ms > 0 && now_ns >= next_heartbeat_ns_) {
     const uint8_t state = boot_state() == BootState::Succeeded ? 0x05 : 0x7F;
@@ -435,7 +449,7 @@ void Master::begin_boot() {
     for (const auto& n : nodes_) {
       n->sdo->cancel_all(abort_code::kGeneral, now);
       ++n->generation;
-      ++n->reboot_token;
+      n->rebooting = false;
       n->phase = config_.reset_nodes ? NodeRt::Phase::WaitBootUp : NodeRt::Phase::Steps;
       n->step = 0;
       n->step_active = false;
@@ -639,33 +653,28 @@ void Master::reboot_node(uint8_t node) {
     n->phase = config_.reset_nodes ? NodeRt::Phase::WaitBootUp : NodeRt::Phase::Steps;
     if (config_.reset_nodes) send_nmt(NmtCommand::ResetCommunication, n->cfg.id);
     message(false, n->source, n->cfg.label() + ": rebooting");
-    // A single node's boot: run it through the same phases, then start it.
-    const uint64_t token = ++n->reboot_token;
-    auto step = std::make_shared<std::function<void(int64_t)>>();
-    *step = [this, n, token, step](int64_t t) {
-      if (n->reboot_token != token || booting_) return;  // superseded
-      boot_node(*n, t);
-      if (n->phase == NodeRt::Phase::Ready) {
-        send_nmt(NmtCommand::Start, n->cfg.id);
-        n->phase = NodeRt::Phase::WaitOperational;
-        n->deadline_ns = t + config_.boot_timeout_ns;
-        n->in_cycle.store(true);
-        n->monitor = n->cfg.heartbeat_ms > 0;
-        n->last_hb_ns = t;
-      }
-      if (n->phase == NodeRt::Phase::Done) {
-        message(false, n->source, n->cfg.label() + ": back in operation");
-        return;
-      }
-      if (n->phase == NodeRt::Phase::Failed) {
-        n->fault.store(true);
-        message(true, n->source, n->error);
-        return;
-      }
-      post(*step);
-    };
-    post(*step);
+    n->rebooting = true;  // poll() carries it through the phases
   });
+}
+
+void Master::continue_reboot(NodeRt& n, int64_t now_ns) {
+  boot_node(n, now_ns);
+  if (n.phase == NodeRt::Phase::Ready) {
+    send_nmt(NmtCommand::Start, n.cfg.id);
+    n.phase = NodeRt::Phase::WaitOperational;
+    n.deadline_ns = now_ns + config_.boot_timeout_ns;
+    n.in_cycle.store(true);
+    n.monitor = n.cfg.heartbeat_ms > 0;
+    n.last_hb_ns = now_ns;
+  }
+  if (n.phase == NodeRt::Phase::Done) {
+    n.rebooting = false;
+    message(false, n.source, n.cfg.label() + ": back in operation");
+  } else if (n.phase == NodeRt::Phase::Failed) {
+    n.rebooting = false;
+    n.fault.store(true);
+    message(true, n.source, n.error);
+  }
 }
 
 // ------------------------------------------------------------ SDO access
@@ -835,7 +844,14 @@ void Master::cyclic_read(int64_t now_ns) noexcept {
   for (auto& n : nodes_) n->inputs_serial = serial;
   for (TpdoRt& t : tpdos_) {
     NodeRt& n = *nodes_[t.node];
-    if (!n.in_cycle.load(std::memory_order_relaxed) || t.type == 0 || t.type > kTransmissionSyncMax) continue;
+    if (!n.in_cycle.load(std::memory_order_relaxed)) {
+      // Out of the cycle (booting, rebooting): start afresh when it returns.
+      t.ever = false;
+      t.consecutive_missed = 0;
+      n.pdo_fault_reported = false;
+      continue;
+    }
+    if (t.type == 0 || t.type > kTransmissionSyncMax) continue;
     const bool missing = t.ever ? serial - t.received_serial >= t.type : serial > static_cast<uint64_t>(t.type) + 1;
     if (missing) {
       fresh = false;

@@ -169,6 +169,7 @@ class Master {
   void handle_emcy(uint8_t node, const can::Frame& f);
   void run_boot(int64_t now_ns);
   void boot_node(NodeRt& n, int64_t now_ns);
+  void continue_reboot(NodeRt& n, int64_t now_ns);
   void node_failed(NodeRt& n, const std::string& why);
   void send_nmt(NmtCommand c, uint8_t node);
   void service_rt_sdo();

@@ -51,8 +51,11 @@ struct Device {
 TEST(CanopenComponent, LoadrtBootsTheBusAndRunsInTheServoThread) {
   const std::string bus = cnc::testing::unique_name("haltest");
   Device device(bus, 3);
+  // Real threads on a real clock: no PDO-miss limit and a generous heartbeat
+  // timeout, so that a slow machine cannot fault the node in this test.
   const std::string ini_text = "[EMCMOT]\nSERVO_PERIOD = 1000000\n[CANOPEN]\nINTERFACE = virtual:" + bus +
-                               "\nNODE = 3\n[CANOPEN_NODE_3]\nNAME = x-axis\nVENDOR_ID = 0xCC1\nHEARTBEAT_MS = 50\n"
+                               "\nPDO_MISS_LIMIT = 0\nNODE = 3\n[CANOPEN_NODE_3]\nNAME = x-axis\nVENDOR_ID = 0xCC1\n"
+                               "HEARTBEAT_MS = 50\nHEARTBEAT_TIMEOUT_MS = 5000\n"
                                "RPDO1 = 0x6040:0:u16 0x607A:0:s32\nTPDO1 = 0x6041:0:u16 0x6064:0:s32\n"
                                "TPDO2 = 0x60FD:0:u32\nEXPORT_PINS = YES\n";
   const auto ini = ini::IniFile::parse(ini_text, "machine.ini");
