@@ -91,7 +91,9 @@ void Drive::check_mapping() const {
   };
   need(slots_.statusword, "the statusword 0x6041");
   need(slots_.controlword, "the controlword 0x6040");
-  need(slots_.position_actual, "the position actual value 0x6064");
+  if (config_.mode == Mode::CyclicSyncPosition || config_.home_method != 0) {
+    need(slots_.position_actual, "the position actual value 0x6064 (mode CSP, homing)");
+  }
   if (config_.mode == Mode::CyclicSyncPosition) need(slots_.target_position, "the target position 0x607A (mode CSP)");
   if (config_.mode == Mode::CyclicSyncVelocity) need(slots_.target_velocity, "the target velocity 0x60FF (mode CSV)");
   if (config_.mode == Mode::CyclicSyncTorque) need(slots_.target_torque, "the target torque 0x6071 (mode CST)");

@@ -197,9 +197,10 @@ void DriveGroup::write(int64_t now_ns) noexcept {
     watchdog_tripped_ = false;
   }
   watchdog_last_ = watchdog_level_;
-  const bool inhibit = watchdog_tripped_ || shutdown_.load(std::memory_order_relaxed);
+  const bool shutdown = shutdown_.load(std::memory_order_relaxed);
   for (std::size_t i = 0; i < drives_.size(); ++i) {
-    commands_[i].inhibit = inhibit;
+    commands_[i].inhibit = watchdog_tripped_;
+    if (shutdown) commands_[i].enable = false;  // an orderly disable: quick stop, then power off
     drives_[i]->write(now_ns, commands_[i], feedback_[i]);
   }
 }

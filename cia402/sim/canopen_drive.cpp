@@ -10,6 +10,8 @@ CanopenDrive::CanopenDrive(const SimNodeConfig& config, can::Transport& transpor
   o.node_id = config_.node_id;
   o.identity = config_.identity;
   o.heartbeat_ms = config_.heartbeat_ms;
+  o.rpdo_count = 8;
+  o.tpdo_count = 8;
   canopen::SlaveNode::add_communication_objects(od_, o);
   node_ = std::make_unique<canopen::SlaveNode>(od_, transport, o);
   node_->on_sync = [this](uint8_t, int64_t now) { model_.on_sync(now); };

@@ -238,6 +238,7 @@ void DriveModel::enter(State s) noexcept {
     // Enabling: the demand starts where the motor is, whatever the target says.
     demand_ = seg_start_ = seg_end_ = measured_;
     seg_elapsed_ = seg_length_;
+    seg_velocity_ = 0;
     vff_ = aff_ = integral_ = 0;
     ferror_time_ = 0;
     target_valid_ = false;
@@ -382,6 +383,7 @@ void DriveModel::apply_mode() noexcept {
   homing_started_ = false;
   demand_ = seg_start_ = seg_end_ = measured_;
   seg_elapsed_ = seg_length_;
+  seg_velocity_ = 0;
   vff_ = aff_ = 0;
   target_valid_ = false;
 }
@@ -399,7 +401,9 @@ void DriveModel::start_segment() noexcept {
   target_raw_ = raw;
   const double length = static_cast<double>(period_ns()) * 1e-9;
   const double v_new = (static_cast<double>(target_unwrapped_) - demand_) / length;
-  aff_ = (v_new - vff_) / length;
+  const bool previous_ran_out = seg_elapsed_ > seg_length_ * 1.5;  // a late or missing SYNC: the drive held still
+  aff_ = (v_new - (previous_ran_out ? 0.0 : seg_velocity_)) / length;
+  seg_velocity_ = v_new;
   seg_start_ = demand_;
   seg_end_ = static_cast<double>(target_unwrapped_);
   seg_elapsed_ = 0;
@@ -408,14 +412,20 @@ void DriveModel::start_segment() noexcept {
 
 void DriveModel::on_sync(int64_t now_ns) noexcept {
   ++syncs_;
-  if (time_ns_ < now_ns) run_until(now_ns);
+  // The drive's cycle is locked to the SYNC period (as a drive's PLL does):
+  // arbitration jitter of the SYNC frame moves it only a sixteenth.
+  const int64_t period = period_ns();
+  const int64_t expected = sync_phase_ns_ + period;
+  if (last_sync_ns_ >= 0 && std::llabs(now_ns - expected) < period / 4) sync_phase_ns_ = expected + (now_ns - expected) / 16;
+  else sync_phase_ns_ = now_ns;
+  if (time_ns_ < sync_phase_ns_) run_until(sync_phase_ns_);
   last_sync_ns_ = now_ns;
   process_controlword(controlword_.get());
   if (modes_.get() != static_cast<int8_t>(mode_)) apply_mode();
   if (state_ == State::OperationEnabled && mode_ == Mode::CyclicSyncPosition && stop_ == Stop::None && !halted_) {
     start_segment();
   }
-  run_until(now_ns + period_ns());
+  run_until(sync_phase_ns_ + period);
 }
 
 void DriveModel::advance_to(int64_t now_ns) noexcept {
@@ -625,8 +635,8 @@ void DriveModel::step(double dt) noexcept {
         seg_elapsed_ += dt;
         const double f = seg_length_ > 0 ? std::min(seg_elapsed_ / seg_length_, 1.0) : 1.0;
         demand_ = seg_start_ + (seg_end_ - seg_start_) * f;
-        if (f >= 1.0) vff_ = aff_ = 0;
-        else vff_ = (seg_end_ - seg_start_) / seg_length_;
+        if (seg_elapsed_ > seg_length_ * 1.001) vff_ = aff_ = 0;  // the next set-point is late: hold
+        else vff_ = seg_velocity_;
         break;
       }
       case Mode::CyclicSyncVelocity:

@@ -167,6 +167,7 @@ class DriveModel {
   int64_t time_ns_ = 0;
   int64_t power_on_ns_ = -1;
   int64_t last_sync_ns_ = -1;
+  int64_t sync_phase_ns_ = 0;    // the drive's own cycle, locked to SYNC
   uint64_t syncs_ = 0;
   double step_carry_ = 0;
 
@@ -177,7 +178,7 @@ class DriveModel {
   double last_counts_ = 0;
   double integral_ = 0;             // N m
   double vff_ = 0, aff_ = 0;        // feed-forward, counts/s and counts/s^2
-  double seg_start_ = 0, seg_end_ = 0, seg_elapsed_ = 0, seg_length_ = 0.001;
+  double seg_start_ = 0, seg_end_ = 0, seg_elapsed_ = 0, seg_length_ = 0.001, seg_velocity_ = 0;
   int64_t offset_ = 0;              // position actual = encoder + offset
   int64_t target_unwrapped_ = 0;
   int32_t target_raw_ = 0;

@@ -3,13 +3,42 @@
 #include <pthread.h>
 #include <sched.h>
 
+#include <chrono>
 #include <cstdlib>
-#include <future>
+#include <cstring>
 
-#include "core/util/strings.hpp"
 #include "core/util/time.hpp"
 
 namespace cnc::cia402::sim {
+namespace {
+
+// Words of a command without allocating: up to 6 of at most 31 characters.
+struct Words {
+  char w[6][32] = {};
+  int n = 0;
+  explicit Words(const char* s) {
+    while (*s && n < 6) {
+      while (*s == ' ' || *s == '\t') ++s;
+      if (!*s) break;
+      int k = 0;
+      while (*s && *s != ' ' && *s != '\t') {
+        if (k < 31) w[n][k++] = static_cast<char>(*s >= 'A' && *s <= 'Z' ? *s - 'A' + 'a' : *s);
+        ++s;
+      }
+      w[n][k] = '\0';
+      ++n;
+    }
+  }
+  bool is(int i, const char* t) const { return i < n && std::strcmp(w[i], t) == 0; }
+};
+
+bool to_number(const char* s, double& out) {
+  char* end = nullptr;
+  out = std::strtod(s, &end);
+  return end && end != s && *end == '\0';
+}
+
+}  // namespace
 
 CanopenDrive& SimHost::add(const SimNodeConfig& config) {
   drives_.push_back(std::make_unique<CanopenDrive>(config, transport_));
@@ -28,16 +57,17 @@ void SimHost::power_on(int64_t now_ns) {
 }
 
 void SimHost::step(int64_t now_ns) {
-  std::vector<std::function<void()>> calls;
-  {
-    std::lock_guard<std::mutex> lock(calls_mutex_);
-    calls.swap(calls_);
+  Injection in;
+  while (requests_.pop(in)) {
+    Outcome out;
+    out.serial = in.serial;
+    apply(in, out.why);
+    outcomes_.push(out);
   }
-  for (auto& f : calls) f();
   can::Frame f;
   while (transport_.receive(f)) {
-    // The frame's reception time is when the drive saw it (SYNC jitter of
-    // this thread's wake-up does not reach the plant).
+    // The frame's reception time is when the drive saw it (the wake-up
+    // jitter of this thread does not reach the drives).
     const int64_t t = f.timestamp_ns > 0 && f.timestamp_ns <= now_ns ? f.timestamp_ns : now_ns;
     for (auto& d : drives_) d->on_frame(f, t);
   }
@@ -50,6 +80,7 @@ void SimHost::start() {
   if (thread_.joinable()) return;
   power_on(monotonic_ns());
   stop_.store(false);
+  set_stepped_elsewhere(true);
   thread_ = std::thread([this] {
     // The simulated drives answer every SYNC within the cycle: ask for
     // SCHED_FIFO just below the servo thread (refused without privileges;
@@ -70,65 +101,74 @@ void SimHost::stop() {
   if (!thread_.joinable()) return;
   stop_.store(true);
   thread_.join();
-}
-
-void SimHost::call(std::function<void()> f) {
-  if (!thread_.joinable()) {
-    f();
-    return;
-  }
-  std::lock_guard<std::mutex> lock(calls_mutex_);
-  calls_.push_back(std::move(f));
+  set_stepped_elsewhere(false);
 }
 
 std::string SimHost::inject(const std::string& command, double value, bool has_value) {
-  if (!thread_.joinable()) return apply(command, value, has_value);
-  auto done = std::make_shared<std::promise<std::string>>();
-  auto result = done->get_future();
-  call([this, command, value, has_value, done] { done->set_value(apply(command, value, has_value)); });
-  if (result.wait_for(std::chrono::seconds(2)) != std::future_status::ready) return "the simulator did not answer";
-  return result.get();
+  std::lock_guard<std::mutex> lock(inject_mutex_);
+  Injection in;
+  in.text.assign(command);
+  in.value = value;
+  in.has_value = has_value;
+  in.serial = ++serial_;
+  if (!stepped_elsewhere_.load(std::memory_order_acquire)) {
+    FixedString<200> why;
+    apply(in, why);
+    return std::string(why.view());
+  }
+  if (!requests_.push(in)) return "the simulator is busy";
+  const int64_t deadline = monotonic_ns() + 2'000'000'000;
+  Outcome out;
+  while (monotonic_ns() < deadline) {
+    while (outcomes_.pop(out)) {
+      if (out.serial == in.serial) return std::string(out.why.view());
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return "the simulator did not answer within 2 s (is it stepped?)";
 }
 
-std::string SimHost::apply(const std::string& command, double value, bool has_value) {
-  const auto words = split_blanks(command);
-  auto usage = [] {
-    return std::string(
-        "expected: drive <node> overcurrent | overtemperature [K] | following-error [N] | encoder-loss [1|0] | "
-        "lost-frames [n] | refuse-sdo [1|0] | dead [1|0] | probe [1|0] | clear");
-  };
-  if (words.size() < 3 || !iequals(words[0], "drive")) return usage();
-  const auto node = parse_int(words[1]);
-  if (!node || *node < 1 || *node > 127) return "\"" + words[1] + "\" is not a node-ID";
-  CanopenDrive* d = find(static_cast<uint8_t>(*node));
-  if (!d) return "no simulated drive with node-ID " + words[1];
-  // A value may also follow the words ("drive 1 lost-frames 20").
-  if (!has_value && words.size() > 3) {
-    if (const auto v = parse_double(words[3])) {
-      value = *v;
-      has_value = true;
-    }
+void SimHost::apply(const Injection& in, FixedString<200>& why) noexcept {
+  why.assign("");
+  const Words w(in.text.c_str());
+  static constexpr const char* kUsage =
+      "expected: drive <node> overcurrent | overtemperature [K] | following-error [N] | encoder-loss [1|0] | "
+      "lost-frames [n] | refuse-sdo [1|0] | dead [1|0] | probe [1|0] | clear";
+  if (w.n < 3 || !w.is(0, "drive")) {
+    why.assign(kUsage);
+    return;
   }
-  const std::string what = to_lower(words[2]);
+  double node = 0;
+  if (!to_number(w.w[1], node) || node < 1 || node > 127 || node != static_cast<int>(node)) {
+    why.format("\"%s\" is not a node-ID", w.w[1]);
+    return;
+  }
+  CanopenDrive* d = find(static_cast<uint8_t>(node));
+  if (!d) {
+    why.format("no simulated drive with node-ID %d", static_cast<int>(node));
+    return;
+  }
+  double value = in.value;
+  bool has_value = in.has_value;
+  if (!has_value && w.n > 3) has_value = to_number(w.w[3], value);  // "drive 1 lost-frames 20"
   DriveModel& m = d->model();
   const bool on = !has_value || value != 0;
-  if (what == "overcurrent") m.inject_overcurrent();
-  else if (what == "overtemperature") m.set_temperature_offset(has_value ? value : 60.0);
-  else if (what == "following-error") m.set_jam_force(has_value ? value : 20000.0);
-  else if (what == "encoder-loss") m.set_encoder_lost(on);
-  else if (what == "lost-frames") d->drop_frames(has_value ? static_cast<unsigned>(value < 0 ? 0 : value) : 10u);
-  else if (what == "refuse-sdo") m.set_refuse_writes(on);
-  else if (what == "dead") d->set_dead(on);
-  else if (what == "probe") m.plant().set_probe_override(on);
-  else if (what == "clear") {
+  if (w.is(2, "overcurrent")) m.inject_overcurrent();
+  else if (w.is(2, "overtemperature")) m.set_temperature_offset(has_value ? value : 60.0);
+  else if (w.is(2, "following-error")) m.set_jam_force(has_value ? value : 20000.0);
+  else if (w.is(2, "encoder-loss")) m.set_encoder_lost(on);
+  else if (w.is(2, "lost-frames")) d->drop_frames(has_value ? static_cast<unsigned>(value < 0 ? 0 : value) : 10u);
+  else if (w.is(2, "refuse-sdo")) m.set_refuse_writes(on);
+  else if (w.is(2, "dead")) d->set_dead(on);
+  else if (w.is(2, "probe")) m.plant().set_probe_override(on);
+  else if (w.is(2, "clear")) {
     m.clear_injections();
     m.plant().set_probe_override(false);
     d->drop_frames(0);
     d->set_dead(false);
   } else {
-    return "unknown injection \"" + words[2] + "\"; " + usage();
+    why.format("unknown injection \"%s\"; %s", w.w[2], kUsage);
   }
-  return "";
 }
 
 }  // namespace cnc::cia402::sim

@@ -24,6 +24,8 @@
 #include <vector>
 
 #include "cia402/sim/canopen_drive.hpp"
+#include "core/util/fixed_string.hpp"
+#include "core/util/spsc_ring.hpp"
 #include "fieldbus/can/transport.hpp"
 
 namespace cnc::cia402::sim {
@@ -50,25 +52,41 @@ class SimHost {
   void step(int64_t now_ns);
 
   // Applies an injection command (see above); "" when done, else why not.
-  // Thread-safe: with the thread running it waits for the next pass.
+  // From any one non-realtime thread: when something else steps the host
+  // (its thread, or the servo thread) the command waits for the next pass.
   std::string inject(const std::string& command, double value, bool has_value);
-  // Runs `f` in the host's thread between passes (or now without thread).
-  void call(std::function<void()> f);
+  // Someone other than the caller of inject() steps the host (set it before
+  // that starts; start() sets it).
+  void set_stepped_elsewhere(bool on) noexcept { stepped_elsewhere_.store(on, std::memory_order_release); }
   // Passes run so far (each: frames delivered, drives polled).
   uint64_t passes() const noexcept { return passes_.load(std::memory_order_relaxed); }
   // Called at the end of every pass, in the host's thread (HAL pins).
   std::function<void()> after_pass;
 
  private:
-  std::string apply(const std::string& command, double value, bool has_value);
+  struct Injection {
+    FixedString<96> text;
+    double value = 0;
+    bool has_value = false;
+    uint32_t serial = 0;
+  };
+  struct Outcome {
+    uint32_t serial = 0;
+    FixedString<200> why;
+  };
+  // Allocation-free: it may run in the servo thread.
+  void apply(const Injection& in, FixedString<200>& why) noexcept;
 
   can::Transport& transport_;
   std::vector<std::unique_ptr<CanopenDrive>> drives_;
   std::thread thread_;
   std::atomic<bool> stop_{false};
+  std::atomic<bool> stepped_elsewhere_{false};
   std::atomic<uint64_t> passes_{0};
-  std::mutex calls_mutex_;
-  std::vector<std::function<void()>> calls_;
+  std::mutex inject_mutex_;  // one injecting client at a time (never taken by a pass)
+  uint32_t serial_ = 0;
+  SpscRing<Injection, 8> requests_;
+  SpscRing<Outcome, 8> outcomes_;
 };
 
 }  // namespace cnc::cia402::sim
