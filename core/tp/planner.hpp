@@ -41,6 +41,13 @@ struct PlannerConfig {
   double max_linear_acceleration = 0;  // [TRAJ]MAX_LINEAR_ACCELERATION
   double max_linear_jerk = 0;          // [TRAJ]MAX_LINEAR_JERK
   uint32_t axis_mask = 0x7;            // bit i: axis i exists
+  // Corner smoothing: a window reaches over at most this many moves on each
+  // side of its corner and never more than max_blend_half_width units.
+  int blend_span_segments = 8;
+  double max_blend_half_width = 5.0;
+  // Without new moves for this many cycles (and with room in the queue) the
+  // planner plans to the end of what it has, ending with a stop.
+  int flush_idle_cycles = 4;
 };
 
 struct SegmentParams {
@@ -66,6 +73,8 @@ struct CycleInputs {
 struct CycleOutputs {
   Pose position;            // carte_pos_cmd
   double path_velocity = 0; // current speed along the path, units/s
+  double path_acceleration = 0;  // along the path, units/s^2
+  double distance_to_go = 0;     // to the end of the executing move
   int32_t line = 0;         // line of the executing segment
   uint32_t id = 0;          // id of the executing segment
   bool done = true;         // queue empty and at rest
@@ -111,6 +120,11 @@ class TrajectoryPlanner {
   virtual bool is_queue_full() const noexcept = 0;
   // Changes that apply to segments added from now on (SET_xxx commands).
   virtual void set_config(const PlannerConfig& config) noexcept = 0;
+  // No more moves are coming for now (end of program, a queue buster): plan
+  // to the end of the queue instead of waiting for the moves that would
+  // shape its last corners. Optional: the planner also decides this itself
+  // after config.flush_idle_cycles cycles without input.
+  virtual void flush() noexcept {}
 };
 
 }  // namespace cnc::tp

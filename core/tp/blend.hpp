@@ -1,0 +1,64 @@
+// Corner and transition smoothing. The programmed path P(s) is a chain of
+// curves; at a junction j (path position s_j, tangent jump dt_j) the kink
+// term H(s - s_j) (s - s_j) dt_j is replaced by its convolution with a
+// smooth kernel of half width d_j, and any curvature jump by a smoothstep
+// blend of the two extended curves. Outside [s_j - d_j, s_j + d_j] the path
+// is untouched; windows may overlap (their corrections add), which is what
+// turns a CAM polyline into a curve with continuous, slowly varying
+// curvature. The result is C2 in s with a bounded third derivative, so a
+// jerk-limited motion along it has bounded per-axis jerk.
+// Realtime-safe: plain functions, no allocation.
+#pragma once
+
+#include <cstdint>
+
+#include "core/tp/curve.hpp"
+
+namespace cnc::tp {
+
+// Kernel: the Beta(3,3) density on the window, u = (s - s_j + d) / 2d.
+namespace kernel {
+inline double cdf(double u) noexcept { return u * u * u * (10 + u * (-15 + 6 * u)); }  // W
+inline double pdf(double u) noexcept {  // dW/du
+  const double t = u * (1 - u);
+  return 30 * t * t;
+}
+inline double pdf1(double u) noexcept { return 60 * u * (1 - u) * (1 - 2 * u); }  // d2W/du2
+inline double pdf2(double u) noexcept { return 60 * (1 + u * (-6 + 6 * u)); }     // d3W/du3
+inline double ramp(double u) noexcept { return u * u * u * u * (2.5 + u * (-3 + u)); }  // integral of W
+// Largest deviation of the smoothed ramp from the ramp, per unit of d:
+// 2 (ramp(1/2)) = 0.15625.
+inline constexpr double kDeviationPerHalfWidth = 0.15625;
+// max |dW/du| = 1.875, max |d2W/du2| = 5.7735, max |d3W/du3| = 60.
+inline constexpr double kPdfMax = 1.875;
+inline constexpr double kPdf1Max = 5.773502691896258;
+inline constexpr double kPdf2Max = 60.0;
+}  // namespace kernel
+
+struct Vertex {
+  double s = 0;         // global path position of the junction
+  double half = 0;      // half width of the smoothing window (0: none)
+  AxisVec dt{};         // tangent of the outgoing curve minus the incoming
+  bool curved = false;  // a neighbour is curved: the second-order term applies
+  uint64_t seg_in = 0;  // the segment ending here; seg_in + 1 starts here
+  uint32_t epoch = 0;
+};
+
+// Adds the correction of vertex `vx` at x = s - vx.s (|x| < vx.half) to the
+// position p and the derivatives that are not null. `after`: the point lies
+// on the outgoing curve (the base curve being evaluated there), decided by
+// the segment, not by the sign of x (which rounding may flip at x = 0).
+// `in` and `out` are the neighbouring curves (used only when vx.curved).
+void add_correction(const Vertex& vx, double x, bool after, const Curve& in, const Curve& out, AxisVec& p,
+                    AxisVec* d1, AxisVec* d2, AxisVec* d3) noexcept;
+
+// Per-axis bounds, over x in [x0, x1] (relative to the vertex), of the
+// first, second and third derivatives of the correction, added to b1, b2
+// and b3.
+void add_correction_bounds(const Vertex& vx, double x0, double x1, const Curve& in, const Curve& out, AxisVec& b1,
+                           AxisVec& b2, AxisVec& b3) noexcept;
+
+// Largest |correction| over the window (what the deviation budget counts).
+double correction_size(const Vertex& vx, const Curve& in, const Curve& out) noexcept;
+
+}  // namespace cnc::tp
