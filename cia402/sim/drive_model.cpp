@@ -222,7 +222,7 @@ void DriveModel::power_on(int64_t now_ns) noexcept {
   fault_at_ns_ = -1;
   offset_ = 0;
   demand_ = measured_ = last_counts_ = 0;
-  velocity_est_ = integral_ = vff_ = aff_ = 0;
+  velocity_est_ = velocity_report_ = integral_ = vff_ = aff_ = 0;
   seg_start_ = seg_end_ = seg_elapsed_ = 0;
   target_valid_ = false;
   probe_[0] = probe_[1] = ProbeState{};
@@ -254,6 +254,7 @@ void DriveModel::begin_stop(int16_t option, State then) noexcept {
   const int o = option > 4 ? option - 4 : option;
   after_stop_ = then;
   ramp_velocity_ = vff_ != 0 ? vff_ : velocity_est_;
+  settle_s_ = 0;
   homing_.interrupt();
   switch (o) {
     case 0:
@@ -292,6 +293,7 @@ void DriveModel::raise_fault(uint16_t code, uint8_t reg, bool coast) noexcept {
   if (!powered || coast) {
     stop_ = Stop::None;
     state_ = State::Fault;
+    warning_ = false;
     homing_.interrupt();
   } else {
     begin_stop(fault_reaction_option_.get(), State::Fault);
@@ -602,6 +604,7 @@ void DriveModel::step(double dt) noexcept {
   const double raw_velocity = (counts - last_counts_) / dt;
   last_counts_ = counts;
   velocity_est_ += (raw_velocity - velocity_est_) * (dt / (cfg_.gains.velocity_filter_tau + dt));
+  velocity_report_ += (raw_velocity - velocity_report_) * (dt / (1e-3 + dt));  // 0x606C: averaged over ~1 ms
   measured_ = counts + static_cast<double>(offset_);
 
   bool power = state_ == State::OperationEnabled || state_ == State::QuickStopActive ||
@@ -616,9 +619,14 @@ void DriveModel::step(double dt) noexcept {
     aff_ = ramp_velocity_ == 0 ? 0 : (ramp_velocity_ > 0 ? -stop_decel_ : stop_decel_);
     vff_ = ramp_velocity_;
     demand_ += ramp_velocity_ * dt;
-    if (ramp_velocity_ == 0) {
+    // Done when the reference is at zero and the motor has settled (at most
+    // 50 ms): only then the power stage may go off.
+    if (ramp_velocity_ == 0) settle_s_ += dt;
+    if (ramp_velocity_ == 0 && (std::fabs(velocity_est_) < 0.0005 * cfg_.plant.encoder_counts || settle_s_ > 0.05)) {
       stop_ = Stop::None;
+      settle_s_ = 0;
       if (after_stop_ != state_) state_ = after_stop_;  // T14, T12 (option 1-4), T5, T8 after the ramp
+      if (state_ == State::Fault) warning_ = false;    // the warning led to the fault: it is the fault now
     }
   } else if (stop_ == Stop::CurrentLimit) {
     position_loop = false;
@@ -693,18 +701,28 @@ void DriveModel::step(double dt) noexcept {
     if (plant_.pos_limit() && demand_ > measured_) {
       demand_ = measured_;
       vff_ = std::min(vff_, 0.0);
+      aff_ = 0;
       internal_limit_ = true;
     }
     if (plant_.neg_limit() && demand_ < measured_) {
       demand_ = measured_;
       vff_ = std::max(vff_, 0.0);
+      aff_ = 0;
       internal_limit_ = true;
     }
     const double lo = sw_limit_min_.get(), hi = sw_limit_max_.get();
     if (lo < hi) {
-      const double clamped = std::clamp(demand_, lo, hi);
-      internal_limit_ = internal_limit_ || clamped != demand_;
-      demand_ = clamped;
+      if (demand_ > hi) {
+        demand_ = hi;
+        vff_ = std::min(vff_, 0.0);
+        aff_ = 0;
+        internal_limit_ = true;
+      } else if (demand_ < lo) {
+        demand_ = lo;
+        vff_ = std::max(vff_, 0.0);
+        aff_ = 0;
+        internal_limit_ = true;
+      }
     }
   }
 
@@ -744,7 +762,7 @@ void DriveModel::step(double dt) noexcept {
   position_actual_.set(wrap32(pos));
   position_demand_.set(wrap32(static_cast<int64_t>(std::llround(demand_))));
   ferror_actual_.set(wrap32(static_cast<int64_t>(std::llround(demand_ - measured_))));
-  velocity_actual_.set(static_cast<int32_t>(std::clamp(velocity_est_, -2.0e9, 2.0e9)));
+  velocity_actual_.set(static_cast<int32_t>(std::clamp(velocity_report_, -2.0e9, 2.0e9)));
   torque_actual_.set(static_cast<int16_t>(std::clamp(plant_.torque() / cfg_.plant.rated_torque * 1000.0, -32768.0, 32767.0)));
   uint32_t din = 0;
   if (plant_.neg_limit()) din |= din::kNegativeLimit;

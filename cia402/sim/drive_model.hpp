@@ -33,7 +33,7 @@ struct ServoGains {
   double velocity_integral_time = 0.006;  // s; 0: no integral action
   double velocity_ff = 1.0;           // 0..1
   double torque_ff = 1.0;             // 0..1: acceleration x reflected inertia
-  double velocity_filter_tau = 1e-4;  // s: low-pass on the encoder-derived velocity
+  double velocity_filter_tau = 2e-4;  // s: low-pass on the encoder-derived velocity
 };
 
 struct DriveSimConfig {
@@ -100,6 +100,7 @@ class DriveModel {
   int64_t plant_time_ns() const noexcept { return time_ns_; }
   uint64_t syncs() const noexcept { return syncs_; }
   bool homed() const noexcept { return homed_; }
+  const char* homing_error() const noexcept { return homing_.error(); }
   const DriveSimConfig& config() const noexcept { return cfg_; }
 
  private:
@@ -174,7 +175,9 @@ class DriveModel {
   // servo
   double demand_ = 0;               // position demand, counts
   double measured_ = 0;             // encoder counts (quantised) + offset
-  double velocity_est_ = 0;         // counts/s
+  double velocity_est_ = 0;         // counts/s, for the velocity loop
+  double velocity_report_ = 0;      // counts/s, 0x606C
+  double settle_s_ = 0;
   double last_counts_ = 0;
   double integral_ = 0;             // N m
   double vff_ = 0, aff_ = 0;        // feed-forward, counts/s and counts/s^2
