@@ -70,9 +70,9 @@ void Interpreter::State::convert_cycle(int g, Pose) {
   }
   // Guard against programs that would never end (LinuxCNC would loop):
   // a peck depth too small to make progress, or absurd counts.
-  constexpr double kMaxMoves = 1e6;
+  constexpr double kMaxMoves = 1e5;
   if ((g == 730 || g == 830) && cycle_q > 0 && ((r - bottom) / cycle_q > kMaxMoves || r - cycle_q == r)) {
-    fail("Canned cycle would need more than 1000000 pecks");
+    fail("Canned cycle would need more than 100000 pecks");
   }
   if (repeats > kMaxMoves) fail("Canned cycle L repeat count too large");
   if (r < bottom) {

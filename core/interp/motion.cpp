@@ -499,10 +499,10 @@ void Interpreter::State::convert_g76(const Pose& end) {
   for (int n = 1;; ++n) {
     const double depth = j * std::pow(static_cast<double>(n), 1.0 / degression);
     if (depth >= k) break;
-    if (n > 100000) fail("G76 would need more than 100000 passes (check J, K and R)");
+    if (n > 10000) fail("G76 would need more than 10000 passes (check J, K and R)");
     pass(depth);
   }
-  if (spring > 100000) fail("G76 would need more than 100000 passes (check J, K and R)");
+  if (spring > 10000) fail("G76 would need more than 10000 passes (check J, K and R)");
   for (int h = 0; h <= spring; ++h) pass(k);
   emit_traverse(at(start_x, pos[2]));
 }
