@@ -224,7 +224,7 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
   if (warning && !fb.warning && !faulted) post(false, "warning (statusword 0x%04X)", statusword_);
   fb.warning = warning;
   fb.amp_fault = cmd.enable && (enable_failed_ || reset_failed_ || mode_failed_ || lost_enable_ || cmd.quick_stop ||
-                                !fb.link_ok || (faulted && !resetting_));
+                                cmd.inhibit || !fb.link_ok || (faulted && !resetting_));
 }
 
 // ------------------------------------------------------------------ write
@@ -313,16 +313,21 @@ void Drive::run_homing(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) 
       break;
     case HomePhase::Start:
       home_ = HomePhase::Running;  // bit 4 was 0 for this cycle: the next one is the edge
+      home_started_ns_ = now;
       break;
     case HomePhase::Running: {
+      // A "completed" left from an earlier homing must not count: accept it
+      // once the status showed anything else since the start, or when it
+      // persists (methods 35/37 complete within a cycle).
       const HomingStatus h = decode_homing(statusword_);
-      if (h == HomingStatus::InProgress || h == HomingStatus::AttainedNotReached) home_seen_progress_ = true;
+      if (h != HomingStatus::Completed) home_seen_progress_ = true;
+      if (h == HomingStatus::Completed && now - home_started_ns_ > 200'000'000) home_seen_progress_ = true;
       if (h == HomingStatus::ErrorMoving || h == HomingStatus::ErrorStopped) {
         post(true, "drive homing (method %d) failed: %s", config_.home_method, to_string(h));
         home_ = HomePhase::Error;
       } else if (home_seen_progress_ && h == HomingStatus::Completed) {
         home_ = HomePhase::SwitchBack;
-      } else if (home_seen_progress_ && h == HomingStatus::Interrupted) {
+      } else if (home_seen_progress_ && h == HomingStatus::Interrupted && now - home_started_ns_ > 100'000'000) {
         post(true, "drive homing (method %d) was interrupted by the drive", config_.home_method);
         home_ = HomePhase::Error;
       }

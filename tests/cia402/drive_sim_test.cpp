@@ -411,7 +411,9 @@ TEST_P(Cia402SimHoming, FindsItsReferenceOnThePlant) {
   EXPECT_EQ(decode_homing(d.model.statusword()), HomingStatus::Interrupted);  // not started
   d.cw(0x1F);
   d.sync();
-  EXPECT_EQ(decode_homing(d.model.statusword()), HomingStatus::InProgress);
+  if (hc.method != 35 && hc.method != 37) {
+    EXPECT_EQ(decode_homing(d.model.statusword()), HomingStatus::InProgress);
+  }
   ASSERT_TRUE(d.sync_until([&] { return decode_homing(d.model.statusword()) == HomingStatus::Completed; }, 30'000))
       << "method " << hc.method << ": " << to_string(decode_homing(d.model.statusword()));
   EXPECT_TRUE(d.model.homed());

@@ -1,17 +1,46 @@
 // The master-side drive control against simulated drives over CANopen on a
-// virtual bus (tests/cia402/rig.hpp): enable, disable, faults, modes,
-// homing, probes, scaling, following error, watchdog, lost master.
+// virtual bus (tests/cia402/rig.hpp): enable and disable, quick stop,
+// faults and their reset, modes, drive homing, touch probes, scaling,
+// following error, watchdog, lost master, no allocation.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 #include "tests/cia402/rig.hpp"
 #include "tests/support/testing.hpp"
 
 using namespace cnc;
 using namespace cnc::cia402;
-using cnc::cia402::test::Rig;
 using cnc::cia402::test::one_axis_ini;
+using cnc::cia402::test::Rig;
+
+namespace {
+
+constexpr double kCountsPerMm = 2000;
+
+// Moves the command from where it is to `to` at `speed` (units/s), then holds.
+void move(Rig& rig, double to, double speed, int hold_cycles = 50) {
+  double p = rig.cmd().pos_cmd;
+  const double step = speed * 0.001;
+  while (std::fabs(to - p) > 1e-12) {
+    p = std::fabs(to - p) <= step ? to : p + (to > p ? step : -step);
+    rig.cycle([&](Rig& r) { r.cmd().pos_cmd = p; });
+  }
+  rig.cycles(hold_cycles);
+}
+
+std::string count(const std::vector<std::string>& lines, const std::string& part, int* n) {
+  *n = 0;
+  std::string all;
+  for (const auto& l : lines) {
+    if (l.find(part) != std::string::npos) ++*n;
+    all += l + "\n";
+  }
+  return all;
+}
+
+}  // namespace
 
 TEST(Cia402Drive, EnablesThroughEveryStateAndFollows) {
   Rig rig(one_axis_ini());
@@ -19,36 +48,495 @@ TEST(Cia402Drive, EnablesThroughEveryStateAndFollows) {
   rig.cycles(50);
   EXPECT_EQ(rig.fb().state, State::SwitchOnDisabled);
   EXPECT_EQ(rig.fb().mode_display, Mode::CyclicSyncPosition);
-  ASSERT_TRUE(rig.enable()) << rig.drain_messages().size();
-  EXPECT_EQ(rig.fb().state, State::OperationEnabled);
+  std::vector<uint16_t> sent;
+  rig.cmd().enable = true;
+  ASSERT_TRUE(rig.cycle_until([&] {
+    if (sent.empty() || sent.back() != rig.fb().controlword) sent.push_back(rig.fb().controlword);
+    return rig.fb().enabled;
+  }, 100));
+  EXPECT_EQ(sent, (std::vector<uint16_t>{0x0006, 0x0007, 0x000F}));  // shutdown, switch on, enable operation
   EXPECT_EQ(rig.sim().state(), State::OperationEnabled);
-  const double start = rig.fb().pos_fb;
-  // A 10 mm move at 50 mm/s.
-  double cmd = start;
-  rig.cycles(400, [&](Rig& r) {
-    cmd = std::min(cmd + 0.05, start + 10.0);
-    r.cmd().pos_cmd = cmd;
-  });
-  rig.cycles(100, [&](Rig& r) { r.cmd().pos_cmd = cmd; });
-  EXPECT_NEAR(rig.fb().pos_fb, start + 10.0, 0.002);
-  EXPECT_NEAR(rig.sim().plant().table_position() * 1000.0, start + 10.0, 0.01);
+  EXPECT_FALSE(rig.fb().amp_fault);
+  move(rig, 10.0, 50.0);
+  EXPECT_NEAR(rig.fb().pos_fb, 10.0, 1.5 / kCountsPerMm);  // at rest within an increment (stiction)
+  EXPECT_NEAR(rig.sim().plant().table_position() * 1000.0, 10.0, 0.001);
+  EXPECT_NEAR(rig.fb().vel_fb, 0.0, 0.5);
 }
 
-TEST(Cia402Drive, DebugTrace) {
+TEST(Cia402Drive, EnableIsBumplessWhateverTheDriveHeldAsTarget) {
   Rig rig(one_axis_ini());
   rig.configure();
   rig.cycles(30);
+  // A stale target 50 mm away, as a drive may keep from earlier.
+  rig.host().at(0).od().set<int32_t>({0x607A, 0}, 100'000);
+  const double table = rig.sim().plant().table_position();
+  double worst_speed = 0;
+  rig.cmd().enable = true;
+  rig.cmd().pos_cmd = rig.fb().pos_fb;
+  ASSERT_TRUE(rig.cycle_until([&] {
+    worst_speed = std::max(worst_speed, std::fabs(rig.sim().plant().motor_velocity()));
+    return rig.fb().enabled;
+  }, 100));
+  rig.cycles(100, [&](Rig& r) { worst_speed = std::max(worst_speed, std::fabs(r.sim().plant().motor_velocity())); });
+  EXPECT_NEAR(rig.sim().plant().table_position(), table, 1e-6);
+  EXPECT_LT(worst_speed, 0.05);  // rad/s: the motor never moved
+}
+
+TEST(Cia402Drive, DisableStopsOnTheQuickStopRampThenPowersOff) {
+  Rig rig(one_axis_ini());
+  rig.configure();
   ASSERT_TRUE(rig.enable());
-  printf("enabled at cycle %llu pos %.6f\n", (unsigned long long)rig.cycle_count(), rig.fb().pos_fb);
-  const double start = rig.fb().pos_fb;
-  double cmd = start, maxfe = 0, maxsimfe=0;
-  for (int i = 0; i < 600; ++i) {
-    rig.cycle([&](Rig& r) { cmd = std::min(cmd + 0.05, start + 10.0); r.cmd().pos_cmd = cmd; });
-    maxfe = std::max(maxfe, std::fabs(rig.fb().ferror));
-    maxsimfe = std::max(maxsimfe, std::fabs(rig.sim().following_error()));
-    if (i >= 100 && i < 104) printf("  sim: omega %.3f rad/s torque %.4f demand %.1f meas %.1f fe %.2f vel_act %d\n", rig.sim().plant().motor_velocity(), rig.sim().plant().torque(), rig.sim().demand(), (double)rig.sim().position(), rig.sim().following_error(), (int)rig.sim().plant().encoder());
-    if (i % 100 == 0) printf("i %d cmd %.4f fb %.4f fe %.5f vel %.3f torque %.2f sw 0x%04X table %.4f\n", i, cmd, rig.fb().pos_fb, rig.fb().ferror, rig.fb().vel_fb, rig.fb().torque, rig.fb().statusword, rig.sim().plant().table_position()*1000);
+  double p = rig.fb().pos_fb;
+  rig.cycles(300, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.04); });  // 40 mm/s
+  rig.cmd().enable = false;  // motion disables (or E-stop)
+  std::vector<State> states;
+  ASSERT_TRUE(rig.cycle_until([&] {
+    if (states.empty() || states.back() != rig.sim().state()) states.push_back(rig.sim().state());
+    return rig.fb().state == State::SwitchOnDisabled;
+  }, 500));
+  EXPECT_EQ(states.front(), State::QuickStopActive);
+  EXPECT_FALSE(rig.fb().amp_fault);
+  rig.cycles(20);
+  EXPECT_EQ(rig.sim().plant().motor_velocity(), 0.0);
+  // 40 mm/s at 2000 mm/s^2: 0.4 mm beyond the point where the stop began.
+  EXPECT_NEAR(rig.sim().plant().table_position() * 1000.0 - p, 0.4, 0.15);
+}
+
+TEST(Cia402Drive, QuickStopInputStopsTheDriveAndTellsMotion) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  rig.cmd().quick_stop = true;
+  rig.cycle();
+  EXPECT_TRUE(rig.fb().amp_fault);
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().state == State::SwitchOnDisabled; }, 200));
+  EXPECT_TRUE(rig.has_message("quick stop requested"));
+  rig.cmd().quick_stop = false;
+  rig.cmd().enable = false;
+  rig.cycles(2);
+  EXPECT_TRUE(rig.enable());
+}
+
+TEST(Cia402Drive, FaultIsExplainedAndResetOnTheEnableEdgeWithAHoldOff) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  EXPECT_EQ(rig.host().inject("drive 1 overcurrent", 0, false), "");
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().fault; }, 50));
+  rig.cycles(5);
+  EXPECT_TRUE(rig.fb().amp_fault);  // motion is told
+  EXPECT_EQ(rig.fb().error_code, 0x2310);
+  EXPECT_TRUE(rig.has_message("x-axis: fault 0x2310 continuous over-current (0x603F)"));
+  EXPECT_TRUE(rig.has_message("EMCY 0x2310"));  // the master's EMCY consumer
+  // Holding the enable does not reset anything.
+  rig.cycles(300);
+  EXPECT_EQ(rig.fb().state, State::Fault);
+  // Motion disables, the operator enables again: one reset, and on.
+  rig.cmd().enable = false;
+  rig.cycles(3);
+  EXPECT_FALSE(rig.fb().amp_fault);
+  ASSERT_TRUE(rig.enable());
+  EXPECT_TRUE(rig.has_message("fault reset: the drive is in switch on disabled"));
+  // A second fault at once: the next enable edge falls inside the hold-off.
+  EXPECT_EQ(rig.host().inject("drive 1 overcurrent", 0, false), "");
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().fault; }, 50));
+  rig.cmd().enable = false;
+  rig.cycles(3);
+  rig.cmd().enable = true;
+  rig.cycles(3);
+  EXPECT_TRUE(rig.has_message("fault reset refused"));
+  EXPECT_TRUE(rig.fb().amp_fault);
+  EXPECT_EQ(rig.fb().state, State::Fault);
+  // After the hold-off (200 ms) the next edge resets.
+  rig.cmd().enable = false;
+  rig.cycles(250);
+  EXPECT_TRUE(rig.enable());
+}
+
+TEST(Cia402Drive, APersistentFaultIsResetOncePerEnableEdgeNeverInALoop) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  EXPECT_EQ(rig.host().inject("drive 1 overtemperature", 80, true), "");  // stays hot
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().state == State::Fault; }, 500));
+  rig.cmd().enable = false;
+  rig.cycles(300);  // past the hold-off
+  int resets = 0;
+  uint16_t last = 0;
+  rig.cmd().enable = true;
+  rig.cycles(3000, [&](Rig& r) {
+    if ((r.fb().controlword & cw::kFaultReset) && !(last & cw::kFaultReset)) ++resets;
+    last = r.fb().controlword;
+  });
+  EXPECT_EQ(resets, 1);
+  EXPECT_TRUE(rig.fb().amp_fault);
+  EXPECT_TRUE(rig.has_message("fault reset did not clear the fault (fault 0x4210 device over-temperature)"));
+}
+
+TEST(Cia402Drive, ModesSwitchOnlyAtStandstillAndAfter6061Confirms) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  double p = rig.fb().pos_fb;
+  rig.cycles(100, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });
+  // Asked while moving: nothing happens until the axis stands still.
+  rig.cycles(50, [&](Rig& r) {
+    r.cmd().pos_cmd = (p += 0.02);
+    r.cmd().mode_request = 9;
+  });
+  EXPECT_EQ(rig.fb().mode_display, Mode::CyclicSyncPosition);
+  EXPECT_EQ(rig.sim().mode(), Mode::CyclicSyncPosition);
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().mode_display == Mode::CyclicSyncVelocity && rig.fb().enabled; }, 200));
+  rig.cmd().vel_cmd = 5.0;
+  rig.cycles(400);
+  EXPECT_NEAR(rig.fb().vel_fb, 5.0, 0.3);
+  // Back to CSP: velocity zero first, then the switch, with no jump.
+  rig.cmd().vel_cmd = 0;
+  rig.cycles(100);
+  rig.cmd().mode_request = 0;
+  rig.cmd().pos_cmd = rig.fb().pos_fb;
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().mode_display == Mode::CyclicSyncPosition && rig.fb().enabled; }, 200,
+                              [&](Rig& r) { r.cmd().pos_cmd = r.fb().pos_fb; }));
+  const double table = rig.sim().plant().table_position();
+  rig.cycles(100);
+  EXPECT_NEAR(rig.sim().plant().table_position(), table, 2e-6);
+}
+
+TEST(Cia402Drive, ModesTravelBySdoWhenNotMapped) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) {
+    ini.set("CANOPEN_NODE_1", "RPDO1", "0x6040:0:u16 0x607A:0:s32");
+    ini.set("CANOPEN_NODE_1", "TPDO1", "0x6041:0:u16 0x6064:0:s32");
+  });
+  EXPECT_FALSE(rig.group().drive(0).slots().modes);
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  EXPECT_EQ(rig.fb().mode_display, Mode::CyclicSyncPosition);
+  rig.cmd().mode_request = 9;
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().mode_display == Mode::CyclicSyncVelocity; }, 300));
+  EXPECT_EQ(rig.sim().mode(), Mode::CyclicSyncVelocity);
+}
+
+TEST(Cia402Drive, ARefusedModeWriteIsReportedAndStopsTheAxis) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) {
+    ini.set("CANOPEN_NODE_1", "RPDO1", "0x6040:0:u16 0x607A:0:s32");
+  });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  EXPECT_EQ(rig.host().inject("drive 1 refuse-sdo", 0, false), "");
+  rig.cmd().mode_request = 9;
+  rig.cycles(100);
+  EXPECT_TRUE(rig.has_message("writing mode CSV to 0x6060 failed (abort 0x08000022)"));
+  EXPECT_TRUE(rig.fb().amp_fault);
+}
+
+TEST(Cia402Drive, StartUpStopsOnARefusedParameterWrite) {
+  Rig rig(one_axis_ini());
+  EXPECT_EQ(rig.host().inject("drive 1 refuse-sdo", 0, false), "");
+  try {
+    rig.configure();
+    FAIL() << "configure() accepted a refused write";
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("cia402.0.drive.00 (x-axis, address 1): 0x60C2:01"), std::string::npos) << what;
+    EXPECT_NE(what.find("0x08000022"), std::string::npos) << what;
   }
-  printf("max ferror %.5f mm, sim %.1f counts\n", maxfe, maxsimfe);
-  for (auto& l : rig.drain_messages()) printf("%s\n", l.c_str());
+}
+
+TEST(Cia402Drive, TheFaultCodeIsReadBySdoWhenNotMapped) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) { ini.set("CANOPEN_NODE_1", "TPDO3", "0x6077:0:s16 0x60FD:0:u32"); });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  EXPECT_EQ(rig.host().inject("drive 1 encoder-loss", 0, false), "");
+  rig.cycles(50);
+  EXPECT_TRUE(rig.has_message("x-axis: fault 0x7305 incremental encoder 1 broken (0x603F)"));
+  EXPECT_EQ(rig.fb().error_code, 0x7305);
+}
+
+// ---------------------------------------------------------------- homing
+
+struct DriveHoming {
+  int method;
+  double reference_mm;  // on the simulated table (limits at -/+100, home switch from 40, index 1.3 + 5k)
+};
+
+class Cia402DriveHoming : public ::testing::TestWithParam<DriveHoming> {};
+
+TEST_P(Cia402DriveHoming, HomesThroughTheMotionHookAndReturnsToCspWithoutAJump) {
+  const DriveHoming& h = GetParam();
+  Rig rig(one_axis_ini(), [&](ini::IniFile& ini) {
+    ini.set("CIA402_DRIVE_0", "HOME_METHOD", std::to_string(h.method));
+    ini.set("CIA402_DRIVE_0", "HOME_SEARCH_VEL", "40");
+  });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  // Motion's drive homing: raise home-start, follow the feedback, wait for done.
+  rig.cmd().home_start = true;
+  bool saw_busy = false;
+  ASSERT_TRUE(rig.cycle_until([&] {
+    saw_busy = saw_busy || rig.fb().home_busy;
+    return rig.fb().home_done || rig.fb().home_error;
+  }, 20'000, [&](Rig& r) { r.cmd().pos_cmd = r.fb().pos_fb; }));
+  EXPECT_TRUE(saw_busy);
+  ASSERT_TRUE(rig.fb().home_done) << "method " << h.method;
+  EXPECT_FALSE(rig.fb().home_busy);
+  EXPECT_EQ(rig.fb().mode_display, Mode::CyclicSyncPosition);
+  EXPECT_TRUE(rig.fb().enabled);
+  // The reference reads HOME_OFFSET (10 from [JOINT_0]), in the drive and
+  // in the feedback the master reports.
+  const double encoder_mm = static_cast<double>(rig.sim().plant().encoder()) / kCountsPerMm;
+  const double reference = encoder_mm - (static_cast<double>(rig.sim().position()) / kCountsPerMm - 10.0);
+  EXPECT_NEAR(rig.fb().pos_fb, static_cast<double>(rig.sim().position()) / kCountsPerMm, 1.5 / kCountsPerMm);
+  const bool edge = h.method >= 17 && h.method <= 30;
+  EXPECT_NEAR(reference, h.reference_mm, edge ? 0.002 : 0.0006) << "method " << h.method;
+  // Motion drops home-start and commands from the feedback: no jump.
+  rig.cmd().home_start = false;
+  rig.cmd().pos_cmd = rig.fb().pos_fb;
+  const double table = rig.sim().plant().table_position();
+  rig.cycles(100);
+  EXPECT_FALSE(rig.fb().home_done);
+  EXPECT_NEAR(rig.sim().plant().table_position(), table, 2e-6);
+  EXPECT_TRUE(rig.has_message("homed by the drive (method " + std::to_string(h.method) + ")"));
+}
+
+INSTANTIATE_TEST_SUITE_P(Methods, Cia402DriveHoming,
+                         ::testing::Values(DriveHoming{1, -98.7}, DriveHoming{2, 96.3}, DriveHoming{4, 41.3},
+                                           DriveHoming{17, -100.0}, DriveHoming{18, 100.0}, DriveHoming{33, -3.7},
+                                           DriveHoming{34, 1.3}, DriveHoming{35, 0.0}, DriveHoming{37, 0.0}),
+                         [](const ::testing::TestParamInfo<DriveHoming>& i) {
+                           return "Method" + std::to_string(i.param.method);
+                         });
+
+TEST(Cia402Drive, DriveHomingErrorReachesMotion) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) {
+    ini.set("CIA402_DRIVE_0", "HOME_METHOD", "4");
+    ini.set("CIA402_SIM_NODE_1", "HOME_SWITCH", "500");  // beyond the positive limit switch
+  });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  rig.cmd().home_start = true;
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().home_error; }, 20'000,
+                              [&](Rig& r) { r.cmd().pos_cmd = r.fb().pos_fb; }));
+  EXPECT_TRUE(rig.has_message("drive homing (method 4) failed: homing error"));
+  rig.cmd().home_start = false;
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().mode_display == Mode::CyclicSyncPosition; }, 500,
+                              [&](Rig& r) { r.cmd().pos_cmd = r.fb().pos_fb; }));
+  EXPECT_FALSE(rig.fb().home_error);
+}
+
+// ---------------------------------------------------------------- probes
+
+TEST(Cia402Drive, TouchProbeFeedsTheProbeInputWithTheLatchedPosition) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) { ini.set("CIA402_SIM_NODE_1", "PROBE_POSITION", "-5.1234"); });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  rig.cycles(20);
+  bool tripped = false;
+  double cmd_at_trip = 0;
+  double p = rig.fb().pos_fb;
+  while (p > -8.0) {
+    p -= 0.04;  // 40 mm/s: 0.04 mm per cycle
+    rig.cycle([&](Rig& r) { r.cmd().pos_cmd = p; });
+    if (rig.fb().probe_input && !tripped) {
+      tripped = true;
+      cmd_at_trip = p;
+    }
+  }
+  ASSERT_TRUE(tripped);
+  EXPECT_EQ(rig.fb().probe_count, 1u);
+  EXPECT_NEAR(rig.fb().probe_position, -5.1234, 1.0 / kCountsPerMm);  // the latch: one increment
+  EXPECT_GT(std::fabs(cmd_at_trip - (-5.1234)), 0.02);               // what sampling per cycle would give
+  // Back off: the input releases and the probe is armed again.
+  move(rig, 0.0, 40.0);
+  EXPECT_FALSE(rig.fb().probe_input);
+  move(rig, -6.0, 40.0);
+  EXPECT_EQ(rig.fb().probe_count, 2u);
+  EXPECT_NEAR(rig.fb().probe_position, -5.1234, 1.0 / kCountsPerMm);
+}
+
+TEST(Cia402Drive, IndexEnableIsClearedAtTheZeroPulseWithItsExactPosition) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  rig.cmd().index_enable = true;
+  rig.cycles(20);  // the probe is armed by the time the axis moves
+  double found_at = 0;
+  bool found = false;
+  double p = rig.fb().pos_fb;
+  while (!found && p < 12.0) {
+    p += 0.005;  // 5 mm/s
+    rig.cycle([&](Rig& r) { r.cmd().pos_cmd = p; });
+    if (rig.fb().index_found) {
+      found = true;
+      found_at = rig.fb().index_position;
+      rig.cmd().index_enable = false;  // the HAL component clears the I/O pin
+    }
+  }
+  ASSERT_TRUE(found);
+  EXPECT_NEAR(found_at, 1.3, 1.0 / kCountsPerMm);
+}
+
+// ---------------------------------------------------------------- scaling, errors
+
+TEST(Cia402Drive, ScalesWithGearScrewAndDirection) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) {
+    ini.set("CIA402_DRIVE_0", "GEAR_MOTOR_REVS", "3");
+    ini.set("CIA402_DRIVE_0", "REVERSE", "YES");
+    ini.set("CIA402_SIM_NODE_1", "GEAR", "3");
+  });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  const double table = rig.sim().plant().table_position() * 1000.0;
+  move(rig, 2.0, 10.0);
+  EXPECT_NEAR(rig.fb().pos_fb, 2.0, 1.0 / 6000);
+  EXPECT_NEAR(rig.sim().plant().table_position() * 1000.0 - table, -2.0, 0.001);  // the motor turns the other way
+  EXPECT_NEAR(static_cast<double>(rig.sim().position()), -12'000, 2);            // 6000 increments per mm
+}
+
+TEST(Cia402Drive, TooSoftALoopTripsTheDrivesFollowingErrorWindow) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) {
+    ini.set("CIA402_SIM_NODE_1", "POSITION_GAIN", "2");
+    ini.set("CIA402_SIM_NODE_1", "VELOCITY_FF", "0");
+    ini.set("CIA402_SIM_NODE_1", "TORQUE_FF", "0");
+  });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  double p = rig.fb().pos_fb;
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().fault; }, 3000, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); }));
+  rig.cycles(10);
+  EXPECT_EQ(rig.fb().error_code, err::kFollowingError);
+  EXPECT_TRUE(rig.fb().amp_fault);
+  EXPECT_TRUE(rig.has_message(
+      "x-axis: fault 0x8611 following error: the drive's following error window (0x6065/0x6066) was exceeded"));
+  EXPECT_TRUE(rig.has_message("EMCY 0x8611"));
+}
+
+TEST(Cia402Drive, ALostDriveIsReported) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  EXPECT_EQ(rig.host().inject("drive 1 dead", 0, false), "");
+  ASSERT_TRUE(rig.cycle_until([&] { return !rig.fb().link_ok; }, 500));
+  EXPECT_TRUE(rig.fb().amp_fault);
+  EXPECT_TRUE(rig.has_message("x-axis: lost the drive on canopen.0"));
+}
+
+TEST(Cia402Drive, LostFramesAreRiddenThroughOrReported) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  double p = rig.fb().pos_fb;
+  rig.cycles(100, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.01); });
+  // Two lost SYNC/RPDO frames: the drive holds one cycle and goes on.
+  EXPECT_EQ(rig.host().inject("drive 1 lost-frames", 2, true), "");
+  rig.cycles(100, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.01); });
+  EXPECT_TRUE(rig.fb().enabled);
+  EXPECT_EQ(rig.host().at(0).frames_dropped(), 2u);
+  // Many lost frames: the drive's SYNC watch (50 ms) stops it.
+  EXPECT_EQ(rig.host().inject("drive 1 lost-frames", 200, true), "");
+  rig.cycles(150, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.01); });
+  EXPECT_EQ(rig.sim().state(), State::Fault);
+  EXPECT_EQ(rig.sim().error_code(), err::kSyncLost);
+}
+
+// ---------------------------------------------------------------- watchdog, lost master
+
+TEST(Cia402Drive, AStoppedMotionWatchdogStopsTheBusAndTheDrivesStopByThemselves) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  bool level = false, toggling = true;
+  rig.before_write = [&](Rig& r) {
+    if (toggling) level = !level;
+    r.group().set_watchdog(level, true);
+    r.mute_bus(!r.group().watchdog_ok());  // the HAL net: watchdog-ok => canopen.0.enable
+  };
+  double p = rig.fb().pos_fb;
+  rig.cycles(200, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });
+  EXPECT_TRUE(rig.group().watchdog_ok());
+  toggling = false;  // motion stopped running
+  rig.cycles(3, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });
+  EXPECT_FALSE(rig.group().watchdog_ok());
+  EXPECT_TRUE(rig.has_message("motion watchdog stopped for 3 cycles"));
+  rig.cycles(100);
+  // The last controlword sent was a quick stop; the bus is silent since.
+  EXPECT_EQ(rig.sim().state(), State::SwitchOnDisabled);
+  EXPECT_EQ(rig.sim().plant().motor_velocity(), 0.0);
+  EXPECT_TRUE(rig.fb().amp_fault);
+}
+
+TEST(Cia402Drive, LostCyclesMakeTheDriveStopByItself) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  double p = rig.fb().pos_fb;
+  rig.cycles(200, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });
+  rig.mute_bus(true);  // the servo thread stops sending: no SYNC, no set-point
+  rig.cycles(100);
+  EXPECT_EQ(rig.sim().state(), State::Fault);  // its SYNC watch (50 ms), then the fault reaction
+  EXPECT_EQ(rig.sim().error_code(), err::kSyncLost);
+  EXPECT_EQ(rig.sim().plant().motor_velocity(), 0.0);
+}
+
+TEST(Cia402Drive, WhenTheMasterDiesTheDrivesStopWithinTheirHeartbeatTimeout) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) {
+    ini.set("CIA402_SIM_NODE_1", "SYNC_TIMEOUT_MS", "10000");  // only the heartbeat watches the master
+  });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  double p = rig.fb().pos_fb;
+  rig.cycles(300, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });  // 20 mm/s
+  rig.kill_master();
+  const int64_t died = rig.now();
+  int64_t stopped = -1;
+  std::vector<uint16_t> words;
+  while (rig.now() - died < 500'000'000) {
+    rig.step();
+    const uint16_t s = rig.sim().statusword();
+    if (words.empty() || words.back() != s) words.push_back(s);
+    if (stopped < 0 && rig.sim().state() == State::Fault && rig.sim().plant().motor_velocity() == 0.0) stopped = rig.now();
+  }
+  ASSERT_GE(stopped, 0);
+  // 0x1016: 60 ms after the last heartbeat (they come every 20 ms), then
+  // the quick-stop ramp (20 mm/s at 2000 mm/s^2: 10 ms).
+  EXPECT_LE(stopped - died, (60 + 20 + 10 + 10) * 1'000'000);
+  EXPECT_EQ(rig.sim().error_code(), err::kHeartbeat);
+  ASSERT_GE(words.size(), 3u);
+  EXPECT_EQ(words[words.size() - 1], 0x0218);  // fault
+  bool warned = false;
+  for (uint16_t w : words) warned = warned || (decode_state(w) == State::OperationEnabled && (w & sw::kWarning));
+  EXPECT_TRUE(warned);  // OE + warning before the fault, as real drives
+}
+
+TEST(Cia402Drive, ServoFunctionsNeverAllocate) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) {
+    ini.set("CIA402_DRIVE_0", "HOME_METHOD", "34");
+    ini.set("CANOPEN_NODE_1", "RPDO1", "0x6040:0:u16 0x607A:0:s32");  // modes by SDO from the cycle too
+    ini.set("CIA402_SIM_NODE_1", "PROBE_POSITION", "-3");
+  });
+  rig.configure();
+  rig.cycles(30);
+  cnc::testing::AllocationCounter::reset();
+  rig.count_allocations = true;
+  ASSERT_TRUE(rig.enable());
+  double p = rig.fb().pos_fb;
+  rig.cycles(200, [&](Rig& r) { r.cmd().pos_cmd = (p -= 0.02); });     // probe trips at -3
+  rig.cycle([&](Rig& r) { r.cmd().index_enable = true; });
+  rig.cycles(300, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });     // index
+  rig.cmd().index_enable = false;
+  rig.cmd().home_start = true;
+  rig.cycle_until([&] { return rig.fb().home_done; }, 5000, [&](Rig& r) { r.cmd().pos_cmd = r.fb().pos_fb; });
+  rig.cmd().home_start = false;
+  EXPECT_EQ(rig.host().inject("drive 1 overcurrent", 0, false), "");
+  rig.cycles(50);
+  rig.cmd().enable = false;
+  rig.cycles(300);
+  rig.cmd().enable = true;
+  rig.cycles(50);
+  rig.count_allocations = false;
+  int lines = 0;
+  const std::string all = count(rig.drain_messages(), "homed by the drive", &lines);
+  EXPECT_EQ(lines, 1) << all;
+  if (cnc::testing::AllocationCounter::available()) {
+    EXPECT_EQ(cnc::testing::AllocationCounter::count(), 0u);
+  }
 }

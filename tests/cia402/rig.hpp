@@ -23,6 +23,7 @@
 #include "fieldbus/can/virtual_bus.hpp"
 #include "fieldbus/canopen/config.hpp"
 #include "fieldbus/canopen/master.hpp"
+#include "tests/support/testing.hpp"
 
 namespace cnc::cia402::test {
 
@@ -130,7 +131,7 @@ class Rig {
   void step() {
     bus_->advance(kStepNs);
     host_->step(now());
-    master_->poll(now());
+    if (!master_dead_) master_->poll(now());
   }
   void run_for(int64_t ns) {
     const int64_t end = now() + ns;
@@ -140,12 +141,19 @@ class Rig {
   // One servo cycle; `motion` sets the commands between read and write.
   void cycle(const std::function<void(Rig&)>& motion = {}) {
     const int64_t t = now();
-    master_->cyclic_read(t);
-    group_->read(t);
-    if (motion) motion(*this);
-    if (before_write) before_write(*this);
-    group_->write(t);
-    if (!bus_muted_) master_->cyclic_write(t);
+    if (!master_dead_) {
+      // The servo thread's functions, optionally under the allocation counter.
+      if (count_allocations) cnc::testing::AllocationCounter::arm_this_thread();
+      master_->cyclic_read(t);
+      group_->read(t);
+      if (count_allocations) cnc::testing::AllocationCounter::disarm_this_thread();
+      if (motion) motion(*this);
+      if (before_write) before_write(*this);
+      if (count_allocations) cnc::testing::AllocationCounter::arm_this_thread();
+      group_->write(t);
+      if (!bus_muted_) master_->cyclic_write(t);
+      if (count_allocations) cnc::testing::AllocationCounter::disarm_this_thread();
+    }
     ++cycles_;
     const int64_t end = t + cycle_ns_;
     while (now() < end) step();
@@ -171,8 +179,10 @@ class Rig {
   can::VirtualBus& bus() { return *bus_; }
   const ini::IniFile& ini() const { return ini_; }
   uint64_t cycle_count() const { return cycles_; }
-  // Stops the master's cyclic output (a dead servo thread) when true.
+  // Stops the master's cyclic output (the bus's enable pin) when true.
   void mute_bus(bool on) { bus_muted_ = on; }
+  // The whole master dies: no cycle, no heartbeat, no SDO.
+  void kill_master() { master_dead_ = true; }
 
   // Every message posted so far, as text lines "source: text".
   std::vector<std::string> drain_messages() {
@@ -200,6 +210,7 @@ class Rig {
   MessageQueue messages;
   std::vector<std::string> log;
   std::function<void(Rig&)> before_write;
+  bool count_allocations = false;  // arm the allocation counter around the servo-thread calls
 
  private:
   // The production link, except that the blocking start-up transfers step
@@ -263,6 +274,7 @@ class Rig {
   int64_t cycle_ns_ = 1'000'000;
   uint64_t cycles_ = 0;
   bool bus_muted_ = false;
+  bool master_dead_ = false;
 };
 
 }  // namespace cnc::cia402::test
