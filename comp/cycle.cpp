@@ -48,6 +48,10 @@ void emit_runs(std::string& out, const CycleOptions& o, const std::vector<double
 std::string header(const CycleOptions& o, const std::string& what) {
   char b[256];
   std::string out = "(" + what + ", axis " + std::string(1, o.axis) + ", written by cnc-comp cycle)\n";
+  // Both marks low now (the program starts at rest): the logger sees a
+  // clean rising edge when the measurement starts, then when it ends.
+  std::snprintf(b, sizeof b, "M65 P%d\nM65 P%d\n", o.digital_out, o.digital_out + 1);
+  out += b;
   std::snprintf(b, sizeof b, "(feed %.0f mm/min, dwell %.2f s, overshoot %.3f mm, targets seed %llu)\n", o.feed_mm_min,
                 o.dwell_s, o.overshoot_mm, static_cast<unsigned long long>(o.seed));
   out += b;
@@ -100,14 +104,14 @@ std::string iso_cycle_gcode(const CycleOptions& o) {
   out += pos(o.axis, t.front() - o.overshoot_mm) + " (start below the first target)\nG4 P0.05\n";
   out += "M62 P" + std::to_string(o.digital_out) + " (measurement on with the next move)\n";
   emit_runs(out, o, t, o.runs, o.dwell_s);
-  out += "M63 P" + std::to_string(o.digital_out) + " (measurement off with the next move)\n";
+  out += "M62 P" + std::to_string(o.digital_out + 1) + " (measurement end with the next move)\n";
   out += pos(o.axis, t.front()) + "\nM2\n";
   return out;
 }
 
 std::string periodic_cycle_gcode(const CycleOptions& o) {
   if (!(o.lead_mm > 0)) throw std::invalid_argument("the periodic runs need the screw lead");
-  std::string out = header(o, "Dense runs for the lead-periodic error (ISO 230-2 Annex C): " +
+  std::string out = header(o, "Dense runs for the lead-periodic error, ISO 230-2 Annex C: " +
                                   std::to_string(o.periodic_places) + " places, " + std::to_string(o.periodic_runs) +
                                   " runs each way");
   bool first = true;
@@ -121,7 +125,7 @@ std::string periodic_cycle_gcode(const CycleOptions& o) {
     }
     emit_runs(out, o, t, o.periodic_runs, o.dwell_s);
   }
-  out += "M63 P" + std::to_string(o.digital_out) + " (measurement off with the next move)\n";
+  out += "M62 P" + std::to_string(o.digital_out + 1) + " (measurement end with the next move)\n";
   out += pos(o.axis, o.x_min) + "\nM2\n";
   return out;
 }

@@ -7,8 +7,13 @@
 //    before each reversal and a dwell at each target for the measurement;
 //  - dense short runs over a few screw leads at several places (ISO 230-2
 //    Annex C), which the periodic error needs.
-// A digital output of motion (M62/M63 P<n>, synchronised with the next
-// move) marks the measurement for the logger (complog.enable). Offline.
+// Two digital outputs of motion mark the measurement for the logger, each
+// set with M62 (synchronised with the next move): P<n> (complog.enable)
+// when the move to the first target starts, P<n+1> (complog.stop) when the
+// move after the last target starts; both are cleared at the program's
+// start with M65. (Two outputs rather than M62/M63 on one: the program is
+// read ahead, and a later M63 on the same output would replace the M62
+// still waiting for its move.) Offline.
 #pragma once
 
 #include <cstdint>
@@ -26,7 +31,7 @@ struct CycleOptions {
   double dwell_s = 0.8;          // at each target (the logger settles, then averages)
   double feed_mm_min = 3000;
   uint64_t seed = 1;             // for the targets' random offsets
-  int digital_out = 0;           // motion.digital-out-NN driving complog.enable
+  int digital_out = 0;           // motion.digital-out-NN: complog.enable; NN + 1: complog.stop
   // Dense periodic runs (Annex C)
   double lead_mm = 5;
   int periodic_places = 3;       // spread over the travel

@@ -18,6 +18,7 @@ MeasurementLogger::MeasurementLogger(hal::ComponentContext& ctx, const hal::Load
   if (!(scale_ > 0)) throw hal::HalError("complog: scale (micrometres per machine unit) must be positive");
   with_temperature_ = args.get_int("temperature", 0, 0, 1) != 0;
   enable_ = make_pin<bool>("complog.enable", hal::PinDir::In);
+  stop_ = make_pin<bool>("complog.stop", hal::PinDir::In);
   zero_at_start_ = make_pin<bool>("complog.zero-at-start", hal::PinDir::In, true);
   measuring_ = make_pin<bool>("complog.measuring", hal::PinDir::Out);
   commanded_ = make_pin<double>("complog.commanded", hal::PinDir::In);
@@ -26,6 +27,7 @@ MeasurementLogger::MeasurementLogger(hal::ComponentContext& ctx, const hal::Load
   actual_offset_ = make_pin<double>("complog.actual-offset", hal::PinDir::In);
   settle_time_ = make_pin<double>("complog.settle-time", hal::PinDir::In, 0.25);
   average_time_ = make_pin<double>("complog.average-time", hal::PinDir::In, 0.25);
+  min_move_ = make_pin<double>("complog.min-move", hal::PinDir::In, 1e-6);
   points_ = make_pin<int32_t>("complog.points", hal::PinDir::Out);
   measurements_ = make_pin<int32_t>("complog.measurements", hal::PinDir::Out);
   export_method<&MeasurementLogger::sample>("complog", this);
@@ -33,25 +35,35 @@ MeasurementLogger::MeasurementLogger(hal::ComponentContext& ctx, const hal::Load
 
 void MeasurementLogger::sample(const rt::CycleInfo& info) noexcept {
   const double dt = static_cast<double>(info.period_ns) * 1e-9;
-  const bool en = enable_.get();
+  const bool en = enable_.get(), stop = stop_.get();
   const double cmd = commanded_.get();
   if (en && !was_enabled_) {
     events_.push(Event{Event::Start});
+    open_rt_ = true;
     time_s_ = 0;
     points_rt_ = 0;
     direction_ = 0;
     have_last_ = false;
-  } else if (!en && was_enabled_) {
+  } else if (open_rt_ && (!en || (stop && !was_stop_))) {
     events_.push(Event{Event::Stop});
+    open_rt_ = false;
   }
   was_enabled_ = en;
-  if (!en) {
+  was_stop_ = stop;
+  if (!open_rt_) {
     measuring_.set(false);
     return;
   }
   time_s_ += dt;
   if (!have_last_ || cmd != last_cmd_) {
-    if (have_last_) direction_ = cmd > last_cmd_ ? 1 : -1;
+    // The approach direction: that of the last move beyond min-move from
+    // where the direction was last decided.
+    if (!have_last_) {
+      anchor_ = cmd;
+    } else if (std::fabs(cmd - anchor_) > min_move_.get()) {
+      direction_ = cmd > anchor_ ? 1 : -1;
+      anchor_ = cmd;
+    }
     have_last_ = true;
     last_cmd_ = cmd;
     still_s_ = 0;

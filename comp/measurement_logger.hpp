@@ -7,10 +7,11 @@
 //   loadrt complog file=<path, %d = measurement number> [axis=X] [scale=1000] [temperature=0|1]
 //   addf complog servo-thread        (after the functions that set its inputs)
 // Pins: complog.enable (rising edge starts a measurement, falling edge ends
-// it), complog.commanded, complog.actual, complog.temperature,
+// it), complog.stop (rising edge ends it too), complog.commanded, complog.actual, complog.temperature,
 // complog.actual-offset, complog.zero-at-start (the first point reads 0, as
 // a laser zeroed at the first target), complog.settle-time,
-// complog.average-time; out: complog.points, complog.measurements,
+// complog.average-time, complog.min-move (the approach direction counts
+// moves larger than this, not the rounding of a planner's last sample); out: complog.points, complog.measurements,
 // complog.measuring. The servo-thread function never allocates; the task
 // cycle writes the measurement file (docs/compensation.md) atomically
 // after every point.
@@ -52,13 +53,13 @@ class MeasurementLogger final : public hal::Component, public ipc::ControllerSer
   void write_current();
 
   // pins
-  hal::BitPin enable_, zero_at_start_, measuring_;
-  hal::FloatPin commanded_, actual_, temperature_, actual_offset_, settle_time_, average_time_;
+  hal::BitPin enable_, stop_, zero_at_start_, measuring_;
+  hal::FloatPin commanded_, actual_, temperature_, actual_offset_, settle_time_, average_time_, min_move_;
   hal::S32Pin points_, measurements_;
   // servo-thread state
-  bool was_enabled_ = false, sampled_ = false, have_last_ = false;
+  bool was_enabled_ = false, was_stop_ = false, open_rt_ = false, sampled_ = false, have_last_ = false;
   int8_t direction_ = 0;
-  double last_cmd_ = 0, still_s_ = 0, time_s_ = 0, sum_actual_ = 0, sum_temp_ = 0;
+  double last_cmd_ = 0, anchor_ = 0, still_s_ = 0, time_s_ = 0, sum_actual_ = 0, sum_temp_ = 0;
   int count_ = 0;
   int32_t points_rt_ = 0;
   SpscRing<Event, 1024> events_;

@@ -12,6 +12,16 @@
 using namespace cnc::comp;
 
 namespace {
+// G-code comments do not nest: at most one '(' and one ')' per line.
+void expect_plain_comments(const std::string& g) {
+  std::size_t start = 0;
+  for (std::size_t end = g.find('\n'); end != std::string::npos; start = end + 1, end = g.find('\n', start)) {
+    const std::string line = g.substr(start, end - start);
+    EXPECT_LE(std::count(line.begin(), line.end(), '('), 1) << line;
+    EXPECT_EQ(std::count(line.begin(), line.end(), '('), std::count(line.begin(), line.end(), ')')) << line;
+  }
+}
+
 int count(const std::string& text, const std::string& what) {
   int n = 0;
   for (std::size_t p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) ++n;
@@ -59,12 +69,15 @@ TEST(MeasurementCycle, StandardCycleProgram) {
   EXPECT_EQ(count(g, "G53 G1 Y113.0000 (overshoot)"), 5);
   EXPECT_EQ(count(g, "G53 G1 Y7.0000 (overshoot)"), 5);
   EXPECT_NE(g.find("G61"), std::string::npos) << "exact stop";
-  const std::size_t on = g.find("M62 P2"), off = g.find("M63 P2"), first = g.find("G53 G1 Y10.0000\nG4 P0.750");
+  const std::size_t on = g.find("M62 P2"), off = g.find("M62 P3"), first = g.find("G53 G1 Y10.0000\nG4 P0.750");
+  EXPECT_EQ(g.find("M65 P2\nM65 P3\n"), g.find("M65")) << "both marks cleared before anything moves";
+  EXPECT_LT(g.find("M65"), g.find("G53"));
   ASSERT_NE(on, std::string::npos);
   ASSERT_NE(off, std::string::npos);
   EXPECT_LT(on, first) << "measurement on with the move to the first target";
   EXPECT_GT(off, g.rfind("G4 P0.750")) << "off after the last dwell";
   EXPECT_EQ(g.substr(g.size() - 3), "M2\n");
+  expect_plain_comments(g);
 }
 
 TEST(MeasurementCycle, PeriodicRunsCoverLeadsAtSeveralPlaces) {
@@ -88,7 +101,9 @@ TEST(MeasurementCycle, PeriodicRunsCoverLeadsAtSeveralPlaces) {
   const std::string g = periodic_cycle_gcode(o);
   EXPECT_EQ(count(g, "G4 P0.800\n"), 3 * 17 * o.periodic_runs * 2);
   EXPECT_EQ(count(g, "M62 P0"), 1);
-  EXPECT_EQ(count(g, "M63 P0"), 1);
+  EXPECT_EQ(count(g, "M62 P1"), 1);
+  EXPECT_EQ(count(g, "M63"), 0) << "an M63 read ahead would replace the M62 waiting for its move";
+  expect_plain_comments(g);
   o.lead_mm = 0;
   EXPECT_THROW(periodic_cycle_gcode(o), std::invalid_argument);
 }

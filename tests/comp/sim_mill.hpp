@@ -1,0 +1,200 @@
+// A simulated machine for the compensation closed loop, in-process and
+// stepped cycle by cycle in simulated time: a configuration folder (INI and
+// HAL files) is copied to a temporary folder and built as the controller
+// builds it (HAL files, every component's on_ready, the I/O and task
+// controllers); each step runs the servo thread once, then one task cycle
+// with the services in the daemon's order. Commands reach the services as
+// the daemon dispatches them, so JOINT_LOAD_COMP goes to screwcomp.
+// Used by the closed-loop test and the benchmark; no GoogleTest inside.
+#pragma once
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "comp/measurement_logger.hpp"
+#include "comp/screwcomp_component.hpp"
+#include "core/hal/commands.hpp"
+#include "core/ini/ini_file.hpp"
+#include "core/io/io_controller.hpp"
+#include "core/motion/motion_component.hpp"
+#include "core/task/task_controller.hpp"
+#include "core/tp/lookahead_planner.hpp"
+#include "core/util/atomic_file.hpp"
+#include "core/util/messages.hpp"
+#include "kinematics/kinematics.hpp"
+
+namespace cnc::testing {
+
+class SimMill : private ipc::CommandReporter {
+ public:
+  using Registrar = std::function<void(hal::ComponentRegistry&)>;
+  using Reply = std::pair<ipc::CommandState, std::string>;
+
+  SimMill(const std::filesystem::path& config, const std::filesystem::path& work, const std::string& ini_name,
+          const Registrar& extra, motion::PlannerFactory planner = {})
+      : dir_(work) {
+    std::filesystem::create_directories(dir_);
+    for (const auto& e : std::filesystem::directory_iterator(config)) {
+      std::filesystem::copy(e.path(), dir_ / e.path().filename(), std::filesystem::copy_options::overwrite_existing);
+    }
+    ini_ = ini::IniFile::load(dir_ / ini_name);
+    hal::register_core_components(registry_);
+    kin::register_kinematics_components(registry_);
+    if (!planner) planner = [](const tp::PlannerConfig& c) { return tp::make_planner(c); };
+    motion::register_components(registry_, planner);
+    io::register_components(registry_);
+    comp::register_components(registry_);
+    if (extra) extra(registry_);
+    hal_.add_component(std::make_unique<io::IoController>(hal_, io::IoConfig::from_ini(ini_), &messages_));
+    hal::CommandInterpreter interp(hal_, registry_, &ini_, &messages_);
+    for (const std::string& f : ini_.find_all("HAL", "HALFILE")) interp.run_file(ini_.resolve_path(f));
+    for (hal::Component* c : hal_.components()) c->on_ready();
+    motion_ = hal_.find<motion::MotionComponent>("motmod");
+    io_ = hal_.find<io::IoController>("iocontrol");
+    task_ = std::make_unique<task::TaskController>(ini_, hal_, *motion_, *io_, messages_);
+    for (hal::Component* c : hal_.components()) {
+      if (auto* s = dynamic_cast<ipc::ControllerService*>(c)) services_.push_back(s);
+    }
+    services_.push_back(task_.get());
+    std::stable_sort(services_.begin(), services_.end(), [](const ipc::ControllerService* a, const ipc::ControllerService* b) {
+      return a->service_order() < b->service_order();
+    });
+    thread_ = hal_.find_thread("servo-thread");
+    info_.period_ns = info_.actual_period_ns = 1'000'000;
+    status_ = std::make_unique<ipc::Status>();
+  }
+
+  // One servo period, then one task cycle.
+  void step(int n = 1) {
+    for (int i = 0; i < n; ++i) {
+      thread_->run_cycle(info_);
+      ++info_.cycle;
+      now_ns_ += info_.period_ns;
+      for (ipc::ControllerService* s : services_) s->update(now_ns_);
+      if (info_.cycle % 10 == 0) {
+        for (ipc::ControllerService* s : services_) s->contribute_status(*status_);
+      }
+      drain();
+    }
+  }
+
+  Reply send(ipc::Command c, int max_cycles = 600000) {
+    c.serial = ++serial_;
+    bool taken = false;
+    for (ipc::ControllerService* s : services_) {
+      if ((taken = s->handle_command(c, *this))) break;
+    }
+    if (!taken) return {ipc::CommandState::Rejected, "no service handles it"};
+    for (int i = 0; i < max_cycles; ++i) {
+      const auto it = replies_.find(c.serial);
+      if (it != replies_.end() &&
+          (it->second.first == ipc::CommandState::Done || it->second.first == ipc::CommandState::Rejected)) {
+        return it->second;
+      }
+      step();
+    }
+    return {ipc::CommandState::None, "no answer in time"};
+  }
+  Reply send(ipc::CommandType t, int i0 = 0, double d0 = 0) {
+    ipc::Command c;
+    c.type = t;
+    c.i[0] = i0;
+    c.d[0] = d0;
+    return send(c);
+  }
+
+  // E-stop reset, machine on, home all, auto mode. Empty on success.
+  std::string power_up() {
+    for (const auto& [what, reply] : {std::pair<const char*, Reply>{"estop reset", send(ipc::CommandType::TaskSetState, 2)},
+                                      {"machine on", send(ipc::CommandType::TaskSetState, 4)},
+                                      {"home all", send(ipc::CommandType::JointHome, -1)},
+                                      {"auto", send(ipc::CommandType::TaskSetMode, static_cast<int>(ipc::TaskMode::Auto))}}) {
+      if (reply.first != ipc::CommandState::Done) return std::string(what) + ": " + reply.second + errors();
+    }
+    return {};
+  }
+
+  // Writes, opens and runs a program until the interpreter is idle again.
+  std::string run_program(const std::string& name, const std::string& text, double max_seconds) {
+    write_file_atomically(dir_ / name, text);
+    ipc::Command open;
+    open.type = ipc::CommandType::TaskPlanOpen;
+    open.text.assign((dir_ / name).string());
+    if (const Reply r = send(open); r.first != ipc::CommandState::Done) return "open: " + r.second + errors();
+    ipc::Command run;
+    run.type = ipc::CommandType::TaskPlanRun;
+    run.serial = ++serial_;
+    for (ipc::ControllerService* s : services_) {
+      if (s->handle_command(run, *this)) break;
+    }
+    const int64_t limit = now_ns_ + static_cast<int64_t>(max_seconds * 1e9);
+    step(20);
+    while (task_->interp_state() != ipc::InterpState::Idle) {
+      if (now_ns_ > limit) return "program did not end within " + std::to_string(max_seconds) + " s" + errors();
+      step(100);
+    }
+    const auto it = replies_.find(run.serial);
+    if (it != replies_.end() && it->second.first == ipc::CommandState::Rejected) return "run: " + it->second.second;
+    const std::string e = errors();
+    return e.empty() ? std::string() : "errors while running: " + e;
+  }
+
+  // JOINT_LOAD_COMP as a client sends it.
+  Reply load_comp(int joint, const std::filesystem::path& file, int type) {
+    ipc::Command c;
+    c.type = ipc::CommandType::JointLoadComp;
+    c.i[0] = joint;
+    c.i[1] = type;
+    c.text.assign(file.string());
+    return send(c);
+  }
+
+  comp::MeasurementLogger& logger() { return *hal_.find<comp::MeasurementLogger>("complog"); }
+  hal::Hal& hal() { return hal_; }
+  motion::MotionComponent& motion() { return *motion_; }
+  double seconds() const { return static_cast<double>(now_ns_) * 1e-9; }
+  const std::filesystem::path& dir() const { return dir_; }
+  // Error messages since the last call.
+  std::string errors() {
+    drain();
+    std::string e;
+    e.swap(errors_);
+    return e;
+  }
+
+ private:
+  void report(const ipc::Command& cmd, ipc::CommandState state, std::string_view reason) override {
+    replies_[cmd.serial] = {state, std::string(reason)};
+  }
+  void drain() {
+    Message m;
+    while (messages_.pop(m)) {
+      if (m.kind == MessageKind::Error) errors_ += "\n  " + std::string(m.source.view()) + ": " + std::string(m.text.view());
+    }
+  }
+
+  std::filesystem::path dir_;
+  MessageQueue messages_;
+  ini::IniFile ini_;
+  hal::Hal hal_;
+  hal::ComponentRegistry registry_;
+  motion::MotionComponent* motion_ = nullptr;
+  io::IoController* io_ = nullptr;
+  std::unique_ptr<task::TaskController> task_;
+  std::vector<ipc::ControllerService*> services_;
+  std::unique_ptr<ipc::Status> status_;
+  hal::Thread* thread_ = nullptr;
+  rt::CycleInfo info_;
+  int64_t now_ns_ = 0;
+  uint32_t serial_ = 0;
+  std::map<uint32_t, Reply> replies_;
+  std::string errors_;
+};
+
+}  // namespace cnc::testing
