@@ -27,6 +27,7 @@ double nice_step(double span, int ticks) {
 
 std::string label(double v, double step) {
   char b[32];
+  if (std::fabs(v) < step * 1e-6) v = 0;  // no "-0" from rounding
   const int decimals = step >= 1 ? 0 : static_cast<int>(std::ceil(-std::log10(step) + 1e-9));
   std::snprintf(b, sizeof b, "%.*f", std::min(decimals, 4), v);
   return b;
