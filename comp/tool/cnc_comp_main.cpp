@@ -216,11 +216,13 @@ int cmd_fit(const Args& a) {
   std::snprintf(b, sizeof b, "  fit time %.1f ms\n\n", fit_ms);
   report += b;
   std::vector<PlotPanel> panels;
-  std::vector<Iso230Result> before, after;
-  std::vector<Measurement> predicted;
+  std::vector<Iso230Result> before, after, referred;
+  std::vector<Measurement> predicted, predicted_ref;
   before.reserve(data.size());
   after.reserve(data.size());
+  referred.reserve(data.size());
   predicted.reserve(data.size());
+  predicted_ref.reserve(data.size());
   for (std::size_t i = 0; i < data.size(); ++i) {
     try {
       before.push_back(evaluate_iso230(data[i]));
@@ -234,6 +236,18 @@ int cmd_fit(const Args& a) {
     report += iso230_comparison(before.back(), after.back(), "measured", "predicted") + "\n";
     report += iso230_report(before.back(), "Measured: " + a.positional[i]) + "\n";
     report += iso230_report(after.back(), "Predicted after compensation: " + a.positional[i]) + "\n";
+    if (fit.model.has_thermal) {
+      // The table holds at the reference temperature; what is left of the
+      // measurement's warm-up is thermal. Referred to the reference
+      // temperature, as ISO 230-2 reports results:
+      Measurement ref = predicted.back();
+      for (MeasurementPoint& q : ref.points) q.deviation_um -= fit.model.thermal_um(q.target, q.temperature_c);
+      predicted_ref.push_back(ref);
+      referred.push_back(evaluate_iso230(predicted_ref.back()));
+      report += "Referred to " + std::to_string(fit.model.reference_temperature_c).substr(0, 4) +
+                " C (the fitted thermal expansion removed):\n" +
+                iso230_comparison(before.back(), referred.back(), "measured", "predicted") + "\n";
+    }
     panels.push_back(PlotPanel{"Measured: " + fs::path(a.positional[i]).filename().string(), &data[i], &before.back(),
                                &fit.model, 0});
     panels.push_back(PlotPanel{"Predicted after compensation", &predicted.back(), &after.back()});
