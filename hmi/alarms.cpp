@@ -1,0 +1,193 @@
+#include "hmi/alarms.hpp"
+
+#include <cstdio>
+#include <ctime>
+
+namespace cnc::hmi {
+
+std::string decode_drive_error(uint16_t code) {
+  struct Known {
+    uint16_t code;
+    const char* text;
+  };
+  static constexpr Known kKnown[] = {
+      {0x0000, "no error"},
+      {0x1000, "generic error"},
+      {0x2310, "continuous over-current"},
+      {0x2320, "short circuit at the output"},
+      {0x2330, "earth leakage"},
+      {0x3210, "DC-link over-voltage"},
+      {0x3220, "DC-link under-voltage"},
+      {0x4210, "device over-temperature"},
+      {0x4310, "drive over-temperature"},
+      {0x5530, "non-volatile memory error"},
+      {0x6010, "software reset (watchdog)"},
+      {0x6320, "parameter error"},
+      {0x7300, "sensor error"},
+      {0x7305, "incremental encoder 1 broken"},
+      {0x7500, "communication error"},
+      {0x8110, "CAN overrun (objects lost)"},
+      {0x8120, "CAN in error passive mode"},
+      {0x8130, "heartbeat or life guard error"},
+      {0x8140, "recovered from bus off"},
+      {0x8210, "PDO not processed: length error"},
+      {0x8220, "PDO length exceeded"},
+      {0x8250, "RPDO timeout"},
+      {0x8611, "following error"},
+      {0x8612, "reference limit"},
+      {0x9000, "external error"},
+  };
+  for (const auto& k : kKnown) {
+    if (k.code == code) return k.text;
+  }
+  const char* cls = nullptr;
+  switch (code >> 12) {
+    case 0x1: cls = "generic error"; break;
+    case 0x2: cls = "current"; break;
+    case 0x3: cls = "voltage"; break;
+    case 0x4: cls = "temperature"; break;
+    case 0x5: cls = "device hardware"; break;
+    case 0x6: cls = "device software"; break;
+    case 0x7: cls = "additional modules / sensors"; break;
+    case 0x8: cls = "monitoring / communication"; break;
+    case 0x9: cls = "external error"; break;
+    case 0xF: cls = (code >> 8) == 0xFF ? "vendor specific" : "device specific"; break;
+    default: cls = "unknown class"; break;
+  }
+  return std::string(cls) + " error";
+}
+
+const char* drive_state_name(uint8_t state) noexcept {
+  switch (state) {
+    case 0: return "not ready to switch on";
+    case 1: return "switch on disabled";
+    case 2: return "ready to switch on";
+    case 3: return "switched on";
+    case 4: return "operation enabled";
+    case 5: return "quick stop active";
+    case 6: return "fault reaction active";
+    case 7: return "fault";
+    default: return "invalid statusword";
+  }
+}
+
+const char* to_string(LogLevel l) noexcept {
+  switch (l) {
+    case LogLevel::Error: return "error";
+    case LogLevel::Warning: return "warning";
+    case LogLevel::Info: return "info";
+    case LogLevel::Display: return "display";
+    case LogLevel::Operator: return "operator";
+  }
+  return "?";
+}
+
+AlarmLog::AlarmLog(std::size_t max_log, std::size_t max_alarms) : max_log_(max_log), max_alarms_(max_alarms) {}
+
+std::string AlarmLog::format_time(int64_t time_ns, bool with_date) {
+  const time_t secs = static_cast<time_t>(time_ns / 1'000'000'000);
+  tm local{};
+  localtime_r(&secs, &local);
+  char buf[48];
+  std::strftime(buf, sizeof buf, with_date ? "%Y-%m-%d %H:%M:%S" : "%H:%M:%S", &local);
+  char out[64];
+  std::snprintf(out, sizeof out, "%s.%03d", buf, static_cast<int>((time_ns / 1'000'000) % 1000));
+  return out;
+}
+
+void AlarmLog::add_log(const LogEntry& e) {
+  log_.push_back(e);
+  while (log_.size() > max_log_) log_.pop_front();
+  ++revision_;
+  if (on_log) on_log(e);
+}
+
+void AlarmLog::raise(const std::string& source, const std::string& text, int64_t time_ns) {
+  Alarm a;
+  a.id = next_id_++;
+  a.time_ns = time_ns;
+  a.source = source;
+  a.text = text;
+  alarms_.push_back(a);
+  ++active_count_;
+  // Only acknowledged alarms are dropped when the list is full.
+  while (alarms_.size() > max_alarms_) {
+    auto it = alarms_.begin();
+    while (it != alarms_.end() && !it->acknowledged) ++it;
+    if (it == alarms_.end()) break;
+    alarms_.erase(it);
+  }
+  ++revision_;
+}
+
+void AlarmLog::post(const Message& m) {
+  LogLevel level = LogLevel::Info;
+  if (m.kind == MessageKind::Error) level = LogLevel::Error;
+  if (m.kind == MessageKind::Display) level = LogLevel::Display;
+  add_log(LogEntry{m.time_ns, level, std::string(m.source.view()), std::string(m.text.view())});
+  if (m.kind == MessageKind::Error) raise(std::string(m.source.view()), std::string(m.text.view()), m.time_ns);
+}
+
+void AlarmLog::post_local(LogLevel level, const std::string& source, const std::string& text, int64_t time_ns) {
+  add_log(LogEntry{time_ns, level, source, text});
+  if (level == LogLevel::Error) raise(source, text, time_ns);
+}
+
+void AlarmLog::update_drives(const ipc::Status& s, int64_t time_ns) {
+  for (int i = 0; i < kMaxJoints + 1; ++i) {
+    const ipc::DriveStatus& d = s.drives[i];
+    DriveSeen& seen = drives_[i];
+    const bool faulted = d.present && (d.state == kDriveStateFault || d.state == kDriveStateFaultReaction);
+    std::string name = d.name.empty() ? "drive " + std::to_string(i) : std::string(d.name.view());
+    if (d.joint >= 0) name += " (joint " + std::to_string(d.joint) + ")";
+    if (faulted && (!seen.faulted || d.error_code != seen.code)) {
+      char code[16];
+      std::snprintf(code, sizeof code, "0x%04X", d.error_code);
+      const std::string text = d.fault_text.empty() ? decode_drive_error(d.error_code) : std::string(d.fault_text.view());
+      const std::string msg = name + ": fault " + code + " " + text;
+      add_log(LogEntry{time_ns, LogLevel::Error, "drive", msg});
+      raise("drive", msg, time_ns);
+    } else if (!faulted && seen.faulted) {
+      add_log(LogEntry{time_ns, LogLevel::Info, "drive", name + ": fault cleared (" + drive_state_name(d.state) + ")"});
+    }
+    seen.faulted = faulted;
+    seen.code = faulted ? d.error_code : 0;
+  }
+}
+
+bool AlarmLog::acknowledge(uint64_t id, int64_t time_ns) {
+  for (auto& a : alarms_) {
+    if (a.id == id && !a.acknowledged) {
+      a.acknowledged = true;
+      a.acknowledged_ns = time_ns;
+      --active_count_;
+      add_log(LogEntry{time_ns, LogLevel::Operator, "operator", "acknowledged: " + a.text});
+      return true;
+    }
+  }
+  return false;
+}
+
+int AlarmLog::acknowledge_all(int64_t time_ns) {
+  int n = 0;
+  for (auto& a : alarms_) {
+    if (!a.acknowledged) {
+      a.acknowledged = true;
+      a.acknowledged_ns = time_ns;
+      ++n;
+    }
+  }
+  active_count_ = 0;
+  if (n) add_log(LogEntry{time_ns, LogLevel::Operator, "operator", "acknowledged " + std::to_string(n) + " alarm(s)"});
+  return n;
+}
+
+std::vector<const Alarm*> AlarmLog::active() const {
+  std::vector<const Alarm*> out;
+  for (const auto& a : alarms_) {
+    if (!a.acknowledged) out.push_back(&a);
+  }
+  return out;
+}
+
+}  // namespace cnc::hmi

@@ -1,0 +1,97 @@
+// Every operator command the screen sends, built as the command channel
+// documents them (core/ipc/command.hpp; the same semantics as the `cnc`
+// CLI), and the tracker that follows each command's answer without
+// blocking: the screen polls it once per cycle. Sequences send their next
+// command only when the previous one is done (a mode change before MDI or a
+// program run), and stop at the first rejection. No Qt.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/ipc/status.hpp"
+#include "core/tooltable/tool_table.hpp"
+
+namespace cnc::hmi {
+
+class MachineLink;
+
+namespace commands {
+ipc::Command make(ipc::CommandType type);
+ipc::Command set_state(ipc::TaskState state);
+ipc::Command set_mode(ipc::TaskMode mode);
+ipc::Command abort();
+ipc::Command open(const std::string& path);
+ipc::Command run(int line = 0);
+ipc::Command run_preview(int line);
+ipc::Command pause();
+ipc::Command resume();
+ipc::Command step();
+ipc::Command mdi(const std::string& line);
+ipc::Command macro(int index);
+ipc::Command optional_stop(bool on);
+ipc::Command block_delete(bool on);
+ipc::Command home(int joint);    // -1: all
+ipc::Command unhome(int joint);  // -1: all
+ipc::Command feed_override(double ratio);
+ipc::Command rapid_override(double ratio);
+ipc::Command spindle_override(double ratio, int spindle = 0);
+ipc::Command max_velocity(double units_per_s);
+ipc::Command spindle_on(double rpm, int spindle = 0);  // negative: reverse
+ipc::Command spindle_off(int spindle = 0);
+ipc::Command spindle_faster(int spindle = 0);
+ipc::Command spindle_slower(int spindle = 0);
+ipc::Command flood(bool on);
+ipc::Command mist(bool on);
+ipc::Command tool_set(const tooltable::Tool& tool, bool pocket_given);
+ipc::Command tool_delete(int tool);
+ipc::Command tool_reload();
+// index 1..9 = G54..G59.3 (with the XY rotation), 0 = G92.
+ipc::Command set_work_offset(int index, const Pose& offsets, double rotation_deg);
+}  // namespace commands
+
+class CommandTracker {
+ public:
+  using Done = std::function<void(const ipc::CommandResult&)>;
+  // Reports each rejection (or a command that could not be sent) with what
+  // it was for, e.g. for the log.
+  using RejectSink = std::function<void(const std::string& what, const std::string& reason)>;
+
+  explicit CommandTracker(MachineLink& link) : link_(link) {}
+
+  void set_reject_sink(RejectSink sink) { on_reject_ = std::move(sink); }
+  // Sends now. `done` (optional) gets the final answer: Done, or Rejected
+  // with the reason (also when the command could not be sent). Returns
+  // whether it was sent.
+  bool send(const ipc::Command& cmd, const std::string& what, Done done = {});
+  // Sends the commands one after the other, each once the previous one is
+  // Done; `done` gets the last answer or the first rejection.
+  bool send_sequence(std::vector<ipc::Command> cmds, const std::string& what, Done done = {});
+  // Looks at the answers; call once per cycle. `now_ns`: monotonic time.
+  void poll(int64_t now_ns);
+
+  std::size_t pending() const noexcept { return pending_.size(); }
+  // A command that no controller answered for this long is given up.
+  static constexpr int64_t kNoAnswerNs = 10'000'000'000;
+
+ private:
+  struct Pending {
+    uint32_t serial = 0;
+    std::vector<ipc::Command> rest;
+    std::string what;
+    Done done;
+    int64_t sent_ns = 0;
+    ipc::CommandState last = ipc::CommandState::None;
+  };
+  bool start(Pending p, const ipc::Command& cmd);
+  void finish(Pending& p, const ipc::CommandResult& r);
+
+  MachineLink& link_;
+  RejectSink on_reject_;
+  std::vector<Pending> pending_;
+  int64_t now_ns_ = 0;
+};
+
+}  // namespace cnc::hmi

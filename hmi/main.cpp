@@ -1,0 +1,99 @@
+// cnc-hmi: the Qt operator screen. Usage:
+//   cnc-hmi [--instance NAME] [--geometry WxH] [--fullscreen] [--comma]
+//           [--quit-after-startup] [--screenshot FILE] MACHINE.ini
+// It reads the INI file, connects to the controller of the instance
+// (default $CNC_INSTANCE or "default") through the shared segment and
+// shows its status; it starts without a controller and connects when one
+// comes up.
+#include <QApplication>
+#include <QScreen>
+#include <QTimer>
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+#include "core/ini/ini_file.hpp"
+#include "core/ipc/segment.hpp"
+#include "core/util/time.hpp"
+#include "hmi/main_window.hpp"
+
+namespace {
+
+const char* kStyle = R"(
+QWidget { font-size: 13px; }
+QPushButton { padding: 4px 8px; border: 1px solid #8a8a8a; border-radius: 3px; background: #e8e8e8; }
+QPushButton:checked { background: #1f4e9c; color: white; }
+QPushButton:pressed { background: #b0c8f0; }
+QPushButton:disabled { color: #9a9a9a; background: #f0f0f0; border-color: #c8c8c8; }
+QTabBar::tab { min-width: 72px; padding: 8px 10px; }
+QSlider::groove:horizontal { height: 8px; background: #c8c8c8; border-radius: 4px; }
+QSlider::handle:horizontal { width: 26px; margin: -10px 0; background: #1f4e9c; border-radius: 6px; }
+QScrollBar:vertical { width: 18px; }
+)";
+
+int usage() {
+  std::fprintf(stderr,
+               "usage: cnc-hmi [--instance NAME] [--geometry WxH] [--fullscreen] [--comma]\n"
+               "               [--quit-after-startup] [--screenshot FILE] MACHINE.ini\n");
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const int64_t t0 = cnc::monotonic_ns();
+  std::string instance = cnc::ipc::default_instance();
+  std::string ini_path, screenshot;
+  int width = 1280, height = 800;
+  bool fullscreen = false, quit_after_startup = false, comma = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if ((a == "--instance" || a == "-i") && i + 1 < argc) instance = argv[++i];
+    else if (a == "--geometry" && i + 1 < argc && std::sscanf(argv[i + 1], "%dx%d", &width, &height) == 2) ++i;
+    else if (a == "--fullscreen") fullscreen = true;
+    else if (a == "--comma") comma = true;
+    else if (a == "--quit-after-startup") quit_after_startup = true;
+    else if (a == "--screenshot" && i + 1 < argc) screenshot = argv[++i];
+    else if (a == "--help" || a == "-h") return usage();
+    else if (!a.empty() && a[0] != '-' && ini_path.empty()) ini_path = a;
+    else {
+      std::fprintf(stderr, "cnc-hmi: unknown argument %s\n", a.c_str());
+      return usage();
+    }
+  }
+  if (ini_path.empty()) return usage();
+
+  QApplication app(argc, argv);
+  QApplication::setStyle("Fusion");
+  app.setStyleSheet(kStyle);
+  cnc::hmi::HmiConfig config;
+  cnc::hmi::UserDialogConfig dialogs;
+  try {
+    const cnc::ini::IniFile ini = cnc::ini::IniFile::load(ini_path);
+    config = cnc::hmi::HmiConfig::from_ini(ini);
+    dialogs = cnc::hmi::UserDialogConfig::from_ini(ini);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "cnc-hmi: %s\n", e.what());
+    return 1;
+  }
+  cnc::hmi::MainWindow::Options options;
+  options.number_comma = comma;
+  cnc::hmi::MainWindow window(std::move(config), std::move(dialogs), std::make_unique<cnc::hmi::ClientLink>(instance),
+                              cnc::hmi::make_admin_executor(instance), options);
+  window.resize(width, height);
+  if (fullscreen) window.showFullScreen();
+  else window.show();
+
+  if (quit_after_startup || !screenshot.empty()) {
+    // After the first frame (and, for a screenshot, a few cycles).
+    const int delay = screenshot.empty() ? 0 : 1500;
+    QTimer::singleShot(delay, &window, [&]() {
+      const double ms = static_cast<double>(cnc::monotonic_ns() - t0) / 1e6;
+      if (!screenshot.empty()) window.grab().save(QString::fromStdString(screenshot));
+      std::printf("cnc-hmi: first frame %.0f ms after start\n", ms);
+      std::fflush(stdout);
+      QApplication::quit();
+    });
+  }
+  return QApplication::exec();
+}

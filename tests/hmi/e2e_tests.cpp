@@ -1,0 +1,362 @@
+// End to end: the controller daemon (cncd) on a copy of the simulated mill
+// (configs/sim) and the operator screen in this process, under Xvfb. The
+// test drives the screen like an operator (clicks and key presses on its
+// widgets), checks the controller's state after each action through its
+// own ipc::Client, and saves a screenshot of every step to
+// <build>/hmi-screenshots/e2e-*.png for review and as CI artifacts.
+#include <unistd.h>
+
+#include <QApplication>
+#include <QDir>
+#include <QLabel>
+#include <QLineEdit>
+#include <QMessageBox>
+#include <QProcess>
+#include <QScreen>
+#include <QPushButton>
+#include <QTabWidget>
+#include <QTableWidget>
+#include <QTemporaryDir>
+#include <QtTest>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "core/ini/ini_file.hpp"
+#include "core/ipc/admin.hpp"
+#include "core/ipc/client.hpp"
+#include "core/tooltable/tool_table.hpp"
+#include "core/util/atomic_file.hpp"
+#include "hmi/main_window.hpp"
+#include "hmi/positions.hpp"
+#include "hmi/preview_widget.hpp"
+
+using namespace cnc;
+using namespace cnc::hmi;
+
+namespace {
+
+// Lines are numbered for the run-from-line step.
+const char* kProgram =
+    "G21 G90 G17 G94\n"           // 1
+    "G10 L2 P1 X100 Y50 Z-80\n"   // 2
+    "G54\n"                       // 3
+    "G0 X10 Y10 Z5\n"             // 4
+    "G1 Z-1 F600\n"               // 5
+    "G1 X40 F1500\n"              // 6
+    "G2 X40 Y30 I0 J10\n"         // 7
+    "G1 X10\n"                    // 8
+    "G1 Y10\n"                    // 9
+    "G0 Z5\n"                     // 10
+    "G0 X20 Y20\n"                // 11
+    "M2\n";                       // 12
+
+// Extra INI keys for the test: history file, a HAL-driven dialog and a
+// POSTGUI command that needs the screen's pin to exist.
+const char* kExtraIni =
+    "\n[DISPLAY]\n"
+    "MDI_HISTORY_FILE = mdi_history.txt\n"
+    "MESSAGE_BOLDTEXT = Lubrication\nMESSAGE_TEXT = Check the way oil level\n"
+    "MESSAGE_TYPE = okdialog status\nMESSAGE_PINNAME = e2e-note\n"
+    "\n[HAL]\nPOSTGUI_HALCMD = net e2e-note-signal hmi.e2e-note\n";
+
+}  // namespace
+
+class E2eTests : public QObject {
+  Q_OBJECT
+
+  QTemporaryDir dir_{QDir::tempPath() + "/cnc-hmi-e2e-XXXXXX"};
+  std::string instance_ = "hmi-e2e-" + std::to_string(::getpid());
+  std::filesystem::path run_;
+  QProcess cncd_;
+  std::unique_ptr<ipc::Client> client_;
+  std::unique_ptr<MainWindow> w_;
+  QString shots_;
+  int shot_ = 0;
+
+  ipc::Status st() { return client_->status(); }
+
+  bool wait_for(const std::function<bool(const ipc::Status&)>& pred, int ms) {
+    return QTest::qWaitFor([&]() { return pred(st()); }, ms);
+  }
+
+  void shot(const QString& name) {
+    for (int i = 0; i < 3; ++i) QTest::qWait(60);  // a few screen cycles
+    const QString file = QString("%1/e2e-%2-%3.png").arg(shots_).arg(++shot_, 2, 10, QChar('0')).arg(name);
+    // The X screen under the window, so dialogs on top of it are in the picture.
+    const QRect g = w_->frameGeometry();
+    QPixmap pix = w_->QWidget::screen()->grabWindow(0, g.x(), g.y(), g.width(), g.height());
+    if (pix.isNull()) pix = w_->grab();
+    QVERIFY2(pix.save(file), qPrintable(file));
+  }
+
+  QPushButton* button(const char* name) {
+    auto* b = w_->findChild<QPushButton*>(name);
+    if (!b) qWarning("no button %s", name);
+    return b;
+  }
+  void click(const char* name) {
+    QPushButton* b = button(name);
+    QVERIFY2(b, name);
+    QTRY_VERIFY2_WITH_TIMEOUT(b->isEnabled(), name, 5000);
+    QTest::mouseClick(b, Qt::LeftButton);
+  }
+  void show_tab(const QString& object_name) {
+    for (int i = 0; i < w_->tabs()->count(); ++i) {
+      if (w_->tabs()->widget(i)->objectName() == object_name) w_->tabs()->setCurrentIndex(i);
+    }
+  }
+  void mdi(const QString& line) {
+    show_tab("mdiPage");
+    auto* input = w_->findChild<QLineEdit*>("mdiInput");
+    QVERIFY(input);
+    input->setText(line);
+    QTest::keyClick(input, Qt::Key_Return);
+  }
+  std::string hal(const std::string& line) {
+    ipc::AdminClient admin(instance_);
+    const auto r = admin.request(line);
+    return r.ok ? std::string(trim(r.text)) : "ERROR: " + r.text;
+  }
+  static std::string trim(const std::string& s) {
+    const auto a = s.find_first_not_of(" \n\t"), b = s.find_last_not_of(" \n\t");
+    return a == std::string::npos ? std::string() : s.substr(a, b - a + 1);
+  }
+  static bool near(double a, double b) { return std::fabs(a - b) < 2e-3; }
+
+ private slots:
+  void initTestCase() {
+    QVERIFY(dir_.isValid());
+    shots_ = QString(CNC_BINARY_DIR) + "/hmi-screenshots";
+    QDir().mkpath(shots_);
+    for (const auto& old : QDir(shots_).entryList({"e2e-*.png"})) QFile::remove(shots_ + "/" + old);
+    run_ = std::filesystem::path(dir_.path().toStdString()) / "sim";
+    std::filesystem::copy(std::filesystem::path(CNC_SOURCE_DIR) / "configs/sim", run_, std::filesystem::copy_options::recursive);
+    std::ofstream(run_ / "sim.ini", std::ios::app) << kExtraIni;
+    std::ofstream(run_ / "nc_files/e2e.ngc") << kProgram;
+    cncd_.setProgram(QString(CNC_BINARY_DIR) + "/bin/cncd");
+    cncd_.setArguments({"--instance", QString::fromStdString(instance_), QString::fromStdString((run_ / "sim.ini").string())});
+    cncd_.setStandardErrorFile(QString::fromStdString((run_ / "cncd.log").string()));
+    auto env = QProcessEnvironment::systemEnvironment();
+    env.insert("CNC_NO_REALTIME", "1");
+    cncd_.setProcessEnvironment(env);
+    cncd_.start();
+    QVERIFY(cncd_.waitForStarted(5000));
+    const bool ready = QTest::qWaitFor([&]() {
+      try {
+        if (!client_) client_ = std::make_unique<ipc::Client>(instance_);
+        return client_->controller_ready();
+      } catch (const std::exception&) {
+        client_.reset();
+        return cncd_.state() != QProcess::Running;
+      }
+    }, 30000);
+    QVERIFY2(ready && client_, qPrintable("cncd did not come up; see " + QString::fromStdString((run_ / "cncd.log").string())));
+    const ini::IniFile ini = ini::IniFile::load(run_ / "sim.ini");
+    w_ = std::make_unique<MainWindow>(HmiConfig::from_ini(ini), UserDialogConfig::from_ini(ini),
+                                      std::make_unique<ClientLink>(instance_), make_admin_executor(instance_),
+                                      MainWindow::Options{});
+    w_->resize(1280, 800);
+    w_->show();
+    QVERIFY(QTest::qWaitForWindowExposed(w_.get()));
+    w_->activateWindow();
+  }
+
+  void cleanupTestCase() {
+    w_.reset();
+    if (client_) {
+      try {
+        client_->execute(ipc::make_command(ipc::CommandType::Shutdown), std::chrono::seconds(10));
+      } catch (const std::exception&) {
+      }
+    }
+    client_.reset();
+    if (!cncd_.waitForFinished(10000)) cncd_.kill();
+  }
+
+  void t01_screen_connects_in_estop() {
+    auto* state = w_->findChild<QLabel*>("stateLabel");
+    QTRY_VERIFY_WITH_TIMEOUT(state->text().startsWith("ESTOP"), 5000);
+    QCOMPARE(st().task.state, ipc::TaskState::Estop);
+    QCOMPARE(button("estopButton")->text(), QString("E-STOP\nRESET"));
+    shot("start-estop");
+  }
+
+  void t02_estop_reset_and_machine_on() {
+    click("estopButton");
+    QVERIFY(wait_for([](const ipc::Status& s) { return s.task.state == ipc::TaskState::EstopReset; }, 10000));
+    click("machineButton");
+    QVERIFY(wait_for([](const ipc::Status& s) { return s.task.state == ipc::TaskState::On && s.motion.enabled; }, 10000));
+    QTRY_VERIFY(button("machineButton")->isChecked());
+    shot("machine-on");
+  }
+
+  void t03_home_all() {
+    click("homeAllButton");
+    QVERIFY(wait_for([](const ipc::Status& s) {
+      for (int j = 0; j < s.motion.joints; ++j) {
+        if (!s.joints[j].homed) return false;
+      }
+      return s.motion.joints > 0;
+    }, 120000));
+    QTRY_COMPARE(w_->findChild<QLabel*>("homedLabel")->text(), QString("HOMED"));
+    QVERIFY(w_->findChild<QLabel*>("droMarks_X")->text().contains("●"));
+    shot("homed");
+  }
+
+  void t04_mdi_moves_and_is_remembered() {
+    mdi("G53 G0 X100 Y50 Z-10");
+    QVERIFY(wait_for([](const ipc::Status& s) {
+      return s.task.interp_state == ipc::InterpState::Idle && near(s.motion.position[0], 100) &&
+             near(s.motion.position[1], 50) && near(s.motion.position[2], -10);
+    }, 30000));
+    QCOMPARE(st().task.mode, ipc::TaskMode::Mdi);  // the screen switched the mode for MDI
+    QTRY_VERIFY(QFile::exists(QString::fromStdString((run_ / "mdi_history.txt").string())));
+    QTRY_COMPARE(QString::fromStdString(read_file(run_ / "mdi_history.txt")), QString("G53 G0 X100 Y50 Z-10\n"));
+    QTRY_COMPARE(w_->findChild<QLabel*>("droMachine_X")->text(), QString("100.000"));
+    shot("mdi");
+  }
+
+  void t05_incremental_jog() {
+    click("modeManual");
+    QVERIFY(wait_for([](const ipc::Status& s) { return s.task.mode == ipc::TaskMode::Manual; }, 10000));
+    QTRY_VERIFY(button("modeManual")->isChecked());  // the screen has seen it too
+    click("increment_1");  // 1 mm
+    QTRY_VERIFY(button("jogPlus_X")->isEnabled());
+    QTest::mousePress(button("jogPlus_X"), Qt::LeftButton);
+    QTest::mouseRelease(button("jogPlus_X"), Qt::LeftButton);
+    QVERIFY(wait_for([](const ipc::Status& s) { return near(s.motion.position[0], 101) && s.motion.inpos; }, 10000));
+    click("increment_0");  // back to continuous
+    shot("jogged");
+  }
+
+  void t06_open_program_and_preview() {
+    const QString prog = QString::fromStdString((run_ / "nc_files/e2e.ngc").string());
+    w_->open_program(prog);
+    QVERIFY(wait_for([&](const ipc::Status& s) { return std::string(s.task.file.view()) == prog.toStdString(); }, 10000));
+    QCOMPARE(st().task.total_lines, 12);
+    QTRY_VERIFY_WITH_TIMEOUT(!w_->preview_busy() && w_->preview()->path(), 20000);
+    QVERIFY(w_->preview()->path()->error.empty());
+    QVERIFY(w_->preview()->path()->points.size() > 20);
+    QVERIFY(w_->preview()->limit_warning().isEmpty());
+    // The path is in machine coordinates with G54 X100 Y50 Z-80 from the program.
+    QVERIFY(near(w_->preview()->path()->max[0], 140));
+    shot("program-loaded");
+    w_->preview()->set_view(PreviewWidget::View::Z);
+    shot("preview-top-view");
+    w_->preview()->set_view(PreviewWidget::View::Perspective);
+  }
+
+  void t07_run_program() {
+    click("runButton");
+    QVERIFY(wait_for([](const ipc::Status& s) { return s.task.interp_state != ipc::InterpState::Idle; }, 10000));
+    QCOMPARE(st().task.mode, ipc::TaskMode::Auto);
+    QVERIFY(wait_for([](const ipc::Status& s) { return s.task.current_line >= 7; }, 60000));
+    shot("running");
+    QVERIFY(button("pauseButton")->isEnabled());
+    QVERIFY(!button("runButton")->isEnabled());
+    QVERIFY(wait_for([](const ipc::Status& s) { return s.task.interp_state == ipc::InterpState::Idle; }, 120000));
+    const ipc::Status s = st();
+    QCOMPARE(s.task.errors_since_start, 0);
+    QVERIFY(near(s.motion.position[0], 120) && near(s.motion.position[1], 70) && near(s.motion.position[2], -75));
+    QVERIFY(w_->preview()->backplot_size() > 10);
+    shot("program-done");
+  }
+
+  void t08_alarm_is_acknowledged() {
+    const std::size_t before = w_->alarms().active_count();
+    mdi("G53 G1 X1000 F100");  // beyond the soft limit: the controller refuses
+    QTRY_VERIFY_WITH_TIMEOUT(w_->alarms().active_count() > before, 10000);
+    QTRY_VERIFY(button("alarmBadge")->text().startsWith("ALARMS"));
+    const ipc::Status s = st();
+    QCOMPARE(s.task.state, ipc::TaskState::On);
+    QVERIFY(near(s.motion.position[0], 120));  // nothing moved
+    click("alarmBadge");
+    shot("alarm");
+    click("ackAllButton");
+    QCOMPARE(w_->alarms().active_count(), std::size_t(0));
+    QTRY_COMPARE(button("alarmBadge")->text(), QString("No alarms"));
+    shot("alarm-acknowledged");
+  }
+
+  void t09_run_from_line_with_approach() {
+    show_tab("programPage");
+    w_->request_run_from_line(8);
+    QTRY_VERIFY_WITH_TIMEOUT(w_->findChild<QMessageBox*>("runFromLineDialog"), 10000);
+    QCOMPARE(st().task.run_from_line_pending, 8);
+    QCOMPARE(st().task.interp_state, ipc::InterpState::Idle);  // shown, not moved
+    auto* box = w_->findChild<QMessageBox*>("runFromLineDialog");
+    QVERIFY(box->text().contains("140.000"));  // the start of line 8: end of the arc, X40 in G54
+    shot("run-from-line-approach");
+    QTest::mouseClick(box->findChild<QPushButton*>("runFromLineConfirm"), Qt::LeftButton);
+    QVERIFY(wait_for([](const ipc::Status& s) { return s.task.interp_state != ipc::InterpState::Idle; }, 10000));
+    QVERIFY(wait_for([](const ipc::Status& s) { return s.task.interp_state == ipc::InterpState::Idle; }, 120000));
+    const ipc::Status s = st();
+    QCOMPARE(s.task.errors_since_start, 0);
+    QVERIFY(near(s.motion.position[0], 120) && near(s.motion.position[1], 70));
+    shot("run-from-line-done");
+  }
+
+  void t10_hal_dialog_and_postgui() {
+    // POSTGUI_HALCMD ran after the screen made its pin: the signal exists.
+    QTRY_VERIFY_WITH_TIMEOUT(hal("gets e2e-note-signal") == "FALSE", 10000);
+    QCOMPARE(hal("sets e2e-note-signal TRUE"), std::string());
+    QTRY_VERIFY_WITH_TIMEOUT(w_->findChild<QMessageBox*>("userDialog_e2e-note"), 5000);
+    QTRY_COMPARE(hal("getp hmi.e2e-note-waiting"), std::string("TRUE"));
+    shot("hal-dialog");
+    w_->findChild<QMessageBox*>("userDialog_e2e-note")->button(QMessageBox::Ok)->click();
+    QTRY_COMPARE_WITH_TIMEOUT(hal("getp hmi.e2e-note"), std::string("FALSE"), 5000);
+    QTRY_COMPARE(hal("getp hmi.e2e-note-waiting"), std::string("FALSE"));
+  }
+
+  void t11_tool_table_edit_goes_through_the_controller() {
+    show_tab("toolPage");
+    auto* table = w_->findChild<QTableWidget*>("toolTable");
+    QTRY_VERIFY(table->rowCount() >= 4);
+    QCOMPARE(table->item(0, 0)->text(), QString("1"));
+    table->item(0, 2)->setText("36,5");
+    QTRY_VERIFY_WITH_TIMEOUT(
+        [&]() {
+          const auto t = tooltable::ToolTable::load(run_ / "tool.tbl", tooltable::ChangerKind::NonRandom);
+          const auto idx = t.find_tool(1);
+          return idx && near(t.at(*idx).offset[2], 36.5);
+        }(),
+        10000);
+    QTRY_COMPARE(w_->findChild<QTableWidget*>("toolTable")->item(0, 2)->text(), QString("36.500"));
+    shot("tools");
+  }
+
+  void t12_work_offset_edit_goes_through_the_controller() {
+    show_tab("offsetsPage");
+    auto* table = w_->findChild<QTableWidget*>("offsetTable");
+    QTRY_COMPARE(table->item(0, 0)->text(), QString("100.000"));  // G54 from the program
+    table->item(1, 0)->setText("5,5");                              // G55 X
+    QTRY_VERIFY_WITH_TIMEOUT(read_work_offsets(run_ / "sim.var").g5x[1][0] == 5.5, 10000);
+    shot("offsets");
+  }
+
+  void t13_other_pages() {
+    show_tab("drivesPage");
+    auto* drives = w_->findChild<QTableWidget*>("driveTable");
+    QTRY_COMPARE(drives->rowCount() >= st().motion.joints, true);
+    shot("drives");
+    show_tab("alarmsPage");
+    shot("log");
+    show_tab("mdiPage");
+    shot("mdi-page");
+    show_tab("programPage");
+    w_->resize(1024, 768);
+    shot("1024x768");
+    w_->resize(1280, 800);
+  }
+
+  void t14_estop() {
+    click("estopButton");
+    QVERIFY(wait_for([](const ipc::Status& s) { return s.task.state == ipc::TaskState::Estop && !s.motion.enabled; }, 10000));
+    QTRY_COMPARE(button("estopButton")->text(), QString("E-STOP\nRESET"));
+    shot("estop");
+  }
+};
+
+QTEST_MAIN(E2eTests)
+#include "e2e_tests.moc"
