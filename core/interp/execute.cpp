@@ -667,6 +667,24 @@ void Interpreter::State::convert_tool_length_offset(int g) {
   canon.use_tool_length_offset(off);
 }
 
+// Takes the G5x origin and rotation from the parameters at `base`. The
+// program position follows as LinuxCNC computes it: shifted by the origin
+// change, then turned about the program origin by the rotation change.
+void Interpreter::State::set_origin_keeping_machine_position(int base) {
+  Pose next{};
+  for (int i = 0; i < kNumAxes; ++i) next[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
+  const double next_rotation = params[static_cast<std::size_t>(base + 9)];
+  for (int i = 0; i < kNumAxes; ++i) pos[i] += origin_offset[i] - next[i];
+  if (rotation != next_rotation) {
+    const double t = (rotation - next_rotation) * kPi / 180.0;
+    const double x = pos[0], y = pos[1];
+    pos[0] = x * std::cos(t) - y * std::sin(t);
+    pos[1] = x * std::sin(t) + y * std::cos(t);
+  }
+  origin_offset = next;
+  rotation = next_rotation;
+}
+
 void Interpreter::State::convert_coordinate_system(int g) {
   if (cutter_side != 400) fail("Cannot change coordinate systems with cutter radius compensation on");
   int n = 1;
@@ -689,12 +707,7 @@ void Interpreter::State::convert_coordinate_system(int g) {
   origin = n;
   params[5220] = n;
   const int base = 5201 + 20 * n;
-  Pose next{};
-  for (int i = 0; i < kNumAxes; ++i) next[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
-  for (int i = 0; i < kNumAxes; ++i) pos[i] += origin_offset[i] - next[i];
-  // Rotation: positions are expressed in the new, unrotated frame first.
-  origin_offset = next;
-  rotation = params[static_cast<std::size_t>(base + 9)];
+  set_origin_keeping_machine_position(base);
   canon.set_g5x_offset(origin, origin_offset);
   canon.set_g92_offset(axis_offset);
   canon.set_xy_rotation(rotation);
@@ -764,21 +777,41 @@ void Interpreter::State::convert_coord_setup(int l) {
   if (p < 1 || p > 9) fail("P value out of range with G10 L2");
   const int base = 5201 + 20 * p;
   static constexpr char letters[] = "xyzabcuvw";
+  if (l == 20 && block.has_word('r')) fail("R not allowed in G10 L20");
+  if (block.has_word('r')) params[static_cast<std::size_t>(base + 9)] = block.get('r');
+  // L20: the origin that makes the current point read the given values,
+  // with the target system's rotation: origin = machine - tool - rot(v + G92).
+  Pose want = pos;
+  for (int i = 0; i < kNumAxes; ++i) {
+    if (block.has_word(letters[i])) want[i] = block.get(letters[i]) / ((i == 0 && diameter_mode) ? 2.0 : 1.0);
+  }
+  const Pose machine = program_to_machine(pos);
+  Pose rotated = want;
+  for (int i = 0; i < kNumAxes; ++i) rotated[i] += axis_offset[i];
+  {
+    const double rot = params[static_cast<std::size_t>(base + 9)];
+    if (rot != 0.0) {
+      const double r = std::hypot(rotated[0], rotated[1]);
+      const double t = std::atan2(rotated[1], rotated[0]) + rot * kPi / 180.0;
+      rotated[0] = r * std::cos(t);
+      rotated[1] = r * std::sin(t);
+    }
+  }
   for (int i = 0; i < kNumAxes; ++i) {
     const char c = letters[i];
     if (!block.has_word(c)) continue;
     double v = block.get(c);
     if (i == 0 && diameter_mode) v /= 2.0;
-    if (l == 20) v = pos[i] + origin_offset[i] - v;
+    if (l == 20) v = machine[i] - tool_offset[i] - rotated[i];
     params[static_cast<std::size_t>(base + i)] = to_machine_len(v);
   }
-  if (block.has_word('r')) params[static_cast<std::size_t>(base + 9)] = block.get('r');
   if (p == origin) {
-    Pose next{};
-    for (int i = 0; i < kNumAxes; ++i) next[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
-    for (int i = 0; i < kNumAxes; ++i) pos[i] += origin_offset[i] - next[i];
-    origin_offset = next;
-    rotation = params[static_cast<std::size_t>(base + 9)];
+    set_origin_keeping_machine_position(base);
+    if (l == 20) {
+      for (int i = 0; i < kNumAxes; ++i) {
+        if (block.has_word(letters[i])) pos[i] = want[i];  // exactly what was asked
+      }
+    }
     canon.set_g5x_offset(origin, origin_offset);
     canon.set_xy_rotation(rotation);
   } else if (config.linuxcnc_comments) {
@@ -809,7 +842,7 @@ void Interpreter::State::convert_setup_tool(int l) {
     } else {
       // L10: offset so that the current position reads v (tool offset
       // applied); L11: as L10 but in G59.3 (coordinate system 9).
-      const double machine = pos[i] + origin_offset[i] + axis_offset[i] + tool_offset[i];
+      const double machine = program_to_machine(pos)[i];
       const double new_off = l == 11 ? machine - to_program_len(params[static_cast<std::size_t>(5381 + i)]) - v
                                      : pos[i] + tool_offset[i] - v;
       t.offset[i] = to_machine_len(new_off);
@@ -885,9 +918,8 @@ void Interpreter::State::convert_g(Status& st) {
     case 301: {
       if (cutter_side != 400) fail("Cannot set reference point with cutter compensation in effect");
       const int base = g0 == 281 ? 5161 : 5181;
-      for (int i = 0; i < kNumAxes; ++i) {
-        params[static_cast<std::size_t>(base + i)] = to_machine_len(pos[i] + origin_offset[i] + axis_offset[i] + tool_offset[i]);
-      }
+      const Pose machine = program_to_machine(pos);
+      for (int i = 0; i < kNumAxes; ++i) params[static_cast<std::size_t>(base + i)] = to_machine_len(machine[i]);
       break;
     }
     case 520:
@@ -921,10 +953,15 @@ void Interpreter::State::convert_home(int g) {
   const int base = g == 280 ? 5161 : 5181;
   const bool any = block.any_axis(config.axis_mask);
   static constexpr char letters[] = "xyzabcuvw";
+  // The home position is stored in machine coordinates; in program
+  // coordinates, only the axes named (all when none) go there.
+  Pose machine{};
+  for (int i = 0; i < kNumAxes; ++i) machine[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
+  const Pose target = machine_to_program(machine);
   Pose home = mid;
   for (int i = 0; i < kNumAxes; ++i) {
     if (any && !block.has_word(letters[i])) continue;
-    home[i] = to_program_len(params[static_cast<std::size_t>(base + i)]) - origin_offset[i] - axis_offset[i] - tool_offset[i];
+    home[i] = target[i];
   }
   emit_traverse(home);
 }
@@ -932,12 +969,7 @@ void Interpreter::State::convert_home(int g) {
 void Interpreter::State::end_program(bool pallet) {
   origin = 1;
   params[5220] = 1.0;
-  for (int i = 0; i < kNumAxes; ++i) {
-    const double next = to_program_len(params[static_cast<std::size_t>(5221 + i)]);
-    pos[i] += origin_offset[i] - next;
-    origin_offset[i] = next;
-  }
-  rotation = params[5230];
+  set_origin_keeping_machine_position(5221);
   canon.set_g5x_offset(1, origin_offset);
   canon.set_xy_rotation(rotation);
   if (plane != Plane::XY) {

@@ -173,6 +173,7 @@ struct Interpreter::State {
   void convert_setup_tool(int l);
   void convert_coord_setup(int l);
   void convert_coordinate_system(int g);
+  void set_origin_keeping_machine_position(int base);
   void convert_axis_offsets(int g);
   void convert_home(int g);
   void convert_units(Units u);
@@ -193,6 +194,8 @@ struct Interpreter::State {
   void convert_motion(int g, Status& st);
   void convert_polar();
   Pose find_ends(bool g53) const;
+  Pose program_to_machine(const Pose& p) const;
+  Pose machine_to_program(const Pose& m) const;
   void straight(int g, const Pose& end);
   void convert_arc(int g, const Pose& end);
   void convert_probe(int g, const Pose& end, Status& st);

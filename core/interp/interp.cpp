@@ -129,6 +129,26 @@ void Interpreter::open(const std::filesystem::path& program) {
   s.program_path = program.string();
   s.program_display_name = program.string();
   s.open_file(program.string());
+  // As LinuxCNC: leading blank lines are skipped looking for a '%' line; a
+  // file with nothing else cannot be opened.
+  LineReader& r = *s.files.back().reader;
+  std::string_view raw;
+  for (;;) {
+    const int64_t offset = r.offset();
+    const int line_before = r.line_number();
+    if (!r.next(raw)) {
+      s.files.clear();
+      throw InterpError("File ended with no percent sign", program.string(), line_before, "");
+    }
+    if (cnc::trim(raw).empty()) continue;
+    s.first_line = false;
+    if (cnc::trim(raw).front() == '%') {
+      s.percent_seen = true;
+    } else {
+      r.seek(offset, line_before);
+    }
+    break;
+  }
 }
 
 void Interpreter::open_at_line(const std::filesystem::path& program, int line) {

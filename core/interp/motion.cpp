@@ -40,20 +40,62 @@ double Interpreter::State::arc_tolerance() const {
   return units == Units::Inch ? config.center_arc_radius_tolerance_inch : config.center_arc_radius_tolerance_mm;
 }
 
+namespace {
+// Rotates (x, y) by `degrees` about the origin, in polar form as LinuxCNC.
+void rotate_xy(double& x, double& y, double degrees) {
+  if (degrees == 0.0) return;
+  const double r = std::hypot(x, y);
+  const double t = std::atan2(y, x) + degrees * kPi / 180.0;
+  x = r * std::cos(t);
+  y = r * std::sin(t);
+}
+}  // namespace
+
+// Program coordinates (current units) to absolute machine coordinates in
+// the same units: G92 first, then the XY rotation of the G5x system, then
+// the G5x origin and the tool length offset.
+Pose Interpreter::State::program_to_machine(const Pose& p) const {
+  Pose m = p;
+  for (int i = 0; i < kNumAxes; ++i) m[i] += axis_offset[i];
+  rotate_xy(m[0], m[1], rotation);
+  for (int i = 0; i < kNumAxes; ++i) m[i] += origin_offset[i] + tool_offset[i];
+  return m;
+}
+
+Pose Interpreter::State::machine_to_program(const Pose& m) const {
+  Pose p = m;
+  for (int i = 0; i < kNumAxes; ++i) p[i] -= origin_offset[i] + tool_offset[i];
+  rotate_xy(p[0], p[1], -rotation);
+  for (int i = 0; i < kNumAxes; ++i) p[i] -= axis_offset[i];
+  return p;
+}
+
 Pose Interpreter::State::find_ends(bool g53) const {
   const Pose& base = cutter_side != 400 ? comp_program_pos : pos;
   Pose end = base;
+  Pose machine = g53 ? program_to_machine(base) : Pose{};
   for (int i = 0; i < kNumAxes; ++i) {
     const char c = kLetters[i];
     if (!((config.axis_mask >> i) & 1u) || !block.has_word(c)) continue;
     double v = block.get(c);
     if (i == 0 && diameter_mode) v /= 2.0;
     if (g53) {
-      end[i] = v - origin_offset[i] - axis_offset[i] - tool_offset[i];
+      machine[i] = v;
     } else if (absolute) {
       end[i] = v;
     } else {
       end[i] = base[i] + v;
+    }
+  }
+  if (g53) {
+    const Pose p = machine_to_program(machine);
+    for (int i = 0; i < kNumAxes; ++i) {
+      if (((config.axis_mask >> i) & 1u) && block.has_word(kLetters[i])) end[i] = p[i];
+    }
+    // a rotated system moves the other plane axis too
+    if (rotation != 0.0 && (block.has_word('x') || block.has_word('y'))) {
+      end[0] = p[0];
+      end[1] = p[1];
     }
   }
   if ((block.has_polar_r || block.has_polar_a) && !g53) {

@@ -32,8 +32,16 @@ bool run_rs274(const Rs274Options& o, std::FILE* out, std::string& error, std::F
   bool ok = true;
   try {
     interp.init();
+    try {
+      interp.open(o.program);
+    } catch (const InterpError& e) {
+      // rs274 stops at once when the program cannot be opened
+      canon.flush();
+      error = e.message() + "\n" + e.block_text();
+      if (err_out != nullptr) std::fprintf(err_out, "%s\n", error.c_str());
+      return false;
+    }
     canon.on_reset();
-    interp.open(o.program);
     interp.run_to_end();
   } catch (const InterpError& e) {
     canon.flush();

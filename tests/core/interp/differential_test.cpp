@@ -77,7 +77,9 @@ class ProgramGenerator {
       case 5: return "G3 I" + v(0.5, 5) + " J" + v(-5, 5) + " P" + std::to_string(1 + pick(3));
       case 6: return std::string(pick(2) ? "G18 G2 I" + v(0.5, 4) + " K" + v(-4, 4) : "G19 G3 J" + v(0.5, 4) + " K" + v(-4, 4)) + "\nG17";
       case 7: return pick(2) ? "G91 G1 X" + v(-3, 3) + " Y" + v(-3, 3) + "\nG90" : "G20 G0 X" + v(-1, 1) + "\nG21";
-      case 8: return "G10 L2 P" + std::to_string(1 + pick(9)) + " X" + v(-10, 10) + " Y" + v(-10, 10) + " Z" + v(-2, 2);
+      case 8:
+        return "G10 L" + std::string(pick(4) == 0 ? "20" : "2") + " P" + std::to_string(1 + pick(9)) + " X" + v(-10, 10) +
+               " Y" + v(-10, 10) + " Z" + v(-2, 2);  // no R: see docs, rotation with probing
       case 9: {
         static const char* sys[] = {"G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3"};
         return sys[pick(9)];
@@ -102,7 +104,7 @@ class ProgramGenerator {
         return "#1 = " + v(1, 4) + "\n" + o + " while [#1 GT 0]\nG1 X[#1 * 2] Y[#1]\n#1 = [#1 - 1]\n" + o + " endwhile";
       }
       case 19: return pick(2) ? "G61" : "G64 P" + v(0, 0.1);
-      case 20: return "G4 P" + v(0, 2);
+      case 20: return pick(2) ? "G4 P" + v(0, 2) : (pick(2) ? "G53 G0 X" + v(-5, 5) + " Y" + v(-5, 5) : (pick(2) ? "G28" : "G30 Y" + v(-1, 1)));
       default: return "(DEBUG,x=#<_x> y=#<_y> z=#<_z> tool=#5400 g5x=#5220)";
     }
   }
