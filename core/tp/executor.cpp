@@ -30,8 +30,7 @@ Executor::Executor(const PlannerConfig& config, PathStore& store)
     : cfg_(config),
       floors_(limit_floors(config)),
       store_(store),
-      tree_(store.pieces.capacity()),
-      known_(std::make_unique<uint8_t[]>(store.pieces.capacity())) {}
+      tree_(store.pieces.capacity()) {}
 
 void Executor::set_config(const PlannerConfig& config) noexcept {
   cfg_ = config;
@@ -142,6 +141,7 @@ uint64_t Executor::piece_at(double s) const noexcept {
 
 void Executor::ingest() noexcept {
   const uint64_t pub = store_.pieces.published();
+  const uint64_t first_new = tail_;
   while (tail_ < pub) {
     const Piece& p = piece(tail_);
     if (p.epoch != epoch_) {
@@ -154,10 +154,16 @@ void Executor::ingest() noexcept {
     if (cur_ == tail_) off_ = 0;
     tree_.set(slot(tail_), TreeLeaf{p.barrier ? 0.0 : p.v_hard, p.v_feed, p.v_rapid, p.inv_speed, p.accel, p.jerk,
                                     p.barrier, p.stop != StopKind::None});
-    known_[slot(tail_)] = 0;
     tail_s_ = p.s0 + p.length;
     ++tail_;
     bp_dirty_ = true;
+  }
+  // New barriers get a (conservative, end-of-queue limited) ceiling at once,
+  // newest first; the backward pass relaxes them as the queue grows.
+  for (uint64_t k = tail_; k > first_new;) {
+    --k;
+    if (!piece(k).barrier || piece(k).epoch != epoch_) continue;
+    tree_.set_hard(slot(k), barrier_ceiling(k));
   }
 }
 
@@ -243,10 +249,8 @@ void Executor::backward_pass(int budget) noexcept {
     const uint64_t b = static_cast<uint64_t>(bp_cursor_);
     const double nv = barrier_ceiling(b);
     const double old = tree_.leaf(slot(b)).hard;
-    const bool fresh = !known_[slot(b)];
-    known_[slot(b)] = 1;
     if (nv != old) tree_.set_hard(slot(b), nv);
-    if (nv == old && !fresh) {
+    if (nv == old) {
       bp_cursor_ = -1;
       break;
     }
@@ -264,8 +268,14 @@ int Executor::collect(double x, const LimitTree::Query& q0, Constraint* out, int
   // Pieces before the first barrier keep the floors, except the one we are
   // in, which may itself be a barrier.
   const Piece& cp = piece(cur_);
-  const double horizon = brake_distance(x, 0, 0, std::min(floors_.accel, cp.accel), std::min(floors_.jerk, cp.jerk)) +
-                         2 * x * T + 1e-6;
+  const double ha = std::min(floors_.accel, cp.accel);
+  const double hj = std::min(floors_.jerk, cp.jerk);
+  // Far enough to stop from the fastest state this step can reach, with
+  // the acceleration it has now ramped out at the smallest jerk.
+  const double a_up = std::max(a_, 0.0) + cp.jerk * T;  // at most, after this step
+  const double v_up = v_ + std::max(a_, 0.0) * T + 0.5 * cp.jerk * T * T;
+  const double horizon =
+      std::max(brake_distance(x, 0, 0, ha, hj), brake_distance(v_up, a_up, 0, ha, hj)) + 2 * std::max(x, v_up) * T + 1e-6;
   LimitTree::Query q = q0;
   q.x = x;
   int n = 0;
@@ -300,11 +310,11 @@ int Executor::collect(double x, const LimitTree::Query& q0, Constraint* out, int
         });
         limits_between(cur_, end, acc, jerk);
       }
-      out[n++] = {d, std::min(value, rest), acc, jerk, i, p.jerk};
+      out[n++] = {d, std::min(value, rest), acc, jerk, i, p.jerk, true};
       closed = true;
       break;
     }
-    out[n++] = {d, value, acc, jerk, i, p.jerk};
+    out[n++] = {d, value, acc, jerk, i, p.jerk, p.barrier};
     if (p.barrier) {
       boundary = d;
       closed = true;
@@ -316,12 +326,12 @@ int Executor::collect(double x, const LimitTree::Query& q0, Constraint* out, int
   if (!closed && tail_s_ - s <= horizon) {
     double acc, jerk;
     limits_between(cur_, tail_, acc, jerk);
-    out[n++] = {tail_s_ - s, 0, acc, jerk, tail_, kInf};
+    out[n++] = {tail_s_ - s, 0, acc, jerk, tail_, kInf, true};
   }
   if (step_active_) {
     double acc, jerk;
     limits_between(cur_, piece_at(step_s_) + 1, acc, jerk);
-    out[n++] = {step_s_ - s, 0, acc, jerk, tail_, kInf};
+    out[n++] = {step_s_ - s, 0, acc, jerk, tail_, kInf, true};
   }
   if (cp.barrier) boundary = std::min(boundary, cp.s0 + cp.length - s);
   if (cp.barrier && cp.length > 0) {
@@ -345,9 +355,48 @@ int Executor::collect(double x, const LimitTree::Query& q0, Constraint* out, int
       j_after = std::min({j_after, jerk, k.jerk_after});
     }
     n = m;
-    if (v_end < kInf) out[n++] = {to_end, v_end, cp.accel, cp.jerk, cur_ + 1, j_after};
+    if (v_end < kInf) out[n++] = {to_end, v_end, cp.accel, cp.jerk, cur_ + 1, j_after, true};
   }
   return n;
+}
+
+// Distance needed from `m` to meet ceiling `k`. A deceleration stronger
+// than the approach allows (or too strong to ramp out with its jerk before
+// the velocity reaches zero) was built up where the limits are higher: it is
+// first eased with the jerk available here, then the approach's limits apply.
+double Executor::approach_distance(const PathState& m, double moved, const Constraint& k) const noexcept {
+  const bool over = m.a < -k.accel;
+  const bool doomed = m.a < 0 && m.v - m.a * m.a / (2 * k.jerk) < 0;
+  if (!(over || doomed) || !(jerk_now_ > k.jerk)) return brake_distance(m.v, m.a, k.value, k.accel, k.jerk);
+  double jp = jerk_now_;
+  PathState e = m;
+  double pre = 0;
+  for (int pass = 0; pass < 2; ++pass) {
+    // Ease (with jerk jp) to a1, the strongest deceleration the approach
+    // sustains: over the limit it is -A; a deceleration ramped out with the
+    // approach's jerk must not end below zero velocity:
+    //   v + (a1^2 - a^2) / 2jp - a1^2 / 2J' >= 0.
+    const double room = m.v - m.a * m.a / (2 * jp);
+    if (room < 0) return kInf;
+    const double coef = 1 / (2 * k.jerk) - 1 / (2 * jp);
+    double a1 = std::max(m.a, -k.accel);
+    if (coef > 0) a1 = std::max(a1, -std::sqrt(room / coef) * 0.999);
+    const double t = std::max(0.0, (a1 - m.a) / jp);
+    e = integrate({0, m.v, m.a}, jp, t);
+    if (e.v < 0) return kInf;
+    pre = e.s;
+    // The jerk that really is available over that stretch.
+    double acc, jerk;
+    limits_between(cur_, piece_at(path_position() + moved + pre) + 1, acc, jerk);
+    if (!(jerk < jp)) break;
+    jp = jerk;
+    if (!(jp > k.jerk)) return brake_distance(m.v, m.a, k.value, k.accel, k.jerk);
+  }
+  if (e.v <= k.value && e.a <= 0) {
+    // Crossed the ceiling while easing: distance to that crossing.
+    return pre;
+  }
+  return pre + brake_distance(e.v, e.a, k.value, k.accel, k.jerk);
 }
 
 bool Executor::feasible(const PathState& m, double moved, const Constraint* c, int n, int* worst,
@@ -365,12 +414,18 @@ bool Executor::feasible(const PathState& m, double moved, const Constraint* c, i
       ramp = integrate({0, m.v, m.a}, -k.jerk, m.a / k.jerk).s;
       peak = m.v + m.a * m.a / (2 * (ramp <= d ? k.jerk : std::min(k.jerk, k.jerk_after)));
     }
-    if (peak <= k.value + kVelEps) continue;
     double slack;
-    if (d <= 0) {
+    if (k.tight && m.a > 1e-9 && ramp > d) {
+      // Would still be accelerating at (or past) a point where braking may
+      // have to begin.
+      slack = d - ramp;
+      if (d > 0 && slack >= -tol * (1 + d) && peak <= k.value + kVelEps) continue;
+    } else if (peak <= k.value + kVelEps) {
+      continue;
+    } else if (d <= 0) {
       slack = d - 1;  // at or past the ceiling while above it
     } else {
-      const double bd = std::max(brake_distance(m.v, m.a, k.value, k.accel, k.jerk), ramp);
+      const double bd = std::max(approach_distance(m, moved, k), ramp);
       slack = d - bd;
       if (slack >= -tol * (1 + d)) continue;
     }
@@ -443,7 +498,7 @@ double Executor::plan_step(const CycleInputs& in, double T, bool split) noexcept
   const double ja = std::max(cp.jerk, 1e-9);
   const double aa = std::fabs(a_);
   const double ramp = (v_ + aa * aa / ja) * (aa / ja + 2 * T) + 1e-9;
-  const double travel = v_ * T + aa * T * T + cp.jerk * T * T * T + 1e-9;
+  const double travel = v_ * T + std::max(a_, 0.0) * T * T * 0.5 + cp.jerk * T * T * T / 6 + 1e-9;
   // Never look past the next stop point: the motion ends there.
   uint64_t stop_at = tail_;
   for_slots(cur_ + 1, tail_, tree_.size(), [&](std::size_t lo, std::size_t hi, uint64_t base) {
@@ -451,15 +506,20 @@ double Executor::plan_step(const CycleInputs& in, double T, bool split) noexcept
     const int64_t r = tree_.find_first_stop(lo, hi);
     if (r >= 0) stop_at = base + (static_cast<std::size_t>(r) - lo);
   });
-  double acc_free, jerk_dummy, acc_dummy, jerk_free;
-  limits_between(cur_, std::min(piece_at(s + ramp) + 1, stop_at), acc_free, jerk_dummy);
-  limits_between(cur_, std::min(piece_at(s + travel) + 1, stop_at), acc_dummy, jerk_free);
-  (void)jerk_dummy;
-  (void)acc_dummy;
-  const double vpeak = a_ > 0 ? v_ + a_ * a_ / (2 * jerk_free) : v_;
+  const double vpeak = a_ > 0 ? v_ + a_ * a_ / (2 * std::max(cp.jerk, 1e-9)) : v_;
   Constraint cs[kMaxConstraints];
   double boundary = kInf;
   const int n = collect(std::max(c_cur, vpeak), q, cs, kMaxConstraints, boundary);
+  double acc_free, jerk_dummy, acc_dummy, jerk_free;
+  limits_between(cur_, std::min(piece_at(s + ramp) + 1, stop_at), acc_free, jerk_dummy);
+  // Jerk: over what this step can cover, but not past a barrier boundary
+  // where the step is cut anyway.
+  uint64_t jerk_end = std::min(piece_at(s + travel) + 1, stop_at);
+  if (split && boundary < kInf) jerk_end = std::max(cur_ + 1, std::min(jerk_end, piece_at(s + boundary)));
+  limits_between(cur_, jerk_end, acc_dummy, jerk_free);
+  (void)jerk_dummy;
+  (void)acc_dummy;
+  jerk_now_ = jerk_free;
   // Where a barrier starts or the one we are in ends, the step ends: what
   // applies beyond is only known from there (its ceilings assume the
   // braking for what lies beyond starts right there).
@@ -478,8 +538,21 @@ double Executor::plan_step(const CycleInputs& in, double T, bool split) noexcept
   // Follows a brake (`prof`, from `t0` in this step) toward the ceiling that
   // starts `dist` ahead. Once there, and if splitting is allowed, the step
   // ends: the next decision is made from that place.
-  auto follow = [&](const Motion& mo, double t0, const JerkProfile& prof, double dist) {
+  auto follow = [&](const Motion& mo, double t0, const JerkProfile& prof, double dist, double value) {
     const PathState end_state = mo.at(T);
+    if (split && value <= 1e-9 && dist <= boundary) {
+      // A brake to a stop ends at rest exactly where it stops.
+      const double t_end = t0 + prof.total_time();
+      if (t_end <= T) {
+        active_ = false;
+        PathState e = mo.at(t_end);
+        if (std::fabs(e.s - dist) < 1e-9) e.s = dist;
+        e.v = 0;
+        e.a = 0;
+        advance(e);
+        return std::max(t_end, 1e-9);
+      }
+    }
     const double stop_at = std::min(dist, boundary);
     if (split && stop_at > 1e-12 && end_state.s >= stop_at) {
       // The first time this step's motion reaches the point (possibly
@@ -497,6 +570,7 @@ double Executor::plan_step(const CycleInputs& in, double T, bool split) noexcept
     brake_ = prof;
     brake_t_ = T - t0;
     brake_target_s_ = s + dist;
+    brake_target_v_ = value;
     advance(end_state);
     return T;
   };
@@ -525,17 +599,31 @@ double Executor::plan_step(const CycleInputs& in, double T, bool split) noexcept
     }
     Motion act;
     act.first = shifted;
-    if (motion_ok(act, cs, n, T, kLoose)) return follow(act, 0, shifted, brake_target_s_ - s);
+    if (motion_ok(act, cs, n, T, kLoose)) return follow(act, 0, shifted, brake_target_s_ - s, brake_target_v_);
     base = act;
   }
   int worst = -1;
   if (!feasible(base.at(0), 0, cs, n, &worst, kLoose)) {
     // Already unable to meet a ceiling (an override dropped): brake as hard
     // as the limits allow toward the lowest ceiling that is failing.
-    const Constraint& w = cs[worst];
+    // Brake as hard as every failing ceiling's approach allows, toward the
+    // lowest of them.
+    int low = worst;
+    double acc = kInf, jerk = kInf;
+    for (int i = 0; i < n; ++i) {
+      const double peak = a_ > 0 ? v_ + a_ * a_ / (2 * cs[i].jerk) : v_;
+      if (peak <= cs[i].value) continue;
+      if (cs[i].value < cs[low].value) low = i;
+      acc = std::min(acc, cs[i].accel);
+      jerk = std::min(jerk, cs[i].jerk);
+    }
+    if (!(acc < kInf)) {
+      acc = cs[low].accel;
+      jerk = cs[low].jerk;
+    }
     Motion fb;
-    fb.first = velocity_profile(st, std::min(w.value, target), w.accel, w.jerk);
-    return follow(fb, 0, fb.first, w.dist);
+    fb.first = velocity_profile(st, std::min(brake_target(st, cs[low]), target), acc, jerk);
+    return follow(fb, 0, fb.first, cs[low].dist, cs[low].value);
   }
   // Latest instant in this step from which the binding brake still fits.
   double lo = 0, hi = T;
@@ -558,8 +646,9 @@ double Executor::plan_step(const CycleInputs& in, double T, bool split) noexcept
   double target_dist = 0;
   Motion mo = base;
   mo.switch_t = lo;
-  mo.second = choose_brake(sw, cs, n, std::max(worst, 0), target_dist);
-  return follow(mo, lo, mo.second, target_dist);
+  double target_value = 0;
+  mo.second = choose_brake(sw, cs, n, std::max(worst, 0), target_dist, target_value);
+  return follow(mo, lo, mo.second, target_dist, target_value);
 }
 
 // The brake to follow from `sw`: the shortest brake toward one ceiling that
@@ -585,6 +674,7 @@ bool Executor::brake_valid(const JerkProfile& p, double moved, int j, const Cons
           (p.at(mid).s - moved < dk ? lo : hi) = mid;
         }
         v_at = p.at(hi).v;
+        if (c[k].tight && p.at(hi).a > 1e-9) return false;
       }
       if (v_at > c[k].value + kVelEps) return false;
     } else if (end.v > c[k].value) {
@@ -604,7 +694,7 @@ int Executor::find_brake(const PathState& m, double moved, const Constraint* c, 
     return peak > c[j].value + kVelEps && c[j].dist - moved > 0;
   };
   auto attempt = [&](int j) {
-    out = velocity_profile(m, c[j].value, c[j].accel, c[j].jerk);
+    out = velocity_profile(m, brake_target(m, c[j]), c[j].accel, c[j].jerk);
     return brake_valid(out, moved, j, c, n, tol);
   };
   if (prefer >= 0 && prefer < n && attempt(prefer)) return prefer;
@@ -630,20 +720,30 @@ int Executor::find_brake(const PathState& m, double moved, const Constraint* c, 
     jerk = std::min(jerk, c[j].jerk);
   }
   if (low < 0) return -1;
-  out = velocity_profile(m, c[low].value, acc, jerk);
+  out = velocity_profile(m, brake_target(m, c[low]), acc, jerk);
   return brake_valid(out, moved, low, c, n, tol) ? low : -2 - low;
 }
 
+// The velocity a brake for `k` aims at: its value, or, for a tight point
+// approached while accelerating, the velocity reached by levelling off now
+// if that is lower (the acceleration must be gone by the point).
+double Executor::brake_target(const PathState& m, const Constraint& k) const noexcept {
+  if (k.tight && m.a > 0) return std::min(k.value, m.v + m.a * m.a / (2 * k.jerk));
+  return k.value;
+}
+
 JerkProfile Executor::choose_brake(const PathState& sw, const Constraint* c, int n, int binding,
-                                   double& target_dist) const noexcept {
+                                   double& target_dist, double& target_value) const noexcept {
   JerkProfile p;
   int j = find_brake(sw, sw.s, c, n, binding, kLoose, p);
   if (j < -1) j = -2 - j;  // none is valid: the hardest one
   if (j < 0) {
     j = binding;
-    p = velocity_profile(sw, c[j].value, c[j].accel, c[j].jerk);
+    p = velocity_profile(sw, brake_target(sw, c[j]), c[j].accel, c[j].jerk);
   }
   target_dist = c[j].dist;
+  target_value = c[j].value;
+  if (j >= 0 && p.end().v > target_value) target_value = p.end().v;
   return p;
 }
 

@@ -72,6 +72,8 @@ class Executor {
     uint64_t piece;
     double jerk_after;  // jerk available just past the point (an arrival
                         // still accelerating must level off with it)
+    bool tight;         // the value assumes braking may have to go on right
+                        // after the point: arrive no longer accelerating
   };
   struct Motion {
     JerkProfile first;
@@ -84,11 +86,13 @@ class Executor {
   void backward_pass(int budget) noexcept;
   double barrier_ceiling(uint64_t b) const noexcept;
   int collect(double x, const LimitTree::Query& q, Constraint* out, int max, double& boundary) const noexcept;
+  double approach_distance(const PathState& m, double moved, const Constraint& k) const noexcept;
+  double brake_target(const PathState& m, const Constraint& k) const noexcept;
   bool brake_valid(const JerkProfile& p, double moved, int j, const Constraint* c, int n, double tol) const noexcept;
   int find_brake(const PathState& m, double moved, const Constraint* c, int n, int prefer, double tol,
                  JerkProfile& out) const noexcept;
-  JerkProfile choose_brake(const PathState& sw, const Constraint* c, int n, int binding, double& target_dist) const
-      noexcept;
+  JerkProfile choose_brake(const PathState& sw, const Constraint* c, int n, int binding, double& target_dist,
+                           double& target_value) const noexcept;
   bool feasible(const PathState& m, double moved, const Constraint* c, int n, int* worst, double tol) const noexcept;
   bool motion_ok(const Motion& mo, const Constraint* c, int n, double T, double tol) const noexcept;
   void plan_cycle(const CycleInputs& in) noexcept;
@@ -120,6 +124,8 @@ class Executor {
   JerkProfile brake_;
   double brake_t_ = 0;
   double brake_target_s_ = 0;  // where the ceiling it brakes for starts
+  double brake_target_v_ = 0;  // and its value
+  double jerk_now_ = 0;        // jerk available over this step
 
   bool hold_ = false;
   bool step_active_ = false;
@@ -133,7 +139,6 @@ class Executor {
 
   bool bp_dirty_ = false;
   int64_t bp_cursor_ = -1;
-  std::unique_ptr<uint8_t[]> known_;  // barrier ceiling computed at least once
   uint64_t completed_ = 0;
   uint64_t overruns_ = 0;
   Pose pose_;
