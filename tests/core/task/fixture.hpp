@@ -1,5 +1,5 @@
 // An in-process simulated mill for task and I/O tests: the HAL of
-// configs/sim driven cycle by cycle (servo thread functions, then one task
+// tests/core/task/mill driven cycle by cycle (servo thread functions, then one task
 // cycle), with the test planner behind motion. Deterministic and fast.
 #pragma once
 
@@ -34,11 +34,14 @@ class Reporter : public ipc::CommandReporter {
 
 class TaskMachine {
  public:
-  // `ini_extra` is appended to configs/sim/sim.ini; `hal_extra` to sim.hal.
+  // The machine is tests/core/task/mill: configs/sim as it was before its
+  // axes became CiA 402 drives (ideal sim_joint axes), so that these tests
+  // are about the task and I/O controllers, not drive timing.
+  // `ini_extra` is appended to its sim.ini; `hal_extra` to sim.hal.
   using Override = std::array<std::string, 3>;  // section, key, value
   explicit TaskMachine(const std::vector<Override>& overrides = {}, const std::string& hal_extra = "",
                        const std::string& tool_table = "", const std::string& ini_extra = "") {
-    const auto src = source_dir() / "configs/sim";
+    const auto src = source_dir() / "tests/core/task/mill";
     std::string ini = read(src / "sim.ini") + "\n" + ini_extra;
     dir.write("sim.ini", ini);
     dir.write("sim.hal", read(src / "sim.hal") + "\n" + hal_extra);
