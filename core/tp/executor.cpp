@@ -59,8 +59,40 @@ double Executor::path_position() const noexcept {
 
 double Executor::distance_to_tail() const noexcept { return tail_s_ - path_position(); }
 
-double Executor::stop_distance() const noexcept {
-  return brake_distance(v_, a_, 0, floors_.accel, floors_.jerk);
+// The limits that bind a stop are those of the stretch it covers (a line
+// along one axis may brake at that axis's full acceleration, more than the
+// floors), so the stretch is grown until it covers the distance it implies.
+// A deceleration built up where the limits are higher is first eased with
+// the jerk available here (approach_distance), as the executor itself does.
+// Barriers (tight corners) are passed with a two-stage brake (their own
+// small limits inside, the next pieces' beyond) that one set of limits does
+// not describe: a stretch that reaches one is reported through
+// `crosses_barrier` and its distance is only an upper bound.
+double Executor::stop_distance(bool* crosses_barrier) const noexcept {
+  if (crosses_barrier) *crosses_barrier = false;
+  if (cur_ >= tail_ || (v_ == 0 && a_ == 0)) return 0;
+  const double s = path_position();
+  const PathState now{0, v_, a_};
+  uint64_t end = cur_ + 1;
+  double d = 0;
+  for (int it = 0; it < 32; ++it) {
+    double acc, jerk;
+    limits_between(cur_, end, acc, jerk);
+    const Constraint k{tail_s_ - s, 0, acc, jerk, tail_, kInf, true};
+    d = approach_distance(now, 0, k);
+    if (!(d < kInf)) break;
+    // A brake that ends exactly on a boundary (a stop point) does not use
+    // the limits beyond it.
+    const uint64_t reach = std::min(tail_, piece_at(s + d - 1e-9 * (1 + d)) + 1);
+    if (reach <= end) break;
+    end = reach;
+  }
+  if (crosses_barrier) {
+    for (uint64_t k = cur_; k < end && !*crosses_barrier; ++k) {
+      *crosses_barrier = piece(k).barrier && piece(k).stop == StopKind::None;
+    }
+  }
+  return d;
 }
 
 void Executor::pause() noexcept { hold_ = true; }

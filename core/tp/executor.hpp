@@ -55,7 +55,7 @@ class Executor {
   double path_velocity() const noexcept { return v_; }
   double path_acceleration() const noexcept { return a_; }
   double distance_to_tail() const noexcept;
-  double stop_distance() const noexcept;
+  double stop_distance(bool* crosses_barrier = nullptr) const noexcept;
   uint64_t overruns() const noexcept { return overruns_; }
 
   // Position on the smoothed path at global position s (tests: dense

@@ -47,6 +47,24 @@ StreamChecker::StreamChecker(const PlannerConfig& config, const Program& program
       pos = m.end;
     }
     curves_.push_back(c);
+    std::array<double, 6> box{kInf, kInf, kInf, -kInf, -kInf, -kInf};
+    constexpr int kBoxSamples = 256;
+    for (int k = 0; k <= kBoxSamples; ++k) {
+      AxisVec pt = c.start.v;
+      if (c.length > 0) c.eval(c.length * k / kBoxSamples, pt);
+      for (int a = 0; a < 3; ++a) {
+        box[static_cast<std::size_t>(a)] = std::min(box[static_cast<std::size_t>(a)], pt[static_cast<std::size_t>(a)]);
+        box[static_cast<std::size_t>(a + 3)] = std::max(box[static_cast<std::size_t>(a + 3)], pt[static_cast<std::size_t>(a)]);
+      }
+    }
+    // Every point of the curve is within half a sample step (arc length) of
+    // a sample.
+    const double pad = 0.5 * c.length / kBoxSamples + 1e-12;
+    for (int a = 0; a < 3; ++a) {
+      box[static_cast<std::size_t>(a)] -= pad;
+      box[static_cast<std::size_t>(a + 3)] += pad;
+    }
+    box_.push_back(box);
     const SegmentParams& p = m.params;
     double t = 1e-6;  // exact path: only rounding
     if (p.term == TermCond::Blend) t = p.tolerance > 0 ? p.tolerance : kInf;
@@ -144,7 +162,21 @@ void StreamChecker::add(const CycleOutputs& out, double feed_scale) {
     const std::size_t lo = id > static_cast<std::size_t>(span_) ? id - static_cast<std::size_t>(span_) : 0;
     const std::size_t hi = std::min(n, id + static_cast<std::size_t>(span_) + 1);
     double d = kInf;
-    for (std::size_t i = lo; i < hi; ++i) d = std::min(d, distance_to_move(p, i));
+    // Nearest moves first: later ones are then mostly skipped by their box.
+    for (std::size_t r = 0; r < 2 * (hi - lo); ++r) {
+      const std::size_t off = (r + 1) / 2;
+      if (r % 2 == 1 ? id + off >= hi : id < lo + off) continue;
+      const std::size_t i = r % 2 == 1 ? id + off : id - off;
+      const std::array<double, 6>& b = box_[i];
+      double lb2 = 0;
+      for (int a = 0; a < 3; ++a) {
+        const double x = p[a];
+        const double e = std::max({b[static_cast<std::size_t>(a)] - x, 0.0, x - b[static_cast<std::size_t>(a + 3)]});
+        lb2 += e * e;
+      }
+      if (lb2 >= d * d) continue;  // cannot be nearer
+      d = std::min(d, distance_to_move(p, i));
+    }
     st_.max_deviation = std::max(st_.max_deviation, d);
     // Corners blend with the tolerance of the move that ends there and their
     // windows may reach over neighbouring moves: the largest nearby applies.
@@ -212,6 +244,7 @@ RunResult run_program(TrajectoryPlanner& planner, const PlannerConfig& config, c
   const auto* la = dynamic_cast<const LookaheadPlanner*>(&planner);
   planner.set_position(program.start);
   std::size_t next = 0;
+  bool flushed = false;
   double last_s = -kInf;
   if (options.measure_cpu) {
     r.cycle_ns.reserve(1 << 20);
@@ -222,12 +255,21 @@ RunResult run_program(TrajectoryPlanner& planner, const PlannerConfig& config, c
   out.position = program.start;
   for (uint64_t cycle = 0; cycle < options.max_cycles; ++cycle) {
     if (options.before_cycle) options.before_cycle(cycle, planner, in);
-    for (int k = 0; k < options.moves_per_cycle && next < program.moves.size(); ++k) {
+    const bool starving = cycle >= options.starve_from_cycle && !r.starve_stopped;
+    if (starving && cycle > options.starve_from_cycle && la && !la->executor().is_moving()) {
+      r.starve_stopped = true;
+      r.starve_stop_gap = la->executor().distance_to_tail();
+    }
+    for (int k = 0; !starving && k < options.moves_per_cycle && next < program.moves.size(); ++k) {
       const int64_t t0 = options.measure_cpu ? now_ns() : 0;
       const Result res = queue_move(planner, program, next);
       if (res == Result::QueueFull) break;
       if (options.measure_cpu) r.add_ns.push_back(static_cast<double>(now_ns() - t0));
       ++next;
+    }
+    if (options.flush_at_end && next == program.moves.size() && !flushed) {
+      planner.flush();
+      flushed = true;
     }
     const int64_t t0 = options.measure_cpu ? now_ns() : 0;
     planner.run_cycle(in, out);
@@ -239,7 +281,10 @@ RunResult run_program(TrajectoryPlanner& planner, const PlannerConfig& config, c
       const double s = e.path_position();
       if (s < last_s - 1e-9) r.monotone = false;
       last_s = s;
-      r.stop_margin = std::min(r.stop_margin, e.distance_to_tail() - e.stop_distance());
+      bool barrier = false;
+      const double margin = e.distance_to_tail() - e.stop_distance(&barrier);
+      if (!barrier) r.stop_margin = std::min(r.stop_margin, margin);
+      if (barrier) ++r.barrier_samples;
     }
     if (next == program.moves.size() && out.done && planner.is_done()) {
       r.completed = true;

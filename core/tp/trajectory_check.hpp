@@ -64,6 +64,9 @@ class StreamChecker {
   const Program& program_;
   std::vector<Curve> curves_;  // per move; length 0 for dwells
   std::vector<double> tol_;    // tolerance that applies around move i
+  // Per move: a box (XYZ) that holds its whole curve, to skip curves that
+  // cannot be nearer than one already found.
+  std::vector<std::array<double, 6>> box_;
   int span_;
   Pose hist_[3];
   int nhist_ = 0;
@@ -80,6 +83,13 @@ struct RunOptions {
   int moves_per_cycle = 1 << 30;
   uint64_t max_cycles = 50'000'000;
   bool measure_cpu = false;
+  // Call flush() once every move is queued (the motion controller does at
+  // the end of a program or at a queue buster).
+  bool flush_at_end = false;
+  // From this cycle on nothing is queued until the machine has come to rest
+  // (the interpreter starving): with a planner that does not flush on its
+  // own, the machine must stop within what was planned.
+  uint64_t starve_from_cycle = UINT64_MAX;
   // Called before each cycle: overrides, pause, probe input, ...
   std::function<void(uint64_t cycle, TrajectoryPlanner&, CycleInputs&)> before_cycle;
 };
@@ -93,6 +103,13 @@ struct RunResult {
   // distance needed to stop (negative: could not have stopped in time).
   bool monotone = true;
   double stop_margin = std::numeric_limits<double>::infinity();
+  // Samples whose stop would cross a barrier (tight corner): their margin is
+  // carried by the barrier ceilings and not counted in stop_margin.
+  uint64_t barrier_samples = 0;
+  // With starve_from_cycle: the machine came to rest while starved, and
+  // where (path position) relative to the end of what was planned.
+  bool starve_stopped = false;
+  double starve_stop_gap = 0;
   uint64_t overruns = 0;
   std::vector<double> cycle_ns;  // with measure_cpu: run_cycle durations
   std::vector<double> add_ns;    // with measure_cpu: durations of accepted add_* calls
