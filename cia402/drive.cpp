@@ -305,7 +305,7 @@ void Drive::run_homing(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) 
       } else {
         home_ = HomePhase::SwitchToHm;
         home_started_ns_ = now;
-        home_seen_progress_ = false;
+        home_seen_progress_ = home_seen_other_ = false;
       }
       break;
     case HomePhase::SwitchToHm:
@@ -318,17 +318,22 @@ void Drive::run_homing(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) 
     case HomePhase::Running: {
       // A "completed" left from an earlier homing must not count: accept it
       // once the status showed anything else since the start, or when it
-      // persists (methods 35/37 complete within a cycle).
+      // persists (methods 35/37 complete within a cycle). "Interrupted" is
+      // an error only after the drive was seen homing.
       const HomingStatus h = decode_homing(statusword_);
-      if (h != HomingStatus::Completed) home_seen_progress_ = true;
-      if (h == HomingStatus::Completed && now - home_started_ns_ > 200'000'000) home_seen_progress_ = true;
+      if (h != HomingStatus::Completed) home_seen_other_ = true;
+      if (h == HomingStatus::InProgress || h == HomingStatus::AttainedNotReached) home_seen_progress_ = true;
+      if (h == HomingStatus::Completed && (home_seen_other_ || now - home_started_ns_ > 200'000'000)) {
+        home_seen_progress_ = true;
+      }
       if (h == HomingStatus::ErrorMoving || h == HomingStatus::ErrorStopped) {
         post(true, "drive homing (method %d) failed: %s", config_.home_method, to_string(h));
         home_ = HomePhase::Error;
       } else if (home_seen_progress_ && h == HomingStatus::Completed) {
         home_ = HomePhase::SwitchBack;
-      } else if (home_seen_progress_ && h == HomingStatus::Interrupted && now - home_started_ns_ > 100'000'000) {
-        post(true, "drive homing (method %d) was interrupted by the drive", config_.home_method);
+      } else if (h == HomingStatus::Interrupted && (home_seen_progress_ || now - home_started_ns_ > 2'000'000'000)) {
+        post(true, "drive homing (method %d) %s", config_.home_method,
+             home_seen_progress_ ? "was interrupted by the drive" : "did not start within 2 s");
         home_ = HomePhase::Error;
       }
       break;
@@ -399,7 +404,7 @@ uint16_t Drive::run_state_machine(int64_t now, const DriveCommand& cmd, DriveFee
   const bool want = cmd.enable && !cmd.quick_stop && !cmd.inhibit && fb.link_ok && !enable_failed_ && !reset_failed_ &&
                     !mode_failed_ && !lost_enable_ && !resetting_;
 
-  if (want && !following_) {
+  if (want && !reached_oe_) {  // the enable sequence; later losses of bit 12 are not its business
     if (enable_started_ns_ < 0) enable_started_ns_ = now;
     if (now - enable_started_ns_ > config_.enable_timeout_ns) {
       enable_failed_ = true;
@@ -424,8 +429,8 @@ uint16_t Drive::run_state_machine(int64_t now, const DriveCommand& cmd, DriveFee
       return cw::kEnableOperationCmd;
     case State::OperationEnabled:
       if (!want) return cw::kQuickStopCmd;  // stop on the quick-stop ramp, then power off (0x605A)
+      // HM: bit 4 high runs the homing; back to 0 it interrupts it.
       if (home_ == HomePhase::Running) return cw::kEnableOperationCmd | cw::kBit4;
-      if (home_ == HomePhase::Aborting) return cw::kEnableOperationCmd | cw::kHalt;
       return cw::kEnableOperationCmd;
     case State::QuickStopActive:
       if (quick_stop_since_ns_ < 0) quick_stop_since_ns_ = now;

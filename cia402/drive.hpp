@@ -216,6 +216,7 @@ class Drive {
   HomePhase home_ = HomePhase::Idle;
   bool prev_home_start_ = false;
   bool home_seen_progress_ = false;
+  bool home_seen_other_ = false;
   int64_t home_started_ns_ = 0;
 
   // touch probes

@@ -10,6 +10,7 @@
 #include <QTimer>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <string>
 
 #include "core/ini/ini_file.hpp"
@@ -30,6 +31,22 @@ QSlider::groove:horizontal { height: 8px; background: #c8c8c8; border-radius: 4p
 QSlider::handle:horizontal { width: 26px; margin: -10px 0; background: #1f4e9c; border-radius: 6px; }
 QScrollBar:vertical { width: 18px; }
 )";
+
+// Calls `done` once, after the watched window's first paint event.
+class FirstPaint : public QObject {
+ public:
+  FirstPaint(QObject* parent, std::function<void()> done) : QObject(parent), done_(std::move(done)) {}
+  bool eventFilter(QObject* o, QEvent* e) override {
+    if (e->type() == QEvent::Paint && done_) {
+      QTimer::singleShot(0, this, [f = std::move(done_)]() { f(); });  // after the paint has finished
+      done_ = nullptr;
+    }
+    return QObject::eventFilter(o, e);
+  }
+
+ private:
+  std::function<void()> done_;
+};
 
 int usage() {
   std::fprintf(stderr,
@@ -85,15 +102,17 @@ int main(int argc, char** argv) {
   else window.show();
 
   if (quit_after_startup || !screenshot.empty()) {
-    // After the first frame (and, for a screenshot, a few cycles).
-    const int delay = screenshot.empty() ? 0 : 1500;
-    QTimer::singleShot(delay, &window, [&]() {
+    // After the window's first paint (and, for a screenshot, a few cycles).
+    auto* watch = new FirstPaint(&window, [&, t0]() {
       const double ms = static_cast<double>(cnc::monotonic_ns() - t0) / 1e6;
-      if (!screenshot.empty()) window.grab().save(QString::fromStdString(screenshot));
-      std::printf("cnc-hmi: first frame %.0f ms after start\n", ms);
-      std::fflush(stdout);
-      QApplication::quit();
+      QTimer::singleShot(screenshot.empty() ? 0 : 1500, &window, [&, ms]() {
+        if (!screenshot.empty()) window.grab().save(QString::fromStdString(screenshot));
+        std::printf("cnc-hmi: first frame %.0f ms after start\n", ms);
+        std::fflush(stdout);
+        QApplication::quit();
+      });
     });
+    window.installEventFilter(watch);
   }
   return QApplication::exec();
 }

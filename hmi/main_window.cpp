@@ -275,7 +275,7 @@ void MainWindow::build() {
   }
   const auto view_button = [&](const QString& text, const char* name, auto fn) {
     auto* b = ui::button(text, name, program_page_);
-    b->setMinimumWidth(ui::kTouch);
+    b->setFixedWidth(std::max(ui::kTouch + 4, b->fontMetrics().horizontalAdvance(text) + 20));
     connect(b, &QPushButton::clicked, this, fn);
     views->addWidget(b);
   };
@@ -291,7 +291,7 @@ void MainWindow::build() {
   view_button("+", "zoomIn", [this]() { preview_->zoom(1.25); });
   view_button("−", "zoomOut", [this]() { preview_->zoom(0.8); });
   view_button("Fit", "zoomFit", [this]() { preview_->fit(); });
-  view_button("Clear plot", "clearBackplot", [this]() { preview_->clear_backplot(); });
+  view_button("Clear", "clearBackplot", [this]() { preview_->clear_backplot(); });
   views->addStretch(1);
   pv->addLayout(views);
   auto* psplit = new QSplitter(Qt::Vertical, program_page_);
@@ -394,6 +394,7 @@ void MainWindow::tick() {
     if (last_interp_ == ipc::InterpState::Idle && s.task.interp_state != ipc::InterpState::Idle &&
         s.task.mode == ipc::TaskMode::Auto) {
       tabs_->setCurrentWidget(program_page_);
+      preview_->clear_backplot();  // the plot shows this run
     }
     // Tools and offsets may change under a program (G10, M6): re-read at its end.
     if (last_interp_ != ipc::InterpState::Idle && s.task.interp_state == ipc::InterpState::Idle) {
@@ -423,6 +424,7 @@ void MainWindow::tick() {
     const bool moving = !s.motion.inpos || std::fabs(s.motion.current_vel) > 1e-9;
     if (moving && !backplot_timer_->isActive()) backplot_timer_->start();
     if (moving || backplot_timer_->isActive()) preview_->add_backplot(d.machine);
+    preview_->flush();
     check_run_from_line();
   }
   tracker_.poll(monotonic_ns());
@@ -457,7 +459,6 @@ void MainWindow::sample_backplot() {
   }
   const DroPositions d = dro_positions(s, screen_.show_actual);
   if (d.valid) preview_->add_backplot(d.machine);
-  preview_->set_tool(d.machine, d.valid, s.task.tool_offset[2] * program_to_machine(s));
   if (s.motion.inpos && std::fabs(s.motion.current_vel) < 1e-9) backplot_timer_->stop();
 }
 

@@ -81,6 +81,7 @@ class DroPanel : public QWidget {
   Screen& s_;
   std::vector<Row> rows_;
   QLabel* work_header_;
+  QLabel* machine_header_;
   QLabel* units_;
   QLabel* info_;
   QLabel* gcodes_;
@@ -255,6 +256,7 @@ class DrivesPage : public QWidget {
   Screen& s_;
   QTableWidget* table_;
   QLabel* note_;
+  std::vector<QPushButton*> home_;
 };
 
 }  // namespace cnc::hmi

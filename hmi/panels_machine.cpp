@@ -228,28 +228,28 @@ DroPanel::DroPanel(Screen& s, QWidget* parent) : QWidget(parent), s_(s) {
   setObjectName("droPanel");
   auto* v = new QVBoxLayout(this);
   v->setContentsMargins(2, 2, 2, 2);
-  auto* top = new QHBoxLayout();
   units_ = new QLabel(this);
   units_->setObjectName("droUnits");
+  units_->setStyleSheet("color: #404040;");
   actual_ = ui::button("Commanded", "droActual", this, true);
+  actual_->setMinimumHeight(30);
+  actual_->setToolTip("Show the commanded or the actual (feedback) position");
   actual_->setChecked(s_.show_actual);
   connect(actual_, &QPushButton::toggled, this, [this](bool on) {
     s_.show_actual = on;
     refresh();
   });
-  top->addWidget(units_, 1);
-  top->addWidget(actual_);
-  v->addLayout(top);
-
   auto* grid = new QGridLayout();
   grid->setHorizontalSpacing(6);
   grid->setVerticalSpacing(2);
   work_header_ = new QLabel("Work", this);
-  const QStringList heads = {"", "", "", "Machine", "To go", "", "", ""};
-  for (int c = 0; c < heads.size(); ++c) {
-    if (c == 2) grid->addWidget(work_header_, 0, c, Qt::AlignRight);
-    else if (!heads[c].isEmpty()) grid->addWidget(new QLabel(heads[c], this), 0, c, Qt::AlignRight);
-  }
+  grid->addWidget(units_, 0, 0, 1, 2);
+  grid->addWidget(work_header_, 0, 2, Qt::AlignRight);
+  machine_header_ = new QLabel("Machine", this);
+  machine_header_->setObjectName("droMachineHeader");
+  grid->addWidget(machine_header_, 0, 3, Qt::AlignRight);
+  grid->addWidget(new QLabel("To go", this), 0, 4, Qt::AlignRight);
+  grid->addWidget(actual_, 0, 5, 1, 3);
   const QString mono = "font-family: 'DejaVu Sans Mono', monospace;";
   std::vector<AxisConfig> axes = s_.config.axes;
   if (s_.config.lathe) {
@@ -386,8 +386,9 @@ void DroPanel::refresh() {
   const bool diameter = s_.config.lathe && c && diameter_mode(st);
   ui::set_text(actual_, s_.show_actual ? "Actual" : "Commanded");
   ui::set_text(work_header_, QString("Work %1").arg(ui::qs(work_offset_name(c ? st.task.g5x_index : 1))));
-  ui::set_text(units_, QString("Program %1 (%2) · machine %3")
-                           .arg(inch ? "inch" : "mm", inch ? "G20" : "G21", m_inch ? "inch" : "mm"));
+  ui::set_text(units_, QString("%1 %2").arg(inch ? "inch" : "mm", inch ? "G20" : "G21"));
+  ui::set_text(machine_header_, QString("Machine %1").arg(m_inch ? "in" : "mm"));
+  units_->setToolTip(QString("Program units %1 (%2), machine units %3").arg(inch ? "inch" : "mm", inch ? "G20" : "G21", m_inch ? "inch" : "mm"));
   for (auto& r : rows_) {
     if (!c || !d.valid) {
       ui::set_text(r.work, c ? "unknown" : "—");

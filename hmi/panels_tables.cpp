@@ -417,9 +417,28 @@ DrivesPage::DrivesPage(Screen& s, QWidget* parent) : QWidget(parent), s_(s) {
   table_->horizontalHeader()->setSectionResizeMode(QHeaderView::ResizeToContents);
   table_->horizontalHeader()->setStretchLastSection(true);
   v->addWidget(table_, 1);
+  // Homing joint by joint (machines whose joints are not one per axis).
+  auto* row = new QHBoxLayout();
+  const int joints = static_cast<int>(s_.config.joints.size());
+  for (int j = 0; j < joints; ++j) {
+    auto* b = ui::button(QString("Home J%1").arg(j), ("homeJoint_" + std::to_string(j)).c_str(), this);
+    connect(b, &QPushButton::clicked, this, [this, j]() {
+      s_.send_in_mode(ipc::TaskMode::Manual, {commands::home(j)}, "home joint " + std::to_string(j));
+    });
+    row->addWidget(b);
+    home_.push_back(b);
+  }
+  row->addStretch(1);
+  auto* unhome = ui::button("Unhome all", "unhomeAll", this);
+  connect(unhome, &QPushButton::clicked, this,
+          [this]() { s_.send_in_mode(ipc::TaskMode::Manual, {commands::unhome(-1)}, "unhome all"); });
+  row->addWidget(unhome);
+  home_.push_back(unhome);
+  v->addLayout(row);
 }
 
 void DrivesPage::refresh() {
+  for (auto* b : home_) b->setEnabled(s_.is_on() && s_.is_idle());
   const auto& st = s_.status;
   const int joints = s_.connected ? std::min<int>(st.motion.joints, kMaxJoints) : static_cast<int>(s_.config.joints.size());
   bool any_drive = false;

@@ -144,6 +144,12 @@ void PreviewWidget::add_backplot(const Pose& m) {
     half.push_back(backplot_.back());
     backplot_ = std::move(half);
   }
+  backplot_dirty_ = true;  // drawn at the next flush(), once per screen cycle
+}
+
+void PreviewWidget::flush() {
+  if (!backplot_dirty_) return;
+  backplot_dirty_ = false;
   update();
 }
 

@@ -36,7 +36,9 @@ class PreviewWidget : public QWidget {
   void set_tool(const Pose& machine, bool valid, double tool_length);
   void set_origin(const Pose& machine, bool valid);
   void set_executing_line(int line);
+  // Adds a point to the live plot; it is drawn at the next flush().
   void add_backplot(const Pose& machine);
+  void flush();
   void clear_backplot();
   std::size_t backplot_size() const { return backplot_.size(); }
   // Run from line: the approach from `from` to `to` (up, across, down).
@@ -87,6 +89,7 @@ class PreviewWidget : public QWidget {
   std::unordered_map<int, std::vector<uint32_t>> line_points_;  // line -> indexes of points ending a move of it
   int executing_line_ = 0;
   std::vector<Vec> backplot_;
+  bool backplot_dirty_ = false;
   Pose tool_{}, origin_{};
   bool tool_valid_ = false, origin_valid_ = false;
   double tool_length_ = 0;

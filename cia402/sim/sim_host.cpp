@@ -91,7 +91,7 @@ void SimHost::start() {
       pthread_setschedparam(pthread_self(), SCHED_FIFO, &p);
     }
     while (!stop_.load(std::memory_order_acquire)) {
-      transport_.wait(250'000);
+      transport_.wait(1'000'000);  // SYNC wakes it at once; between SYNCs the drives keep time at 1 ms
       step(monotonic_ns());
     }
   });

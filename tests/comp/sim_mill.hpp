@@ -36,13 +36,14 @@ class SimMill : private ipc::CommandReporter {
   using Registrar = std::function<void(hal::ComponentRegistry&)>;
   using Reply = std::pair<ipc::CommandState, std::string>;
 
+  // `extra_hal`: halcmd lines run after the INI's HAL files (the
+  // compensation's components added to a configuration that lacks them).
   SimMill(const std::filesystem::path& config, const std::filesystem::path& work, const std::string& ini_name,
-          const Registrar& extra, motion::PlannerFactory planner = {})
+          const Registrar& extra, const std::string& extra_hal = "", motion::PlannerFactory planner = {})
       : dir_(work) {
     std::filesystem::create_directories(dir_);
-    for (const auto& e : std::filesystem::directory_iterator(config)) {
-      std::filesystem::copy(e.path(), dir_ / e.path().filename(), std::filesystem::copy_options::overwrite_existing);
-    }
+    std::filesystem::copy(config, dir_,
+                          std::filesystem::copy_options::recursive | std::filesystem::copy_options::overwrite_existing);
     ini_ = ini::IniFile::load(dir_ / ini_name);
     hal::register_core_components(registry_);
     kin::register_kinematics_components(registry_);
@@ -54,6 +55,10 @@ class SimMill : private ipc::CommandReporter {
     hal_.add_component(std::make_unique<io::IoController>(hal_, io::IoConfig::from_ini(ini_), &messages_));
     hal::CommandInterpreter interp(hal_, registry_, &ini_, &messages_);
     for (const std::string& f : ini_.find_all("HAL", "HALFILE")) interp.run_file(ini_.resolve_path(f));
+    if (!extra_hal.empty()) {
+      write_file_atomically(dir_ / "extra.hal", extra_hal);
+      interp.run_file(dir_ / "extra.hal");
+    }
     for (hal::Component* c : hal_.components()) c->on_ready();
     motion_ = hal_.find<motion::MotionComponent>("motmod");
     io_ = hal_.find<io::IoController>("iocontrol");
@@ -73,6 +78,7 @@ class SimMill : private ipc::CommandReporter {
   // One servo period, then one task cycle.
   void step(int n = 1) {
     for (int i = 0; i < n; ++i) {
+      info_.now_ns = now_ns_;  // simulated time: drives and bus masters time out on it
       thread_->run_cycle(info_);
       ++info_.cycle;
       now_ns_ += info_.period_ns;
@@ -158,7 +164,7 @@ class SimMill : private ipc::CommandReporter {
   comp::MeasurementLogger& logger() { return *hal_.find<comp::MeasurementLogger>("complog"); }
   hal::Hal& hal() { return hal_; }
   motion::MotionComponent& motion() { return *motion_; }
-  double seconds() const { return static_cast<double>(now_ns_) * 1e-9; }
+  double seconds() const { return static_cast<double>(now_ns_ - kStartNs) * 1e-9; }
   const std::filesystem::path& dir() const { return dir_; }
   // Error messages since the last call.
   std::string errors() {
@@ -191,7 +197,8 @@ class SimMill : private ipc::CommandReporter {
   std::unique_ptr<ipc::Status> status_;
   hal::Thread* thread_ = nullptr;
   rt::CycleInfo info_;
-  int64_t now_ns_ = 0;
+  static constexpr int64_t kStartNs = 1'000'000'000'000;  // a clock that has run for a while, as CLOCK_MONOTONIC has
+  int64_t now_ns_ = kStartNs;
   uint32_t serial_ = 0;
   std::map<uint32_t, Reply> replies_;
   std::string errors_;

@@ -3,6 +3,7 @@
 // Qt's offscreen platform: no display needed.
 #include <QApplication>
 #include <QDir>
+#include <QFileInfo>
 #include <QInputDialog>
 #include <QLabel>
 #include <QLineEdit>
@@ -91,7 +92,8 @@ struct Rig {
   std::string show_pin;
   std::unique_ptr<MainWindow> w;
 
-  explicit Rig(const std::string& extra = {}, const std::string& base = kIni, MainWindow::Options opt = {}) {
+  explicit Rig(const std::string& extra = {}, const std::string& base = kIni, MainWindow::Options opt = {},
+               bool embed = false) {
     write("tool.tbl", "T1 P1 D6 Z+35 ;6 mm end mill\nT2 P2 D10 Z+42.5 ;10 mm end mill\n");
     write("sim.var", "5220 1\n5221 100\n5222 50\n5223 -80\n");
     write("post.hal", "echo postgui file\n");
@@ -101,7 +103,7 @@ struct Rig {
     auto fake = std::make_unique<FakeLink>();
     link = fake.get();
     opt.start_timer = false;
-    opt.embed_tabs = false;
+    opt.embed_tabs = embed;
     HalExecutor hal = [this](const std::string& line) {
       std::lock_guard lock(hal_mutex);
       hal_lines.push_back(line);
@@ -587,6 +589,29 @@ class WidgetTests : public QObject {
       QVERIFY2(wdg->height() >= 24, name);
     }
     r.w->grab().save(screenshot_dir() + "/widget-1024x768.png");
+  }
+  void embedded_tabs_get_a_window_to_embed_into() {
+    MainWindow::Options opt;
+    Rig r("[DISPLAY]\nEMBED_TAB_NAME = Probe panel\nEMBED_TAB_COMMAND = echo {XID} > xid.txt\n", kIni, opt, true);
+    const int last = r.w->tabs()->count() - 1;
+    QCOMPARE(r.w->tabs()->tabText(last), QString("Probe panel"));
+    r.w->tabs()->setCurrentIndex(last);  // started when first shown
+    const QString file = r.dir.path() + "/xid.txt";
+    QTRY_VERIFY_WITH_TIMEOUT(QFileInfo(file).size() > 0, 5000);
+    QFile f(file);
+    QVERIFY(f.open(QIODevice::ReadOnly));
+    const QWidget* container = r.w->tabs()->widget(last)->findChild<QWidget*>("embedContainer");
+    QVERIFY(container);
+    QCOMPARE(f.readAll().trimmed().toULongLong(), static_cast<qulonglong>(container->winId()));
+  }
+  void joints_home_one_by_one_from_the_drives_page() {
+    Rig r;
+    r.link->set_on(false);
+    r.w->tabs()->setCurrentIndex(5);
+    r.tick();
+    QTest::mouseClick(r.find<QPushButton>("homeJoint_2"), Qt::LeftButton);
+    QCOMPARE(r.link->sent.back().type, CommandType::JointHome);
+    QCOMPARE(r.link->sent.back().i[0], 2);
   }
   void without_a_controller_everything_waits() {
     Rig r;
