@@ -678,7 +678,9 @@ void MotionController::read_feedback() noexcept {
     jt.ferror = jt.pos_cmd - jt.pos_fb;
     const JointConfig& c = cfg_.joints[static_cast<std::size_t>(j)];
     jt.ferror_limit = std::max(c.min_ferror, c.ferror * std::fabs(jt.vel_cmd) / c.max_velocity);
-    jt.ferror_high = std::max(jt.ferror_high, std::fabs(jt.ferror));
+    // The high-water mark follows the checked error: not while the drive
+    // homes on its own (the check is suspended and the command lags by design).
+    if (jt.home_state != HomeState::DriveHoming) jt.ferror_high = std::max(jt.ferror_high, std::fabs(jt.ferror));
   }
 }
 
