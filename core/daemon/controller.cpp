@@ -254,7 +254,9 @@ void Controller::shutdown() {
   shut_down_ = true;
   stop_requested_.store(true);
   server_->set_ready(false);
-  // Outputs to a safe state while the servo thread still runs.
+  // Services first (the task ends a running program and goes to E-stop,
+  // saying why), then outputs to a safe state while the servo thread runs.
+  for (ipc::ControllerService* s : services_) s->on_controller_shutdown();
   for (hal::Component* c : hal_.components()) c->on_shutdown();
   const int64_t deadline = monotonic_ns() + 2'000'000'000;
   for (;;) {

@@ -36,6 +36,9 @@ class ControllerService {
   virtual void update(int64_t now_ns) { (void)now_ns; }
   // Fill this service's part of the status block.
   virtual void contribute_status(Status& status) { (void)status; }
+  // The controller is stopping: end what this service runs (a program,
+  // motion) and say so, before the HAL components make their outputs safe.
+  virtual void on_controller_shutdown() {}
   // During shutdown, after on_shutdown(): true once outputs are safe.
   virtual bool is_safe_to_stop() const { return true; }
 };

@@ -834,6 +834,8 @@ void TaskController::stop_motion() {
   send(a);
 }
 
+void TaskController::on_controller_shutdown() { enter_estop("E-stop: the controller is shutting down"); }
+
 void TaskController::enter_estop(const std::string& why) {
   stop_motion();
   io_.set_user_enable(false);

@@ -40,6 +40,7 @@ class TaskController : public ipc::ControllerService {
   int service_order() const noexcept override { return 30; }
   bool handle_command(const ipc::Command& cmd, ipc::CommandReporter& reporter) override;
   void update(int64_t now_ns) override;
+  void on_controller_shutdown() override;
   void contribute_status(ipc::Status& status) override;
   bool is_safe_to_stop() const override;
 

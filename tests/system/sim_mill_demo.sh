@@ -49,5 +49,8 @@ grep -Eq '^5223[[:space:]]+-80(\.0+)?$' "$work/sim/sim.var" || fail "G54 Z offse
 if "$bin/cnc" messages | grep -q " error "; then fail "errors on the message channel: $("$bin/cnc" messages)"; fi
 "$bin/cnc" shutdown || fail "shutdown"
 wait $daemon || fail "cncd exited with an error"
+# A shutdown is said as one: the task goes to E-stop first, no "fault".
+grep -q "E-stop: the controller is shutting down" "$work/cncd.log" || fail "shutdown not announced"
+if grep -q "disabled by a fault" "$work/cncd.log"; then fail "shutdown reported as a fault"; fi
 tail -3 "$work/progress.txt"
 echo "PASS"
