@@ -264,13 +264,21 @@ void LookaheadPlanner::run_cycle(const CycleInputs& in, CycleOutputs& out) noexc
       const bool idle = cycle_ - last_input_.load(std::memory_order_relaxed) >=
                             static_cast<uint64_t>(std::max(1, cfg_.flush_idle_cycles)) &&
                         !full;
-      const bool urgent = exec_->is_moving() &&
+      // A flush ends the held moves with a stop that stays when more moves
+      // come: only worth it when the input has dried up (nothing queued this
+      // cycle, room in the queue) and the machine is about to brake for the
+      // end of what is planned. A full queue is the look-ahead limit, not a
+      // starving interpreter: the executor brakes for its end by itself.
+      const bool starving = cycle_ - last_input_.load(std::memory_order_relaxed) >= 2 && !full;
+      const bool urgent = starving && exec_->is_moving() &&
                           exec_->distance_to_tail() < 1.5 * exec_->stop_distance() +
                                                           4 * exec_->path_velocity() * cfg_.cycle_time_s;
       if (idle || urgent) builder_->flush();
     }
   } else {
-    urgent_.store(exec_->is_moving() && exec_->distance_to_tail() <
+    // As in the inline case: only when the input has dried up.
+    const bool starving = cycle_ - last_input_.load(std::memory_order_relaxed) >= 2 && !full;
+    urgent_.store(starving && exec_->is_moving() && exec_->distance_to_tail() <
                                              2 * exec_->stop_distance() +
                                                  8 * exec_->path_velocity() * cfg_.cycle_time_s,
                   std::memory_order_relaxed);
