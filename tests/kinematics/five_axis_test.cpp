@@ -7,6 +7,10 @@
 #include <Eigen/Geometry>
 #include <numbers>
 
+#include "core/motion/motion_component.hpp"
+#include "core/motion/motion_controller.hpp"
+#include "core/tp/lookahead_planner.hpp"
+#include "core/util/messages.hpp"
 #include "kinematics/five_axis.hpp"
 #include "tests/kinematics/kin_test_util.hpp"
 
@@ -360,4 +364,132 @@ TEST(FiveAxis, SwitchToIdentityForSetupAndBack) {
   ASSERT_TRUE(k.switch_to(0));
   ASSERT_EQ(k.forward(tcp, back), KinResult::Ok);
   EXPECT_LT(max_error(back, p), 1e-9);
+}
+
+// ---- the same segment run through the motion controller in coord mode ----
+
+namespace {
+
+motion::MotionConfig trt_motion_config() {
+  motion::MotionConfig c;
+  c.num_joints = 5;
+  c.servo_period_s = 0.001;
+  c.max_linear_velocity = 200;
+  c.max_linear_acceleration = 2000;
+  c.max_linear_jerk = 50000;
+  for (int j = 0; j < 5; ++j) {
+    auto& jc = c.joints[static_cast<std::size_t>(j)];
+    jc.type = j < 3 ? motion::JointType::Linear : motion::JointType::Angular;
+    jc.min_limit = j == 4 ? -1000 : -500;
+    jc.max_limit = j == 4 ? 1000 : 500;
+    jc.max_velocity = j < 3 ? 500 : 720;
+    jc.max_acceleration = 1e5;
+    jc.max_jerk = 1e8;
+    jc.ferror = jc.min_ferror = 10;
+  }
+  const int axes[5] = {0, 1, 2, 3, 5};  // X Y Z A C
+  for (int i = 0; i < 5; ++i) {
+    auto& ax = c.axes[static_cast<std::size_t>(axes[i])];
+    ax.present = true;
+    ax.min_limit = i == 4 ? -1000 : -500;
+    ax.max_limit = i == 4 ? 1000 : 500;
+    ax.max_velocity = i < 3 ? 100 : 180;
+    ax.max_acceleration = i < 3 ? 1000 : 1800;
+    ax.max_jerk = i < 3 ? 20000 : 36000;
+  }
+  return c;
+}
+
+}  // namespace
+
+// "A 5-axis program segment run through coord mode keeps the tool tip on the
+// programmed path": the motion controller with xyzac-trt-kins and the
+// look-ahead planner; every servo period the joint commands it writes put
+// the physical tool tip (the geometry above, not the module's formula) on
+// the programmed straight line in workpiece coordinates.
+TEST(FiveAxisCoordMode, ToolTipStaysOnTheProgrammedLineEveryServoPeriod) {
+  const TrtGeometry g;
+  TableTableKins k("xyzac-trt-kins", TiltAxis::A, map("XYZAC"));
+  apply(k, g);
+  const motion::MotionConfig cfg = trt_motion_config();
+  auto planner = tp::make_planner(motion::planner_config(cfg, 0x1 | 0x2 | 0x4 | 0x8 | 0x20), tp::PlannerThreading::Inline);
+  MessageQueue messages;
+  motion::MotionController mc(cfg, k, *planner, &messages);
+  uint64_t serial = 0;
+  const auto accept = [&](motion::MotionCommand c) {
+    c.serial = ++serial;
+    motion::MotionResult r;
+    ASSERT_TRUE(mc.handle(c, r));
+    ASSERT_TRUE(r.accepted) << motion::to_string(c.type) << ": " << r.reason.c_str();
+  };
+  double joints[5] = {};
+  const auto step = [&] {
+    for (int j = 0; j < 5; ++j) mc.in().joints[static_cast<std::size_t>(j)].motor_pos_fb = joints[j];
+    mc.update(cfg.servo_period_s);
+    for (int j = 0; j < 5; ++j) joints[j] = mc.out().joints[static_cast<std::size_t>(j)].motor_pos_cmd;
+  };
+  const auto status = [&] {
+    motion::MotionStatus s;
+    mc.fill_status(s);
+    return s;
+  };
+  motion::MotionCommand c;
+  c.type = motion::Cmd::Enable;
+  accept(c);
+  for (int j = 0; j < 5; ++j) {
+    c = {};
+    c.type = motion::Cmd::Home;
+    c.joint = static_cast<int16_t>(j);
+    accept(c);
+    for (int i = 0; i < 1000 && !status().joints[j].homed; ++i) step();
+    ASSERT_TRUE(status().joints[j].homed) << "joint " << j;
+  }
+  c = {};
+  c.type = motion::Cmd::Coord;
+  accept(c);
+  step();
+  ASSERT_EQ(status().traj.mode, ipc::MotionMode::Coord);
+
+  // From the pose the homed joints give to a far pose with A and C turning.
+  const Pose start = status().traj.position;
+  Pose end = start;
+  end[Axis::X] += 60;
+  end[Axis::Y] -= 30;
+  end[Axis::Z] -= 15;
+  end[Axis::A] = 35;
+  end[Axis::C] = 200;
+  c = {};
+  c.type = motion::Cmd::SetLine;
+  for (int a = 0; a < kNumAxes; ++a) c.end[a] = end[a];
+  c.segment.feed = 50;
+  c.segment.max_velocity = 100;
+  c.segment.max_acceleration = 1000;
+  c.segment.line = 7;
+  accept(c);
+
+  const Vector3d tip0 = Vector3d(start[Axis::X], start[Axis::Y], start[Axis::Z] - g.tool);
+  const Vector3d tip1 = Vector3d(end[Axis::X], end[Axis::Y], end[Axis::Z] - g.tool);
+  const Vector3d dir = (tip1 - tip0).normalized();
+  double worst = 0, last_along = -1e-9;
+  int samples = 0;
+  bool moved = false;
+  for (int i = 0; i < 60000; ++i) {
+    step();
+    const Vector3d tip = trt_tip_on_workpiece(g, TiltAxis::A, joints, 3, 4);
+    const double along = (tip - tip0).dot(dir);
+    worst = std::max(worst, (tip - tip0 - along * dir).norm());
+    EXPECT_GE(along, last_along - 1e-9) << "the tip goes back along the line at sample " << i;
+    last_along = along;
+    ++samples;
+    const auto s = status();
+    moved = moved || s.traj.current_vel > 0;
+    if (moved && s.traj.queue == 0 && s.traj.inpos && s.traj.current_vel == 0) break;
+  }
+  EXPECT_TRUE(moved);
+  EXPECT_LT(worst, 1e-6) << "tool tip off the programmed line (mm), " << samples << " samples";
+  EXPECT_LT((trt_tip_on_workpiece(g, TiltAxis::A, joints, 3, 4) - tip1).norm(), 1e-9) << "ends on the end point";
+  EXPECT_NEAR(joints[3], 35, 1e-9);
+  EXPECT_NEAR(joints[4], 200, 1e-9);
+  Message m;
+  while (messages.pop(m)) EXPECT_NE(m.kind, MessageKind::Error) << m.text.c_str();
 }
