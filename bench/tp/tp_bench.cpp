@@ -145,7 +145,7 @@ Bench arcs_and_helices(double feed, double tol) {
     m.end[0] = x;
     m.end[1] = y;
     m.end[2] = z;
-    m.center = {cx, cy, 0};
+    m.center = {cx, cy, b.prog.moves.empty() ? 0.0 : b.prog.moves.back().end[2]};
     m.normal = {0, 0, std::strcmp(g, "G3") == 0 ? 1.0 : -1.0};
     m.turns = turns;
     m.params = params(feed, tol);
@@ -181,7 +181,7 @@ Bench corner(TermCond term, double tol) {
 // Program moves from G-code, through the project's interpreter.
 class MoveCanon : public interp::TextCanon {
  public:
-  explicit MoveCanon(Program& prog) : TextCanon(nullptr, tooltable::ToolTable(), interp::Units::Mm), prog_(prog) {}
+  MoveCanon(Program& prog, tooltable::ToolTable tools) : TextCanon(nullptr, std::move(tools), interp::Units::Mm), prog_(prog) {}
   void select_plane(interp::Plane p) override {
     TextCanon::select_plane(p);
     plane_ = p;
@@ -253,7 +253,13 @@ class MoveCanon : public interp::TextCanon {
 
 bool load_ngc(const std::string& path, Bench& b, double default_tol) {
   b.name = std::filesystem::path(path).filename().string();
-  MoveCanon canon(b.prog);
+  // Tools 1..9 (LinuxCNC's sample programs change tools).
+  const auto tbl = std::filesystem::temp_directory_path() / "bench_tp_tools.tbl";
+  {
+    std::ofstream t(tbl);
+    for (int i = 1; i < 10; ++i) t << "T" << i << " P" << i << " D10 ;\n";
+  }
+  MoveCanon canon(b.prog, tooltable::ToolTable::load(tbl, tooltable::ChangerKind::NonRandom));
   interp::Config cfg;
   char startup[80];
   std::snprintf(startup, sizeof startup, "G21 G90 G17 G40 G49 G80 G94 G64 P%g", default_tol);
@@ -353,14 +359,15 @@ int main(int argc, char** argv) {
     }
   }
 
-  std::printf("\n== short-segment feed attainment: collinear segments over 20 mm (F6000 = 100 mm/s, LC limits)\n");
+  std::printf("\n== short-segment feed attainment: collinear segments over 100 mm (20 mm for 1 um; F6000 = 100 mm/s, LC limits)\n");
   std::printf("%-10s %5s %10s %10s %9s %12s\n", "segment", "T_us", "mean/F", "peak/F", "@feed", "LinuxCNC cap");
   for (double seg : {0.001, 0.01, 0.1, 1.0}) {
     for (double T : {0.001, 0.00025}) {
-      const double len = seg < 0.005 ? 5.0 : 20.0;
+      const double len = seg < 0.005 ? 20.0 : 100.0;
       Bench b = short_lines(seg, len, 6000);
       PlannerConfig cfg = profile("LC", T);
-      cfg.lookahead_segments = 8000;
+      // Look-ahead over 12 mm: more than the 6 mm a stop from 100 mm/s needs.
+      cfg.lookahead_segments = std::max(2000, static_cast<int>(12.0 / seg));
       auto planner = make_planner(cfg, PlannerThreading::Inline);
       RunOptions opt;
       opt.flush_at_end = true;
