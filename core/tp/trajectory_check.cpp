@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <vector>
 
 #include "core/tp/lookahead_planner.hpp"
 
@@ -106,36 +107,48 @@ double StreamChecker::distance_to_move(const Pose& p, std::size_t i) const {
     }
     return std::min(dist3(p.v, c.start.v), dist3(p.v, c.end.v));
   }
-  // Helix or spiral: bracket by sampling, refine by golden section.
+  // Helix or spiral: sample, then refine every local minimum of the samples
+  // by golden section. Refining only the nearest sample is not enough: turns
+  // closer together than the sample step (a 1/3 mm pitch at radius 17 with
+  // 0.85 mm between samples) put the nearest sample on the wrong turn, and
+  // the distance then came out as about one pitch.
   const int n = std::max(32, static_cast<int>(theta / 0.05));
+  const double step = c.length / n;
+  std::vector<double> ds(static_cast<std::size_t>(n) + 1);
   AxisVec pt;
-  int best = 0;
-  double bd = kInf;
+  double best = kInf;
   for (int k = 0; k <= n; ++k) {
-    c.eval(c.length * k / n, pt);
-    const double d = dist3(p.v, pt);
-    if (d < bd) {
-      bd = d;
-      best = k;
-    }
+    c.eval(step * k, pt);
+    ds[static_cast<std::size_t>(k)] = dist3(p.v, pt);
+    best = std::min(best, ds[static_cast<std::size_t>(k)]);
   }
-  double lo = c.length * std::max(0, best - 1) / n;
-  double hi = c.length * std::min(n, best + 1) / n;
   const double g = (std::sqrt(5.0) - 1) / 2;
-  for (int it = 0; it < 60; ++it) {
-    const double m1 = hi - g * (hi - lo);
-    const double m2 = lo + g * (hi - lo);
-    AxisVec p1, p2;
-    c.eval(m1, p1);
-    c.eval(m2, p2);
-    if (dist3(p.v, p1) < dist3(p.v, p2)) {
-      hi = m2;
-    } else {
-      lo = m1;
+  for (int k = 0; k <= n; ++k) {
+    const double dk = ds[static_cast<std::size_t>(k)];
+    const bool local_min = (k == 0 || dk <= ds[static_cast<std::size_t>(k - 1)]) &&
+                           (k == n || dk <= ds[static_cast<std::size_t>(k + 1)]);
+    // Every point within one step of sample k lies within half a step (arc
+    // length) of sample k-1, k or k+1: a basin whose samples are all more
+    // than half a step farther than the best found cannot hold the minimum.
+    if (!local_min || dk - 0.5 * step >= best) continue;
+    double lo = step * std::max(0, k - 1);
+    double hi = step * std::min(n, k + 1);
+    for (int it = 0; it < 60; ++it) {
+      const double m1 = hi - g * (hi - lo);
+      const double m2 = lo + g * (hi - lo);
+      AxisVec p1, p2;
+      c.eval(m1, p1);
+      c.eval(m2, p2);
+      if (dist3(p.v, p1) < dist3(p.v, p2)) {
+        hi = m2;
+      } else {
+        lo = m1;
+      }
     }
+    c.eval(0.5 * (lo + hi), pt);
+    best = std::min(best, dist3(p.v, pt));
   }
-  c.eval(0.5 * (lo + hi), pt);
-  return std::min(bd, dist3(p.v, pt));
+  return best;
 }
 
 void StreamChecker::add(const CycleOutputs& out, double feed_scale) {

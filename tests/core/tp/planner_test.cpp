@@ -82,6 +82,49 @@ TEST(TpLimits, ArcsAndHelicesInEveryPlaneHoldPerAxisLimits) {
   }
 }
 
+// bench_tp's "circles and helices" once reported 33 x P: on a helix whose
+// turns lie closer together (1/3 mm pitch) than the checker's samples (0.05
+// rad at radius 17 = 0.85 mm), the checker measured from the wrong turn.
+TEST(TpCheck, DistanceToAFinePitchHelixIsMeasuredFromTheNearestTurn) {
+  Program prog;
+  prog.start = pose(20, 0, -5);
+  // Clockwise (G2) about (3, 0), three turns down to Z-6.
+  prog.moves.push_back(arc_to(pose(20, 0, -6), {3, 0, -5}, {0, 0, -1}, feed_params(50, 0.01), 2));
+  const StreamChecker check(profile("lc"), prog);
+  Curve helix;
+  ASSERT_TRUE(make_helix(prog.start, prog.moves[0].end, {3, 0, -5}, {0, 0, -1}, 2, 0, helix));
+  // Points on the helix (all turns, with the start of the second turn
+  // where the failure was seen), and the same points 0.005 mm off it
+  // radially.
+  for (double s : {0.0, 50.0, 106.0, 106.8, 106.9, 150.0, 213.6, 300.0, helix.length}) {
+    AxisVec on;
+    helix.eval(s, on);
+    Pose p;
+    p.v = on;
+    SCOPED_TRACE(::testing::Message() << "s " << s);
+    EXPECT_LT(check.distance_to_move(p, 0), 1e-6);
+    const double a = std::atan2(on[1], on[0] - 3);
+    p[0] += 0.005 * std::cos(a);
+    p[1] += 0.005 * std::sin(a);
+    EXPECT_NEAR(check.distance_to_move(p, 0), 0.005, 1e-6);
+  }
+}
+
+TEST(TpLimits, FinePitchHelixAfterAFullCircleHoldsTheTolerance) {
+  // The bench's program in small: a line, two full turns, a three-turn
+  // helix with 1/3 mm pitch, a line outwards.
+  const PlannerConfig cfg = profile("lc");
+  const SegmentParams p = feed_params(50, 0.01);
+  Program prog;
+  prog.moves.push_back(line_to(20, 0, -5, p));
+  prog.moves.push_back(arc_to(pose(20, 0, -5), {3, 0, -5}, {0, 0, 1}, p, 1));
+  prog.moves.push_back(arc_to(pose(20, 0, -6), {3, 0, -5}, {0, 0, -1}, p, 2));
+  prog.moves.push_back(line_to(25, 0, -6, p));
+  const RunResult r = run(cfg, prog);
+  expect_clean(r);
+  EXPECT_LE(r.stats.max_deviation, 0.01 * (1 + 1e-6));
+}
+
 TEST(TpLimits, AxisSpecificLimitsHoldOnDiagonals) {
   // Z much weaker than X/Y: a diagonal move must respect Z's own limits.
   PlannerConfig cfg = profile("mill-f", 0.001);
