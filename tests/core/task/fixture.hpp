@@ -1,6 +1,7 @@
 // An in-process simulated mill for task and I/O tests: the HAL of
 // tests/core/task/mill driven cycle by cycle (servo thread functions, then one task
-// cycle), with the test planner behind motion. Deterministic and fast.
+// cycle), with the test planner behind motion (or any other planner the
+// test passes in). Deterministic and fast.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -10,6 +11,7 @@
 #include <fstream>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/daemon/controller.hpp"
@@ -38,9 +40,12 @@ class TaskMachine {
   // axes became CiA 402 drives (ideal sim_joint axes), so that these tests
   // are about the task and I/O controllers, not drive timing.
   // `ini_extra` is appended to its sim.ini; `hal_extra` to sim.hal.
+  // `planner_factory` makes motion's trajectory planner (default: the
+  // exact-stop SimplePlanner of tests/core/motion).
   using Override = std::array<std::string, 3>;  // section, key, value
   explicit TaskMachine(const std::vector<Override>& overrides = {}, const std::string& hal_extra = "",
-                       const std::string& tool_table = "", const std::string& ini_extra = "") {
+                       const std::string& tool_table = "", const std::string& ini_extra = "",
+                       motion::PlannerFactory planner_factory = simple_planner_factory()) {
     const auto src = source_dir() / "tests/core/task/mill";
     std::string ini = read(src / "sim.ini") + "\n" + ini_extra;
     dir.write("sim.ini", ini);
@@ -51,9 +56,7 @@ class TaskMachine {
     for (const auto& [section, key, value] : overrides) ini_.set(section, key, value);
     hal::register_core_components(registry_);
     kin::register_kinematics_components(registry_);
-    motion::register_components(registry_, [](const tp::PlannerConfig& c) -> std::unique_ptr<tp::TrajectoryPlanner> {
-      return std::make_unique<SimplePlanner>(c);
-    });
+    motion::register_components(registry_, std::move(planner_factory));
     io::register_components(registry_);
     hal_.add_component(std::make_unique<io::IoController>(hal_, io::IoConfig::from_ini(ini_), &messages));
     hal::CommandInterpreter interp(hal_, registry_, &ini_, &messages);
@@ -64,6 +67,12 @@ class TaskMachine {
     task_ = std::make_unique<task::TaskController>(ini_, hal_, *motion_, *io_, messages);
     thread_ = hal_.find_thread("servo-thread");
     info_.period_ns = info_.actual_period_ns = 1'000'000;
+  }
+
+  static motion::PlannerFactory simple_planner_factory() {
+    return [](const tp::PlannerConfig& c) -> std::unique_ptr<tp::TrajectoryPlanner> {
+      return std::make_unique<SimplePlanner>(c);
+    };
   }
 
   void step(int n = 1) {

@@ -6,151 +6,41 @@
 // motion and tp::LookaheadPlanner.
 #include <gtest/gtest.h>
 
-#include <fstream>
-#include <map>
 #include <memory>
 #include <string>
 
-#include "core/daemon/controller.hpp"
-#include "core/hal/commands.hpp"
-#include "core/io/io_controller.hpp"
-#include "core/motion/motion_component.hpp"
-#include "core/task/task_controller.hpp"
 #include "core/tp/lookahead_planner.hpp"
-#include "core/util/messages.hpp"
-#include "core/util/time.hpp"
-#include "kinematics/kinematics.hpp"
-#include "tests/support/testing.hpp"
+#include "tests/core/task/fixture.hpp"
 
 namespace cnc::tp {
 namespace {
 
 using ipc::CommandState;
 using ipc::CommandType;
-
-class Reporter : public ipc::CommandReporter {
- public:
-  void report(const ipc::Command& cmd, CommandState state, std::string_view reason) override {
-    last[cmd.serial] = {state, std::string(reason)};
-  }
-  std::map<uint32_t, std::pair<CommandState, std::string>> last;
-};
-
-std::string read_file(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
+using testing::TaskMachine;
 
 // The mill of tests/core/task (sim_joint axes) with tp::make_planner behind
 // motion, stepped one servo cycle and one task cycle at a time.
-class PlannerMill {
+class PlannerMill : public TaskMachine {
  public:
-  explicit PlannerMill(PlannerThreading threading) {
-    const auto src = testing::source_dir() / "tests/core/task/mill";
-    dir_.write("sim.ini", read_file(src / "sim.ini"));
-    dir_.write("sim.hal", read_file(src / "sim.hal"));
-    dir_.write("tool.tbl", read_file(src / "tool.tbl"));
-    std::filesystem::create_directories(dir_ / "nc_files");
-    ini_ = ini::IniFile::load(dir_ / "sim.ini");
-    hal::register_core_components(registry_);
-    kin::register_kinematics_components(registry_);
-    motion::register_components(registry_, [threading](const PlannerConfig& c) { return make_planner(c, threading); });
-    io::register_components(registry_);
-    hal_.add_component(std::make_unique<io::IoController>(hal_, io::IoConfig::from_ini(ini_), &messages_));
-    hal::CommandInterpreter interp(hal_, registry_, &ini_, &messages_);
-    interp.run_file(dir_ / "sim.hal");
-    for (hal::Component* c : hal_.components()) c->on_ready();
-    motion_ = hal_.find<motion::MotionComponent>("motmod");
-    io_ = hal_.find<io::IoController>("iocontrol");
-    task_ = std::make_unique<task::TaskController>(ini_, hal_, *motion_, *io_, messages_);
-    thread_ = hal_.find_thread("servo-thread");
-    info_.period_ns = info_.actual_period_ns = 1'000'000;
-  }
+  explicit PlannerMill(PlannerThreading threading)
+      : TaskMachine({}, "", "", "", [threading](const PlannerConfig& c) { return make_planner(c, threading); }) {}
 
-  void step() {
-    thread_->run_cycle(info_);
-    ++info_.cycle;
-    ++cycles_;
-    const int64_t now = monotonic_ns();
-    io_->update(now);
-    task_->update(now);
-  }
-
-  std::pair<CommandState, std::string> send(ipc::Command c, int max_cycles = 300000) {
-    c.serial = ++serial_;
-    if (!task_->handle_command(c, reporter_)) return {CommandState::None, "not handled"};
-    for (int i = 0; i < max_cycles; ++i) {
-      const auto it = reporter_.last.find(c.serial);
-      if (it != reporter_.last.end() &&
-          (it->second.first == CommandState::Done || it->second.first == CommandState::Rejected)) {
-        return it->second;
-      }
-      step();
-    }
-    return reporter_.last[c.serial];
-  }
-  std::pair<CommandState, std::string> send(CommandType t, int i0 = 0) {
-    ipc::Command c;
-    c.type = t;
-    c.i[0] = i0;
-    return send(c);
-  }
-  void ok(const std::pair<CommandState, std::string>& r, const char* what) {
-    ASSERT_EQ(r.first, CommandState::Done) << what << ": " << r.second << "\n" << errors();
-  }
   void power_up_home_auto() {
-    ok(send(CommandType::TaskSetState, 2), "estop reset");
-    ok(send(CommandType::TaskSetState, 4), "machine on");
-    ok(send(CommandType::JointHome, -1), "home all");
+    power_up_and_home();
     ok(send(CommandType::TaskSetMode, 2), "auto");
   }
   // Opens and runs `program`; steps until it ends or `max_cycles` pass.
   // Returns false on a stall (still running after max_cycles).
   bool run(const std::string& program, int max_cycles) {
-    const auto p = dir_.write("nc_files/p.ngc", program);
-    ipc::Command open;
-    open.type = CommandType::TaskPlanOpen;
-    open.text.assign(p.string());
-    ok(send(open), "open");
+    ok(open("p.ngc", program), "open");
     ok(send(CommandType::TaskPlanRun, 0), "run");
     for (int i = 0; i < max_cycles; ++i) {
-      if (task_->interp_state() == ipc::InterpState::Idle) return true;
+      if (!program_running()) return true;
       step();
     }
     return false;
   }
-  ipc::Status status() {
-    ipc::Status s{};
-    for (hal::Component* c : hal_.components()) {
-      if (auto* svc = dynamic_cast<ipc::ControllerService*>(c)) svc->contribute_status(s);
-    }
-    task_->contribute_status(s);
-    return s;
-  }
-  std::string errors() {
-    std::string out;
-    Message m;
-    while (messages_.pop(m)) {
-      if (m.kind == MessageKind::Error) out += std::string(m.source.view()) + ": " + std::string(m.text.view()) + "\n";
-    }
-    return out;
-  }
-  uint64_t cycles() const { return cycles_; }
-
- private:
-  testing::TempDir dir_;
-  MessageQueue messages_;
-  Reporter reporter_;
-  ini::IniFile ini_;
-  hal::Hal hal_;
-  hal::ComponentRegistry registry_;
-  motion::MotionComponent* motion_ = nullptr;
-  io::IoController* io_ = nullptr;
-  std::unique_ptr<task::TaskController> task_;
-  hal::Thread* thread_ = nullptr;
-  rt::CycleInfo info_;
-  uint32_t serial_ = 0;
-  uint64_t cycles_ = 0;
 };
 
 // Short blended moves, arcs in two planes, a helix, exact stop and exact
