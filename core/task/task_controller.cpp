@@ -28,6 +28,12 @@ TaskConfig TaskConfig::from_ini(const ini::IniFile& ini) {
     c.mdi_macros.push_back(*v);
   }
   c.on_abort_command = ini.get_string("RS274NGC", "ON_ABORT_COMMAND", "");
+  // Read (and checked) at start-up: a bad value stops the start with the
+  // file, line and key, never a running controller.
+  for (int s = 0; s < ipc::kMaxSpindles; ++s) {
+    c.spindle_increment[static_cast<std::size_t>(s)] =
+        ini.get_double("SPINDLE_" + std::to_string(s), "INCREMENT", 100, {0, 1e6});
+  }
   return c;
 }
 
@@ -287,7 +293,7 @@ bool TaskController::handle_command(const ipc::Command& cmd, ipc::CommandReporte
       const int s = cmd.i[0];
       if (s < 0 || s >= ipc::kMaxSpindles) { why = "no spindle " + std::to_string(s); break; }
       const ipc::SpindleStatus& sp = ms_.spindles[s];
-      const double increment = ini_.get_double("SPINDLE_" + std::to_string(s), "INCREMENT", 100);
+      const double increment = cfg_.spindle_increment[static_cast<std::size_t>(s)];
       double rpm = sp.enabled ? sp.speed : 0;
       if (cmd.type == CommandType::SpindleOn) rpm = cmd.d[0];
       if (cmd.type == CommandType::SpindleOff) rpm = 0;

@@ -6,6 +6,7 @@
 // task cycle and talks to motion and I/O through their non-realtime APIs.
 #pragma once
 
+#include <array>
 #include <deque>
 #include <functional>
 #include <map>
@@ -28,6 +29,7 @@ struct TaskConfig {
   int max_queued_mdi = 16;
   std::size_t readahead_items = 2000;    // execution-list depth the interpreter may run ahead
   std::string on_abort_command;          // [RS274NGC]ON_ABORT_COMMAND (an MDI line)
+  std::array<double, ipc::kMaxSpindles> spindle_increment{};  // [SPINDLE_n]INCREMENT, rpm per faster/slower
   static TaskConfig from_ini(const ini::IniFile& ini);
 };
 

@@ -319,3 +319,14 @@ TEST(TaskRules, CommandsAreRefusedWithReasons) {
   open.text.assign("/nonexistent/x.ngc");
   EXPECT_EQ(m.send(open).second, "cannot read program /nonexistent/x.ngc");
 }
+
+// A bad INI value the task reads is an error at start-up naming the key, not
+// a controller that stops later when an operator presses "spindle faster".
+TEST(TaskRules, BadSpindleIncrementStopsTheStartNamingTheKey) {
+  try {
+    TaskMachine m({{"SPINDLE_0", "INCREMENT", "fast"}});
+    FAIL() << "a non-number INCREMENT was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("INCREMENT"), std::string::npos) << e.what();
+  }
+}
