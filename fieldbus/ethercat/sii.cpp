@@ -42,9 +42,10 @@ void parse_pdos(const uint8_t* p, std::size_t n, std::vector<SiiPdo>& out, const
 
 std::size_t sii_length_known(const std::vector<uint8_t>& partial) {
   std::size_t pos = kCategoriesStart;
-  while (pos + 4 <= partial.size()) {
+  while (pos + 2 <= partial.size()) {
     const uint16_t type = get16(partial.data() + pos);
     if (type == sii_category::kEnd) return pos + 2;
+    if (pos + 4 > partial.size()) break;
     pos += 4 + 2 * std::size_t{get16(partial.data() + pos + 2)};
   }
   return 0;

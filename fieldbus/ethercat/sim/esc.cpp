@@ -192,8 +192,7 @@ bool Esc::read(uint16_t addr, uint16_t len, uint8_t* out, bool or_mode, int64_t 
     put32(m + reg::kDcSystemDiff, mag | (d < 0 ? 0x80000000u : 0u));
   }
   if (overlaps(addr, len, reg::kDcSync0Status, 1)) m[reg::kDcSync0Status] = sync0_active() ? 1 : 0;
-  put16(m + reg::kDlStatus, static_cast<uint16_t>(0x0010 | 0x0200 | (m[0x0111] & 0x0C ? 0x0800 : 0x0400) |
-                                                   (m[0x0111] & 0x0C ? 0x0020 : 0)));
+  put16(m + reg::kDlStatus, static_cast<uint16_t>(0x0010 | 0x0200 | (port1_open_ ? 0x0820 : 0x0400)));
   const SmEntry s1 = sm(1);
   const bool touches_mailbox_in = s1.enabled() && overlaps(addr, len, s1.start, s1.length);
   if (touches_mailbox_in && !sm1_full_) return false;  // empty mailbox: not read, no WKC
@@ -291,7 +290,7 @@ void Esc::poll(int64_t now_ns) noexcept {
 }
 
 uint16_t Esc::execute(DatagramRef& d, bool addressed_read_only, int64_t t_fwd, int64_t t_ret, bool port1_open) noexcept {
-  mem_[0x0111] = static_cast<uint8_t>(port1_open ? 0x0C : 0x00);  // remembered for DL status
+  port1_open_ = port1_open;  // for DL status
   poll(t_fwd);
   const uint16_t ado = d.ado();
   const uint16_t len = d.length();

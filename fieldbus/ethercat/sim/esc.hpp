@@ -119,6 +119,7 @@ class Esc {
   std::array<uint8_t, kMemory> mem_{};
   AlState state_ = AlState::Init;
   bool error_ = false;
+  bool port1_open_ = true;
   // mailbox
   bool sm1_full_ = false;
   std::deque<std::vector<uint8_t>> mailbox_queue_;
