@@ -242,9 +242,22 @@ Mode Drive::wanted_mode(const DriveCommand& cmd) const noexcept {
 bool Drive::mode_switch_is_safe(const DriveCommand& cmd) const noexcept {
   if (state_ != State::OperationEnabled) return true;
   const double cmd_step = have_prev_cmd_ ? std::fabs(cmd.pos_cmd - prev_pos_cmd_) : 0.0;
+  if (mode_cmd_ == Mode::Homing && mode_display_ == Mode::Homing) {
+    // Out of HM: the drive says it is at rest ("target reached", bit 10, with
+    // or without "homing attained"), its velocity actual may still hunt by a
+    // count. The first CSP target is motion's command, which mirrored the
+    // feedback while the drive homed: it must be where the drive is, or the
+    // axis jumps.
+    const bool at_rest = (statusword_ & sw::kTargetReached) != 0 || std::fabs(vel_fb_) <= config_.standstill_velocity;
+    if (config_.mode != Mode::CyclicSyncPosition) return at_rest && std::fabs(cmd.vel_cmd) <= config_.standstill_velocity;
+    return at_rest && cmd_step <= config_.home_return_window &&
+           std::fabs(cmd.pos_cmd - position_units()) <= config_.home_return_window;
+  }
   return std::fabs(vel_fb_) <= config_.standstill_velocity && cmd_step <= config_.standstill_velocity * period_s_ &&
          std::fabs(cmd.vel_cmd) <= config_.standstill_velocity;
 }
+
+double Drive::position_units() const noexcept { return config_.scaling.to_units(position_.value()); }
 
 void Drive::run_modes(int64_t now, const DriveCommand& cmd) noexcept {
   const Mode want = wanted_mode(cmd);
@@ -331,6 +344,7 @@ void Drive::run_homing(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) 
         home_ = HomePhase::Error;
       } else if (home_seen_progress_ && h == HomingStatus::Completed) {
         home_ = HomePhase::SwitchBack;
+        home_started_ns_ = now;  // the return to the cyclic mode is timed from here
       } else if (h == HomingStatus::Interrupted && (home_seen_progress_ || now - home_started_ns_ > 2'000'000'000)) {
         post(true, "drive homing (method %d) %s", config_.home_method,
              home_seen_progress_ ? "was interrupted by the drive" : "did not start within 2 s");
@@ -342,6 +356,16 @@ void Drive::run_homing(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) 
       if (mode_cmd_ != Mode::Homing && !switching_ && mode_display_ == mode_cmd_) {
         home_ = HomePhase::Done;
         post(false, "homed by the drive (method %d), position %.4f", config_.home_method, fb.pos_fb);
+      } else if (mode_cmd_ == Mode::Homing && now - home_started_ns_ > config_.home_return_timeout_ns) {
+        // The drive has stopped at its reference; what keeps it in HM is
+        // motion's command (still moving, or away from the drive).
+        const double step = have_prev_cmd_ ? cmd.pos_cmd - prev_pos_cmd_ : 0.0;
+        post(true,
+             "drive homing completed, but motion's command (%.4f, moving %.3f units/s) stays %.4f from the drive's "
+             "position (%.4f, moving %.3f units/s) for %lld ms: not returning to %s (the axis would jump)",
+             cmd.pos_cmd, step / period_s_, cmd.pos_cmd - position_units(), position_units(), vel_fb_,
+             ms(config_.home_return_timeout_ns), to_string(config_.mode));
+        home_ = HomePhase::Error;
       }
       break;
     case HomePhase::Aborting:

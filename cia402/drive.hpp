@@ -58,6 +58,11 @@ struct DriveConfig {
   int64_t fault_reset_timeout_ns = 300'000'000;   // the fault must clear within
   int64_t mode_timeout_ns = 500'000'000;          // 0x6061 must confirm within
   int64_t home_timeout_ns = 120'000'000'000;
+  // After the drive's homing completed: the return to CSP waits until
+  // motion's command is still and within this window of the drive's
+  // position (units), for at most this long, then reports a homing error.
+  double home_return_window = 0.01;
+  int64_t home_return_timeout_ns = 2'000'000'000;
   int64_t quick_stop_timeout_ns = 2'000'000'000;  // QSA -> disable voltage after
   double standstill_velocity = 0.01;  // units/s: below this a mode switch is safe
   bool probe = true;                  // arm touch probe 1 (probe input) when mapped
@@ -150,6 +155,7 @@ class Drive {
   void post(bool error, const char* fmt, ...) noexcept __attribute__((format(printf, 3, 4)));
   Mode wanted_mode(const DriveCommand& cmd) const noexcept;
   bool mode_switch_is_safe(const DriveCommand& cmd) const noexcept;
+  double position_units() const noexcept;  // position actual, units
   void run_modes(int64_t now, const DriveCommand& cmd) noexcept;
   void run_homing(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexcept;
   uint16_t run_state_machine(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexcept;

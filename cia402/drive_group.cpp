@@ -63,6 +63,8 @@ DriveConfig load_drive(const ini::IniFile& ini, const std::string& section, cons
   d.fault_reset_holdoff_ns = ini.get_int(section, "FAULT_RESET_HOLDOFF_MS", 1000, {0, 60'000}) * kMs;
   d.mode_timeout_ns = ini.get_int(section, "MODE_TIMEOUT_MS", 500, {10, 60'000}) * kMs;
   d.home_timeout_ns = ini.get_int(section, "HOME_TIMEOUT_S", 120, {1, 3600}) * 1'000'000'000;
+  d.home_return_window = ini.get_double(section, "HOME_RETURN_WINDOW", 0.01, {0, 1e9});
+  d.home_return_timeout_ns = ini.get_int(section, "HOME_RETURN_TIMEOUT_MS", 2000, {10, 600'000}) * kMs;
   d.standstill_velocity = ini.get_double(section, "STANDSTILL_VELOCITY", 0.01, {0, 1e9});
   d.probe = ini.get_bool(section, "PROBE", true);
   return d;

@@ -306,6 +306,75 @@ INSTANTIATE_TEST_SUITE_P(Methods, Cia402DriveHoming,
                            return "Method" + std::to_string(i.param.method);
                          });
 
+// Out of HM the first CSP target is motion's command. A command that does
+// not mirror the feedback (here: it keeps the drive's position from before
+// the reference was set, as a compensation ramp clamped against the jump
+// would) must never reach the drive: homing ends in an error, the drive
+// stays where it is.
+TEST(Cia402Drive, DriveHomingDoesNotReturnToCspWhileMotionsCommandIsAwayFromTheDrive) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) {
+    ini.set("CIA402_DRIVE_0", "HOME_METHOD", "4");
+    ini.set("CIA402_DRIVE_0", "HOME_SEARCH_VEL", "40");
+    ini.set("CIA402_DRIVE_0", "HOME_RETURN_TIMEOUT_MS", "500");
+  });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  rig.cmd().home_start = true;
+  double offset = 0;  // what the command lost at the drive's reference
+  double last_fb = rig.fb().pos_fb;
+  const auto stale_motion = [&](Rig& r) {
+    const double jump = r.fb().pos_fb - last_fb;
+    if (std::fabs(jump) > 1.0) offset -= jump;  // the position jumped to HOME_OFFSET
+    last_fb = r.fb().pos_fb;
+    r.cmd().pos_cmd = r.fb().pos_fb + offset;
+  };
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().home_done || rig.fb().home_error; }, 20'000, stale_motion));
+  ASSERT_TRUE(rig.fb().home_error);
+  EXPECT_NE(offset, 0.0);
+  EXPECT_TRUE(rig.has_message("drive homing completed, but motion's command"));
+  EXPECT_TRUE(rig.has_message("not returning to CSP (the axis would jump)"));
+  // The drive stays in HM at rest whatever the command says.
+  const double table = rig.sim().plant().table_position();
+  rig.cycles(200, stale_motion);
+  EXPECT_EQ(rig.fb().mode_display, Mode::Homing);
+  EXPECT_NEAR(rig.sim().plant().table_position(), table, 2e-6);
+}
+
+// A command that settles onto the drive's position a little late (within
+// the return timeout) still returns to CSP without a jump.
+TEST(Cia402Drive, DriveHomingReturnsToCspOnceMotionsCommandSettlesOnTheDrive) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) {
+    ini.set("CIA402_DRIVE_0", "HOME_METHOD", "4");
+    ini.set("CIA402_DRIVE_0", "HOME_SEARCH_VEL", "40");
+  });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  rig.cmd().home_start = true;
+  double offset = 0, last_fb = rig.fb().pos_fb;
+  bool jumped = false;
+  const auto settling_motion = [&](Rig& r) {
+    const double jump = r.fb().pos_fb - last_fb;
+    if (std::fabs(jump) > 1.0) {
+      offset = 0.5;  // half a millimetre off after the reference, decaying at 1 mm/s
+      jumped = true;
+    }
+    offset = std::max(0.0, offset - 0.001);
+    last_fb = r.fb().pos_fb;
+    r.cmd().pos_cmd = r.fb().pos_fb + offset;
+  };
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().home_done || rig.fb().home_error; }, 20'000, settling_motion));
+  EXPECT_TRUE(jumped);
+  ASSERT_TRUE(rig.fb().home_done) << ::testing::PrintToString(rig.drain_messages());
+  EXPECT_EQ(rig.fb().mode_display, Mode::CyclicSyncPosition);
+  // Motion holds its command from here: the drive stays within the return
+  // window of where it was.
+  const double held = rig.cmd().pos_cmd;
+  const double table = rig.sim().plant().table_position();
+  rig.cycles(200);
+  EXPECT_NEAR(rig.sim().plant().table_position(), table, 0.011e-3);
+  EXPECT_NEAR(rig.fb().pos_fb, held, 1.5 / kCountsPerMm);
+}
+
 TEST(Cia402Drive, DriveHomingErrorReachesMotion) {
   Rig rig(one_axis_ini(), [](ini::IniFile& ini) {
     ini.set("CIA402_DRIVE_0", "HOME_METHOD", "4");
