@@ -504,6 +504,7 @@ void MainWindow::open_program(const QString& path) {
     if (r.state != ipc::CommandState::Done) return;
     screen_.log(LogLevel::Info, "opened " + abs.toStdString());
     shown_file_ = abs.toStdString();
+    tabs_->setCurrentWidget(program_page_);  // the operator sees what was opened
     load_program(abs);  // also when the same file was opened again (reload)
   });
 }

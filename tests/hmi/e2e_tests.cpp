@@ -98,7 +98,7 @@ class E2eTests : public QObject {
   void click(const char* name) {
     QPushButton* b = button(name);
     QVERIFY2(b, name);
-    QTRY_VERIFY2_WITH_TIMEOUT(b->isEnabled(), name, 5000);
+    QTRY_VERIFY2_WITH_TIMEOUT(b->isEnabled(), name, 15000);  // generous: CI runs this beside the VM tests
     QTest::mouseClick(b, Qt::LeftButton);
   }
   void show_tab(const QString& object_name) {
@@ -241,6 +241,7 @@ class E2eTests : public QObject {
     QVERIFY(w_->preview()->limit_warning().isEmpty());
     // The path is in machine coordinates with G54 X100 Y50 Z-80 from the program.
     QVERIFY(near(w_->preview()->path()->max[0], 140));
+    QCOMPARE(w_->tabs()->currentWidget()->objectName(), QString("programPage"));  // opening shows the program
     shot("program-loaded");
     w_->preview()->set_view(PreviewWidget::View::Z);
     shot("preview-top-view");
