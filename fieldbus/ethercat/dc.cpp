@@ -27,9 +27,11 @@ std::vector<int64_t> system_offsets(const std::vector<PortTimes>& t, const std::
 void PhaseLock::reset() noexcept {
   started_ = false;
   integral_ = 0;
-  locked_cycles_ = 0;
+  inside_ = outside_ = 0;
+  locked_ = false;
   offset_ = 0;
   stats_.reset();
+  stats_all_.reset();
 }
 
 int64_t PhaseLock::update(int64_t st) noexcept {
@@ -37,17 +39,22 @@ int64_t PhaseLock::update(int64_t st) noexcept {
   int64_t e = ((st - o_.target_ns) % c + c) % c;
   if (e >= c / 2) e -= c;
   offset_ = e;
-  const int64_t window = o_.lock_window_ns > 0 ? o_.lock_window_ns : c / 50;
+  const int64_t window = o_.lock_window_ns > 0 ? o_.lock_window_ns : c / 10;
   if (!started_) {
     started_ = true;
     return -e;  // one step onto the grid, then track
   }
   if (e > -window && e < window) {
-    ++locked_cycles_;
-  } else if (locked_cycles_ < 100) {
-    locked_cycles_ = 0;
+    ++inside_;
+    outside_ = 0;
+    if (inside_ >= 100) locked_ = true;
+  } else {
+    ++outside_;
+    inside_ = 0;
+    if (outside_ >= 50) locked_ = false;
   }
-  if (is_locked()) stats_.add(e);
+  stats_all_.add(e);
+  if (locked_) stats_.add(e);
   integral_ += o_.ki * static_cast<double>(e);
   const double max = o_.max_step * static_cast<double>(c);
   integral_ = std::clamp(integral_, -max, max);

@@ -60,7 +60,7 @@ class PhaseLock {
     int64_t target_ns = 0;
     double kp = 0.2, ki = 0.01;
     double max_step = 0.01;        // of the period per cycle once locked (1 %)
-    int64_t lock_window_ns = 0;    // |offset| below this counts as locked; 0: 2 % of the cycle
+    int64_t lock_window_ns = 0;    // |offset| below this counts as locked; 0: 10 % of the cycle
   };
   PhaseLock() noexcept = default;
   explicit PhaseLock(const Options& o) noexcept : o_(o) {}
@@ -68,9 +68,11 @@ class PhaseLock {
   // Returns the wake-up shift for the next cycle, ns (negative: earlier).
   int64_t update(int64_t reference_system_time_ns) noexcept;
   int64_t offset_ns() const noexcept { return offset_; }  // last phase error
-  bool is_locked() const noexcept { return locked_cycles_ >= 100; }
-  const OffsetStats& stats() const noexcept { return stats_; }  // of the offsets since lock
-  void reset_stats() noexcept { stats_.reset(); }
+  // Locked after 100 cycles in a row inside the window, unlocked after 50 outside.
+  bool is_locked() const noexcept { return locked_; }
+  const OffsetStats& stats() const noexcept { return stats_; }          // offsets while locked
+  const OffsetStats& stats_all() const noexcept { return stats_all_; }  // every offset after the first step
+  void reset_stats() noexcept { stats_.reset(), stats_all_.reset(); }
   const Options& options() const noexcept { return o_; }
 
  private:
@@ -78,8 +80,9 @@ class PhaseLock {
   bool started_ = false;
   int64_t offset_ = 0;
   double integral_ = 0;
-  uint64_t locked_cycles_ = 0;
-  OffsetStats stats_;
+  uint64_t inside_ = 0, outside_ = 0;
+  bool locked_ = false;
+  OffsetStats stats_, stats_all_;
 };
 
 }  // namespace cnc::ethercat

@@ -549,9 +549,23 @@ void Master::cyclic_write(int64_t) noexcept {
     counters_.frames_sent.fetch_add(1, std::memory_order_relaxed);
     outstanding_ = true;
     sent_in_op_ = ph == BusPhase::Op;
+    if (cfg_.spin_for_reply_ns > 0) spin_for_reply();
   } else {
     counters_.send_errors.fetch_add(1, std::memory_order_relaxed);
     outstanding_ = false;
+  }
+}
+
+void Master::spin_for_reply() noexcept {
+  const int64_t t0 = monotonic_ns();
+  while (monotonic_ns() - t0 < cfg_.spin_for_reply_ns) {
+    const std::size_t n = cyclic_link_->receive(held_.data(), 0);
+    if (n == 0) continue;
+    FrameView v;
+    if (parse_frame(held_.data(), n, v) != ParseResult::Ok || v.datagrams[0].index() != cyclic_index_) continue;
+    rtt_.add(monotonic_ns() - t0);
+    held_size_ = n;
+    return;
   }
 }
 
@@ -560,7 +574,14 @@ void Master::cyclic_read(int64_t) noexcept {
   if (ph == BusPhase::Down) return;
   bool got = false, good = false;
   for (;;) {
-    const std::size_t n = cyclic_link_->receive(rx_.data(), 0);
+    std::size_t n = 0;
+    if (held_size_ > 0) {
+      std::memcpy(rx_.data(), held_.data(), held_size_);
+      n = held_size_;
+      held_size_ = 0;
+    } else {
+      n = cyclic_link_->receive(rx_.data(), 0);
+    }
     if (n == 0) break;
     FrameView v;
     if (parse_frame(rx_.data(), n, v) != ParseResult::Ok) continue;
@@ -596,6 +617,7 @@ void Master::cyclic_read(int64_t) noexcept {
       good = false;
     }
   }
+  if (!outstanding_ && !got) return;  // nothing was sent last cycle (first cycle, send error counted there)
   if (outstanding_ && !got) counters_.frames_lost.fetch_add(1, std::memory_order_relaxed);
   outstanding_ = false;
   counters_.inputs_fresh.store(good, std::memory_order_relaxed);
@@ -948,6 +970,7 @@ void Master::worker_report_fault() {
                 *count == 0 ? "the master" : slave_label(*count).c_str());
   }
   for (SlaveInfo& s : slaves_) {
+    if (!count || s.position > *count) break;  // unreachable: do not wait for each of them
     uint8_t st[6] = {};
     if (fprd(s, reg::kAlStatus, st, 6) != 1) continue;
     state_[s.position - 1].al_state.store(st[0] & 0x0F);

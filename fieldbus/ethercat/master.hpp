@@ -10,6 +10,7 @@
 // throws StartupError naming the slave, the object and the reason.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <condition_variable>
@@ -74,6 +75,9 @@ struct MasterConfig {
   int64_t state_timeout_ms = 3000;
   int64_t mailbox_timeout_ms = 1000;
   unsigned op_after_good_cycles = 20;   // SAFEOP -> OP once this many cycles were good
+  // Benchmarks only: cyclic_write waits (spinning) this long for the reply
+  // to measure the frame round trip; 0 in a controller.
+  int64_t spin_for_reply_ns = 0;
   const SlaveConfig* slave(unsigned position) const noexcept {
     for (const auto& s : slaves) {
       if (s.position == position) return &s;
@@ -120,6 +124,29 @@ struct SlaveInfo {
 enum class BusPhase : uint8_t { Down, SafeOp, Op, Fault };
 
 // Counters of the cyclic exchange (servo thread writes, anyone reads).
+// Frame round-trip times, 1 us bins up to 10 ms (benchmarks; no allocation).
+struct RoundTripHistogram {
+  static constexpr std::size_t kBins = 10'000;
+  std::array<uint32_t, kBins + 1> bins{};
+  uint64_t count = 0;
+  void add(int64_t ns) noexcept {
+    const auto b = static_cast<std::size_t>(std::clamp<int64_t>(ns / 1000, 0, kBins));
+    ++bins[b];
+    ++count;
+  }
+  // Upper edge of the bin holding quantile q (0..1), ns.
+  int64_t quantile_ns(double q) const noexcept {
+    if (count == 0) return 0;
+    const auto want = static_cast<uint64_t>(q * static_cast<double>(count - 1)) + 1;
+    uint64_t seen = 0;
+    for (std::size_t i = 0; i <= kBins; ++i) {
+      seen += bins[i];
+      if (seen >= want) return static_cast<int64_t>(i + 1) * 1000;
+    }
+    return static_cast<int64_t>(kBins) * 1000;
+  }
+};
+
 struct CyclicCounters {
   std::atomic<uint64_t> cycles{0}, frames_sent{0}, send_errors{0}, frames_lost{0}, frames_late{0}, wkc_errors{0};
   std::atomic<uint32_t> consecutive_bad{0};
@@ -188,6 +215,8 @@ class Master {
   uint32_t slave_emcy_count(unsigned position) const noexcept;
   const CyclicCounters& counters() const noexcept { return counters_; }
   const PhaseLock& phase_lock() const noexcept { return lock_; }
+  void reset_lock_stats() noexcept { lock_.reset_stats(); }
+  const RoundTripHistogram& round_trips() const noexcept { return rtt_; }
   bool uses_dc() const noexcept { return dc_ref_ >= 0; }
   // "slave 2 (y-axis)"
   std::string slave_label(unsigned position) const;
@@ -226,6 +255,7 @@ class Master {
   void configure_process_data(SlaveInfo& s);
   void configure_dc();
   void prepare_cyclic();
+  void spin_for_reply() noexcept;
   void check_sdo(SlaveInfo& s, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data, const std::string& why);
 
   // mailbox on the acyclic link (worker or start-up thread)
@@ -258,11 +288,13 @@ class Master {
   int dc_ref_ = -1;  // index into slaves_ of the reference clock
 
   // cyclic frame (servo thread)
-  std::array<uint8_t, kMaxFrame> tx_{}, rx_{};
+  std::array<uint8_t, kMaxFrame> tx_{}, rx_{}, held_{};
   std::size_t tx_size_ = 0;
   std::size_t lrw_offset_ = 0, frmw_offset_ = 0, al_offset_ = 0, diff_offset_ = 0;
   uint8_t cyclic_index_ = 0;
   bool outstanding_ = false;
+  std::size_t held_size_ = 0;  // a reply already taken by the spin (benchmarks)
+  RoundTripHistogram rtt_;
   bool sent_in_op_ = false;  // the outstanding frame left while every slave was in OP
   CyclicCounters counters_;
   PhaseLock lock_;

@@ -1,6 +1,9 @@
 // The raw AF_PACKET link: one socket bound to the interface and to
 // EtherType 0x88A4; the kernel delivers every incoming EtherCAT frame to
-// every such socket, so each user filters by datagram index.
+// every such socket, so each user filters by datagram index. Our own
+// outgoing frames are not delivered (a socket bound to one protocol is not
+// a tap, and PACKET_IGNORE_OUTGOING says so explicitly); the source MAC is
+// no filter because a veth MAC has the bit a returning ESC sets.
 #include <arpa/inet.h>
 #include <linux/if_packet.h>
 #include <net/ethernet.h>
@@ -65,7 +68,7 @@ class RawLink final : public Link {
     for (;;) {
       const ssize_t n = ::recv(fd_, buffer, kMaxFrame, MSG_DONTWAIT);
       if (n > 0) {
-        if (static_cast<std::size_t>(n) < kEthHeader || std::memcmp(buffer + 6, mac_, 6) == 0) continue;  // own echo
+        if (static_cast<std::size_t>(n) < kEthHeader) continue;
         return static_cast<std::size_t>(n);
       }
       if (n < 0 && errno == EINTR) continue;
@@ -76,7 +79,7 @@ class RawLink final : public Link {
       if (r <= 0) return 0;
       timeout_ns = 0;  // one wait only; then drain what arrived
       const ssize_t m = ::recv(fd_, buffer, kMaxFrame, MSG_DONTWAIT);
-      if (m > 0 && static_cast<std::size_t>(m) >= kEthHeader && std::memcmp(buffer + 6, mac_, 6) != 0) {
+      if (m > 0 && static_cast<std::size_t>(m) >= kEthHeader) {
         return static_cast<std::size_t>(m);
       }
       if (m <= 0) return 0;

@@ -134,7 +134,8 @@ EscConfig CoeDrive::esc_config() const {
     p.name = out ? "Outputs" : "Inputs";
     for (const auto& [v, name] : out ? default_rx_mapping() : default_tx_mapping()) {
       const auto e = canopen::PdoMapEntry::decode(v);
-      p.entries.push_back(SiiPdoEntry{e.index, e.sub, e.bits, 0, name});
+      const canopen::OdEntry* o = od_.find({e.index, e.sub});
+      p.entries.push_back(SiiPdoEntry{e.index, e.sub, e.bits, static_cast<uint8_t>(o ? static_cast<uint16_t>(o->type) : 0), name});
     }
     (out ? s.rx_pdos : s.tx_pdos).push_back(p);
   }
