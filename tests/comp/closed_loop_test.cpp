@@ -40,3 +40,57 @@ TEST(CompensationClosedLoop, LeadScrewPlantMeasuredFittedCompensatedAndMeasuredA
   EXPECT_LE(r.iso_after.B, 1.0);
   EXPECT_EQ(r.after.points.size(), r.before.points.size());
 }
+
+#ifdef CNC_HAVE_CIA402
+#include "cia402/components.hpp"
+#include "fieldbus/canopen/components.hpp"
+
+// The same loop on the project's simulated mill (configs/sim): X is a
+// CiA 402 drive on a CANopen bus, its simulator a motor, screw and table
+// with a pitch-error profile and backlash; the interferometer is the
+// simulator's true table position. configs/sim has no compensation: the
+// test adds screwcomp and complog to it as a user would.
+//
+// DISABLED until core/motion holds the compensation ramp while a drive homes
+// itself: motion's command mirrors the feedback then, the feedback jumps to
+// HOME_OFFSET at the drive's reference, and the ramp (active as soon as
+// screwcomp is attached) is clamped against that mirrored jump, so the motor
+// command is left ~264 mm away from the drive. The drive layer refuses to
+// return to CSP ("drive homing completed, but motion's command ... not
+// returning to CSP") and homing fails. With the 8-line fix in
+// MotionController::update_backlash (hold and reset the ramp in
+// HomeState::DriveHoming; docs/compensation.md) it passes: A 11.1 -> 0.8 um,
+// B 2.3 -> 0.1 um, ~160 s wall. Run it with --gtest_also_run_disabled_tests.
+TEST(CompensationClosedLoop, DISABLED_SimulatedMillOnCia402DrivesXAxis) {
+  cnc::testing::TempDir work;
+  const std::string extra_hal =
+      "loadrt screwcomp\n"
+      "loadrt complog file=measurement-%d.csv axis=X\n"
+      "addf complog servo-thread\n"
+      "net comp-x-cmd joint.0.pos-cmd => complog.commanded\n"
+      "net comp-x-laser cia402-sim.0.node.01.table-position => complog.actual\n"
+      "net comp-measuring motion.digital-out-00 => complog.enable\n"
+      "net comp-measured motion.digital-out-01 => complog.stop\n";
+  cnc::testing::SimMill mill(
+      cnc::testing::source_dir() / "configs/sim", work.path() / "sim", "sim.ini",
+      [](hal::ComponentRegistry& r) {
+        canopen::register_components(r);
+        cia402::register_components(r);
+      },
+      extra_hal);
+  cnc::testing::ClosedLoopOptions o;
+  o.cycle.x_min = 5;
+  o.cycle.x_max = 295;
+  o.cycle.seed = 3;
+  o.cycle.lead_mm = 0;  // the simulated screw has no lead-periodic error
+  o.fit.lead_mm = 0;
+  const auto r = cnc::testing::run_closed_loop(mill, o);
+  ASSERT_EQ(r.error, "");
+  std::printf("%s\n", r.report.c_str());
+  std::printf("table %zu entries (interpolation within %.3f um), fit %.1f ms, %.0f s simulated\n", r.table_entries,
+              r.table_interpolation_um, r.fit_ms, r.simulated_s);
+  EXPECT_GT(r.iso_before.A, 5) << "the simulated screw starts visibly inaccurate";
+  EXPECT_LE(r.iso_after.A, 0.1 * r.iso_before.A);
+  EXPECT_LE(r.iso_after.B, 1.0);
+}
+#endif

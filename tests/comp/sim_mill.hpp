@@ -9,6 +9,8 @@
 #pragma once
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -80,6 +82,7 @@ class SimMill : private ipc::CommandReporter {
     for (int i = 0; i < n; ++i) {
       info_.now_ns = now_ns_;  // simulated time: drives and bus masters time out on it
       thread_->run_cycle(info_);
+      if (on_cycle) on_cycle();
       ++info_.cycle;
       now_ns_ += info_.period_ns;
       for (ipc::ControllerService* s : services_) s->update(now_ns_);
@@ -116,14 +119,21 @@ class SimMill : private ipc::CommandReporter {
   }
 
   // E-stop reset, machine on, home all, auto mode. Empty on success.
-  std::string power_up() {
-    for (const auto& [what, reply] : {std::pair<const char*, Reply>{"estop reset", send(ipc::CommandType::TaskSetState, 2)},
-                                      {"machine on", send(ipc::CommandType::TaskSetState, 4)},
-                                      {"home all", send(ipc::CommandType::JointHome, -1)},
-                                      {"auto", send(ipc::CommandType::TaskSetMode, static_cast<int>(ipc::TaskMode::Auto))}}) {
-      if (reply.first != ipc::CommandState::Done) return std::string(what) + ": " + reply.second + errors();
-    }
-    return {};
+  // "Machine on" is done once motion is enabled; drives behind a fieldbus
+  // then need a few cycles more for their enable sequence (CiA 402: SOD ->
+  // RTSO -> SO -> OE, about 10 ms here) and motion has no amplifier-ready
+  // input to wait for. An operator's next command comes later than that;
+  // `settle_s` stands for it, so that homing does not start against a drive
+  // that does not follow yet.
+  std::string power_up(double settle_s = 0.2) {
+    const auto check = [&](const char* what, const Reply& reply) {
+      return reply.first == ipc::CommandState::Done ? std::string() : std::string(what) + ": " + reply.second + errors();
+    };
+    if (std::string e = check("estop reset", send(ipc::CommandType::TaskSetState, 2)); !e.empty()) return e;
+    if (std::string e = check("machine on", send(ipc::CommandType::TaskSetState, 4)); !e.empty()) return e;
+    step(static_cast<int>(settle_s * 1e9 / static_cast<double>(info_.period_ns)));
+    if (std::string e = check("home all", send(ipc::CommandType::JointHome, -1)); !e.empty()) return e;
+    return check("auto", send(ipc::CommandType::TaskSetMode, static_cast<int>(ipc::TaskMode::Auto)));
   }
 
   // Writes, opens and runs a program until the interpreter is idle again.
@@ -161,6 +171,11 @@ class SimMill : private ipc::CommandReporter {
     return send(c);
   }
 
+  // Called after every servo cycle (benchmarks sample pins here).
+  std::function<void()> on_cycle;
+  // Every message on stderr with its simulated time (SIMMILL_VERBOSE=1).
+  bool verbose = std::getenv("SIMMILL_VERBOSE") != nullptr;
+
   comp::MeasurementLogger& logger() { return *hal_.find<comp::MeasurementLogger>("complog"); }
   hal::Hal& hal() { return hal_; }
   motion::MotionComponent& motion() { return *motion_; }
@@ -181,6 +196,9 @@ class SimMill : private ipc::CommandReporter {
   void drain() {
     Message m;
     while (messages_.pop(m)) {
+      if (verbose) {
+        std::fprintf(stderr, "[%9.3f s] %s %s: %s\n", seconds(), to_string(m.kind), m.source.c_str(), m.text.c_str());
+      }
       if (m.kind == MessageKind::Error) errors_ += "\n  " + std::string(m.source.view()) + ": " + std::string(m.text.view());
     }
   }
