@@ -48,11 +48,12 @@ class FirstPaint : public QObject {
   std::function<void()> done_;
 };
 
-int usage() {
-  std::fprintf(stderr,
+// Asked for (--help): on stdout, success. After a wrong call: on stderr, 2.
+int usage(bool asked = false) {
+  std::fprintf(asked ? stdout : stderr,
                "usage: cnc-hmi [--instance NAME] [--geometry WxH] [--fullscreen] [--comma]\n"
                "               [--quit-after-startup] [--screenshot FILE] MACHINE.ini\n");
-  return 2;
+  return asked ? 0 : 2;
 }
 
 }  // namespace
@@ -71,7 +72,7 @@ int main(int argc, char** argv) {
     else if (a == "--comma") comma = true;
     else if (a == "--quit-after-startup") quit_after_startup = true;
     else if (a == "--screenshot" && i + 1 < argc) screenshot = argv[++i];
-    else if (a == "--help" || a == "-h") return usage();
+    else if (a == "--help" || a == "-h") return usage(true);
     else if (!a.empty() && a[0] != '-' && ini_path.empty()) ini_path = a;
     else {
       std::fprintf(stderr, "cnc-hmi: unknown argument %s\n", a.c_str());
