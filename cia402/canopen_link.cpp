@@ -2,6 +2,7 @@
 
 #include <array>
 #include <stdexcept>
+#include <vector>
 
 #include "fieldbus/canopen/components.hpp"
 #include "fieldbus/canopen/master.hpp"
@@ -81,9 +82,26 @@ class CanopenLink final : public DriveLink {
 
 std::unique_ptr<DriveLink> make_canopen_link(canopen::Master& master) { return std::make_unique<CanopenLink>(master); }
 
+namespace {
+std::vector<LinkFinder>& finders() {
+  static std::vector<LinkFinder> f;
+  return f;
+}
+}  // namespace
+
+void register_link_finder(LinkFinder finder) {
+  for (LinkFinder f : finders()) {
+    if (f == finder) return;
+  }
+  finders().push_back(finder);
+}
+
 std::unique_ptr<DriveLink> find_link(hal::Hal& hal, const std::string& bus) {
   if (canopen::Master* m = canopen::find_master(hal, bus)) return make_canopen_link(*m);
-  throw std::runtime_error("no fieldbus \"" + bus + "\" is loaded (loadrt canopen before loadrt cia402)");
+  for (LinkFinder f : finders()) {
+    if (auto link = f(hal, bus)) return link;
+  }
+  throw std::runtime_error("no fieldbus \"" + bus + "\" is loaded (loadrt canopen or ethercat before loadrt cia402)");
 }
 
 }  // namespace cnc::cia402

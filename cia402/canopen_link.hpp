@@ -25,4 +25,9 @@ std::unique_ptr<DriveLink> make_canopen_link(canopen::Master& master);
 // components; throws std::runtime_error naming the bus when none is loaded.
 std::unique_ptr<DriveLink> find_link(hal::Hal& hal, const std::string& bus);
 
+// Other fieldbuses (EtherCAT) register how to find their links by bus name;
+// a finder returns null for a bus that is not its own.
+using LinkFinder = std::unique_ptr<DriveLink> (*)(hal::Hal& hal, const std::string& bus);
+void register_link_finder(LinkFinder finder);
+
 }  // namespace cnc::cia402

@@ -17,6 +17,9 @@
 #ifdef CNC_HAVE_CANOPEN
 #include "fieldbus/canopen/components.hpp"
 #endif
+#ifdef CNC_HAVE_ETHERCAT
+#include "fieldbus/ethercat/components.hpp"
+#endif
 #ifdef CNC_HAVE_CIA402
 #include "cia402/components.hpp"
 #endif
@@ -47,6 +50,9 @@ void register_all_components(hal::ComponentRegistry& registry) {
 #endif
 #ifdef CNC_HAVE_CANOPEN
   canopen::register_components(registry);
+#endif
+#ifdef CNC_HAVE_ETHERCAT
+  ethercat::register_components(registry);
 #endif
 #ifdef CNC_HAVE_CIA402
   cia402::register_components(registry);

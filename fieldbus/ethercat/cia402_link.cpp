@@ -13,7 +13,9 @@ class EthercatLink final : public cia402::DriveLink {
 
   const std::string& name() const noexcept override { return m_.name(); }
   bool has_device(int a) const noexcept override {
-    return a >= 1 && static_cast<std::size_t>(a) <= m_.slave_count();
+    if (a < 1) return false;
+    if (m_.slave_count() > 0) return static_cast<std::size_t>(a) <= m_.slave_count();  // scanned
+    return m_.config().slaves.empty() || m_.config().slave(static_cast<unsigned>(a)) != nullptr;
   }
   cia402::Slot output(int a, cia402::Object o) const noexcept override {
     return slot(m_.output(static_cast<unsigned>(a), o.index, o.sub));

@@ -193,6 +193,7 @@ void Master::scan() {
   (void)transact(Command::BWR, physical_address(0, reg::kDcActivation), zeros, 1);
   (void)transact(Command::BWR, physical_address(0, reg::kRxErrors), zeros, 8);
 
+  scanned_ = true;
   slaves_.assign(n, SlaveInfo{});
   state_ = std::make_unique<SlaveState[]>(n);
   for (unsigned p = 1; p <= n; ++p) {
@@ -293,8 +294,7 @@ void Master::configure_coe(SlaveInfo& s) {
     }
     return v;
   };
-  s.rx = c && c->rx_pdo ? *c->rx_pdo : from_sii(s.sii.rx_pdos);
-  s.tx = c && c->tx_pdo ? *c->tx_pdo : from_sii(s.sii.tx_pdos);
+  (void)from_sii;
   if (!s.sii.has_coe()) {
     if (c && (c->rx_pdo || c->tx_pdo || !c->sdos.empty())) {
       fail_slave(s, "has no CoE mailbox (SII mailbox protocols 0x" + fmt("%04X", s.sii.mailbox_protocols) +
@@ -493,12 +493,29 @@ void Master::configure_dc() {
 
 // ---------------------------------------------------------------- start-up
 
+void Master::plan() {
+  if (!scanned_) scan();
+  for (SlaveInfo& s : slaves_) {
+    const SlaveConfig* c = cfg_.slave(s.position);
+    auto from_sii = [](const std::vector<SiiPdo>& pdos) {
+      std::vector<PdoEntryConfig> v;
+      for (const SiiPdo& p : pdos) {
+        for (const SiiPdoEntry& e : p.entries) v.push_back({e.index, e.sub, e.bits});
+      }
+      return v;
+    };
+    s.rx = c && c->rx_pdo ? *c->rx_pdo : from_sii(s.sii.rx_pdos);
+    s.tx = c && c->tx_pdo ? *c->tx_pdo : from_sii(s.sii.tx_pdos);
+  }
+  layout_process_data();
+  planned_ = true;
+}
+
 void Master::start_up() {
-  scan();
+  if (!planned_) plan();
   for (SlaveInfo& s : slaves_) configure_mailbox(s);
   for (SlaveInfo& s : slaves_) request_state(s, AlState::PreOp);
   for (SlaveInfo& s : slaves_) configure_coe(s);
-  layout_process_data();
   for (SlaveInfo& s : slaves_) configure_process_data(s);
   configure_dc();
   prepare_cyclic();

@@ -173,7 +173,10 @@ class Master {
   // Scan only: count, station addresses, SII; compares with the
   // configuration. Throws StartupError.
   void scan();
-  // scan() + PREOP + CoE configuration + SM/FMMU + DC + SAFEOP; the bus is
+  // The process image from the configured or SII-default PDOs (scans
+  // first if needed): slots are valid from here on.
+  void plan();
+  // plan() + PREOP + CoE configuration + SM/FMMU + DC + SAFEOP; the bus is
   // ready for cyclic exchange. Throws StartupError.
   void start_up();
   // The worker thread: mailbox requests, SAFEOP -> OP once the cyclic
@@ -281,6 +284,7 @@ class Master {
   std::vector<SlaveInfo> slaves_;
   std::unique_ptr<SlaveState[]> state_;
   uint8_t acyclic_index_ = 0x80;
+  bool scanned_ = false, planned_ = false;
 
   // process image
   std::vector<uint8_t> outputs_, inputs_;
