@@ -11,7 +11,8 @@
 //  4. The closed loop on the simulated axis (tests/comp: controller,
 //     ISO 230-2 cycle, fit, JOINT_LOAD_COMP, cycle again): A and B before
 //     and after. Goals: A reduced by at least 90 %, B at most 1 um.
-// Usage: comp_bench [--seeds N] [--repeats N] [--no-closed-loop] [--keep DIR]
+//  5. With --cia402: the same loop on configs/sim's CiA 402 X axis (minutes).
+// Usage: comp_bench [--seeds N] [--repeats N] [--no-closed-loop] [--cia402] [--keep DIR]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -30,6 +31,10 @@
 #include "comp/synthetic.hpp"
 #include "tests/comp/closed_loop.hpp"
 #include "tests/comp/lead_screw_plant.hpp"
+#ifdef CNC_HAVE_CIA402
+#include "cia402/components.hpp"
+#include "fieldbus/canopen/components.hpp"
+#endif
 
 using namespace cnc;
 using namespace cnc::comp;
@@ -191,19 +196,70 @@ void closed_loop(const char* keep) {
   if (!keep) std::filesystem::remove_all(work);
 }
 
+#ifdef CNC_HAVE_CIA402
+// 5. The same loop on configs/sim: X is a CiA 402 drive behind CANopen, its
+// simulator's true table position the interferometer (the test
+// CompensationClosedLoop.DISABLED_SimulatedMillOnCia402DrivesXAxis; it needs
+// motion to hold its compensation ramp during drive homing, see
+// docs/compensation.md, and reports the homing error until then).
+void closed_loop_cia402(const char* keep) {
+  std::printf("\n5. Closed loop on configs/sim (X: CiA 402 drive simulator with pitch error and backlash behind\n"
+              "   CANopen at 1 kHz; screwcomp and complog added; ISO 230-2 cycle, fit, JOINT_LOAD_COMP, cycle again)\n");
+  const std::filesystem::path work = keep ? std::filesystem::path(keep) / "cia402"
+                                          : std::filesystem::temp_directory_path() /
+                                                ("comp_bench_cia402_" + std::to_string(::getpid()));
+  const auto t0 = Clock::now();
+  const std::string extra_hal =
+      "loadrt screwcomp\n"
+      "loadrt complog file=measurement-%d.csv axis=X\n"
+      "addf complog servo-thread\n"
+      "net comp-x-cmd joint.0.pos-cmd => complog.commanded\n"
+      "net comp-x-laser cia402-sim.0.node.01.table-position => complog.actual\n"
+      "net comp-measuring motion.digital-out-00 => complog.enable\n"
+      "net comp-measured motion.digital-out-01 => complog.stop\n";
+  cnc::testing::SimMill mill(
+      std::filesystem::path(CNC_SOURCE_DIR) / "configs/sim", work, "sim.ini",
+      [](hal::ComponentRegistry& r) {
+        canopen::register_components(r);
+        cia402::register_components(r);
+      },
+      extra_hal);
+  cnc::testing::ClosedLoopOptions o;
+  o.cycle.x_min = 5;
+  o.cycle.x_max = 295;
+  o.cycle.seed = 3;
+  o.cycle.lead_mm = 0;
+  o.fit.lead_mm = 0;
+  const auto r = cnc::testing::run_closed_loop(mill, o);
+  if (!r.error.empty()) {
+    std::printf("   FAILED: %s\n", r.error.c_str());
+    return;
+  }
+  const auto& a = r.iso_before;
+  const auto& b = r.iso_after;
+  std::printf("   A: %.3f -> %.3f um (%.1f %% less; goal >= 90 %%)\n", a.A, b.A, (a.A - b.A) / a.A * 100);
+  std::printf("   B: %.3f -> %.3f um (goal <= 1 um)\n", a.B, b.B);
+  std::printf("   E: %.3f -> %.3f um, R: %.3f -> %.3f um, M: %.3f -> %.3f um\n", a.E, b.E, a.R, b.R, a.M, b.M);
+  std::printf("   table %zu entries (within %.3f um of the model), fit %.1f ms, %.0f s simulated in %.1f s\n",
+              r.table_entries, r.table_interpolation_um, r.fit_ms, r.simulated_s, ms_since(t0) / 1000);
+  if (!keep) std::filesystem::remove_all(work);
+}
+#endif
+
 }  // namespace
 
 int main(int argc, char** argv) {
   int seeds = 20, repeats = 20;
-  bool loop = true;
+  bool loop = true, cia402 = false;
   const char* keep = nullptr;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--seeds") && i + 1 < argc) seeds = std::atoi(argv[++i]);
     else if (!std::strcmp(argv[i], "--repeats") && i + 1 < argc) repeats = std::atoi(argv[++i]);
     else if (!std::strcmp(argv[i], "--no-closed-loop")) loop = false;
     else if (!std::strcmp(argv[i], "--keep") && i + 1 < argc) keep = argv[++i];
+    else if (!std::strcmp(argv[i], "--cia402")) cia402 = true;
     else {
-      std::fprintf(stderr, "usage: comp_bench [--seeds N] [--repeats N] [--no-closed-loop] [--keep DIR]\n");
+      std::fprintf(stderr, "usage: comp_bench [--seeds N] [--repeats N] [--no-closed-loop] [--cia402] [--keep DIR]\n");
       return 2;
     }
   }
@@ -211,5 +267,12 @@ int main(int argc, char** argv) {
   model_error(std::max(seeds, 1));
   lookup_time();
   if (loop) closed_loop(keep);
+  if (cia402) {
+#ifdef CNC_HAVE_CIA402
+    closed_loop_cia402(keep);
+#else
+    std::printf("\n5. --cia402: not built (cnc_cia402 and cnc_canopen missing)\n");
+#endif
+  }
   return 0;
 }
