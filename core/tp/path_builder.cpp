@@ -659,7 +659,27 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
     AxisVec c1 = curve.bound1;
     double speed_max = 1;
     const double gn = group_norm(b2, curve.group);
-    if (curve.kind == CurveKind::Helix || any) {
+    if (curve.kind == CurveKind::Helix && !any) {
+      // Bare helix (no corner window here): exact. dP/ds = dr e + rho w f +
+      // dh n + rate with e, f, n orthonormal (e, f rotating in the plane),
+      // so |dP/ds|^2 = dr^2 + (rho w)^2 + dh^2 (+ the linear axes of the
+      // group), largest where |rho| is, at an end of [a, b] (rho is linear
+      // and keeps its sign on the move). Per axis, |dr e_i + rho w f_i| <=
+      // hypot(dr, rho w) hypot(u_i, v_i).
+      const double rho = std::max(std::fabs(curve.r0 + curve.dr * a), std::fabs(curve.r0 + curve.dr * b));
+      const double tang = std::hypot(curve.dr, rho * curve.omega);
+      AxisVec d1{};
+      for (std::size_t k = 0; k < d1.size(); ++k) {
+        if (k < 3) {
+          const double m = std::hypot(curve.u[k], curve.v[k]);
+          c1[k] = std::min(b1[k], tang * m + std::fabs(curve.dh * curve.n[k]));
+        }
+        d1[k] = k < 3 ? 0.0 : curve.rate[k];
+      }
+      // The helix part always belongs to the XYZ group; other groups' rates
+      // are constant.
+      speed_max = curve.group == LengthGroup::Xyz ? std::hypot(tang, curve.dh) : group_norm(d1, curve.group);
+    } else if (curve.kind == CurveKind::Helix || any) {
       speed_max = 0;
       AxisVec sampled{};
       const double xs[3] = {a, 0.5 * (a + b), b};

@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include "tests/core/tp/tp_test_util.hpp"
 #include "tests/support/testing.hpp"
@@ -246,10 +247,45 @@ TEST(TpCorners, TangentJoinsAreNotSlowed) {
     if (out.position[1] > 10 && out.position[0] > 30) vmin_arcs = std::min(vmin_arcs, out.path_velocity);
   }
   EXPECT_GT(vmin_lines, F * 0.999 * (1 - 1e-9));  // joint at X20
-  // Known weakness (docs/tp.md): an arc continued by the same circle is
-  // smoothed like a corner and slowed to about F / sqrt(2) here. Recorded,
-  // not hidden: this bound only guards against getting worse.
-  EXPECT_GT(vmin_arcs, 0.7 * F);
+  // An arc continued by the same circle is a smooth join (no window); it
+  // ran at F / sqrt(2) until bare helix pieces got an exact speed bound.
+  EXPECT_GT(vmin_arcs, 0.99 * F);
+}
+
+// A bare circle or helix (no corner window on it) runs at the programmed
+// feed when the axes allow it: its speed along s is exactly 1 and no axis
+// component of the tangent exceeds 1. It used to run at F / sqrt 2 (the
+// norm of the per-axis bounds of dP/ds was taken as the path speed).
+TEST(TpLimits, BareCircleAndHelixRunAtTheProgrammedFeed) {
+  const PlannerConfig cfg = profile("mill-s");
+  const double F = 50;  // v^2/r = 2500/20 = 125 mm/s^2, far below the limits
+  const SegmentParams p = feed_params(F, 0.01, TermCond::ExactStop);
+  for (int helix = 0; helix < 2; ++helix) {
+    SCOPED_TRACE(helix ? "helix" : "circle");
+    Program prog;
+    prog.start = pose(20, 0, 0);
+    prog.moves.push_back(arc_to(pose(20, 0, helix ? -10 : 0), {0, 0, 0}, {0, 0, 1}, p, helix ? 1 : 0));
+    auto planner = make_planner(cfg, PlannerThreading::Inline);
+    planner->set_position(prog.start);
+    ASSERT_EQ(queue_move(*planner, prog, 0), Result::Ok);
+    planner->flush();
+    CycleInputs in;
+    CycleOutputs out;
+    std::vector<double> v;
+    for (int c = 0; c < 100000 && !planner->is_done(); ++c) {
+      planner->run_cycle(in, out);
+      v.push_back(out.path_velocity);
+    }
+    ASSERT_TRUE(planner->is_done());
+    ASSERT_GT(v.size(), 100u);
+    // The middle half of the motion (the ramps take well under a quarter).
+    double vmin = 1e300;
+    for (std::size_t i = v.size() / 4; i < 3 * v.size() / 4; ++i) vmin = std::min(vmin, v[i]);
+    EXPECT_GE(vmin, 0.99 * F);
+    EXPECT_LE(vmin, F * (1 + 1e-9));
+    const RunResult r = run(cfg, prog);
+    expect_clean(r);
+  }
 }
 
 // --- short segments and look-ahead -------------------------------------------
