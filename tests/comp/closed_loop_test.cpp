@@ -59,8 +59,8 @@ TEST(CompensationClosedLoop, LeadScrewPlantMeasuredFittedCompensatedAndMeasuredA
 // return to CSP ("drive homing completed, but motion's command ... not
 // returning to CSP") and homing fails. With the 8-line fix in
 // MotionController::update_backlash (hold and reset the ramp in
-// HomeState::DriveHoming; docs/compensation.md) it passes: A 11.1 -> 0.8 um,
-// B 2.3 -> 0.1 um, ~160 s wall. Run it with --gtest_also_run_disabled_tests.
+// HomeState::DriveHoming; docs/compensation.md) it passes: A 11.1 -> 0.3..0.8
+// um, B 2.3 -> 0.1 um, ~140-160 s wall. Run it with --gtest_also_run_disabled_tests.
 TEST(CompensationClosedLoop, DISABLED_SimulatedMillOnCia402DrivesXAxis) {
   cnc::testing::TempDir work;
   const std::string extra_hal =
