@@ -74,7 +74,7 @@ void Esc::enter(AlState s, int64_t now) noexcept {
   const AlState from = state_;
   state_ = s;
   if (s == AlState::Init) {
-    mailbox_queue_.clear();
+    mq_count_ = 0;
     sm1_full_ = false;
     mem_[reg::kSm0 + 8 + 5] = 0;
   }
@@ -166,19 +166,27 @@ void Esc::drift_control(uint64_t received, unsigned bytes, int64_t t) noexcept {
 }
 
 void Esc::refill_mailbox() noexcept {
-  if (sm1_full_ || mailbox_queue_.empty()) return;
+  if (sm1_full_ || mq_count_ == 0) return;
   const SmEntry s1 = sm(1);
   if (!s1.enabled() || s1.start + s1.length > kMemory) return;
-  std::vector<uint8_t>& m = mailbox_queue_.front();
+  const Pending& m = mailbox_queue_[mq_head_];
   std::memset(mem_.data() + s1.start, 0, s1.length);
-  std::memcpy(mem_.data() + s1.start, m.data(), std::min<std::size_t>(m.size(), s1.length));
-  mailbox_queue_.pop_front();
+  std::memcpy(mem_.data() + s1.start, m.data.data(), std::min<std::size_t>(m.size, s1.length));
+  mq_head_ = (mq_head_ + 1) % mailbox_queue_.size();
+  --mq_count_;
   sm1_full_ = true;
   mem_[reg::kSm0 + 8 + 5] = sm::kStatusFull;
 }
 
-void Esc::post_mailbox(const uint8_t* data, std::size_t size) {
-  mailbox_queue_.emplace_back(data, data + size);
+void Esc::post_mailbox(const uint8_t* data, std::size_t size) noexcept {
+  if (mq_count_ == mailbox_queue_.size()) {
+    ++mailbox_overflows_;
+    return;
+  }
+  Pending& p = mailbox_queue_[(mq_head_ + mq_count_) % mailbox_queue_.size()];
+  p.size = std::min(size, p.data.size());
+  std::memcpy(p.data.data(), data, p.size);
+  ++mq_count_;
   refill_mailbox();
 }
 

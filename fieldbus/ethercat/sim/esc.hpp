@@ -9,7 +9,6 @@
 
 #include <array>
 #include <cstdint>
-#include <deque>
 #include <string>
 #include <vector>
 
@@ -83,8 +82,10 @@ class Esc {
   uint32_t sync0_cycle_ns() const noexcept { return get32(mem_.data() + reg::kDcSync0Cycle); }
   bool outputs_valid() const noexcept { return outputs_valid_; }
 
-  // Mailbox towards the master (SM1), queued while SM1 is full.
-  void post_mailbox(const uint8_t* data, std::size_t size);
+  // Mailbox towards the master (SM1), queued while SM1 is full (up to 8
+  // messages of 256 bytes; more are dropped and counted). No allocation.
+  void post_mailbox(const uint8_t* data, std::size_t size) noexcept;
+  uint64_t mailbox_overflows() const noexcept { return mailbox_overflows_; }
   // An error the application detected: drop to `to` with the code.
   void set_error(AlState to, uint16_t code, int64_t now_ns) noexcept;
 
@@ -122,7 +123,14 @@ class Esc {
   bool port1_open_ = true;
   // mailbox
   bool sm1_full_ = false;
-  std::deque<std::vector<uint8_t>> mailbox_queue_;
+  // Replies waiting for SM1 (fixed ring: posting never allocates).
+  struct Pending {
+    std::array<uint8_t, 256> data{};
+    std::size_t size = 0;
+  };
+  std::array<Pending, 8> mailbox_queue_{};
+  std::size_t mq_head_ = 0, mq_count_ = 0;
+  uint64_t mailbox_overflows_ = 0;
   // process data
   bool outputs_valid_ = false;
   int64_t last_outputs_ns_ = 0;

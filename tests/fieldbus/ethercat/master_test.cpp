@@ -193,6 +193,26 @@ TEST(EthercatMaster, SdoAbortStopsStartUpWithObjectAndReason) {
   }
 }
 
+TEST(EthercatMaster, EveryWrittenValueIsReadBack) {
+  MasterConfig cfg;
+  SlaveConfig s;
+  s.position = 1;
+  s.name = "x-axis";
+  s.sdos.push_back({0x6065, 0, {0x10, 0x27, 0, 0}, "machine.ini:20"});
+  cfg.slaves.push_back(s);
+  Bus bus(1, cfg, false);
+  // A slave that quietly keeps another value than the one written.
+  canopen::ObjectDictionary& od = bus.segment->drive(0)->od();
+  od.set_after_write({0x6065, 0}, [&od](const canopen::OdEntry&) { od.set<uint32_t>({0x6065, 0}, 5000); });
+  try {
+    bus.master->start_up();
+    FAIL() << "start-up went through";
+  } catch (const StartupError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("slave 1 (x-axis): verification of 0x6065:00 (value from machine.ini:20) failed: "
+                                    "the slave has 0x00001388 after 0x00002710 was written"));
+  }
+}
+
 TEST(EthercatMaster, UnmappableObjectStopsStartUp) {
   MasterConfig cfg;
   SlaveConfig s;
