@@ -12,6 +12,9 @@
 #include "core/util/messages.hpp"
 #include "fieldbus/canopen/emcy.hpp"
 #include "fieldbus/canopen/sdo_abort.hpp"
+#ifdef CNC_ETHERCAT_ESI
+#include "fieldbus/ethercat/esi.hpp"
+#endif
 
 namespace cnc::ethercat {
 namespace {
@@ -332,7 +335,7 @@ void Master::configure_coe(SlaveInfo& s) {
       check_sdo(s, assign, 0, le(1, 1), std::string(kind) + " assignment count");
     }
   }
-  const bool sync0 = cfg_.dc && s.has_dc && (!c || c->sync0);
+  const bool sync0 = cfg_.dc && s.has_dc && (!c || c->sync0) && (s.assign_activate & 0x0200) != 0;
   check_sdo(s, 0x1C32, 1, le(sync0 ? 2 : 1, 2), sync0 ? "outputs synchronised to DC SYNC0" : "outputs synchronised to SM2");
   check_sdo(s, 0x1C32, 2, le(static_cast<uint64_t>(cfg_.cycle_ns), 4), "cycle time, ns");
   if (c) {
@@ -480,8 +483,9 @@ void Master::configure_dc() {
   for (std::size_t i : dc) {
     SlaveInfo& s = slaves_[i];
     const SlaveConfig* sc = cfg_.slave(s.position);
-    if (sc && !sc->sync0) continue;
-    uint8_t off[1] = {0}, cyc[8] = {}, t0[8], act[2] = {0x00, 0x03};
+    if ((sc && !sc->sync0) || (s.assign_activate & 0x0200) == 0) continue;
+    uint8_t off[1] = {0}, cyc[8] = {}, t0[8], act[2];
+    put16(act, s.assign_activate);  // ESI AssignActivate: 0x0300 SYNC0, 0x0700 SYNC0 + SYNC1
     put32(cyc, static_cast<uint32_t>(c));
     put64(t0, static_cast<uint64_t>(start));
     must_write(s, reg::kDcActivation, off, 1, "DC activation (off)");
@@ -508,8 +512,35 @@ void Master::plan() {
       }
       return v;
     };
-    s.rx = c && c->rx_pdo ? *c->rx_pdo : from_sii(s.sii.rx_pdos);
-    s.tx = c && c->tx_pdo ? *c->tx_pdo : from_sii(s.sii.tx_pdos);
+    const std::vector<SiiPdo>* rx_defaults = &s.sii.rx_pdos;
+    const std::vector<SiiPdo>* tx_defaults = &s.sii.tx_pdos;
+    EsiFile esi;
+    if (c && !c->esi.empty()) {
+#ifdef CNC_ETHERCAT_ESI
+      try {
+        esi = load_esi(c->esi);
+      } catch (const std::exception& e) {
+        fail_slave(s, std::string("ESI: ") + e.what());
+      }
+      if (esi.vendor_id != s.sii.vendor_id) {
+        fail_slave(s, fmt("ESI %s is for vendor 0x%08X, the slave's SII says 0x%08X", c->esi.c_str(), esi.vendor_id,
+                          s.sii.vendor_id));
+      }
+      const EsiDevice* d = esi.find(s.sii.product_code, s.sii.revision);
+      if (!d) {
+        fail_slave(s, fmt("ESI %s describes no device with product code 0x%08X (the slave's SII)", c->esi.c_str(),
+                          s.sii.product_code));
+      }
+      rx_defaults = &d->rx_pdos;
+      tx_defaults = &d->tx_pdos;
+      s.assign_activate = d->has_dc ? d->assign_activate : 0;
+      s.esi_device = fmt("%s (%s:%d)", d->type.c_str(), c->esi.c_str(), d->line);
+#else
+      fail_slave(s, "ESI = " + c->esi + ": this build has no ESI support (libexpat1-dev was missing)");
+#endif
+    }
+    s.rx = c && c->rx_pdo ? *c->rx_pdo : from_sii(*rx_defaults);
+    s.tx = c && c->tx_pdo ? *c->tx_pdo : from_sii(*tx_defaults);
   }
   layout_process_data();
   planned_ = true;

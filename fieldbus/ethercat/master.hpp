@@ -60,6 +60,7 @@ struct SlaveConfig {
   std::vector<StartupSdo> sdos;
   bool sync0 = true;        // DC SYNC0 when the bus uses DC
   uint32_t watchdog_ms = 100;
+  std::string esi;          // ESI XML file: PDO defaults and AssignActivate from it
 };
 
 struct MasterConfig {
@@ -119,6 +120,8 @@ struct SlaveInfo {
   uint32_t out_bit = 0, out_bits = 0, in_bit = 0, in_bits = 0;  // in the output / input image
   uint16_t sm2_start = 0, sm3_start = 0;
   int64_t dc_delay_ns = 0, dc_offset_ns = 0;
+  uint16_t assign_activate = 0x0300;  // written to 0x0980 (from the ESI when given); 0: no SYNC0
+  std::string esi_device;             // "SIM402 (file.xml:12)" when an ESI file described it
 };
 
 enum class BusPhase : uint8_t { Down, SafeOp, Op, Fault };
