@@ -94,6 +94,19 @@ TEST(EthercatComponent, LoadrtRunsCia402DrivesOverTheSimulatedBus) {
   hal.set_value("cia402.0.drive.01.pos-cmd", "0.5");  // a small step, within the drive's following window
   EXPECT_TRUE(cycles(5000, [&] { return std::abs(std::stod(hal.get_value("cia402.0.drive.01.pos-fb")) - 0.5) < 0.001; }))
       << hal.get_value("cia402.0.drive.01.pos-fb");
+  {
+    // The servo thread's functions (bus read, drives, bus write) never allocate.
+    uint64_t allocations = 0;
+    for (int i = 0; i < 300; ++i) {
+      info.now_ns = monotonic_ns();
+      cnc::testing::ScopedAllocationCheck check;
+      servo->run_cycle(info);
+      allocations += check.allocations();
+      ++info.cycle;
+      std::this_thread::sleep_for(std::chrono::microseconds(500));
+    }
+    if (cnc::testing::AllocationCounter::available()) EXPECT_EQ(allocations, 0u);
+  }
   EXPECT_EQ(hal.get_value("ethercat.0.fault"), "FALSE");
   EXPECT_EQ(hal.get_value("ethercat.0.working-counter"), "6");
   EXPECT_NE(hal.get_value("ethercat.0.cycles"), "0");

@@ -5,6 +5,9 @@
 #   mill.sh BIN_DIR program      power up, home, run mill/program.ngc, check the end position
 #   mill.sh BIN_DIR cable-break  the cable breaks behind the second drive while
 #                                the program runs: E-stop, the message names where
+#   mill.sh BIN_DIR in-process   the program on the same mill with the drives
+#                                simulated inside cncd (INTERFACE = sim:mill, no
+#                                namespace, no root needed)
 set -euo pipefail
 bin=$1
 case_name=$2
@@ -27,23 +30,31 @@ fail() {
   exit 1
 }
 
-ip netns add "$ns"
-ip -n "$ns" link set lo up
-ip -n "$ns" link add ecm type veth peer name ecs
-ip -n "$ns" link set ecm up
-ip -n "$ns" link set ecs up
 cp -r "$here/mill" "$work/mill"
 touch "$work/mill/mill.var"
-
-fault=()
-[ "$case_name" = cable-break ] && fault=(--fault break:2 --fault-after-ms 4000)
-ip netns exec "$ns" "$bin/ecat-sim" --iface ecs --drives 3 --seconds 300 "${fault[@]}" 2>"$work/sim.log" &
-simpid=$!
-sleep 0.3
-
 export CNC_INSTANCE="ecatmill-$$"
-ip netns exec "$ns" env CNC_INSTANCE="$CNC_INSTANCE" "$bin/cncd" "$work/mill/mill.ini" 2>"$work/cncd.log" &
-daemon=$!
+if [ "$case_name" = in-process ]; then
+  # The same machine choosing the in-process simulation: only the bus line
+  # of the INI and one loadrt differ.
+  sed -i 's|^INTERFACE = raw:ecm|INTERFACE = sim:mill|' "$work/mill/mill.ini"
+  sed -i 's|^loadrt ethercat$|loadrt ethercat_sim name=mill drives=3\nloadrt ethercat|' "$work/mill/mill.hal"
+  CNC_NO_REALTIME=1 "$bin/cncd" "$work/mill/mill.ini" 2>"$work/cncd.log" &
+  daemon=$!
+  case_name=program
+else
+  ip netns add "$ns"
+  ip -n "$ns" link set lo up
+  ip -n "$ns" link add ecm type veth peer name ecs
+  ip -n "$ns" link set ecm up
+  ip -n "$ns" link set ecs up
+  fault=()
+  [ "$case_name" = cable-break ] && fault=(--fault break:2 --fault-after-ms 4000)
+  ip netns exec "$ns" "$bin/ecat-sim" --iface ecs --drives 3 --seconds 300 "${fault[@]}" 2>"$work/sim.log" &
+  simpid=$!
+  sleep 0.3
+  ip netns exec "$ns" env CNC_INSTANCE="$CNC_INSTANCE" "$bin/cncd" "$work/mill/mill.ini" 2>"$work/cncd.log" &
+  daemon=$!
+fi
 "$bin/cnc" --timeout 30 wait-ready || fail "controller did not start"
 "$bin/cnc" estop-reset || fail "estop-reset"
 "$bin/cnc" on || fail "machine on"
