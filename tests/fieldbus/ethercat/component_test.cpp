@@ -105,7 +105,9 @@ TEST(EthercatComponent, LoadrtRunsCia402DrivesOverTheSimulatedBus) {
       ++info.cycle;
       std::this_thread::sleep_for(std::chrono::microseconds(500));
     }
-    if (cnc::testing::AllocationCounter::available()) EXPECT_EQ(allocations, 0u);
+    if (cnc::testing::AllocationCounter::available()) {
+      EXPECT_EQ(allocations, 0u);
+    }
   }
   EXPECT_EQ(hal.get_value("ethercat.0.fault"), "FALSE");
   EXPECT_EQ(hal.get_value("ethercat.0.working-counter"), "6");
