@@ -668,6 +668,14 @@ const char* MotionController::cmd_segment(const MotionCommand& c, bool& retry) n
 
 // ---------------------------------------------------------------- cycle
 
+double MotionController::axis_dtg(int a) const noexcept {
+  switch (mode_) {
+    case ipc::MotionMode::Coord: return tp_out_.move_end[a] - carte_cmd_[a];
+    case ipc::MotionMode::Teleop: return axis_free_[static_cast<std::size_t>(a)].target() - carte_cmd_[a];
+    default: return 0;
+  }
+}
+
 void MotionController::read_feedback() noexcept {
   for (int j = 0; j < cfg_.num_joints; ++j) {
     Joint& jt = joints_[static_cast<std::size_t>(j)];
@@ -888,6 +896,15 @@ void MotionController::update_backlash(int j, double dt) noexcept {
     jt.comp_ramp.reset(0);
     return;
   }
+  if (jt.home_state == HomeState::DriveHoming) {
+    // The drive moves on its own and its position jumps to the home offset
+    // at the reference; the command copies the feedback. The correction is
+    // held: a ramp chasing that jump would leave the motor command behind by
+    // the jump (a 264 mm step when the drive hands back to CSP).
+    jt.comp_ramp.reset(jt.backlash_filt);
+    jt.backlash_vel = 0;
+    return;
+  }
   // What the direction of travel asks for: the screw table's correction once
   // the joint is homed (a table replaces BACKLASH, as in LinuxCNC), else
   // +-BACKLASH/2; at rest the last direction stays.
@@ -991,12 +1008,16 @@ void MotionController::compute_outputs(double dt) noexcept {
     }
   }
   out_.requested_vel = 0;
-  double dtg = 0;
-  for (int a = 0; a < kNumAxes; ++a) {
-    const double d = (mode_ == ipc::MotionMode::Teleop ? axis_free_[static_cast<std::size_t>(a)].target() : carte_cmd_[a]) - carte_cmd_[a];
-    dtg += d * d;
+  if (mode_ == ipc::MotionMode::Coord) {
+    out_.distance_to_go = tp_out_.distance_to_go;  // along the path (an arc's length, not its chord)
+  } else {
+    double dtg = 0;
+    for (int a = 0; a < kNumAxes; ++a) {
+      const double d = axis_dtg(a);
+      dtg += d * d;
+    }
+    out_.distance_to_go = std::sqrt(dtg);
   }
-  out_.distance_to_go = std::sqrt(dtg);
   out_.watchdog_enabled = watchdog_enabled_;
   out_.watchdog = watchdog_enabled_ && !out_.watchdog;
   out_.tool_offset = tool_offset_;
@@ -1065,7 +1086,7 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
   t.position = carte_cmd_;
   t.actual_position = carte_fb_valid_ ? carte_fb_ : Pose{};
   for (int a = 0; a < kNumAxes; ++a) {
-    t.dtg[a] = mode_ == ipc::MotionMode::Teleop ? axis_free_[static_cast<std::size_t>(a)].target() - carte_cmd_[a] : 0;
+    t.dtg[a] = axis_dtg(a);
   }
   t.current_vel = out_.current_vel;
   t.distance_to_go = out_.distance_to_go;

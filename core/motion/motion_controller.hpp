@@ -131,6 +131,9 @@ class MotionController {
   // Disables motion after a fault and says why on the error channel.
   void fault(const char* fmt, ...) noexcept __attribute__((format(printf, 2, 3)));
   const char* reason(const char* fmt, ...) noexcept __attribute__((format(printf, 2, 3)));
+  // Distance to go of axis `a`: to the end of the executing move (coord),
+  // to the jog target (teleop), 0 in free mode (joints move, not axes).
+  double axis_dtg(int a) const noexcept;
   void begin_search(int j) noexcept;
   void enter_home_state(int j, HomeState state) noexcept;
   void stop_then(int j, HomeState state) noexcept;

@@ -940,8 +940,10 @@ void Executor::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
     out.line = sr.line;
     out.id = sr.id;
     out.distance_to_go = std::max(0.0, sr.s0 + sr.curve.length - (p.s0 + off_));
+    out.move_end = sr.curve.end;
   } else {
     out.distance_to_go = 0;
+    out.move_end = pose_;
   }
   out.done = is_idle();
   out.probe_tripped = probe_tripped_;

@@ -75,6 +75,7 @@ struct CycleOutputs {
   double path_velocity = 0; // current speed along the path, units/s
   double path_acceleration = 0;  // along the path, units/s^2
   double distance_to_go = 0;     // to the end of the executing move
+  Pose move_end;            // where the executing move ends (position when none): per-axis distance to go
   int32_t line = 0;         // line of the executing segment
   uint32_t id = 0;          // id of the executing segment
   bool done = true;         // queue empty and at rest

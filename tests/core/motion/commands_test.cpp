@@ -479,3 +479,22 @@ TEST(MotionBacklash, CorrectionNeverExceedsTheReservedLimits) {
   EXPECT_LE(max_v, 100 * (1 + 1e-9)) << "motor velocity (joint + backlash) within the joint limit";
   EXPECT_LE(max_a, 1000 * (1 + 1e-6)) << "motor acceleration within the joint limit";
 }
+
+// Status distance to go per axis (the DRO's "to go" column) follows the
+// executing move in coord mode and is zero when it has ended.
+TEST(MotionStatusDtg, PerAxisDistanceToGoFollowsTheExecutingMove) {
+  Machine m;
+  m.enable_home_coord();
+  ASSERT_TRUE(m.line(50, 20, 0, 20).accepted);
+  m.step(200);
+  const auto s = m.status();
+  ASSERT_GT(s.traj.current_vel, 0);
+  for (int a = 0; a < 3; ++a) {
+    const double end[3] = {50, 20, 0};
+    EXPECT_NEAR(s.traj.dtg[a], end[a] - s.traj.position[a], 1e-9) << "axis " << a;
+  }
+  EXPECT_GT(s.traj.dtg[0], 1);
+  EXPECT_NEAR(s.traj.distance_to_go, std::hypot(s.traj.dtg[0], s.traj.dtg[1]), 1e-6);
+  ASSERT_TRUE(m.run_until([&] { return m.status().tp_done; }));
+  for (int a = 0; a < 3; ++a) EXPECT_EQ(m.status().traj.dtg[a], 0) << "axis " << a;
+}

@@ -92,6 +92,8 @@ class SimplePlanner : public tp::TrajectoryPlanner {
       aborting_ = false;
     }
     out.position = pos_;
+    out.move_end = active_ ? q_[head_].end : pos_;
+    out.distance_to_go = active_ ? std::max(0.0, q_[head_].length - s_.position()) : 0;
     out.done = count_ == 0 && !active_;
     out.line = active_ ? q_[head_].p.line : last_line_;
     out.id = active_ ? q_[head_].p.id : last_id_;
