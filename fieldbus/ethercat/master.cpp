@@ -546,6 +546,12 @@ void Master::plan() {
   planned_ = true;
 }
 
+void Master::to_preop() {
+  if (!scanned_) scan();
+  for (SlaveInfo& s : slaves_) configure_mailbox(s);
+  for (SlaveInfo& s : slaves_) request_state(s, AlState::PreOp);
+}
+
 void Master::start_up() {
   if (!planned_) plan();
   for (SlaveInfo& s : slaves_) configure_mailbox(s);
@@ -887,6 +893,114 @@ SdoResult Master::do_upload(SlaveInfo& s, uint16_t index, uint8_t sub) {
   }
   res.ok = true;
   return res;
+}
+
+SdoResult Master::do_info(SlaveInfo& s, uint8_t opcode, const std::vector<uint8_t>& request) {
+  SdoResult res;
+  std::vector<uint8_t> m(kMailboxHeader + 2 + 4 + request.size(), 0);
+  MailboxHeader h;
+  h.length = static_cast<uint16_t>(2 + 4 + request.size());
+  h.type = MailboxType::CoE;
+  SlaveState& st = state_[s.position - 1];
+  st.mailbox_counter = static_cast<uint8_t>(st.mailbox_counter % 7 + 1);
+  h.counter = st.mailbox_counter;
+  h.encode(m.data());
+  put16(m.data() + kMailboxHeader, coe_header(CoeService::SdoInfo));
+  m[kMailboxHeader + 2] = opcode;
+  std::copy(request.begin(), request.end(), m.begin() + kMailboxHeader + 6);
+  if (!mailbox_write(s, m.data(), m.size(), res.error)) return res;
+  std::vector<uint8_t> in;
+  for (;;) {
+    if (!mailbox_read(s, in, cfg_.mailbox_timeout_ms * 1'000'000, res.error)) return res;
+    const MailboxHeader r = MailboxHeader::decode(in.data());
+    if (r.length + kMailboxHeader > in.size() || r.length < 2) {
+      res.error = "malformed mailbox reply";
+      return res;
+    }
+    const uint8_t* body = in.data() + kMailboxHeader;
+    if (r.type == MailboxType::Error) {
+      const uint16_t detail = r.length >= 4 ? get16(body + 2) : 0;
+      res.error = fmt("mailbox error %u: %s", detail, mailbox_error_text(detail));
+      return res;
+    }
+    if (r.type != MailboxType::CoE) continue;
+    const CoeService svc = coe_service(get16(body));
+    if (svc == CoeService::Emergency && r.length >= 10) {
+      handle_emergency(s, body + 2);
+      continue;
+    }
+    if (svc != CoeService::SdoInfo || r.length < 6) continue;
+    const uint8_t op = body[2] & 0x7F;
+    if (op == 7) {
+      res.abort_code = r.length >= 10 ? get32(body + 6) : 0;
+      res.error = abort_text(res.abort_code);
+      return res;
+    }
+    res.data.insert(res.data.end(), body + 6, body + r.length);
+    if (get16(body + 4) == 0) break;  // no fragments left
+  }
+  res.ok = true;
+  return res;
+}
+
+std::vector<uint16_t> Master::sdo_info_list(unsigned position, std::string& error) {
+  SlaveInfo* s = find(position);
+  if (!s) {
+    error = fmt("no slave at position %u", position);
+    return {};
+  }
+  const SdoResult r = run_on_worker([=, this] { return do_info(*s, 1, le(1, 2)); });
+  std::vector<uint16_t> out;
+  if (!r.ok) {
+    error = r.error;
+    return out;
+  }
+  for (std::size_t i = 2; i + 1 < r.data.size(); i += 2) out.push_back(get16(r.data.data() + i));
+  return out;
+}
+
+std::optional<SdoInfoObject> Master::sdo_info_object(unsigned position, uint16_t index, std::string& error) {
+  SlaveInfo* s = find(position);
+  if (!s) {
+    error = fmt("no slave at position %u", position);
+    return std::nullopt;
+  }
+  const SdoResult r = run_on_worker([=, this] { return do_info(*s, 3, le(index, 2)); });
+  if (!r.ok || r.data.size() < 6) {
+    error = r.ok ? "object description too short" : r.error;
+    return std::nullopt;
+  }
+  SdoInfoObject o;
+  o.index = get16(r.data.data());
+  o.data_type = get16(r.data.data() + 2);
+  o.max_sub = r.data[4];
+  o.object_code = r.data[5];
+  o.name.assign(r.data.begin() + 6, r.data.end());
+  return o;
+}
+
+std::optional<SdoInfoEntry> Master::sdo_info_entry(unsigned position, uint16_t index, uint8_t sub, std::string& error) {
+  SlaveInfo* s = find(position);
+  if (!s) {
+    error = fmt("no slave at position %u", position);
+    return std::nullopt;
+  }
+  std::vector<uint8_t> q = le(index, 2);
+  q.push_back(sub);
+  q.push_back(0x01);  // value info: access rights
+  const SdoResult r = run_on_worker([=, this] { return do_info(*s, 5, q); });
+  if (!r.ok || r.data.size() < 10) {
+    error = r.ok ? "entry description too short" : r.error;
+    return std::nullopt;
+  }
+  SdoInfoEntry e;
+  e.index = get16(r.data.data());
+  e.sub = r.data[2];
+  e.data_type = get16(r.data.data() + 4);
+  e.bit_length = get16(r.data.data() + 6);
+  e.access = get16(r.data.data() + 8);
+  e.name.assign(r.data.begin() + 10, r.data.end());
+  return e;
 }
 
 SdoResult Master::run_on_worker(std::function<SdoResult()> job) {

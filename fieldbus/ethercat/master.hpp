@@ -99,6 +99,18 @@ struct SdoResult {
   std::string error;  // "aborted by the slave: 0x06040041 object cannot be mapped to the PDO", "no answer within 1000 ms"
 };
 
+// SDO information (CoE service 8) about one object or entry.
+struct SdoInfoObject {
+  uint16_t index = 0, data_type = 0;
+  uint8_t max_sub = 0, object_code = 0;  // 7 VAR, 8 ARRAY, 9 RECORD
+  std::string name;
+};
+struct SdoInfoEntry {
+  uint16_t index = 0, data_type = 0, bit_length = 0, access = 0;
+  uint8_t sub = 0;
+  std::string name;
+};
+
 // A mapped object in the process image (bit position and length).
 struct ProcessSlot {
   uint8_t* bytes = nullptr;
@@ -179,6 +191,9 @@ class Master {
   // The process image from the configured or SII-default PDOs (scans
   // first if needed): slots are valid from here on.
   void plan();
+  // Scan (if needed) and every slave to PREOP with its mailbox: enough for
+  // SDOs and SDO information (tools). Throws StartupError.
+  void to_preop();
   // plan() + PREOP + CoE configuration + SM/FMMU + DC + SAFEOP; the bus is
   // ready for cyclic exchange. Throws StartupError.
   void start_up();
@@ -203,6 +218,11 @@ class Master {
   // --- mailbox (non-realtime, any thread; through the worker once it runs) ---
   SdoResult sdo_upload(unsigned position, uint16_t index, uint8_t sub);
   SdoResult sdo_download(unsigned position, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data);
+  // SDO information: the slave's object list and descriptions. `error` is
+  // set (and the result empty) when the slave refuses or does not answer.
+  std::vector<uint16_t> sdo_info_list(unsigned position, std::string& error);
+  std::optional<SdoInfoObject> sdo_info_object(unsigned position, uint16_t index, std::string& error);
+  std::optional<SdoInfoEntry> sdo_info_entry(unsigned position, uint16_t index, uint8_t sub, std::string& error);
   // Realtime requests (expedited values), done by the worker: a handle or -1.
   int rt_sdo_read(unsigned position, uint16_t index, uint8_t sub) noexcept;
   int rt_sdo_write(unsigned position, uint16_t index, uint8_t sub, uint32_t value, uint8_t size) noexcept;
@@ -269,6 +289,8 @@ class Master {
   bool mailbox_read(SlaveInfo& s, std::vector<uint8_t>& out, int64_t timeout_ns, std::string& error);
   bool coe_exchange(SlaveInfo& s, const uint8_t* sdo, std::size_t n, std::vector<uint8_t>& reply, std::string& error);
   SdoResult do_upload(SlaveInfo& s, uint16_t index, uint8_t sub);
+  // One SDO information request; the reply's data of all fragments.
+  SdoResult do_info(SlaveInfo& s, uint8_t opcode, const std::vector<uint8_t>& request);
   SdoResult do_download(SlaveInfo& s, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data);
   void handle_emergency(SlaveInfo& s, const uint8_t* data);
   SlaveInfo* find(unsigned position);

@@ -316,8 +316,94 @@ void CoeDrive::on_mailbox(const uint8_t* data, std::size_t size, Esc& esc, int64
   if (h.type != MailboxType::CoE) return mailbox_error(2);
   const uint8_t* coe = data + kMailboxHeader;
   const CoeService service = coe_service(get16(coe));
+  if (service == CoeService::SdoInfo) return sdo_info(coe + 2, h.length - 2, esc);
   if (service != CoeService::SdoRequest) return mailbox_error(4);
   sdo(coe + 2, h.length - 2, esc);
+}
+
+// SDO information (CoE service 8): header opcode (bit 7: more fragments
+// follow), reserved, fragments left U16; then the opcode's data.
+void CoeDrive::info_reply(Esc& esc, uint8_t opcode, const std::vector<uint8_t>& payload) {
+  constexpr std::size_t kRoom = kMailboxSize - kMailboxHeader - 2 - 4;
+  const std::size_t fragments = payload.empty() ? 1 : (payload.size() + kRoom - 1) / kRoom;
+  for (std::size_t f = 0; f < fragments; ++f) {
+    const std::size_t off = f * kRoom;
+    const std::size_t n = std::min(kRoom, payload.size() - std::min(payload.size(), off));
+    uint8_t m[kMailboxSize] = {};
+    MailboxHeader h;
+    h.length = static_cast<uint16_t>(2 + 4 + n);
+    h.type = MailboxType::CoE;
+    counter_ = static_cast<uint8_t>(counter_ % 7 + 1);
+    h.counter = counter_;
+    h.encode(m);
+    put16(m + 6, coe_header(CoeService::SdoInfo));
+    m[8] = static_cast<uint8_t>(opcode | (f + 1 < fragments ? 0x80 : 0));
+    put16(m + 10, static_cast<uint16_t>(fragments - 1 - f));
+    if (n) std::memcpy(m + 12, payload.data() + off, n);
+    esc.post_mailbox(m, kMailboxHeader + h.length);
+  }
+}
+
+void CoeDrive::sdo_info(const uint8_t* d, std::size_t n, Esc& esc) {
+  auto error = [&](uint32_t code) {
+    std::vector<uint8_t> p(4);
+    put32(p.data(), code);
+    info_reply(esc, 7, p);
+  };
+  if (n < 4) return error(ab::kCommandSpecifier);
+  const uint8_t opcode = d[0] & 0x7F;
+  const uint8_t* q = d + 4;
+  const std::size_t qn = n - 4;
+  std::vector<uint8_t> p;
+  auto put_u16 = [&](uint16_t v) { p.push_back(static_cast<uint8_t>(v)), p.push_back(static_cast<uint8_t>(v >> 8)); };
+  if (opcode == 1) {  // OD list
+    const uint16_t type = qn >= 2 ? get16(q) : 1;
+    if (type != 1) return error(ab::kUnsupportedAccess);  // only "all objects"
+    put_u16(type);
+    uint16_t last = 0;
+    bool any = false;
+    for (const canopen::OdEntry& e : od_.entries()) {
+      if (any && e.addr.index == last) continue;
+      put_u16(e.addr.index);
+      last = e.addr.index;
+      any = true;
+    }
+    return info_reply(esc, 2, p);
+  }
+  if (opcode == 3 && qn >= 2) {  // object description
+    const uint16_t index = get16(q);
+    const canopen::OdEntry* first = nullptr;
+    uint8_t max_sub = 0;
+    for (const canopen::OdEntry& e : od_.entries()) {
+      if (e.addr.index != index) continue;
+      if (!first) first = &e;
+      max_sub = std::max(max_sub, e.addr.sub);
+    }
+    if (!first) return error(ab::kNoObject);
+    put_u16(index);
+    put_u16(static_cast<uint16_t>(first->type));
+    p.push_back(max_sub);
+    p.push_back(max_sub == 0 ? 7 : 9);  // VAR or RECORD
+    p.insert(p.end(), first->name.begin(), first->name.end());
+    return info_reply(esc, 4, p);
+  }
+  if (opcode == 5 && qn >= 4) {  // entry description
+    const canopen::OdEntry* e = od_.find({get16(q), q[2]});
+    if (!e) return error(od_.has_index(get16(q)) ? ab::kNoSubIndex : ab::kNoObject);
+    put_u16(e->addr.index);
+    p.push_back(e->addr.sub);
+    p.push_back(q[3]);
+    put_u16(static_cast<uint16_t>(e->type));
+    put_u16(static_cast<uint16_t>(e->capacity * 8));
+    uint16_t access = 0;
+    if (canopen::is_readable(e->access)) access |= 0x07;
+    if (canopen::is_writable(e->access)) access |= 0x38;
+    if (e->pdo_mappable) access |= canopen::is_writable(e->access) ? 0x40 : 0x80;
+    put_u16(access);
+    p.insert(p.end(), e->name.begin(), e->name.end());
+    return info_reply(esc, 6, p);
+  }
+  error(ab::kCommandSpecifier);
 }
 
 void CoeDrive::sdo(const uint8_t* d, std::size_t n, Esc& esc) {

@@ -66,6 +66,8 @@ class CoeDrive final : public SlaveApplication {
   };
 
   void sdo(const uint8_t* coe, std::size_t n, Esc& esc);
+  void sdo_info(const uint8_t* d, std::size_t n, Esc& esc);
+  void info_reply(Esc& esc, uint8_t opcode, const std::vector<uint8_t>& payload);
   void reply(Esc& esc, const uint8_t* sdo, std::size_t n, CoeService service = CoeService::SdoResponse);
   void abort(Esc& esc, uint16_t index, uint8_t sub, uint32_t code);
   uint32_t build_map(uint16_t assign, std::vector<MapItem>& out, unsigned& bits) const;

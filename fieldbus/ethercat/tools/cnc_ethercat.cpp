@@ -1,6 +1,7 @@
 // cnc-ethercat: the EtherCAT master from the command line.
 //
 //   cnc-ethercat scan <raw:IF|sim:NAME>     slaves found, and an INI skeleton generated from them
+//   cnc-ethercat dict <raw:IF> [POSITION]   a slave's object dictionary (CoE SDO information)
 //   cnc-ethercat run  <raw:IF> [--cycle-us 1000] [--seconds 5] [--move] [--rtt]
 //                     [--expect-fault TEXT] [--no-lock] [--miss-limit N]
 //
@@ -93,6 +94,45 @@ int scan(const std::string& iface) {
         }
       }
       std::printf("\n");
+    }
+  }
+  return 0;
+}
+
+const char* access_text(uint16_t a) {
+  const bool r = a & 0x07, w = a & 0x38;
+  return r && w ? "rw" : r ? "ro" : w ? "wo" : "--";
+}
+
+int dict(const std::string& iface, unsigned position) {
+  MasterConfig cfg;
+  cfg.interface = iface;
+  Master m(cfg, nullptr);
+  try {
+    m.to_preop();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s\n", e.what());
+    return 1;
+  }
+  std::string error;
+  const std::vector<uint16_t> list = m.sdo_info_list(position, error);
+  if (!error.empty()) {
+    std::fprintf(stderr, "%s: SDO information: %s\n", m.slave_label(position).c_str(), error.c_str());
+    return 1;
+  }
+  std::printf("# %s: %zu objects (SDO information)\n", m.slave_label(position).c_str(), list.size());
+  for (uint16_t index : list) {
+    const auto o = m.sdo_info_object(position, index, error);
+    if (!o) {
+      std::printf("0x%04X  ? %s\n", index, error.c_str());
+      continue;
+    }
+    std::printf("0x%04X  %s\n", index, o->name.c_str());
+    for (unsigned sub = 0; sub <= o->max_sub; ++sub) {
+      const auto e = m.sdo_info_entry(position, index, static_cast<uint8_t>(sub), error);
+      if (!e) continue;
+      std::printf("  :%02X  %-2s %3u bits  type 0x%04X%s  %s\n", sub, access_text(e->access), e->bit_length,
+                  e->data_type, (e->access & 0xC0) ? "  PDO" : "", e->name.c_str());
     }
   }
   return 0;
@@ -293,6 +333,7 @@ int main(int argc, char** argv) {
   if (argc < 3) usage("missing command or interface");
   const std::string cmd = argv[1];
   if (cmd == "scan") return scan(argv[2]);
+  if (cmd == "dict") return dict(argv[2], argc > 3 ? static_cast<unsigned>(std::stoul(argv[3])) : 1u);
   if (cmd != "run") usage(("unknown command " + cmd).c_str());
   Options o;
   o.iface = argv[2];

@@ -4,6 +4,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <numeric>
 
 #include "fieldbus/canopen/sdo_abort.hpp"
@@ -71,6 +72,30 @@ TEST(EthercatCoe, AbortsAreDecoded) {
   EXPECT_EQ(r.abort_code, 0x06090030u);
   bus.segment->drive(0)->abort_sdo(0, 0);
   EXPECT_TRUE(bus.master->sdo_download(1, 0x6060, 0, {8}).ok);
+}
+
+TEST(EthercatCoe, SdoInformationListsAndDescribesObjects) {
+  test::Bus bus(1);
+  std::string error;
+  const std::vector<uint16_t> list = bus.master->sdo_info_list(1, error);
+  ASSERT_TRUE(error.empty()) << error;
+  EXPECT_GT(list.size(), 58u);  // more than one fragment of 58 indexes
+  EXPECT_NE(std::find(list.begin(), list.end(), 0x6040), list.end());
+  EXPECT_NE(std::find(list.begin(), list.end(), 0x1C12), list.end());
+  EXPECT_TRUE(std::is_sorted(list.begin(), list.end()));
+  const auto o = bus.master->sdo_info_object(1, 0x1018, error);
+  ASSERT_TRUE(o) << error;
+  EXPECT_EQ(o->name, "Identity");
+  EXPECT_EQ(o->max_sub, 4);
+  EXPECT_EQ(o->object_code, 9);
+  const auto e = bus.master->sdo_info_entry(1, 0x6040, 0, error);
+  ASSERT_TRUE(e) << error;
+  EXPECT_EQ(e->name, "Controlword");
+  EXPECT_EQ(e->data_type, 0x0006);
+  EXPECT_EQ(e->bit_length, 16);
+  EXPECT_EQ(e->access & 0x40, 0x40);  // RxPDO-mappable
+  EXPECT_FALSE(bus.master->sdo_info_object(1, 0x5FFF, error));
+  EXPECT_THAT(error, HasSubstr("0x06020000"));
 }
 
 TEST(EthercatCoe, MailboxWorksWhileTheCycleRuns) {

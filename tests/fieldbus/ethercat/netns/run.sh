@@ -50,6 +50,10 @@ case "$case_name" in
     expect "[ETHERCAT_SLAVE_3]"
     expect "VENDOR_ID = 0x00000CC1"
     expect "RXPDO = 0x6040:0:u16 0x607A:0:s32 0x6060:0:s8"
+    master dict raw:ecm 2
+    expect "slave 2 (drive-2)"
+    expect "0x6040  Controlword"
+    expect "  :01  ro  32 bits  type 0x0007  Vendor ID"
     ;;
   bringup)
     start_sim
