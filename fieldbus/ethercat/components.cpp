@@ -94,7 +94,7 @@ class EthercatComponent : public hal::Component {
     }
   }
   ~EthercatComponent() override {
-    for (auto& b : buses_) b->master->stop();
+    for (auto& b : buses_) b->master->release();  // threads are stopped by now: slaves to INIT
   }
 
   void on_ready() override {

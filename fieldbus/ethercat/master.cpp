@@ -68,6 +68,31 @@ void Master::stop() {
   stop_.store(true);
   jobs_cv_.notify_all();
   if (worker_.joinable()) worker_.join();
+  // Requests queued while the worker stopped still get their answer.
+  for (;;) {
+    std::function<void()> job;
+    {
+      std::lock_guard lock(jobs_mutex_);
+      if (jobs_.empty()) break;
+      job = std::move(jobs_.front());
+      jobs_.pop_front();
+    }
+    job();
+  }
+}
+
+void Master::release() {
+  stop();
+  if (!acyclic_link_ || phase() == BusPhase::Down) return;
+  phase_.store(BusPhase::Down, std::memory_order_release);
+  uint8_t init[2] = {0x01, 0};
+  (void)transact(Command::BWR, physical_address(0, reg::kAlControl), init, 2);
+}
+
+void Master::drain(Link& link) noexcept {
+  uint8_t buf[kMaxFrame];
+  for (int i = 0; i < 100000 && link.receive(buf, 0) > 0; ++i) {
+  }
 }
 
 void Master::fail(const std::string& what) const { throw StartupError(cfg_.name + ": start-up stopped: " + what); }
@@ -561,6 +586,7 @@ void Master::start_up() {
   configure_dc();
   prepare_cyclic();
   for (SlaveInfo& s : slaves_) request_state(s, AlState::SafeOp);
+  drain(*cyclic_link_);  // start-up replies the cyclic socket saw too
   good_cycles_.store(0);
   phase_.store(BusPhase::SafeOp, std::memory_order_release);
   post(false, fmt("%zu slave%s in SAFEOP on %s: outputs %zu B, inputs %zu B, expected working counter %u%s",
@@ -1188,6 +1214,9 @@ void Master::worker_loop() {
       job();
     }
     worker_rt_requests();
+    // Every reply reaches both sockets on a raw link: drop the cyclic ones
+    // this socket collected, so that its buffer never fills.
+    drain(*acyclic_link_);
     const BusPhase ph = phase();
     if (ph == BusPhase::SafeOp && !op_tried && good_cycles_.load() >= cfg_.op_after_good_cycles) {
       op_tried = true;

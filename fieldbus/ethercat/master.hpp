@@ -200,7 +200,10 @@ class Master {
   // The worker thread: mailbox requests, SAFEOP -> OP once the cyclic
   // exchange is good, emergencies, diagnosis and messages.
   void start_worker();
+  // Stops the worker (queued requests are still answered).
   void stop();
+  // stop() and every slave back to INIT (controller shutdown).
+  void release();
 
   // --- servo thread ---
   void cyclic_read(int64_t now_ns) noexcept;
@@ -281,6 +284,7 @@ class Master {
   void configure_process_data(SlaveInfo& s);
   void configure_dc();
   void prepare_cyclic();
+  static void drain(Link& link) noexcept;
   void spin_for_reply() noexcept;
   void check_sdo(SlaveInfo& s, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data, const std::string& why);
 

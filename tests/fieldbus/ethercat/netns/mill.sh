@@ -42,7 +42,9 @@ if [ "$case_name" = in-process ]; then
   daemon=$!
   case_name=program
 else
-  ip netns add "$ns"
+  # Two first-time `ip netns add` at once can race on /run/netns: retry.
+for _try in 1 2 3 4 5; do ip netns add "$ns" && break; sleep 0.2; done
+ip netns exec "$ns" true
   ip -n "$ns" link set lo up
   ip -n "$ns" link add ecm type veth peer name ecs
   ip -n "$ns" link set ecm up
