@@ -43,8 +43,8 @@ if [ "$case_name" = in-process ]; then
   case_name=program
 else
   # Two first-time `ip netns add` at once can race on /run/netns: retry.
-for _try in 1 2 3 4 5; do ip netns add "$ns" && break; sleep 0.2; done
-ip netns exec "$ns" true
+  for _try in 1 2 3 4 5; do ip netns add "$ns" && break; sleep 0.2; done
+  ip netns exec "$ns" true
   ip -n "$ns" link set lo up
   ip -n "$ns" link add ecm type veth peer name ecs
   ip -n "$ns" link set ecm up
