@@ -77,6 +77,7 @@ BusSettings load_bus_settings(const ini::IniFile& ini, const std::string& sectio
     sc.rx_pdo_index = static_cast<uint16_t>(ini.get_int(s, "RXPDO_INDEX", 0x1600, {0x1600, 0x17FF}));
     sc.tx_pdo_index = static_cast<uint16_t>(ini.get_int(s, "TXPDO_INDEX", 0x1A00, {0x1A00, 0x1BFF}));
     sc.sync0 = ini.get_bool(s, "SYNC0", true);
+    sc.complete_access = ini.get_bool(s, "COMPLETE_ACCESS", false);
     sc.watchdog_ms = static_cast<uint32_t>(ini.get_int(s, "WATCHDOG_MS", 100, {0, 6000}));
     if (const ini::Entry* e = ini.find_entry(s, "ESI")) sc.esi = ini.resolve_path(e->value).string();
     for (const ini::Entry* e : ini.find_all_entries(s, "SDO")) {

@@ -306,14 +306,14 @@ void Master::configure_mailbox(SlaveInfo& s) {
 // ---------------------------------------------------------------- CoE
 
 void Master::check_sdo(SlaveInfo& s, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data,
-                       const std::string& why) {
-  const SdoResult r = do_download(s, index, sub, data);
+                       const std::string& why, bool ca) {
+  const SdoResult r = do_download(s, index, sub, data, ca);
   if (!r.ok) {
     fail_slave(s, "writing " + object(index, sub) + " = " + value_text(data) + " (" + why + ") refused: " + r.error);
   }
   // Read back: a slave that takes a value and keeps another is found here,
   // not later as a strange machine.
-  const SdoResult back = do_upload(s, index, sub);
+  const SdoResult back = do_upload(s, index, sub, ca);
   if (!back.ok) fail_slave(s, "verification of " + object(index, sub) + " (" + why + "): reading back failed: " + back.error);
   std::vector<uint8_t> got = back.data;
   got.resize(std::max(got.size(), data.size()), 0);
@@ -342,11 +342,25 @@ void Master::configure_coe(SlaveInfo& s) {
     return;
   }
   const uint16_t rx_index = c ? c->rx_pdo_index : 0x1600, tx_index = c ? c->tx_pdo_index : 0x1A00;
+  const bool ca = c && c->complete_access && (s.sii.coe_details & 0x20);
   for (const bool out : {true, false}) {
     const auto& map = out ? s.rx : s.tx;
     const uint16_t assign = out ? 0x1C12 : 0x1C13;
     const uint16_t pdo = out ? rx_index : tx_index;
     const char* kind = out ? "RxPDO" : "TxPDO";
+    if (ca) {  // complete access: count (16 bits) and every entry in one transfer
+      std::vector<uint8_t> m{0, 0};
+      check_sdo(s, assign, 0, {0, 0}, std::string(kind) + " assignment cleared (complete access)", true);
+      m[0] = static_cast<uint8_t>(map.size());
+      for (const auto& e : map) {
+        const auto b = le(e.encode(), 4);
+        m.insert(m.end(), b.begin(), b.end());
+      }
+      check_sdo(s, pdo, 0, m, std::string(kind) + " mapping (complete access)", true);
+      if (!map.empty()) check_sdo(s, assign, 0, {1, 0, static_cast<uint8_t>(pdo), static_cast<uint8_t>(pdo >> 8)},
+                                  std::string(kind) + " assignment (complete access)", true);
+      continue;
+    }
     check_sdo(s, assign, 0, le(0, 1), std::string(kind) + " assignment cleared");
     check_sdo(s, pdo, 0, le(0, 1), std::string(kind) + " mapping cleared");
     for (std::size_t k = 0; k < map.size(); ++k) {
@@ -814,7 +828,8 @@ bool Master::coe_exchange(SlaveInfo& s, const uint8_t* sdo, std::size_t n, std::
   }
 }
 
-SdoResult Master::do_download(SlaveInfo& s, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data) {
+SdoResult Master::do_download(SlaveInfo& s, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data, bool ca) {
+  const uint8_t ca_bit = ca ? 0x10 : 0x00;
   SdoResult res;
   std::vector<uint8_t> r;
   auto check = [&](uint8_t expect) {
@@ -831,7 +846,7 @@ SdoResult Master::do_download(SlaveInfo& s, uint16_t index, uint8_t sub, const s
   };
   const std::size_t n = data.size();
   if (n >= 1 && n <= 4) {
-    uint8_t q[8] = {static_cast<uint8_t>(0x23 | ((4 - n) << 2))};
+    uint8_t q[8] = {static_cast<uint8_t>(0x23 | ca_bit | ((4 - n) << 2))};
     put16(q + 1, index);
     q[3] = sub;
     std::memcpy(q + 4, data.data(), n);
@@ -842,7 +857,7 @@ SdoResult Master::do_download(SlaveInfo& s, uint16_t index, uint8_t sub, const s
   const std::size_t first_room = s.sii.mailbox_rx_size - kMailboxHeader - 2 - 8;
   const std::size_t here = std::min(n, first_room);
   std::vector<uint8_t> q(8 + here, 0);
-  q[0] = 0x21;
+  q[0] = static_cast<uint8_t>(0x21 | ca_bit);
   put16(q.data() + 1, index);
   q[3] = sub;
   put32(q.data() + 4, static_cast<uint32_t>(n));
@@ -870,10 +885,10 @@ SdoResult Master::do_download(SlaveInfo& s, uint16_t index, uint8_t sub, const s
   return res;
 }
 
-SdoResult Master::do_upload(SlaveInfo& s, uint16_t index, uint8_t sub) {
+SdoResult Master::do_upload(SlaveInfo& s, uint16_t index, uint8_t sub, bool ca) {
   SdoResult res;
   std::vector<uint8_t> r;
-  uint8_t q[8] = {0x40};
+  uint8_t q[8] = {static_cast<uint8_t>(ca ? 0x50 : 0x40)};
   put16(q + 1, index);
   q[3] = sub;
   if (!coe_exchange(s, q, 8, r, res.error)) return res;
@@ -1041,16 +1056,17 @@ SdoResult Master::run_on_worker(std::function<SdoResult()> job) {
   return f.get();
 }
 
-SdoResult Master::sdo_upload(unsigned position, uint16_t index, uint8_t sub) {
+SdoResult Master::sdo_upload(unsigned position, uint16_t index, uint8_t sub, bool ca) {
   SlaveInfo* s = find(position);
   if (!s) return SdoResult{false, 0, {}, fmt("no slave at position %u", position)};
-  return run_on_worker([=, this] { return do_upload(*s, index, sub); });
+  return run_on_worker([=, this] { return do_upload(*s, index, sub, ca); });
 }
 
-SdoResult Master::sdo_download(unsigned position, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data) {
+SdoResult Master::sdo_download(unsigned position, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data,
+                               bool ca) {
   SlaveInfo* s = find(position);
   if (!s) return SdoResult{false, 0, {}, fmt("no slave at position %u", position)};
-  return run_on_worker([=, this] { return do_download(*s, index, sub, data); });
+  return run_on_worker([=, this] { return do_download(*s, index, sub, data, ca); });
 }
 
 int Master::rt_sdo_read(unsigned position, uint16_t index, uint8_t sub) noexcept {

@@ -61,6 +61,7 @@ struct SlaveConfig {
   bool sync0 = true;        // DC SYNC0 when the bus uses DC
   uint32_t watchdog_ms = 100;
   std::string esi;          // ESI XML file: PDO defaults and AssignActivate from it
+  bool complete_access = false;  // PDO assignment and mapping in one transfer each (when the SII allows it)
 };
 
 struct MasterConfig {
@@ -219,8 +220,11 @@ class Master {
   uint16_t expected_wkc() const noexcept { return expected_wkc_; }
 
   // --- mailbox (non-realtime, any thread; through the worker once it runs) ---
-  SdoResult sdo_upload(unsigned position, uint16_t index, uint8_t sub);
-  SdoResult sdo_download(unsigned position, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data);
+  // With `complete_access` (sub 0 or 1) every sub-index at once, sub-index
+  // 0 taking 16 bits (CoE complete access).
+  SdoResult sdo_upload(unsigned position, uint16_t index, uint8_t sub, bool complete_access = false);
+  SdoResult sdo_download(unsigned position, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data,
+                         bool complete_access = false);
   // SDO information: the slave's object list and descriptions. `error` is
   // set (and the result empty) when the slave refuses or does not answer.
   std::vector<uint16_t> sdo_info_list(unsigned position, std::string& error);
@@ -286,16 +290,18 @@ class Master {
   void prepare_cyclic();
   static void drain(Link& link) noexcept;
   void spin_for_reply() noexcept;
-  void check_sdo(SlaveInfo& s, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data, const std::string& why);
+  void check_sdo(SlaveInfo& s, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data, const std::string& why,
+                 bool complete_access = false);
 
   // mailbox on the acyclic link (worker or start-up thread)
   bool mailbox_write(SlaveInfo& s, const uint8_t* data, std::size_t size, std::string& error);
   bool mailbox_read(SlaveInfo& s, std::vector<uint8_t>& out, int64_t timeout_ns, std::string& error);
   bool coe_exchange(SlaveInfo& s, const uint8_t* sdo, std::size_t n, std::vector<uint8_t>& reply, std::string& error);
-  SdoResult do_upload(SlaveInfo& s, uint16_t index, uint8_t sub);
+  SdoResult do_upload(SlaveInfo& s, uint16_t index, uint8_t sub, bool complete_access = false);
   // One SDO information request; the reply's data of all fragments.
   SdoResult do_info(SlaveInfo& s, uint8_t opcode, const std::vector<uint8_t>& request);
-  SdoResult do_download(SlaveInfo& s, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data);
+  SdoResult do_download(SlaveInfo& s, uint16_t index, uint8_t sub, const std::vector<uint8_t>& data,
+                        bool complete_access = false);
   void handle_emergency(SlaveInfo& s, const uint8_t* data);
   SlaveInfo* find(unsigned position);
   SdoResult run_on_worker(std::function<SdoResult()> job);

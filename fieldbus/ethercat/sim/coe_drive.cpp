@@ -123,7 +123,7 @@ EscConfig CoeDrive::esc_config() const {
   s.name = cfg_.name;  // one name per simulated drive, so messages tell them apart
   s.order = "CNC-SIM-402";
   s.group = "Drives";
-  s.coe_details = 0x0F;  // SDO, SDO info, PDO assign, PDO config
+  s.coe_details = 0x2F;  // SDO, SDO info, PDO assign, PDO config, complete access
   s.fmmus = {1, 2, 3};
   s.sms = {{kMailboxOut, kMailboxSize, 0x26, 1, 1}, {kMailboxIn, kMailboxSize, 0x22, 1, 2},
            {kOutputs, 0, 0x64, 1, 3}, {kInputs, 0, 0x20, 1, 4}};
@@ -406,6 +406,49 @@ void CoeDrive::sdo_info(const uint8_t* d, std::size_t n, Esc& esc) {
   error(ab::kCommandSpecifier);
 }
 
+uint32_t CoeDrive::finish_download(const uint8_t* data, std::size_t n) {
+  if (!t_complete_) return od_.write({t_index_, t_sub_}, data, n, true);
+  return unpack_complete(t_index_, t_sub_, std::vector<uint8_t>(data, data + n));
+}
+
+uint32_t CoeDrive::pack_complete(uint16_t index, uint8_t sub, std::vector<uint8_t>& out) {
+  out.clear();
+  if (!od_.has_index(index)) return ab::kNoObject;
+  uint8_t tmp[64];
+  const uint8_t count = od_.get<uint8_t>({index, 0});  // sub-indices 1..count are in use
+  for (const canopen::OdEntry& e : od_.entries()) {
+    if (e.addr.index != index || e.addr.sub < sub || (e.addr.sub > 0 && e.addr.sub > count)) continue;
+    std::size_t n = 0;
+    if (const uint32_t a = od_.read(e.addr, tmp, sizeof tmp, n, true)) return a;
+    out.insert(out.end(), tmp, tmp + n);
+    if (e.addr.sub == 0) out.push_back(0);  // sub-index 0 takes 16 bits
+  }
+  return 0;
+}
+
+uint32_t CoeDrive::unpack_complete(uint16_t index, uint8_t sub, const std::vector<uint8_t>& in) {
+  if (!od_.has_index(index)) return ab::kNoObject;
+  std::size_t pos = 0;
+  uint8_t count = od_.get<uint8_t>({index, 0});
+  if (sub == 0) {
+    if (in.size() < 2) return ab::kLengthTooLow;
+    count = in[0];
+    pos = 2;
+    const uint8_t zero = 0;
+    if (const uint32_t a = od_.write({index, 0}, &zero, 1, true)) return a;  // entries change under count 0
+  }
+  for (uint8_t k = 1; k <= count; ++k) {
+    const canopen::OdEntry* e = od_.find({index, k});
+    if (!e) return ab::kNoSubIndex;
+    if (pos + e->capacity > in.size()) return ab::kLengthTooLow;
+    if (const uint32_t a = od_.write(e->addr, in.data() + pos, e->capacity, true)) return a;
+    pos += e->capacity;
+  }
+  if (pos != in.size()) return ab::kLengthTooHigh;
+  if (sub == 0) return od_.write({index, 0}, &count, 1, true);
+  return 0;
+}
+
 void CoeDrive::sdo(const uint8_t* d, std::size_t n, Esc& esc) {
   ++sdo_requests_;
   if (n < 8) return abort(esc, 0, 0, ab::kCommandSpecifier);
@@ -418,13 +461,18 @@ void CoeDrive::sdo(const uint8_t* d, std::size_t n, Esc& esc) {
     sub = t_sub_;
   }
   if (abort_code_ != 0 && index == abort_index_) return abort(esc, index, sub, abort_code_);
-  if ((ccs == 1 || ccs == 2) && (cmd & 0x10)) return abort(esc, index, sub, ab::kUnsupportedAccess);  // complete access
+  if (ccs == 1 || ccs == 2) {
+    t_complete_ = (cmd & 0x10) != 0;  // complete access
+    if (t_complete_ && sub > 1) return abort(esc, index, sub, ab::kUnsupportedAccess);
+  }
   switch (ccs) {
     case 1: {  // initiate download
       const bool expedited = cmd & 0x02;
       if (expedited) {
         const std::size_t len = (cmd & 0x01) ? 4u - ((cmd >> 2) & 3u) : 4u;
-        if (const uint32_t a = od_.write({index, sub}, d + 4, len, true)) return abort(esc, index, sub, a);
+        t_index_ = index;
+        t_sub_ = sub;
+        if (const uint32_t a = finish_download(d + 4, len)) return abort(esc, index, sub, a);
         uint8_t r[8] = {0x60};
         put16(r + 1, index);
         r[3] = sub;
@@ -432,7 +480,7 @@ void CoeDrive::sdo(const uint8_t* d, std::size_t n, Esc& esc) {
       }
       const std::size_t total = get32(d + 4);
       const std::size_t here = std::min(total, n - 8);
-      if (total > od_.max_capacity()) return abort(esc, index, sub, ab::kLengthTooHigh);
+      if (total > od_.max_capacity() * (t_complete_ ? 64 : 1)) return abort(esc, index, sub, ab::kLengthTooHigh);
       buffer_.assign(d + 8, d + 8 + here);
       t_index_ = index;
       t_sub_ = sub;
@@ -440,7 +488,7 @@ void CoeDrive::sdo(const uint8_t* d, std::size_t n, Esc& esc) {
       toggle_ = 0;
       if (here == total) {
         transfer_ = Transfer::None;
-        if (const uint32_t a = od_.write({index, sub}, buffer_.data(), total, true)) return abort(esc, index, sub, a);
+        if (const uint32_t a = finish_download(buffer_.data(), total)) return abort(esc, index, sub, a);
       } else {
         transfer_ = Transfer::Download;
       }
@@ -462,19 +510,22 @@ void CoeDrive::sdo(const uint8_t* d, std::size_t n, Esc& esc) {
       if (last) {
         transfer_ = Transfer::None;
         if (buffer_.size() != t_size_) return abort(esc, index, sub, ab::kLengthTooLow);
-        if (const uint32_t a = od_.write({index, sub}, buffer_.data(), buffer_.size(), true)) {
-          return abort(esc, index, sub, a);
-        }
+        if (const uint32_t a = finish_download(buffer_.data(), buffer_.size())) return abort(esc, index, sub, a);
       }
       return reply(esc, r, 8);
     }
     case 2: {  // initiate upload
-      buffer_.resize(od_.max_capacity());
       std::size_t len = 0;
-      if (const uint32_t a = od_.read({index, sub}, buffer_.data(), buffer_.size(), len, true)) {
-        return abort(esc, index, sub, a);
+      if (t_complete_) {
+        if (const uint32_t a = pack_complete(index, sub, buffer_)) return abort(esc, index, sub, a);
+        len = buffer_.size();
+      } else {
+        buffer_.resize(od_.max_capacity());
+        if (const uint32_t a = od_.read({index, sub}, buffer_.data(), buffer_.size(), len, true)) {
+          return abort(esc, index, sub, a);
+        }
+        buffer_.resize(len);
       }
-      buffer_.resize(len);
       if (len <= 4) {
         uint8_t r[8] = {static_cast<uint8_t>(0x43 | ((4 - len) << 2))};
         put16(r + 1, index);

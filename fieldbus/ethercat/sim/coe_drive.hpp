@@ -67,6 +67,11 @@ class CoeDrive final : public SlaveApplication {
 
   void sdo(const uint8_t* coe, std::size_t n, Esc& esc);
   void sdo_info(const uint8_t* d, std::size_t n, Esc& esc);
+  // Complete access: every sub-index of `index` from `sub` (0 or 1) on,
+  // sub-index 0 as 16 bits; abort code or 0.
+  uint32_t pack_complete(uint16_t index, uint8_t sub, std::vector<uint8_t>& out);
+  uint32_t unpack_complete(uint16_t index, uint8_t sub, const std::vector<uint8_t>& in);
+  uint32_t finish_download(const uint8_t* data, std::size_t n);
   void info_reply(Esc& esc, uint8_t opcode, const std::vector<uint8_t>& payload);
   void reply(Esc& esc, const uint8_t* sdo, std::size_t n, CoeService service = CoeService::SdoResponse);
   void abort(Esc& esc, uint16_t index, uint8_t sub, uint32_t code);
@@ -86,6 +91,7 @@ class CoeDrive final : public SlaveApplication {
   enum class Transfer : uint8_t { None, Upload, Download } transfer_ = Transfer::None;
   uint16_t t_index_ = 0;
   uint8_t t_sub_ = 0, toggle_ = 0;
+  bool t_complete_ = false;
   std::vector<uint8_t> buffer_;
   std::size_t t_size_ = 0, t_pos_ = 0;
   uint16_t abort_index_ = 0;

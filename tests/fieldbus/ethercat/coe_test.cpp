@@ -74,6 +74,30 @@ TEST(EthercatCoe, AbortsAreDecoded) {
   EXPECT_TRUE(bus.master->sdo_download(1, 0x6060, 0, {8}).ok);
 }
 
+TEST(EthercatCoe, CompleteAccessBothWays) {
+  test::Bus bus(1, {}, false);
+  bus.master->to_preop();  // mapping objects are writable in PREOP only
+  SdoResult r = bus.master->sdo_upload(1, 0x1A00, 0, true);
+  ASSERT_TRUE(r.ok) << r.error;
+  // Sub-index 0 as 16 bits, then the four default entries.
+  EXPECT_EQ(r.data, (std::vector<uint8_t>{4, 0, 0x10, 0, 0x41, 0x60, 0x20, 0, 0x64, 0x60, 0x08, 0, 0x61, 0x60,
+                                          0x10, 0, 0x3F, 0x60}));
+  r = bus.master->sdo_upload(1, 0x1018, 1, true);  // from sub-index 1: no count
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_EQ(r.data.size(), 16u);
+  const std::vector<uint8_t> map{2, 0, 0x10, 0, 0x40, 0x60, 0x20, 0, 0x7A, 0x60};
+  r = bus.master->sdo_download(1, 0x1600, 0, map, true);
+  ASSERT_TRUE(r.ok) << r.error;
+  canopen::ObjectDictionary& od = bus.segment->drive(0)->od();
+  EXPECT_EQ(od.get<uint8_t>({0x1600, 0}), 2);
+  EXPECT_EQ(od.get<uint32_t>({0x1600, 2}), 0x607A0020u);
+  EXPECT_EQ(bus.master->sdo_upload(1, 0x1600, 0, true).data, map);
+  // Entries are checked one by one: a non-mappable object aborts the whole transfer.
+  r = bus.master->sdo_download(1, 0x1600, 0, {1, 0, 0x20, 0x01, 0x18, 0x10}, true);
+  EXPECT_EQ(r.abort_code, 0x06040041u);
+  EXPECT_EQ(bus.master->sdo_upload(1, 0x1018, 2, true).abort_code, 0x06010000u);  // only from 0 or 1
+}
+
 TEST(EthercatCoe, SdoInformationListsAndDescribesObjects) {
   test::Bus bus(1);
   std::string error;

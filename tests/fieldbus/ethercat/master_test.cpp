@@ -38,6 +38,25 @@ TEST(EthercatMaster, BringsThreeDrivesToOp) {
   EXPECT_THAT(bus.drain_messages(), HasSubstr("3 slaves in OP"));
 }
 
+TEST(EthercatMaster, PdoConfigurationByCompleteAccess) {
+  MasterConfig cfg;
+  for (unsigned p : {1u, 2u}) {
+    SlaveConfig s;
+    s.position = p;
+    s.complete_access = true;
+    s.rx_pdo = std::vector<PdoEntryConfig>{{0x6040, 0, 16}, {0x607A, 0, 32}};
+    cfg.slaves.push_back(s);
+  }
+  Bus bus(2, cfg, false);
+  const uint64_t before = bus.segment->drive(0)->sdo_requests();
+  bus.start_up();
+  // Three transfers (and their read-backs) per direction instead of one per entry.
+  EXPECT_LT(bus.segment->drive(0)->sdo_requests() - before, 20u);
+  EXPECT_EQ(bus.segment->drive(0)->od().get<uint8_t>({0x1600, 0}), 2);
+  EXPECT_EQ(bus.master->output_bytes(), 12u);
+  ASSERT_TRUE(bus.reach_op()) << bus.drain_messages();
+}
+
 TEST(EthercatMaster, ProcessImageFollowsTheMapping) {
   Bus bus(2);
   // Default mapping: outputs 6040 u16, 607A s32, 6060 s8 (7 B); inputs 6041, 6064, 6061, 603F (9 B).
