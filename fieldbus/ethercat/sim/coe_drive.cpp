@@ -222,6 +222,7 @@ uint16_t CoeDrive::check_transition(AlState from, AlState to, const Esc& esc) {
 
 void CoeDrive::on_state(AlState from, AlState to, int64_t) {
   state_ = to;
+  fresh_outputs_ = false;
   if (to == AlState::Init || to == AlState::PreOp) transfer_ = to == AlState::Init ? Transfer::None : transfer_;
   if (from == AlState::Op && to != AlState::Op && model_.state() == cia402::State::OperationEnabled) {
     model_.connection_lost(0x8100);  // left OP while enabled: no more set-points
@@ -236,7 +237,23 @@ void CoeDrive::on_outputs(const uint8_t* data, std::size_t size, int64_t now_ns)
     canopen::copy_bits(data, m.bit, storage + m.od_offset, 0, m.bits);
   }
   now_ns_ = now_ns;
+  if (od_.get<uint16_t>({0x1C32, 1}) == 2) {  // DC SYNC0: applied at the next pulse
+    if (fresh_outputs_) ++outputs_overwritten_;
+    fresh_outputs_ = true;
+    return;
+  }
   model_.on_sync(now_ns);
+}
+
+void CoeDrive::on_sync0(int64_t t_ns) noexcept {
+  if (state_ != AlState::Op || od_.get<uint16_t>({0x1C32, 1}) != 2) return;
+  if (!fresh_outputs_) {
+    ++sync_missed_;
+    od_.set<uint16_t>({0x1C32, 0x0B}, static_cast<uint16_t>(sync_missed_));
+  }
+  fresh_outputs_ = false;
+  if (t_ns > now_ns_) now_ns_ = t_ns;
+  model_.on_sync(t_ns);
 }
 
 void CoeDrive::fill_inputs(uint8_t* data, std::size_t size) noexcept {

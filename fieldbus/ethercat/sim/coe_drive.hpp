@@ -53,6 +53,13 @@ class CoeDrive final : public SlaveApplication {
   void fill_inputs(uint8_t* data, std::size_t size) noexcept override;
   void on_watchdog(int64_t now_ns) noexcept override;
   void poll(int64_t now_ns) noexcept override;
+  void on_sync0(int64_t t_ns) noexcept override;
+
+  // DC-synchronous operation (0x1C32:01 = 2): SYNC0 pulses that found no
+  // new outputs (the drive held its set-point: 0x1C32:0B), and outputs
+  // overwritten before a pulse used them.
+  uint64_t sync_events_missed() const noexcept { return sync_missed_; }
+  uint64_t outputs_overwritten() const noexcept { return outputs_overwritten_; }
 
  private:
   struct MapItem {
@@ -99,6 +106,8 @@ class CoeDrive final : public SlaveApplication {
   uint64_t sdo_requests_ = 0;
   uint8_t counter_ = 0;
   int64_t now_ns_ = 0;
+  bool fresh_outputs_ = false;
+  uint64_t sync_missed_ = 0, outputs_overwritten_ = 0;
 };
 
 // The default PDO layout of the simulated drive (also its SII defaults).

@@ -250,6 +250,11 @@ void Esc::after_write(uint16_t addr, uint16_t len, int64_t t_fwd, int64_t t_ret,
     const unsigned bytes = len >= 8 ? 8 : 4;
     drift_control(bytes == 8 ? get64(m + reg::kDcSystemTime) : get32(m + reg::kDcSystemTime), bytes, t_fwd);
   }
+  if (overlaps(addr, len, reg::kDcActivation, 1) && cfg_.dc) {
+    // Cyclic operation with SYNC0: pulses from the start time on, every cycle.
+    const bool on = sync0_active() && sync0_cycle_ns() > 0;
+    sync0_next_ = on ? static_cast<int64_t>(get64(m + reg::kDcStartTime)) : -1;
+  }
   if (overlaps(addr, len, reg::kSm0, 8 * kSms)) {
     m[reg::kSm0 + 8 + 5] = sm1_full_ ? sm::kStatusFull : 0;
     if (!sm(1).enabled()) {
@@ -284,7 +289,20 @@ int64_t Esc::watchdog_ns() const noexcept {
   return (div + 2) * 40 * pd;
 }
 
+void Esc::run_sync0(int64_t now_ns) noexcept {
+  if (sync0_next_ < 0) return;
+  const int64_t cycle = sync0_cycle_ns();
+  const int64_t st = system_time(now_ns);
+  if (st - sync0_next_ > 100 * cycle) sync0_next_ += (st - sync0_next_) / cycle * cycle;  // long pause: no burst
+  while (st >= sync0_next_) {
+    ++sync0_pulses_;
+    app_->on_sync0(now_ns - (st - sync0_next_));
+    sync0_next_ += cycle;
+  }
+}
+
 void Esc::poll(int64_t now_ns) noexcept {
+  run_sync0(now_ns);
   if (state_ == AlState::Op && outputs_valid_ && (sm(2).control & 0x40) && watchdog_ns() > 0 &&
       now_ns - last_outputs_ns_ > watchdog_ns()) {
     ++wd_expired_;

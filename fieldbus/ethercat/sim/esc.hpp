@@ -36,6 +36,8 @@ class SlaveApplication {
   // The process-data watchdog expired (outputs stopped).
   virtual void on_watchdog(int64_t now_ns) noexcept = 0;
   virtual void poll(int64_t now_ns) noexcept = 0;
+  // A SYNC0 pulse at true time `t_ns` (DC cyclic operation active).
+  virtual void on_sync0(int64_t t_ns) noexcept { (void)t_ns; }
 };
 
 struct EscConfig {
@@ -97,6 +99,7 @@ class Esc {
   // Fault injection: refuse the transition into `s` with `code` (0: accept).
   void refuse_state(AlState s, uint16_t code) noexcept { refuse_state_ = s, refuse_code_ = code; }
   uint64_t watchdog_expiries() const noexcept { return wd_expired_; }
+  uint64_t sync0_pulses() const noexcept { return sync0_pulses_; }
   uint64_t outputs_received() const noexcept { return outputs_count_; }
 
  private:
@@ -136,6 +139,9 @@ class Esc {
   int64_t last_outputs_ns_ = 0;
   uint64_t outputs_count_ = 0, wd_expired_ = 0;
   // DC
+  void run_sync0(int64_t now_ns) noexcept;
+  int64_t sync0_next_ = -1;  // system time of the next SYNC0 pulse; -1: inactive
+  uint64_t sync0_pulses_ = 0;
   int64_t anchor_t_ = 0, anchor_local_ = 0;
   double correction_ = 0;  // rate correction of the drift loop
   int64_t last_diff_ns_ = 0;

@@ -292,6 +292,32 @@ TEST(EthercatMaster, EmergencyReachesTheMessageChannel) {
   EXPECT_THAT(bus.drain_messages(), HasSubstr("slave 2 (drive-2): EMCY 0x2310"));
 }
 
+TEST(EthercatMaster, LockedFramesMeetEverySync0) {
+  Bus bus(3);
+  ASSERT_TRUE(bus.reach_op());
+  bus.run_until([] { return false; }, 500);  // the lock settles
+  uint64_t missed[3], pulses[3], overwritten[3];
+  for (std::size_t i = 0; i < 3; ++i) {
+    missed[i] = bus.segment->drive(i)->sync_events_missed();
+    overwritten[i] = bus.segment->drive(i)->outputs_overwritten();
+    pulses[i] = bus.segment->slave(i).sync0_pulses();
+  }
+  bus.run_until([] { return false; }, 2000);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(bus.segment->drive(i)->sync_events_missed(), missed[i]) << "drive " << i + 1;
+    EXPECT_NEAR(static_cast<double>(bus.segment->slave(i).sync0_pulses() - pulses[i]), 2000.0, 2.0);
+    EXPECT_EQ(bus.segment->drive(i)->outputs_overwritten(), overwritten[i]);
+  }
+  // One frame that never left: each drive's next SYNC0 finds no new set-point (0x1C32:0B).
+  bus.master->cyclic_read(bus.time.load());
+  bus.time.fetch_add(1'000'000 + bus.master->take_phase_adjust());
+  bus.run_until([] { return false; }, 5);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(bus.segment->drive(i)->sync_events_missed(), missed[i] + 1);
+    EXPECT_EQ(bus.segment->drive(i)->od().get<uint16_t>({0x1C32, 0x0B}), missed[i] + 1);
+  }
+}
+
 TEST(EthercatMaster, ServoThreadLocksToTheDriftingReferenceClock) {
   for (const bool lock : {true, false}) {
     Bus bus(3);
