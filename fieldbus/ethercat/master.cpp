@@ -698,6 +698,7 @@ void Master::cyclic_read(int64_t) noexcept {
       if (!inputs_.empty()) std::memcpy(inputs_.data(), lrw.data() + outputs_.size(), inputs_.size());
     } else {
       counters_.wkc_errors.fetch_add(1, std::memory_order_relaxed);
+      bad_wkc_.store(static_cast<int32_t>(wkc), std::memory_order_relaxed);
     }
     if (frmw_offset_ && cfg_.dc_lock) {
       const DatagramRef f(rx_.data() + frmw_offset_ - kDatagramHeader);
@@ -722,6 +723,7 @@ void Master::cyclic_read(int64_t) noexcept {
   counters_.cycles.fetch_add(1, std::memory_order_relaxed);
   if (good) {
     counters_.consecutive_bad.store(0, std::memory_order_relaxed);
+    bad_wkc_.store(-1, std::memory_order_relaxed);
     good_cycles_.fetch_add(1, std::memory_order_relaxed);
     return;
   }
@@ -732,8 +734,7 @@ void Master::cyclic_read(int64_t) noexcept {
     fault_wkc_.store(counters_.last_wkc.load(std::memory_order_relaxed), std::memory_order_relaxed);
     fault_bad_.store(bad, std::memory_order_relaxed);
     fault_lost_.store(!got, std::memory_order_relaxed);
-    phase_.store(BusPhase::Fault, std::memory_order_release);
-    jobs_cv_.notify_all();
+    phase_.store(BusPhase::Fault, std::memory_order_release);  // the worker sees it within a millisecond
   }
 }
 
@@ -1160,8 +1161,11 @@ void Master::worker_report_fault() {
   if (al) {
     text += "a slave left OP";
   } else {
-    const std::string last = fault_lost_.load() ? std::string("last frame lost")
-                                                : fmt("last working counter %u, expected %u", fault_wkc_.load(), expected_wkc_);
+    std::string last = fault_lost_.load() ? std::string("last frame lost")
+                                          : fmt("last working counter %u, expected %u", fault_wkc_.load(), expected_wkc_);
+    if (fault_lost_.load() && bad_wkc_.load() >= 0) {
+      last += fmt(", last wrong working counter %d, expected %u", bad_wkc_.load(), expected_wkc_);
+    }
     text += fmt("%u consecutive cycles without valid process data (%s; frames lost %llu, "
                 "late %llu, working-counter errors %llu)",
                 fault_bad_.load(), last.c_str(),

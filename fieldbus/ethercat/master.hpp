@@ -343,6 +343,7 @@ class Master {
   std::atomic<uint16_t> fault_wkc_{0};
   std::atomic<uint32_t> fault_bad_{0};
   std::atomic<bool> fault_lost_{false};
+  std::atomic<int32_t> bad_wkc_{-1};  // last wrong working counter of the current bad streak
 
   std::atomic<BusPhase> phase_{BusPhase::Down};
   mutable std::mutex fault_mutex_;

@@ -6,7 +6,7 @@
 # namespace is always removed.
 #
 #   run.sh CASE ECAT_SIM CNC_ETHERCAT
-#   CASE: scan | bringup | cable-break | lost-frames | refused-state | sdo-abort
+#   CASE: scan | bringup | cable-break | lost-frames | wrong-wkc | refused-state | sdo-abort
 set -eu
 case_name=$1
 sim=$2
@@ -72,6 +72,12 @@ case "$case_name" in
   lost-frames)
     start_sim --fault drop --fault-after-ms 1500
     master run raw:ecm --cycle-us 1000 --seconds 30 --move --miss-limit 200 --expect-fault "no frame comes back at all"
+    expect "200 consecutive cycles without valid process data"
+    ;;
+  wrong-wkc)
+    start_sim --fault wkc --fault-after-ms 1500
+    master run raw:ecm --cycle-us 1000 --seconds 30 --move --miss-limit 200 \
+      --expect-fault "working counter 8, expected 9"
     expect "200 consecutive cycles without valid process data"
     ;;
   refused-state)
