@@ -326,14 +326,6 @@ void Master::check_sdo(SlaveInfo& s, uint16_t index, uint8_t sub, const std::vec
 
 void Master::configure_coe(SlaveInfo& s) {
   const SlaveConfig* c = cfg_.slave(s.position);
-  auto from_sii = [](const std::vector<SiiPdo>& pdos) {
-    std::vector<PdoEntryConfig> v;
-    for (const SiiPdo& p : pdos) {
-      for (const SiiPdoEntry& e : p.entries) v.push_back({e.index, e.sub, e.bits});
-    }
-    return v;
-  };
-  (void)from_sii;
   if (!s.sii.has_coe()) {
     if (c && (c->rx_pdo || c->tx_pdo || !c->sdos.empty())) {
       fail_slave(s, "has no CoE mailbox (SII mailbox protocols 0x" + fmt("%04X", s.sii.mailbox_protocols) +
