@@ -26,7 +26,8 @@ struct Bus {
   std::unique_ptr<Master> master;
   std::string thread_name;
   hal::Thread* thread = nullptr;
-  hal::BitPin enable, ready, fault, dc_locked;
+  hal::BitPin enable, ready, fault, dc_locked, restart;
+  bool last_restart = false;
   hal::U32Pin cycles, wkc, frames_lost, frames_late, wkc_errors, sync_diff;
   hal::S32Pin dc_offset, dc_offset_max;
   hal::FloatPin dc_offset_mean, dc_offset_stddev;
@@ -57,6 +58,9 @@ struct Bus {
     }
     ready.set(master->is_operational());
     fault.set(master->has_fault());
+    const bool r = restart.get();
+    if (r && !last_restart) master->request_restart();
+    last_restart = r;
   }
 
   void write(const rt::CycleInfo& info) noexcept {
@@ -119,6 +123,7 @@ class EthercatComponent : public hal::Component {
     b.ready = make_pin<bool>(name + ".ready", PinDir::Out);
     b.fault = make_pin<bool>(name + ".fault", PinDir::Out);
     b.dc_locked = make_pin<bool>(name + ".dc-locked", PinDir::Out);
+    b.restart = make_pin<bool>(name + ".restart", PinDir::In);
     b.cycles = make_pin<uint32_t>(name + ".cycles", PinDir::Out);
     b.wkc = make_pin<uint32_t>(name + ".working-counter", PinDir::Out);
     b.frames_lost = make_pin<uint32_t>(name + ".frames-lost", PinDir::Out);

@@ -221,9 +221,17 @@ void Master::scan() {
   (void)transact(Command::BWR, physical_address(0, reg::kDcActivation), zeros, 1);
   (void)transact(Command::BWR, physical_address(0, reg::kRxErrors), zeros, 8);
 
+  if (state_ && n != slaves_.size()) {
+    // A rescan (restart): the drives hold slots into the image, the HAL reads the states.
+    fail(fmt("restart: %u slaves answer, %zu were configured before", n, slaves_.size()));
+  }
   scanned_ = true;
-  slaves_.assign(n, SlaveInfo{});
-  state_ = std::make_unique<SlaveState[]>(n);
+  if (!state_) {
+    slaves_.assign(n, SlaveInfo{});
+    state_ = std::make_unique<SlaveState[]>(n);
+  } else {
+    for (SlaveInfo& s : slaves_) s = SlaveInfo{};
+  }
   for (unsigned p = 1; p <= n; ++p) {
     SlaveInfo& s = slaves_[p - 1];
     s.position = p;
@@ -392,8 +400,9 @@ void Master::layout_process_data() {
     if (s.in_bits) expected_wkc_ = static_cast<uint16_t>(expected_wkc_ + 1);
   }
   if (out + in > kMaxDatagramData - 64) fail(fmt("process data of %u bytes does not fit one frame", out + in));
-  outputs_.assign(out, 0);
-  inputs_.assign(in, 0);
+  // Same sizes (a restart): keep the buffers untouched, the drives write into them.
+  if (outputs_.size() != out) outputs_.assign(out, 0);
+  if (inputs_.size() != in) inputs_.assign(in, 0);
 }
 
 void Master::configure_process_data(SlaveInfo& s) {
@@ -1210,6 +1219,49 @@ void Master::worker_poll_emergencies() {
   }
 }
 
+void Master::worker_restart() {
+  // The servo thread stops touching the frame and the image first.
+  phase_.store(BusPhase::Down, std::memory_order_release);
+  std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  const std::vector<SlaveInfo> before = slaves_;
+  const std::size_t out = outputs_.size(), in = inputs_.size();
+  try {
+    scanned_ = planned_ = false;
+    scan();  // refuses another slave count
+    // The drives hold slots into the image: the bus must come back as it was.
+    for (std::size_t i = 0; i < slaves_.size(); ++i) {
+      if (slaves_[i].sii.vendor_id != before[i].sii.vendor_id || slaves_[i].sii.product_code != before[i].sii.product_code ||
+          slaves_[i].sii.serial != before[i].sii.serial) {
+        fail_slave(slaves_[i], "restart: another device than before at this position");
+      }
+    }
+    plan();
+    if (outputs_.size() != out || inputs_.size() != in) fail("restart: the process image changed");
+    outstanding_ = false;
+    held_size_ = 0;
+    lock_.reset();
+    al_changed_.store(false);
+    counters_.consecutive_bad.store(0);
+    start_up();  // ends in SAFEOP; OP follows once the cycle is good
+    fault_reported_ = false;
+    {
+      std::lock_guard lock(fault_mutex_);
+      fault_text_.clear();
+    }
+    post(false, "restarted after the fault: every slave found again");
+  } catch (const std::exception& e) {
+    for (std::size_t i = 0; i < slaves_.size() && i < before.size(); ++i) slaves_[i] = before[i];
+    scanned_ = planned_ = true;
+    {
+      std::lock_guard lock(fault_mutex_);
+      fault_text_ = e.what();
+    }
+    fault_reported_ = true;
+    phase_.store(BusPhase::Fault, std::memory_order_release);
+    post(true, e.what());
+  }
+}
+
 void Master::worker_loop() {
   worker_id_ = std::this_thread::get_id();
   int64_t next_emcy = 0;
@@ -1230,6 +1282,11 @@ void Master::worker_loop() {
     // this socket collected, so that its buffer never fills.
     drain(*acyclic_link_);
     const BusPhase ph = phase();
+    if (restart_requested_.exchange(false)) {
+      worker_restart();
+      op_tried = false;
+      continue;
+    }
     if (ph == BusPhase::SafeOp && !op_tried && good_cycles_.load() >= cfg_.op_after_good_cycles) {
       op_tried = true;
       worker_go_op();

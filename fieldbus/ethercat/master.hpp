@@ -206,6 +206,11 @@ class Master {
   // stop() and every slave back to INIT (controller shutdown).
   void release();
 
+  // After a safe stop (cable mended, slave powered again): the worker
+  // scans and brings the bus up again; the slaves must be the same as
+  // before (the drives hold slots into the image). Realtime-safe request.
+  void request_restart() noexcept { restart_requested_.store(true, std::memory_order_relaxed); }
+
   // --- servo thread ---
   void cyclic_read(int64_t now_ns) noexcept;
   void cyclic_write(int64_t now_ns) noexcept;
@@ -311,6 +316,7 @@ class Master {
   void worker_poll_emergencies();
   void worker_report_fault();
   void worker_rt_requests();
+  void worker_restart();
   void post(bool error, const std::string& text);
 
   MasterConfig cfg_;
@@ -346,6 +352,7 @@ class Master {
   std::atomic<int32_t> bad_wkc_{-1};  // last wrong working counter of the current bad streak
 
   std::atomic<BusPhase> phase_{BusPhase::Down};
+  std::atomic<bool> restart_requested_{false};
   mutable std::mutex fault_mutex_;
   std::string fault_text_;
 

@@ -169,6 +169,26 @@ TEST(EthercatMaster, CableBreakNamesTheLastSlaveReached) {
   EXPECT_EQ(bus.segment->slave(2).al_status_code(), al::kSmWatchdog);
 }
 
+TEST(EthercatMaster, RestartsAfterTheCableIsMended) {
+  Bus bus(3);
+  ASSERT_TRUE(bus.reach_op());
+  const ProcessSlot slot = bus.master->input(3, 0x6064, 0);
+  bus.segment->break_after(2);
+  ASSERT_TRUE(bus.run_until([&] { return !bus.master->fault_text().empty(); }, 2000));
+  bus.master->request_restart();  // still broken: the restart names why it failed
+  ASSERT_TRUE(bus.run_until([&] { return bus.master->fault_text().find("restart") != std::string::npos; }, 5000))
+      << bus.master->fault_text();
+  EXPECT_THAT(bus.master->fault_text(), HasSubstr("restart: 2 slaves answer, 3 were configured before"));
+  bus.segment->break_after(0);
+  bus.master->request_restart();
+  ASSERT_TRUE(bus.run_until([&] { return bus.master->is_operational(); }, 20000)) << bus.master->fault_text();
+  EXPECT_TRUE(bus.master->fault_text().empty());
+  EXPECT_EQ(bus.master->input(3, 0x6064, 0).bytes, slot.bytes);  // the drives' slots still hold
+  bus.run_until([] { return false; }, 50);
+  EXPECT_EQ(bus.master->counters().last_wkc.load(), 9);
+  EXPECT_THAT(bus.drain_messages(), HasSubstr("restarted after the fault"));
+}
+
 TEST(EthercatMaster, ProcessDataWatchdogDropsSlaveToSafeOp) {
   Bus bus(3);
   ASSERT_TRUE(bus.reach_op());
