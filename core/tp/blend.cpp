@@ -75,7 +75,7 @@ void add_correction(const Vertex& vx, double x, bool after, const Curve& in, con
 }
 
 void add_correction_bounds(const Vertex& vx, double x0, double x1, const Curve& in, const Curve& out, AxisVec& b1,
-                           AxisVec& b2, AxisVec& b3) noexcept {
+                           AxisVec& b2, AxisVec& b3, AxisVec* b4) noexcept {
   const double d = vx.half;
   if (!(d > 0)) return;
   x0 = std::max(x0, -d);
@@ -86,11 +86,13 @@ void add_correction_bounds(const Vertex& vx, double x0, double x1, const Curve& 
   const double g0 = max_step_error(u0, u1);
   const double g1 = max_pdf(u0, u1) / (2 * d);
   const double g2 = max_abs_pdf1(u0, u1) / (4 * d * d);
+  const double g4 = b4 ? max_abs_pdf2(u0, u1) / (8 * d * d * d) : 0.0;
   for (std::size_t k = 0; k < b2.size(); ++k) {
     const double t = std::fabs(vx.dt[k]);
     b1[k] += t * g0;
     b2[k] += t * g1;
     b3[k] += t * g2;
+    if (b4) (*b4)[k] += t * g4;
   }
   if (!vx.curved) return;
   const double g3 = max_abs_pdf2(u0, u1) / (8 * d * d * d);
@@ -114,6 +116,17 @@ double correction_size(const Vertex& vx, const Curve& in, const Curve& out) noex
     size += 0.25 * norm(m2) * vx.half * vx.half;
   }
   return size;
+}
+
+double correction_norm_at(double dt_norm, double m2, double d, double x, double* second) noexcept {
+  if (second) *second = dt_norm * kernel::kPdfMax / (2 * d) + 3.1 * m2;
+  const double ax = std::fabs(x);
+  if (!(d > 0) || ax >= d) return 0;
+  const double u = (d - ax) / (2 * d);
+  double e = dt_norm * 2 * d * kernel::ramp(u);
+  // The curvature blend g q0: |g| = W(u) here, |q0| <= m2 x^2 / 2.
+  if (m2 > 0) e += 0.5 * m2 * x * x * kernel::cdf(u);
+  return e;
 }
 
 }  // namespace cnc::tp

@@ -54,11 +54,22 @@ void add_correction(const Vertex& vx, double x, bool after, const Curve& in, con
 
 // Per-axis bounds, over x in [x0, x1] (relative to the vertex), of the
 // first, second and third derivatives of the correction, added to b1, b2
-// and b3.
+// and b3, and (when b4 is given, corners between straight moves only) of
+// the fourth derivative.
 void add_correction_bounds(const Vertex& vx, double x0, double x1, const Curve& in, const Curve& out, AxisVec& b1,
-                           AxisVec& b2, AxisVec& b3) noexcept;
+                           AxisVec& b2, AxisVec& b3, AxisVec* b4 = nullptr) noexcept;
 
 // Largest |correction| over the window (what the deviation budget counts).
 double correction_size(const Vertex& vx, const Curve& in, const Curve& out) noexcept;
+
+// Size of one corner's correction at x (relative to the vertex) with half
+// width d: |dt| E(x; d), E the smoothed ramp's error (symmetric, largest at
+// x = 0 where it is kDeviationPerHalfWidth d), plus, for a corner next to a
+// curved move, a bound of the curvature blend's share (m2: bound of the
+// norm of the two curves' second derivatives). Zero outside the window.
+// Each term grows with d, so a sum over corners only shrinks when windows
+// do. `second`, if given, gets a bound of the second derivative over the
+// whole window.
+double correction_norm_at(double dt_norm, double m2, double d, double x, double* second = nullptr) noexcept;
 
 }  // namespace cnc::tp

@@ -2,49 +2,156 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 
 namespace cnc::tp {
 namespace {
 
-constexpr int kMaxConstraints = 48;
-constexpr int kBackwardBudget = 48;
-// Distance slack, relative to 1 + distance: a new decision must keep a
-// non-negative slack; following a brake already chosen may lose rounding.
-constexpr double kStrict = 0.0;
-constexpr double kLoose = 1e-7;
-// A stop reached this close (units) is reached: brakes land on it up to rounding.
-constexpr double kLanding = 1e-10;
-constexpr double kVelEps = 1e-9;
+constexpr int kMaxRows = kNumAxes + 1;
+// Longest averaging window the history rings hold (samples).
+constexpr int kMaxFilter = 8192;
+constexpr int kRing = kMaxFilter + 2;
+// A piece becomes at most this many spans.
+constexpr int kSpansPerPiece = 24;
+// Erosion boundaries considered inside one piece.
+constexpr int kMaxCuts = 96;
+// A stop closer than this is reached (units).
+constexpr double kLanding = 1e-6;
+constexpr double kVelEps = 1e-12;
 
 }  // namespace
 
-PathState Executor::Motion::at(double t) const noexcept {
-  if (t <= switch_t) {
-    PathState m = first.at(t);
-    return m;
-  }
-  return second.at(t - switch_t);
-}
+// The limit rows: every axis in the mask, then the XYZ norm when [TRAJ]
+// linear limits are set. Acceleration and jerk include kLimitMargin.
+struct Executor::Rows {
+  int n = 0;
+  int axis[kMaxRows] = {};  // axis index, -1 for the XYZ norm
+  double a[kMaxRows] = {};
+  double j[kMaxRows] = {};
+};
+
+// Per ingested piece: its ceiling (capped at v_bound_).
+struct Executor::PieceData {
+  double v = 0;
+};
+
+// A stretch of a piece with constant input limits.
+struct Executor::Span {
+  double a = 0, b = 0;  // on the path parameter; a == b for a stop
+  uint64_t piece = 0;
+  StopKind stop = StopKind::None;
+  double vc = 0;        // velocity ceiling for the input (eroded)
+  double feed = kInf;   // feed ceiling (eroded; times the feed override)
+  double rapid = kInf;  // rapid ceiling (eroded; times the rapid override)
+  double w_start = 0;   // braking envelope at a
+  double w_end = 0;     // and at b
+  double alpha = 0;     // braking acceleration the envelope assumes
+  bool enveloped = false;  // the envelope values have been computed
+};
 
 Executor::Executor(const PlannerConfig& config, PathStore& store)
-    : cfg_(config),
-      floors_(limit_floors(config)),
-      store_(store),
-      tree_(store.pieces.capacity()) {}
+    : cfg_(config), store_(store), rows_(std::make_unique<Rows>()) {
+  std::size_t c = 2;
+  while (c < store.pieces.capacity()) c *= 2;
+  pdata_ = std::make_unique<PieceData[]>(c);
+  pmask_ = c - 1;
+  std::size_t sc = 2;
+  while (sc < c * 2) sc *= 2;
+  spans_ = std::make_unique<Span[]>(sc);
+  smask_ = sc - 1;
+  hx_ = std::make_unique<double[]>(kRing);
+  hv_ = std::make_unique<double[]>(kRing);
+  ha_ = std::make_unique<double[]>(kRing);
+  hcommit_ = std::make_unique<double[]>(kRing);
+  halpha_ = std::make_unique<double[]>(kRing);
+  configure(config);
+  clear_history(0);
+}
+
+Executor::~Executor() = default;
+
+Executor::PieceData& Executor::pdata(uint64_t seq) noexcept { return pdata_[seq & pmask_]; }
+const Executor::PieceData& Executor::pdata(uint64_t seq) const noexcept { return pdata_[seq & pmask_]; }
+Executor::Span& Executor::span(uint64_t seq) noexcept { return spans_[seq & smask_]; }
+const Executor::Span& Executor::span(uint64_t seq) const noexcept { return spans_[seq & smask_]; }
+int Executor::ring(int ago) const noexcept { return ((hist_pos_ - ago) % kRing + kRing) % kRing; }
+
+void Executor::configure(const PlannerConfig& config) noexcept {
+  cfg_ = config;
+  T_ = config.cycle_time_s;
+  Rows& r = *rows_;
+  r.n = 0;
+  double tf = 0;
+  double vsum = 0, asum = 0;
+  for (int i = 0; i < kNumAxes; ++i) {
+    if (!(config.axis_mask & (1u << i))) continue;
+    const AxisLimits& l = config.axes[static_cast<std::size_t>(i)];
+    r.axis[r.n] = i;
+    r.a[r.n] = l.max_acceleration * kLimitMargin;
+    r.j[r.n] = l.max_jerk * kLimitMargin;
+    tf = std::max(tf, l.max_acceleration / l.max_jerk);
+    vsum += l.max_velocity * l.max_velocity;
+    asum += l.max_acceleration * l.max_acceleration;
+    ++r.n;
+  }
+  if (config.max_linear_acceleration > 0 || config.max_linear_jerk > 0) {
+    r.axis[r.n] = -1;
+    r.a[r.n] = config.max_linear_acceleration > 0 ? config.max_linear_acceleration * kLimitMargin : kInf;
+    r.j[r.n] = config.max_linear_jerk > 0 ? config.max_linear_jerk * kLimitMargin : kInf;
+    if (config.max_linear_acceleration > 0 && config.max_linear_jerk > 0) {
+      tf = std::max(tf, config.max_linear_acceleration / config.max_linear_jerk);
+    }
+    ++r.n;
+  }
+  n_ = std::clamp(static_cast<int>(std::ceil(tf / T_ - 1e-9)), 1, kMaxFilter);
+  tf_ = n_ * T_;
+  // Generous bounds: no piece is faster (pieces are capped to it), no input
+  // sample accelerates harder.
+  v_bound_ = 2 * std::sqrt(vsum);
+  if (config.max_linear_velocity > 0) v_bound_ = std::min(v_bound_, 2 * config.max_linear_velocity);
+  a_top_ = 2 * std::sqrt(asum);
+  reach_ = v_bound_ * (0.5 * tf_ + 2 * T_) + 1e-9;
+}
+
+void Executor::clear_history(double x) noexcept {
+  for (int i = 0; i < kRing; ++i) {
+    hx_[i] = x;
+    hv_[i] = 0;
+    ha_[i] = 0;
+    hcommit_[i] = kInf;
+    halpha_[i] = 0;
+  }
+  x_ = y_ = x;
+  v_ = w_ = b_ = 0;
+}
 
 void Executor::set_config(const PlannerConfig& config) noexcept {
-  cfg_ = config;
-  const LimitFloors f = limit_floors(config);
-  // Pieces planned with the old limits keep the old floors.
-  floors_.accel = std::min(floors_.accel, f.accel);
-  floors_.jerk = std::min(floors_.jerk, f.jerk);
+  // The averaging window and the rows change only while nothing moves or
+  // is queued; new limits apply from the next idle moment.
+  if (is_idle() && out_ == ptail_) {
+    configure(config);
+    clear_history(x_);
+  } else {
+    cfg_ = config;
+  }
 }
 
 void Executor::set_position(const Pose& pose) noexcept {
   if (is_idle()) pose_ = pose;
 }
 
-bool Executor::is_idle() const noexcept { return cur_ == tail_ && v_ == 0 && a_ == 0 && !dwelling_; }
+bool Executor::at_rest() const noexcept {
+  if (v_ != 0) return false;
+  for (int i = 0; i <= n_; ++i) {
+    if (hx_[ring(i)] != x_) return false;
+  }
+  return true;
+}
+
+bool Executor::is_idle() const noexcept {
+  return in_ == stail_ && pfin_ == ptail_ && out_ == ptail_ && at_rest() && !dwelling_;
+}
 
 bool Executor::take_abort_done(uint32_t& epoch) noexcept {
   if (!abort_done_) return false;
@@ -53,47 +160,9 @@ bool Executor::take_abort_done(uint32_t& epoch) noexcept {
   return true;
 }
 
-double Executor::path_position() const noexcept {
-  return cur_ < tail_ ? piece(cur_).s0 + off_ : tail_s_;
-}
+double Executor::final_end() const noexcept { return stail_ > in_ ? span(stail_ - 1).b : x_; }
 
-double Executor::distance_to_tail() const noexcept { return tail_s_ - path_position(); }
-
-// The limits that bind a stop are those of the stretch it covers (a line
-// along one axis may brake at that axis's full acceleration, more than the
-// floors), so the stretch is grown until it covers the distance it implies.
-// A deceleration built up where the limits are higher is first eased with
-// the jerk available here (approach_distance), as the executor itself does.
-// Barriers (tight corners) are passed with a two-stage brake (their own
-// small limits inside, the next pieces' beyond) that one set of limits does
-// not describe: a stretch that reaches one is reported through
-// `crosses_barrier` and its distance is only an upper bound.
-double Executor::stop_distance(bool* crosses_barrier) const noexcept {
-  if (crosses_barrier) *crosses_barrier = false;
-  if (cur_ >= tail_ || (v_ == 0 && a_ == 0)) return 0;
-  const double s = path_position();
-  const PathState now{0, v_, a_};
-  uint64_t end = cur_ + 1;
-  double d = 0;
-  for (int it = 0; it < 32; ++it) {
-    double acc, jerk;
-    limits_between(cur_, end, acc, jerk);
-    const Constraint k{tail_s_ - s, 0, acc, jerk, tail_, kInf, true};
-    d = approach_distance(now, 0, k);
-    if (!(d < kInf)) break;
-    // A brake that ends exactly on a boundary (a stop point) does not use
-    // the limits beyond it.
-    const uint64_t reach = std::min(tail_, piece_at(s + d - 1e-9 * (1 + d)) + 1);
-    if (reach <= end) break;
-    end = reach;
-  }
-  if (crosses_barrier) {
-    for (uint64_t k = cur_; k < end && !*crosses_barrier; ++k) {
-      *crosses_barrier = piece(k).barrier && piece(k).stop == StopKind::None;
-    }
-  }
-  return d;
-}
+double Executor::distance_to_tail() const noexcept { return std::max(0.0, final_end() - y_); }
 
 void Executor::pause() noexcept { hold_ = true; }
 
@@ -104,16 +173,10 @@ void Executor::resume() noexcept {
 }
 
 void Executor::step() noexcept {
-  if (!hold_ || aborting_ || cur_ >= tail_) return;
-  uint64_t k = cur_;
-  while (k < tail_ && piece(k).length == 0) ++k;
-  if (k >= tail_) {
-    step_s_ = tail_s_;
-  } else {
-    const uint64_t m = piece(k).seg;
-    while (k < tail_ && piece(k).seg == m) ++k;
-    step_s_ = k < tail_ ? piece(k).s0 : tail_s_;
-  }
+  if (!hold_ || aborting_ || in_ >= stail_) return;
+  // The end of the move the machine is on.
+  const SegmentRecord& sr = store_.segs.at(piece(span(in_).piece).seg);
+  step_s_ = std::max(x_, sr.s0 + sr.curve.length);
   step_active_ = true;
   hold_ = false;
 }
@@ -124,761 +187,604 @@ void Executor::abort() noexcept {
 }
 
 // ---------------------------------------------------------------------------
-// Ring helpers (sequence ranges may wrap around the tree)
+// Limits
+//
+// Output sample k averages input samples k-N+1..k: its velocity w is the
+// mean input velocity, its acceleration b the mean input acceleration, its
+// jerk g = (a_k - a_{k-N}) / T_f, and it lies within v (T_f/2 + T) of every
+// sample it averages (v bounding their velocities). An input sample j
+// influences the outputs j..j+N. It gets a limit alpha_j: the largest |a|
+// for which, wherever those outputs may lie and at any velocity up to what
+// it commits to (its own plus what the window may still gain; later samples
+// respect it), every axis keeps
+//   c1 |b| + c2 w^2 <= A  and  c1 |g| + 3 c2 w |b| + c3 w^3 <= J,
+// c1..c3 bounding the path's derivatives there, when |b| and |a_k - a_{k-N}|
+// stay within alpha. The input keeps |a_k| <= alpha_k and |a_k - a_{k-N}| <=
+// the largest alpha of the samples N+1 back (each valid where output k is).
 
 namespace {
 
-template <class F>
-void for_slots(uint64_t from, uint64_t to, std::size_t n, F&& f) {
-  if (from >= to) return;
-  const std::size_t a = static_cast<std::size_t>(from & (n - 1));
-  const uint64_t len = to - from;
-  if (a + len <= n) {
-    f(a, static_cast<std::size_t>(a + len), from);
-  } else {
-    f(a, n, from);
-    f(0, static_cast<std::size_t>(a + len - n), from + (n - a));
+// Largest |a| for one piece's bounds at output velocity u.
+double limit_at(const PieceBounds& b, const int* axis, const double* A, const double* J, int n, double tf,
+                double u) noexcept {
+  double a = kInf;
+  for (int i = 0; i < n; ++i) {
+    const int ax = axis[i];
+    const double c1 = ax >= 0 ? b.c1[static_cast<std::size_t>(ax)] : b.lin1;
+    if (!(c1 > 1e-12)) continue;
+    const double c2 = ax >= 0 ? b.c2[static_cast<std::size_t>(ax)] : b.lin2;
+    const double c3 = ax >= 0 ? b.c3[static_cast<std::size_t>(ax)] : b.lin3;
+    a = std::min(a, (A[i] - c2 * u * u) / c1);
+    a = std::min(a, (J[i] - c3 * u * u * u) / (c1 / tf + 3 * c2 * u));
   }
+  return std::max(a, 0.0);
 }
 
 }  // namespace
 
-void Executor::limits_between(uint64_t from, uint64_t to, double& accel, double& jerk) const noexcept {
-  accel = kInf;
-  jerk = kInf;
-  for_slots(from, to, tree_.size(), [&](std::size_t lo, std::size_t hi, uint64_t) {
-    double a, j;
-    tree_.range_limits(lo, hi, a, j);
-    accel = std::min(accel, a);
-    jerk = std::min(jerk, j);
-  });
+// The limit for an input sample whose outputs lie within [lo, hi] at
+// velocities up to u: the smallest over the pieces there (stops bound the
+// search: outputs never cross one while the input moves).
+double Executor::accel_limit(uint64_t from, double lo, double hi, double u) const noexcept {
+  const Rows& r = *rows_;
+  double a = a_top_;
+  const uint64_t first = store_.pieces.released();
+  auto take = [&](uint64_t k) {
+    const Piece& q = piece(k);
+    a = std::min({a, q.a_cap, limit_at(q.bounds, r.axis, r.a, r.j, r.n, tf_, std::min(u, pdata(k).v))});
+  };
+  if (from >= ptail_) return 0;
+  take(from);
+  for (uint64_t k = from; k > first;) {
+    --k;
+    const Piece& q = piece(k);
+    if (q.stop != StopKind::None || q.s0 + q.length < lo) break;
+    take(k);
+  }
+  for (uint64_t k = from + 1; k < ptail_; ++k) {
+    const Piece& q = piece(k);
+    if (q.stop != StopKind::None || q.s0 > hi) break;
+    take(k);
+  }
+  return std::max(a, 0.0);
 }
 
-uint64_t Executor::piece_at(double s) const noexcept {
-  if (cur_ >= tail_) return cur_;
-  uint64_t lo = cur_, hi = tail_ - 1;
-  while (lo < hi) {
-    const uint64_t mid = lo + (hi - lo + 1) / 2;
-    if (piece(mid).s0 <= s) {
-      lo = mid;
-    } else {
-      hi = mid - 1;
-    }
-  }
-  return lo;
+double Executor::ceiling(const Span& sp) const noexcept {
+  return std::min({sp.vc, env_feed_ * sp.feed, env_rapid_ * sp.rapid});
 }
 
 // ---------------------------------------------------------------------------
-// Ingest and the backward pass over barriers
+// Ingest, spans and the envelope
 
 void Executor::ingest() noexcept {
   const uint64_t pub = store_.pieces.published();
-  const uint64_t first_new = tail_;
-  while (tail_ < pub) {
-    const Piece& p = piece(tail_);
+  while (ptail_ < pub) {
+    const Piece& p = piece(ptail_);
     if (p.epoch != epoch_) {
       // Planned before an abort: dropped.
-      if (cur_ == tail_) ++cur_;
-      ++tail_;
-      store_.pieces.release_upto(cur_);
+      if (out_ == ptail_) ++out_;
+      if (pfin_ == ptail_) ++pfin_;
+      ++ptail_;
       continue;
     }
-    if (cur_ == tail_) off_ = 0;
-    tree_.set(slot(tail_), TreeLeaf{p.barrier ? 0.0 : p.v_hard, p.v_feed, p.v_rapid, p.inv_speed, p.accel, p.jerk,
-                                    p.barrier, p.stop != StopKind::None});
+    if (is_idle() && p.s0 != x_) {
+      // A path after an abort or a reset starts further along the path
+      // parameter; the machine is where it was.
+      clear_history(p.s0);
+    }
+    PieceData& d = pdata(ptail_);
+    d.v = std::min(p.v_hard, v_bound_);
+    if (p.stop != StopKind::None) {
+      d.v = 0;
+      last_stop_ = ptail_;
+    }
     tail_s_ = p.s0 + p.length;
-    ++tail_;
-    bp_dirty_ = true;
+    ++ptail_;
   }
-  // New barriers get a (conservative, end-of-queue limited) ceiling at once,
-  // newest first; the backward pass relaxes them as the queue grows.
-  for (uint64_t k = tail_; k > first_new;) {
-    --k;
-    if (!piece(k).barrier || piece(k).epoch != epoch_) continue;
-    tree_.set_hard(slot(k), barrier_ceiling(k));
-  }
+  finalize();
 }
 
-double Executor::barrier_ceiling(uint64_t b) const noexcept {
-  const Piece& bp = piece(b);
-  if (bp.stop != StopKind::None || !(bp.v_hard > 0)) return 0;
-  const double end_s = bp.s0 + bp.length;
-  LimitTree::Query q;
-  q.soft = false;
-  q.x = bp.v_hard;
-  double v_end = bp.v_hard;
-  const double horizon = brake_distance(bp.v_hard, 0, 0, floors_.accel, floors_.jerk) + 1e-6;
-  uint64_t k = b;
-  bool closed = false;
-  for (int it = 0; it < kMaxConstraints; ++it) {
-    int64_t idx = -1;
-    for_slots(k + 1, tail_, tree_.size(), [&](std::size_t lo, std::size_t hi, uint64_t base) {
-      if (idx >= 0) return;
-      const int64_t r = tree_.find_first(lo, hi, q);
-      if (r >= 0) idx = static_cast<int64_t>(base + (static_cast<std::size_t>(r) - lo));
-    });
-    if (idx < 0) break;
-    const uint64_t i = static_cast<uint64_t>(idx);
-    const Piece& p = piece(i);
-    const double d = p.s0 - end_s;
-    if (d > horizon) {
-      closed = true;
-      break;
-    }
-    const double value = tree_.leaf(slot(i)).hard;
-    if (value < v_end) {
-      double acc, jerk;
-      limits_between(b + 1, i, acc, jerk);
-      v_end = std::min(v_end, (d <= 0 || !(acc < kInf)) ? value : max_entry_velocity(d, value, acc, jerk));
-    }
-    if (p.barrier) {
-      closed = true;
-      break;
-    }
-    q.x = std::min(q.x, value);
-    k = i;
-    if (it == kMaxConstraints - 1) v_end = 0;  // too many levels: be safe
+// A piece is split into spans once every piece that may spread data onto
+// it is in: those within reach_ after it, up to the next stop (nothing
+// spreads across a stop: the input rests there until the output has
+// caught up).
+void Executor::finalize() noexcept {
+  const uint64_t first_span = stail_;
+  while (pfin_ < ptail_) {
+    const Piece& p = piece(pfin_);
+    const bool stop_ahead = last_stop_ != UINT64_MAX && last_stop_ >= pfin_ && last_stop_ < ptail_;
+    if (!stop_ahead && p.s0 + p.length + reach_ > tail_s_) break;
+    if (stail_ - sfirst_ + kSpansPerPiece + 2 > smask_ + 1) break;
+    make_spans(pfin_);
+    ++pfin_;
   }
-  if (!closed) {
-    const double d = tail_s_ - end_s;
-    if (d <= horizon) {
-      double acc, jerk;
-      limits_between(b + 1, tail_, acc, jerk);
-      v_end = std::min(v_end, (d <= 0 || !(acc < kInf)) ? 0.0 : max_entry_velocity(d, 0, acc, jerk));
-    }
-  }
-  return std::min(bp.v_hard, max_entry_velocity(bp.length, v_end, bp.accel, bp.jerk));
+  if (stail_ > first_span) envelope_from(stail_ - 1);
 }
 
-void Executor::backward_pass(int budget) noexcept {
-  auto last_barrier_before = [&](uint64_t to) -> int64_t {
-    int64_t found = -1;
-    // Search the later slot range first.
-    uint64_t from = cur_;
-    if (to <= from) return -1;
-    const std::size_t n = tree_.size();
-    const std::size_t a = static_cast<std::size_t>(from & (n - 1));
-    const uint64_t len = to - from;
-    if (a + len <= n) {
-      const int64_t r = tree_.find_last_barrier(a, static_cast<std::size_t>(a + len));
-      if (r >= 0) found = static_cast<int64_t>(from + (static_cast<std::size_t>(r) - a));
-    } else {
-      const int64_t r2 = tree_.find_last_barrier(0, static_cast<std::size_t>(a + len - n));
-      if (r2 >= 0) {
-        found = static_cast<int64_t>(from + (n - a) + static_cast<std::size_t>(r2));
-      } else {
-        const int64_t r1 = tree_.find_last_barrier(a, n);
-        if (r1 >= 0) found = static_cast<int64_t>(from + (static_cast<std::size_t>(r1) - a));
-      }
-    }
-    return found;
-  };
-  if (bp_dirty_) {
-    bp_dirty_ = false;
-    bp_cursor_ = last_barrier_before(tail_);
-  }
-  while (budget-- > 0 && bp_cursor_ >= 0 && static_cast<uint64_t>(bp_cursor_) >= cur_) {
-    const uint64_t b = static_cast<uint64_t>(bp_cursor_);
-    const double nv = barrier_ceiling(b);
-    const double old = tree_.leaf(slot(b)).hard;
-    if (nv != old) tree_.set_hard(slot(b), nv);
-    if (nv == old) {
-      bp_cursor_ = -1;
-      break;
-    }
-    bp_cursor_ = last_barrier_before(b);
-  }
-}
-
-// ---------------------------------------------------------------------------
-// Look-ahead walk and feasibility
-
-int Executor::collect(double x, const LimitTree::Query& q0, Constraint* out, int max, double& boundary) const noexcept {
-  const double s = path_position();
-  boundary = kInf;
-  const double T = cfg_.cycle_time_s;
-  // Pieces before the first barrier keep the floors, except the one we are
-  // in, which may itself be a barrier.
-  const Piece& cp = piece(cur_);
-  const double ha = std::min(floors_.accel, cp.accel);
-  const double hj = std::min(floors_.jerk, cp.jerk);
-  // Far enough to stop from the fastest state this step can reach, with
-  // the acceleration it has now ramped out at the smallest jerk.
-  const double a_up = std::max(a_, 0.0) + cp.jerk * T;  // at most, after this step
-  const double v_up = v_ + std::max(a_, 0.0) * T + 0.5 * cp.jerk * T * T;
-  const double horizon =
-      std::max(brake_distance(x, 0, 0, ha, hj), brake_distance(v_up, a_up, 0, ha, hj)) + 2 * std::max(x, v_up) * T + 1e-6;
-  LimitTree::Query q = q0;
-  q.x = x;
-  int n = 0;
-  uint64_t k = cur_;
-  bool closed = false;
-  while (n < max - 2) {
-    int64_t idx = -1;
-    for_slots(k + 1, tail_, tree_.size(), [&](std::size_t lo, std::size_t hi, uint64_t base) {
-      if (idx >= 0) return;
-      const int64_t r = tree_.find_first(lo, hi, q);
-      if (r >= 0) idx = static_cast<int64_t>(base + (static_cast<std::size_t>(r) - lo));
-    });
-    if (idx < 0) break;
-    const uint64_t i = static_cast<uint64_t>(idx);
-    const Piece& p = piece(i);
-    const double d = p.s0 - s;
-    if (d > horizon) {
-      closed = true;
-      break;
-    }
-    double acc, jerk;
-    limits_between(cur_, i, acc, jerk);
-    const double value = LimitTree::value(tree_.leaf(slot(i)), q);
-    if (n == max - 3) {
-      // Out of room: one conservative ceiling for the rest of the horizon.
-      double rest = 0;
-      if (tail_s_ - s > horizon) {
-        const uint64_t end = piece_at(s + horizon) + 1;
-        rest = kInf;
-        for_slots(i, end, tree_.size(), [&](std::size_t lo, std::size_t hi, uint64_t) {
-          rest = std::min(rest, tree_.range_value(lo, hi, q));
-        });
-        limits_between(cur_, end, acc, jerk);
-      }
-      out[n++] = {d, std::min(value, rest), acc, jerk, i, p.jerk, true};
-      closed = true;
-      break;
-    }
-    out[n++] = {d, value, acc, jerk, i, p.jerk, p.barrier};
-    if (p.barrier) {
-      boundary = d;
-      closed = true;
-      break;
-    }
-    q.x = std::min(q.x, value);
-    k = i;
-  }
-  if (!closed && tail_s_ - s <= horizon) {
-    double acc, jerk;
-    limits_between(cur_, tail_, acc, jerk);
-    out[n++] = {tail_s_ - s, 0, acc, jerk, tail_, kInf, true};
-  }
-  if (step_active_) {
-    double acc, jerk;
-    limits_between(cur_, piece_at(step_s_) + 1, acc, jerk);
-    out[n++] = {step_s_ - s, 0, acc, jerk, tail_, kInf, true};
-  }
-  if (cp.barrier) boundary = std::min(boundary, cp.s0 + cp.length - s);
-  if (cp.barrier && cp.length > 0) {
-    // Inside a barrier the motion brakes with the barrier's own (small)
-    // limits and leaves it with zero acceleration; beyond it the pieces'
-    // own limits apply (the two-stage model the barrier ceilings use).
-    const double to_end = cp.s0 + cp.length - s;
-    double v_end = kInf;
-    double j_after = kInf;
-    int m = 0;
-    for (int i = 0; i < n; ++i) {
-      const Constraint& k = out[i];
-      if (k.dist <= to_end + 1e-12) {
-        out[m++] = k;
-        continue;
-      }
-      double acc, jerk;
-      limits_between(cur_ + 1, k.piece == tail_ ? tail_ : k.piece, acc, jerk);
-      const double d = k.dist - to_end;
-      v_end = std::min(v_end, acc < kInf ? max_entry_velocity(d, k.value, acc, jerk) : k.value);
-      j_after = std::min({j_after, jerk, k.jerk_after});
-    }
-    n = m;
-    if (v_end < kInf) out[n++] = {to_end, v_end, cp.accel, cp.jerk, cur_ + 1, j_after, true};
-  }
-  return n;
-}
-
-// Distance needed from `m` to meet ceiling `k`. A deceleration stronger
-// than the approach allows (or too strong to ramp out with its jerk before
-// the velocity reaches zero) was built up where the limits are higher: it is
-// first eased with the jerk available here, then the approach's limits apply.
-double Executor::approach_distance(const PathState& m, double moved, const Constraint& k) const noexcept {
-  const bool over = m.a < -k.accel;
-  const bool doomed = m.a < 0 && m.v - m.a * m.a / (2 * k.jerk) < 0;
-  if (!(over || doomed) || !(jerk_now_ > k.jerk)) return brake_distance(m.v, m.a, k.value, k.accel, k.jerk);
-  double jp = jerk_now_;
-  PathState e = m;
-  double pre = 0;
-  for (int pass = 0; pass < 2; ++pass) {
-    // Ease (with jerk jp) to a1, the strongest deceleration the approach
-    // sustains: over the limit it is -A; a deceleration ramped out with the
-    // approach's jerk must not end below zero velocity:
-    //   v + (a1^2 - a^2) / 2jp - a1^2 / 2J' >= 0.
-    const double room = m.v - m.a * m.a / (2 * jp);
-    if (room < 0) return kInf;
-    const double coef = 1 / (2 * k.jerk) - 1 / (2 * jp);
-    double a1 = std::max(m.a, -k.accel);
-    if (coef > 0) a1 = std::max(a1, -std::sqrt(room / coef) * 0.999);
-    const double t = std::max(0.0, (a1 - m.a) / jp);
-    e = integrate({0, m.v, m.a}, jp, t);
-    if (e.v < 0) return kInf;
-    pre = e.s;
-    // The jerk that really is available over that stretch.
-    double acc, jerk;
-    limits_between(cur_, piece_at(path_position() + moved + pre) + 1, acc, jerk);
-    if (!(jerk < jp)) break;
-    jp = jerk;
-    if (!(jp > k.jerk)) return brake_distance(m.v, m.a, k.value, k.accel, k.jerk);
-  }
-  if (e.v <= k.value && e.a <= 0) {
-    // Crossed the ceiling while easing: distance to that crossing.
-    return pre;
-  }
-  return pre + brake_distance(e.v, e.a, k.value, k.accel, k.jerk);
-}
-
-bool Executor::feasible(const PathState& m, double moved, const Constraint* c, int n, int* worst,
-                        double tol) const noexcept {
-  bool ok = true;
-  double worst_slack = kInf;
-  for (int i = 0; i < n; ++i) {
-    const Constraint& k = c[i];
-    const double d = k.dist - moved;
-    // Still accelerating: the velocity peaks once the acceleration is ramped
-    // out; if that happens past the point, with the jerk available there.
-    double peak = m.v;
-    double ramp = 0;
-    if (m.a > 0) {
-      ramp = integrate({0, m.v, m.a}, -k.jerk, m.a / k.jerk).s;
-      peak = m.v + m.a * m.a / (2 * (ramp <= d ? k.jerk : std::min(k.jerk, k.jerk_after)));
-    }
-    double slack;
-    if (k.tight && m.a > 1e-9 && ramp > d) {
-      // Would still be accelerating at (or past) a point where braking may
-      // have to begin.
-      slack = d - ramp;
-      if (d > 0 && slack >= -tol * (1 + d) && peak <= k.value + kVelEps) continue;
-    } else if (peak <= k.value + kVelEps) {
-      continue;
-    } else if (d <= 0) {
-      slack = d - 1;  // at or past the ceiling while above it
-    } else {
-      const double bd = std::max(approach_distance(m, moved, k), ramp);
-      slack = d - bd;
-      if (slack >= -tol * (1 + d)) continue;
-    }
-    ok = false;
-    if (slack < worst_slack) {
-      worst_slack = slack;
-      if (worst) *worst = i;
-    }
-  }
-  if (!ok || n < 2) return ok;
-  // Each ceiling can be met on its own; one brake must meet them all.
-  int needing = 0;
-  for (int i = 0; i < n; ++i) {
-    const double peak = m.a > 0 ? m.v + m.a * m.a / (2 * c[i].jerk) : m.v;
-    if (peak > c[i].value + kVelEps) ++needing;
-  }
-  if (needing < 2) return true;
-  JerkProfile p;
-  const int j = find_brake(m, moved, c, n, -1, tol, p);
-  if (j >= 0) return true;
-  if (worst) *worst = j < -1 ? -2 - j : 0;
-  return false;
-}
-
-bool Executor::motion_ok(const Motion& mo, const Constraint* c, int n, double T, double tol) const noexcept {
-  const PathState end = mo.at(T);
-  if (end.v < -kVelEps) return false;
-  if (!feasible(end, end.s, c, n, nullptr, tol)) return false;
-  // Ceilings crossed during the cycle: the velocity at the crossing.
-  for (int i = 0; i < n; ++i) {
-    if (!(c[i].dist > 0 && c[i].dist <= end.s)) continue;
-    double lo = 0, hi = T;
-    for (int it = 0; it < 40; ++it) {
-      const double mid = 0.5 * (lo + hi);
-      (mo.at(mid).s < c[i].dist ? lo : hi) = mid;
-    }
-    if (mo.at(hi).v > c[i].value + kVelEps) return false;
-  }
-  return true;
-}
-
-double Executor::current_ceiling(const LimitTree::Query& q) const noexcept {
-  if (cur_ >= tail_) return 0;
-  return LimitTree::value(tree_.leaf(slot(cur_)), q);
-}
-
-void Executor::plan_cycle(const CycleInputs& in) noexcept {
-  // A brake that lands on a ceiling before the end of the cycle is followed,
-  // in the same cycle, by a new decision from the new place (what lies
-  // beyond a barrier is only known once there).
-  double left = cfg_.cycle_time_s;
-  for (int it = 0; it < 16 && left > 1e-12 && cur_ < tail_; ++it) {
-    if (v_ == 0 && a_ == 0 && piece(cur_).stop != StopKind::None) return;
-    left -= plan_step(in, left, it < 15);
-  }
-}
-
-double Executor::plan_step(const CycleInputs& in, double T, bool split) noexcept {
-  LimitTree::Query q;
-  q.feed_scale = std::max(0.0, in.feed_scale);
-  q.rapid_scale = std::max(0.0, in.rapid_scale);
-  q.max_velocity = in.max_velocity > 0 ? in.max_velocity : 0.0;
-  q.soft = true;
-  const double c_cur = current_ceiling(q);
-  const double target = (hold_ || aborting_) ? 0.0 : c_cur;
-  const double s = path_position();
-  const Piece& cp = piece(cur_);
-  // Limits for the free motion: acceleration over the distance needed to
-  // bring it down, jerk over what this cycle can cover.
-  const double ja = std::max(cp.jerk, 1e-9);
-  const double aa = std::fabs(a_);
-  const double ramp = (v_ + aa * aa / ja) * (aa / ja + 2 * T) + 1e-9;
-  const double travel = v_ * T + std::max(a_, 0.0) * T * T * 0.5 + cp.jerk * T * T * T / 6 + 1e-9;
-  // Never look past the next stop point: the motion ends there.
-  uint64_t stop_at = tail_;
-  for_slots(cur_ + 1, tail_, tree_.size(), [&](std::size_t lo, std::size_t hi, uint64_t base) {
-    if (stop_at != tail_) return;
-    const int64_t r = tree_.find_first_stop(lo, hi);
-    if (r >= 0) stop_at = base + (static_cast<std::size_t>(r) - lo);
-  });
-  const double vpeak = a_ > 0 ? v_ + a_ * a_ / (2 * std::max(cp.jerk, 1e-9)) : v_;
-  Constraint cs[kMaxConstraints];
-  double boundary = kInf;
-  const int n = collect(std::max(c_cur, vpeak), q, cs, kMaxConstraints, boundary);
-  double acc_free, jerk_dummy, acc_dummy, jerk_free;
-  limits_between(cur_, std::min(piece_at(s + ramp) + 1, stop_at), acc_free, jerk_dummy);
-  // Jerk: over what this step can cover, but not past a barrier boundary
-  // where the step is cut anyway.
-  uint64_t jerk_end = std::min(piece_at(s + travel) + 1, stop_at);
-  if (split && boundary < kInf) jerk_end = std::max(cur_ + 1, std::min(jerk_end, piece_at(s + boundary)));
-  limits_between(cur_, jerk_end, acc_dummy, jerk_free);
-  (void)jerk_dummy;
-  (void)acc_dummy;
-  jerk_now_ = jerk_free;
-  // Where a barrier starts or the one we are in ends, the step ends: what
-  // applies beyond is only known from there (its ceilings assume the
-  // braking for what lies beyond starts right there).
-  auto cut = [&](const Motion& mo, double t0) -> double {
-    if (!split || !(boundary > 1e-12) || mo.at(T).s <= boundary) return -1;
-    double lo = t0, hi = T;
-    for (int it = 0; it < 60; ++it) {
-      const double mid = 0.5 * (lo + hi);
-      (mo.at(mid).s < boundary ? lo : hi) = mid;
-    }
-    active_ = false;
-    advance(mo.at(hi));
-    return std::max(hi, 1e-9);
-  };
-
-  // Follows a brake (`prof`, from `t0` in this step) toward the ceiling that
-  // starts `dist` ahead. Once there, and if splitting is allowed, the step
-  // ends: the next decision is made from that place.
-  auto follow = [&](const Motion& mo, double t0, const JerkProfile& prof, double dist, double value) {
-    const PathState end_state = mo.at(T);
-    if (split && value <= 1e-9 && dist <= boundary) {
-      // A brake to a stop ends at rest exactly where it stops.
-      const double t_end = t0 + prof.total_time();
-      if (t_end <= T) {
-        active_ = false;
-        PathState e = mo.at(t_end);
-        if (std::fabs(e.s - dist) < 1e-9) e.s = dist;
-        e.v = 0;
-        e.a = 0;
-        advance(e);
-        return std::max(t_end, 1e-9);
-      }
-    }
-    const double stop_at = std::min(dist, boundary);
-    if (split && stop_at > 1e-12 && end_state.s >= stop_at) {
-      // The first time this step's motion reaches the point (possibly
-      // before the brake even started).
-      double lo = 0, hi = T;
-      for (int it = 0; it < 60; ++it) {
-        const double mid = 0.5 * (lo + hi);
-        (mo.at(mid).s < stop_at ? lo : hi) = mid;
-      }
-      active_ = false;
-      advance(mo.at(hi));
-      return std::max(hi, 1e-9);
-    }
-    active_ = true;
-    brake_ = prof;
-    brake_t_ = T - t0;
-    brake_target_s_ = s + dist;
-    brake_target_v_ = value;
-    advance(end_state);
-    return T;
-  };
-
-  const PathState st{0, v_, a_};
-  Motion free;
-  free.first = velocity_profile(st, target, acc_free, jerk_free);
-  if (motion_ok(free, cs, n, T, kStrict)) {
-    const double used = cut(free, 0);
-    if (used >= 0) return used;
-    active_ = false;
-    advance(free.at(T));
-    return T;
-  }
-  Motion base = free;
-  if (active_) {
-    // Re-base the brake so that it starts now at s = 0.
-    const PathState now = brake_.at(brake_t_);
-    JerkProfile shifted;
-    shifted.start = {0, now.v, now.a};
-    double t = brake_t_;
-    for (std::size_t i = 0; i < 3; ++i) {
-      shifted.duration[i] = std::max(0.0, brake_.duration[i] - t);
-      t = std::max(0.0, t - brake_.duration[i]);
-      shifted.jerk[i] = brake_.jerk[i];
-    }
-    Motion act;
-    act.first = shifted;
-    if (motion_ok(act, cs, n, T, kLoose)) return follow(act, 0, shifted, brake_target_s_ - s, brake_target_v_);
-    base = act;
-  }
-  int worst = -1;
-  if (!feasible(base.at(0), 0, cs, n, &worst, kLoose)) {
-    // Already unable to meet a ceiling (an override dropped): brake as hard
-    // as the limits allow toward the lowest ceiling that is failing.
-    // Brake as hard as every failing ceiling's approach allows, toward the
-    // lowest of them.
-    int low = worst;
-    double acc = kInf, jerk = kInf;
-    for (int i = 0; i < n; ++i) {
-      const double peak = a_ > 0 ? v_ + a_ * a_ / (2 * cs[i].jerk) : v_;
-      if (peak <= cs[i].value) continue;
-      if (cs[i].value < cs[low].value) low = i;
-      acc = std::min(acc, cs[i].accel);
-      jerk = std::min(jerk, cs[i].jerk);
-    }
-    if (!(acc < kInf)) {
-      acc = cs[low].accel;
-      jerk = cs[low].jerk;
-    }
-    Motion fb;
-    fb.first = velocity_profile(st, std::min(brake_target(st, cs[low]), target), acc, jerk);
-    return follow(fb, 0, fb.first, cs[low].dist, cs[low].value);
-  }
-  // Latest instant in this step from which the binding brake still fits.
-  double lo = 0, hi = T;
-  for (int it = 0; it < 48; ++it) {
-    const double mid = 0.5 * (lo + hi);
-    const PathState m = base.at(mid);
-    int w2 = -1;
-    if (feasible(m, m.s, cs, n, &w2, kStrict)) {
-      lo = mid;
-    } else {
-      hi = mid;
-      worst = w2;
-    }
-  }
-  if (worst < 0) {
-    const PathState m = base.at(hi);
-    feasible(m, m.s, cs, n, &worst, kStrict);
-  }
-  const PathState sw = base.at(lo);
-  double target_dist = 0;
-  Motion mo = base;
-  mo.switch_t = lo;
-  double target_value = 0;
-  mo.second = choose_brake(sw, cs, n, std::max(worst, 0), target_dist, target_value);
-  return follow(mo, lo, mo.second, target_dist, target_value);
-}
-
-// The brake to follow from `sw`: the shortest brake toward one ceiling that
-// also respects every other one (passing the nearer ones below their
-// ceiling, and able to meet the farther ones after it ends); if no single
-// one does, the hardest of them.
-bool Executor::brake_valid(const JerkProfile& p, double moved, int j, const Constraint* c, int n,
-                           double tol) const noexcept {
-  const PathState end = p.end();
-  for (int k = 0; k < n; ++k) {
-    if (k == j) continue;
-    const double dk = c[k].dist - moved;
-    if (c[k].dist <= c[j].dist) {
-      if (dk <= 0) continue;
-      // Velocity where the brake passes the nearer ceiling.
-      double v_at;
-      if (end.s - moved <= dk) {
-        v_at = end.v;
-      } else {
-        double lo = 0, hi = p.total_time();
-        for (int it = 0; it < 50; ++it) {
-          const double mid = 0.5 * (lo + hi);
-          (p.at(mid).s - moved < dk ? lo : hi) = mid;
-        }
-        v_at = p.at(hi).v;
-        if (c[k].tight && p.at(hi).a > 1e-9) return false;
-      }
-      if (v_at > c[k].value + kVelEps) return false;
-    } else if (end.v > c[k].value) {
-      // After the brake ends (zero acceleration) the farther ceiling must
-      // still be reachable.
-      const double room = c[k].dist - c[j].dist;
-      if (brake_distance(end.v, 0, c[k].value, c[k].accel, c[k].jerk) > room + tol * (1 + room)) return false;
-    }
-  }
-  return true;
-}
-
-int Executor::find_brake(const PathState& m, double moved, const Constraint* c, int n, int prefer, double tol,
-                         JerkProfile& out) const noexcept {
-  auto needs = [&](int j) {
-    const double peak = m.a > 0 ? m.v + m.a * m.a / (2 * c[j].jerk) : m.v;
-    return peak > c[j].value + kVelEps && c[j].dist - moved > 0;
-  };
-  auto attempt = [&](int j) {
-    out = velocity_profile(m, brake_target(m, c[j]), c[j].accel, c[j].jerk);
-    return brake_valid(out, moved, j, c, n, tol);
-  };
-  if (prefer >= 0 && prefer < n && attempt(prefer)) return prefer;
-  // Lowest ceilings first: their brakes are the hardest.
-  bool tried[kMaxConstraints] = {};
-  if (prefer >= 0 && prefer < n) tried[prefer] = true;
-  for (;;) {
-    int best = -1;
-    for (int j = 0; j < n; ++j) {
-      if (!tried[j] && needs(j) && (best < 0 || c[j].value < c[best].value)) best = j;
-    }
-    if (best < 0) break;
-    tried[best] = true;
-    if (attempt(best)) return best;
-  }
-  // The hardest brake every approach allows, toward the lowest ceiling.
-  int low = -1;
-  double acc = kInf, jerk = kInf;
-  for (int j = 0; j < n; ++j) {
-    if (!needs(j)) continue;
-    if (low < 0 || c[j].value < c[low].value) low = j;
-    acc = std::min(acc, c[j].accel);
-    jerk = std::min(jerk, c[j].jerk);
-  }
-  if (low < 0) return -1;
-  out = velocity_profile(m, brake_target(m, c[low]), acc, jerk);
-  return brake_valid(out, moved, low, c, n, tol) ? low : -2 - low;
-}
-
-// The velocity a brake for `k` aims at: its value, or, for a tight point
-// approached while accelerating, the velocity reached by levelling off now
-// if that is lower (the acceleration must be gone by the point).
-double Executor::brake_target(const PathState& m, const Constraint& k) const noexcept {
-  if (k.tight && m.a > 0) return std::min(k.value, m.v + m.a * m.a / (2 * k.jerk));
-  return k.value;
-}
-
-JerkProfile Executor::choose_brake(const PathState& sw, const Constraint* c, int n, int binding,
-                                   double& target_dist, double& target_value) const noexcept {
-  JerkProfile p;
-  int j = find_brake(sw, sw.s, c, n, binding, kLoose, p);
-  if (j < -1) j = -2 - j;  // none is valid: the hardest one
-  if (j < 0) {
-    j = binding;
-    p = velocity_profile(sw, brake_target(sw, c[j]), c[j].accel, c[j].jerk);
-  }
-  target_dist = c[j].dist;
-  target_value = c[j].value;
-  if (j >= 0 && p.end().v > target_value) target_value = p.end().v;
-  return p;
-}
-
-// ---------------------------------------------------------------------------
-// Moving along the pieces
-
-void Executor::advance(const PathState& end) noexcept {
-  v_ = end.v;
-  a_ = end.a;
-  if (std::fabs(v_) < 1e-10 && std::fabs(a_) < 1e-7) {
-    v_ = 0;
-    a_ = 0;
-  }
-  if (v_ < 0) v_ = 0;
-  off_ += std::max(0.0, end.s);
-  while (cur_ < tail_) {
-    const Piece& p = piece(cur_);
-    if (p.length == 0) break;
-    const uint64_t nx = cur_ + 1;
-    const bool must_stop = nx >= tail_ || piece(nx).stop != StopKind::None;
-    // A brake that ends at a stop lands on it up to rounding: snap.
-    if (must_stop && v_ == 0 && a_ == 0 && off_ < p.length && off_ > p.length - kLanding) off_ = p.length;
-    // A brake that ends on a piece boundary lands on it up to rounding.
-    if (!must_stop && off_ < p.length && off_ > p.length - 1e-12 * (1 + p.length)) off_ = p.length;
-    if (off_ < p.length) break;
-    if (must_stop) {
-      if (off_ > p.length + 1e-6 || v_ > 1e-6) ++overruns_;
-      if (off_ > p.length + 1e-9 || v_ > 1e-6) {
-        v_ = 0;
-        a_ = 0;
-        active_ = false;
-      }
-      if (v_ > 0 || a_ != 0) {
-        // Exactly at the end while still moving: stay until it stops.
-        off_ = p.length;
-        break;
-      }
-      eval(cur_, p.length, pose_, &speed_);
-      completed_ += p.inputs_done;
-      cur_ = nx;
-      off_ = 0;
-      break;
-    }
-    off_ -= p.length;
-    completed_ += p.inputs_done;
-    cur_ = nx;
-  }
-}
-
-void Executor::handle_rest() noexcept {
-  const double T = cfg_.cycle_time_s;
-  if (!(v_ == 0 && a_ == 0)) return;
-  if (aborting_) {
-    finish_abort();
+void Executor::make_spans(uint64_t p) noexcept {
+  const Piece& pc = piece(p);
+  if (pc.stop != StopKind::None) {
+    Span& s = span(stail_++);
+    s = Span{};
+    s.a = s.b = pc.s0;
+    s.piece = p;
+    s.stop = pc.stop;
     return;
   }
-  if (step_active_ && path_position() >= step_s_ - 1e-9) {
-    step_active_ = false;
-    hold_ = true;
+  const double lo = pc.s0;
+  const double hi = pc.s0 + pc.length;
+  const double spread = 0.5 * tf_ + 2 * T_;
+  // Ceilings: an output in piece q averages input samples within
+  // v_q (T_f/2 + T) of it (the input moves no faster near q), so each piece
+  // caps the input over that distance around it. Collect the caps that
+  // reach into this piece and where they end inside it.
+  struct Cap {
+    double from, to, v, feed, rapid;
+  };
+  Cap caps[2 * kMaxCuts];
+  int ncap = 0;
+  double cuts[kMaxCuts + 2];
+  int ncut = 0;
+  cuts[ncut++] = lo;
+  cuts[ncut++] = hi;
+  auto consider = [&](const Piece& q, double vq) {
+    const double r = vq * spread;
+    const double from = q.s0 - r;
+    const double to = q.s0 + q.length + r;
+    if (to <= lo || from >= hi) return;
+    if (!(vq < pdata(p).v || q.v_feed < pc.v_feed || q.v_rapid < pc.v_rapid)) return;
+    if (ncap < 2 * kMaxCuts) caps[ncap++] = {from, to, vq, q.v_feed, q.v_rapid};
+    if (from > lo && ncut < kMaxCuts) cuts[ncut++] = from;
+    if (to < hi && ncut < kMaxCuts) cuts[ncut++] = to;
+  };
+  const uint64_t first_kept = store_.pieces.released();
+  for (uint64_t k = p; k > first_kept;) {
+    --k;
+    const Piece& q = piece(k);
+    if (q.stop != StopKind::None || q.epoch != epoch_ || lo - (q.s0 + q.length) > reach_) break;
+    consider(q, pdata(k).v);
   }
-  while (cur_ < tail_ && !hold_) {
-    const Piece& p = piece(cur_);
-    if (p.stop == StopKind::None) break;
-    if (p.stop == StopKind::Dwell) {
+  for (uint64_t k = p + 1; k < ptail_; ++k) {
+    const Piece& q = piece(k);
+    if (q.stop != StopKind::None || q.s0 - hi > reach_) break;
+    consider(q, pdata(k).v);
+  }
+  std::sort(cuts, cuts + ncut);
+  // Sub-intervals with their caps.
+  struct Part {
+    double a, b, v, feed, rapid;
+  };
+  Part parts[kMaxCuts + 2];
+  int np = 0;
+  for (int i = 0; i + 1 < ncut; ++i) {
+    const double a = cuts[i];
+    const double b = cuts[i + 1];
+    if (!(b > a)) continue;
+    Part pt{a, b, pdata(p).v, pc.v_feed, pc.v_rapid};
+    for (int c = 0; c < ncap; ++c) {
+      if (caps[c].from <= a && caps[c].to >= b) {
+        pt.v = std::min(pt.v, caps[c].v);
+        pt.feed = std::min(pt.feed, caps[c].feed);
+        pt.rapid = std::min(pt.rapid, caps[c].rapid);
+      }
+    }
+    if (np > 0 && parts[np - 1].v == pt.v && parts[np - 1].feed == pt.feed && parts[np - 1].rapid == pt.rapid) {
+      parts[np - 1].b = b;
+    } else {
+      parts[np++] = pt;
+    }
+  }
+  // Each span brakes with one acceleration (the smallest its outputs may
+  // meet): cut the piece at doubling distances from both ends, so that a
+  // tight corner next to a long move limits only the stretch near it.
+  Span sub[kMaxCuts + 64];
+  int ns = 0;
+  for (int i = 0; i < np; ++i) {
+    double pts[64];
+    int nq = 0;
+    pts[nq++] = parts[i].a;
+    for (double d = 1e-3; d < reach_ && nq < 60; d *= 2) {
+      if (lo + d > parts[i].a && lo + d < parts[i].b) pts[nq++] = lo + d;
+      if (hi - d > parts[i].a && hi - d < parts[i].b) pts[nq++] = hi - d;
+    }
+    pts[nq++] = parts[i].b;
+    std::sort(pts, pts + nq);
+    for (int j = 0; j + 1 < nq; ++j) {
+      if (!(pts[j + 1] > pts[j])) continue;
+      if (ns >= static_cast<int>(std::size(sub))) break;
+      Span& sp = sub[ns++];
+      sp = Span{};
+      sp.a = pts[j];
+      sp.b = pts[j + 1];
+      sp.piece = p;
+      sp.vc = parts[i].v;
+      sp.feed = parts[i].feed;
+      sp.rapid = parts[i].rapid;
+    }
+  }
+  // At most kSpansPerPiece: merge the shortest span into a neighbour (the
+  // merged span keeps the lower caps).
+  while (ns > kSpansPerPiece) {
+    int m = 0;
+    for (int i = 1; i < ns; ++i) {
+      if (sub[i].b - sub[i].a < sub[m].b - sub[m].a) m = i;
+    }
+    const int o = m == 0 ? 1 : (m == ns - 1 ? m - 1 : (sub[m - 1].b - sub[m - 1].a < sub[m + 1].b - sub[m + 1].a ? m - 1 : m + 1));
+    const int l = std::min(m, o);
+    sub[l].b = sub[l + 1].b;
+    sub[l].vc = std::min(sub[l].vc, sub[l + 1].vc);
+    sub[l].feed = std::min(sub[l].feed, sub[l + 1].feed);
+    sub[l].rapid = std::min(sub[l].rapid, sub[l + 1].rapid);
+    for (int i = l + 1; i + 1 < ns; ++i) sub[i] = sub[i + 1];
+    --ns;
+  }
+  if (ns == 0) {
+    sub[0] = Span{};
+    sub[0].a = lo;
+    sub[0].b = hi;
+    sub[0].piece = p;
+    sub[0].vc = pdata(p).v;
+    sub[0].feed = pc.v_feed;
+    sub[0].rapid = pc.v_rapid;
+    ns = 1;
+  }
+  for (int i = 0; i < ns; ++i) span(stail_++) = sub[i];
+}
+
+// Braking envelope: the largest input velocity at each point from which
+// the input can still brake (at each span's `alpha`) within every ceiling
+// ahead and come to rest at the end of the spans. Recomputed backward from
+// `last` while it changes.
+void Executor::envelope_from(uint64_t last) noexcept {
+  for (uint64_t k = last + 1; k-- > in_;) {
+    const double w_end = (k + 1 >= stail_) ? 0.0 : span(k + 1).w_start;
+    const bool known = span(k).enveloped;
+    const double before = span(k).w_start;
+    const double before_end = span(k).w_end;
+    envelope_span(k, w_end);
+    if (known && k < last && span(k).w_start == before && span(k).w_end == before_end) break;
+    if (k == 0) break;
+  }
+}
+
+void Executor::envelope_span(uint64_t k, double w_end) noexcept {
+  Span& s = span(k);
+  s.enveloped = true;
+  if (s.stop != StopKind::None) {
+    s.w_start = s.w_end = 0;
+    s.alpha = kInf;
+    return;
+  }
+  s.w_end = w_end;
+  const double ceil = ceiling(s);
+  const double L = s.b - s.a;
+  // An upper bound of the start value (the limit at the lowest velocity on
+  // the span), then the limit at that velocity plus what the window may
+  // still hold while braking.
+  // A braking sample on the span at velocity up to w has its outputs
+  // within w (T_f/2 + T) ahead and within the window's span behind (its
+  // velocity at most w + a_guess T_f over T_f).
+  auto brake_limit = [&](double w, double a_guess) {
+    const double vw = w + a_guess * tf_;
+    return accel_limit(s.piece, s.a - vw * (tf_ + T_), s.b + w * (0.5 * tf_ + 2 * T_), vw);
+  };
+  // The window may still hold the velocities of a harder brake before
+  // this span (at most a_top_ T_f more than now).
+  auto alpha_at = [&](double w) { return brake_limit(w, a_top_); };
+  // The largest w with w^2 <= w_end^2 + 2 alpha(w) L (alpha falls with w),
+  // and the alpha valid for every velocity up to it.
+  const double a0 = alpha_at(w_end);
+  double hi = std::min(ceil, brake_curve(w_end, a0, L));
+  double alpha = alpha_at(hi);
+  if (hi > brake_curve(w_end, alpha, L)) {
+    double lo = std::min(w_end, hi);
+    alpha = alpha_at(lo);
+    for (int it = 0; it < 12; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      const double am = alpha_at(mid);
+      if (mid <= brake_curve(w_end, am, L)) {
+        lo = mid;
+        alpha = am;
+      } else {
+        hi = mid;
+      }
+    }
+    hi = lo;
+  }
+  s.alpha = alpha;
+  s.w_start = hi;
+}
+
+// The envelope within a span for braking in discrete steps of T at alpha:
+// v^2 - alpha T v falls by exactly 2 alpha times the distance covered by
+// such a step, so the curve v = alpha T/2 + sqrt((w_end - alpha T/2)^2 +
+// 2 alpha (b - x)) is invariant under it (the continuous sqrt(w_end^2 +
+// 2 alpha d) would leave a discrete brake short of every stop).
+double Executor::brake_curve(double w_end, double alpha, double d) const noexcept {
+  const double h = 0.5 * alpha * T_;
+  const double e = std::max(0.0, w_end - h);
+  return h + std::sqrt(e * e + 2 * alpha * std::max(0.0, d));
+}
+
+double Executor::envelope_at(uint64_t k, double x) const noexcept {
+  const Span& s = span(k);
+  if (s.stop != StopKind::None) return 0;
+  const double d = std::max(0.0, s.b - x);
+  return std::min({ceiling(s), s.w_start, brake_curve(s.w_end, s.alpha, d)});
+}
+
+// Smallest envelope value over (z0, z1], starting the span search at k
+// (moved on to the span holding z1). The envelope falls within a span and
+// rises only at span starts, so each span's part is checked at its right
+// end; a stop inside is zero.
+double Executor::min_envelope(double z0, double z1, uint64_t& k) const noexcept {
+  if (z1 > final_end() + kLanding) return 0;
+  double m = kInf;
+  while (k < stail_) {
+    const Span& s = span(k);
+    if (s.stop != StopKind::None) {
+      if (s.a > z0 && s.a <= z1) return 0;
+      if (s.a > z1) break;
+      ++k;
+      continue;
+    }
+    if (s.b < z0 || (s.b <= z0 && z1 > z0)) {
+      ++k;
+      continue;
+    }
+    m = std::min(m, envelope_at(k, std::min(z1, s.b)));
+    if (s.b >= z1) break;
+    ++k;
+  }
+  return m;
+}
+
+// ---------------------------------------------------------------------------
+// The input
+
+// Whether, after a step to velocity v_new (acceleration a_new), the input
+// can still brake within the envelope: the fastest brake the history rule
+// allows (accelerations still in the window unwind first), at each span's
+// envelope acceleration, must stay under the envelope; once the window's
+// accelerations are all braking, the envelope guarantees the rest.
+bool Executor::safe(double v_new, double a_new) const noexcept {
+  if (v_new < 0) v_new = 0;
+  const double xn = x_ + v_new * T_;
+  if (step_active_ && xn > step_s_ + kLanding) return false;
+  uint64_t k = in_;
+  if (v_new > min_envelope(x_, xn, k) * (1 + 1e-12) + kVelEps) return false;
+  const int n = n_;
+  // Simulated step i (after this one) has a_{k-N} = the sample i+1 older
+  // than the newest stored one's N-th predecessor; the window's limits
+  // that still apply then are those of samples i+1 .. N-1 back plus the
+  // new one.
+  auto old_a = [&](int i) { return i == n - 1 ? a_new : ha_[ring(n - 2 - i)]; };
+  int last_pos = -1;
+  for (int i = 0; i < n; ++i) {
+    if (old_a(i) > 0) last_pos = i;
+  }
+  double cx = xn, cv = v_new;
+  for (int i = 0; i <= last_pos && cv > 0; ++i) {
+    double am = 0;
+    for (int j = i; j < n - 1; ++j) am = std::max(am, halpha_[ring(n - 2 - j)]);
+    const Span& s = span(k < stail_ ? k : stail_ - 1);
+    const double al = s.alpha;
+    am = std::max(am, al);
+    const double a = std::max(-al, old_a(i) - am);
+    double nv = cv + a * T_;
+    if (nv < 0) nv = 0;
+    const double nx = cx + nv * T_;
+    if (step_active_ && nx > step_s_ + kLanding) return false;
+    if (nv > min_envelope(cx, nx, k) * (1 + 1e-12) + kVelEps) return false;
+    cx = nx;
+    cv = nv;
+  }
+  if (cv > 0) {
+    if (step_active_) {
+      // Brake for the step's end with the smallest envelope acceleration
+      // up to it.
+      double al = kInf;
+      for (uint64_t q = k; q < stail_ && span(q).a <= step_s_; ++q) al = std::min(al, span(q).alpha);
+      if (!(al < kInf) || cv * cv > 2 * al * std::max(0.0, step_s_ - cx)) return false;
+    }
+    uint64_t kq = k;
+    if (cv > min_envelope(cx, cx, kq) * (1 + 1e-12) + kVelEps) {
+      // Exactly at cx: the envelope of the span holding it.
+      while (kq < stail_ && span(kq).stop == StopKind::None && span(kq).b < cx) ++kq;
+      if (kq >= stail_ || cv > envelope_at(kq, cx) * (1 + 1e-12) + kVelEps) return false;
+    }
+  }
+  return true;
+}
+
+void Executor::push_sample(double x, double v, double a, double commit, double alpha) noexcept {
+  hist_pos_ = (hist_pos_ + 1) % kRing;
+  hx_[hist_pos_] = x;
+  hv_[hist_pos_] = v;
+  ha_[hist_pos_] = a;
+  hcommit_[hist_pos_] = commit;
+  halpha_[hist_pos_] = alpha;
+}
+
+void Executor::plan_input(const CycleInputs& in) noexcept {
+  const int n = n_;
+  // The window after this step: the N-1 newest samples and this one; and
+  // the sample leaving it (a_{k-N}), whose limit still applies here.
+  double vwin = v_;
+  double cap = kInf;
+  double alpha_win = 0;
+  for (int i = 0; i < n; ++i) {
+    const int idx = ring(i);
+    if (i < n - 1) vwin = std::max(vwin, hv_[idx]);
+    cap = std::min(cap, hcommit_[idx]);
+    alpha_win = std::max(alpha_win, halpha_[idx]);
+  }
+  const double a_old = ha_[ring(n - 1)];
+  const Span& s = span(in_);
+  double target = std::min({s.vc, std::max(0.0, in.feed_scale) * s.feed, std::max(0.0, in.rapid_scale) * s.rapid});
+  if (in.max_velocity < 1e300) target = std::min(target, std::max(0.0, in.max_velocity) * piece(s.piece).inv_speed);
+  if (hold_ || aborting_) target = 0;
+  // This sample's limits. Its outputs lie between the oldest sample of
+  // the window and, ahead, what the input covers in T_f/2 at the velocity
+  // it commits to: braking commits to no faster than now (and its outputs
+  // to the window's velocity), speeding up to what the window may reach.
+  const double back = x_ - hx_[ring(n - 2 >= 0 ? n - 2 : 0)] + v_ * T_;
+  const uint64_t pc_idx = s.piece;
+  const double a_dn = accel_limit(pc_idx, x_ - back, x_ + v_ * (0.5 * tf_ + 2 * T_), vwin);
+  const double a_up1 = accel_limit(pc_idx, x_ - back, x_ + vwin * (0.5 * tf_ + 2 * T_), std::max(vwin, v_));
+  const double c_up = std::max(vwin, v_ + a_up1 * (tf_ + T_));
+  const double a_up = std::min(a_up1, accel_limit(pc_idx, x_ - back, x_ + c_up * (0.5 * tf_ + 2 * T_), c_up));
+  double lo = std::max(-a_dn, a_old - std::max(alpha_win, a_dn));
+  double hi = std::min(a_up, a_old + std::max(alpha_win, a_up));
+  lo = std::min(lo, 0.0);
+  hi = std::max(hi, 0.0);
+  hi = std::min(hi, (cap - v_) / T_);
+  if (hi < lo) hi = lo;
+  const double want = std::clamp((target - v_) / T_, lo, hi);
+  if (std::getenv("EXEC_DEBUG")) std::fprintf(stderr, "in %lu stail %lu x %.5f v %.4f target %.3f vc %.3f lo %.2f hi %.2f want %.2f a_up %.2f a_dn %.2f cap %.3f safe %d alpha %.2f wst %.3f wend %.3f span [%.4f %.4f] t0 %.2f t15 %.2f\n", (unsigned long)in_, (unsigned long)stail_, x_, v_, target, s.vc, lo, hi, want, a_up, a_dn, cap, (int)safe(v_ + want * T_, want), s.alpha, s.w_start, s.w_end, s.a, s.b, 0.0, 0.0);
+  double a = want;
+  if (!safe(v_ + want * T_, want)) {
+    if (!safe(v_ + lo * T_, lo)) {
+      if (std::getenv("EXEC_DEBUG4")) std::fprintf(stderr, "OVERRUN x %.6f v %.5f lo %.3f hi %.3f a_dn %.3f a_up %.3f a_old %.3f alpha_win %.3f span [%.5f %.5f] alpha %.3f W(x) %.4f\n", x_, v_, lo, hi, a_dn, a_up, a_old, alpha_win, s.a, s.b, s.alpha, envelope_at(in_, x_));
+      ++overruns_;
+      a = lo;
+    } else {
+      double l = lo, h = want;
+      for (int it = 0; it < 16; ++it) {
+        const double m = 0.5 * (l + h);
+        (safe(v_ + m * T_, m) ? l : h) = m;
+      }
+      a = l;
+    }
+  }
+  double vn = v_ + a * T_;
+  if (vn < 0) {
+    vn = 0;
+    a = -v_ / T_;
+  }
+  double xn = x_ + vn * T_;
+  // Land exactly on a stop (or the end of the spans) that is all but
+  // reached.
+  {
+    uint64_t k = in_;
+    while (k < stail_ && span(k).stop == StopKind::None && span(k).b < xn - kLanding) ++k;
+    double stop_at = final_end();
+    if (k < stail_ && span(k).stop != StopKind::None) stop_at = std::min(stop_at, span(k).a);
+    if (step_active_) stop_at = std::min(stop_at, step_s_);
+    // The remaining distance is within this step's reach (or it would pass
+    // the stop): land on it exactly, decelerating.
+    if (xn > stop_at - kLanding || (stop_at - x_ <= vn * T_ && stop_at - x_ >= 0)) {
+      xn = std::max(x_, stop_at);
+      vn = (xn - x_) / T_;
+      a = (vn - v_) / T_;
+    }
+  }
+  // What this sample's limit is valid for: later samples stay within it.
+  const double vmax = std::max(vwin, vn);
+  const double commit = a >= 0 ? c_up : std::min(vmax, v_);
+  push_sample(xn, vn, a, commit, a >= 0 ? a_up : a_dn);
+  x_ = xn;
+  v_ = vn;
+}
+
+void Executor::update_output() noexcept {
+  const int n = n_;
+  // Relative to the newest position: no drift from a running sum.
+  double sum = 0;
+  for (int i = 0; i < n; ++i) sum += hx_[ring(i)] - x_;
+  const double w = (x_ - hx_[ring(n)]) / tf_;
+  b_ = (w - w_) / T_;
+  w_ = w;
+  y_ = x_ + sum / n;
+  if (std::fabs(w_) < kVelEps) w_ = 0;
+}
+
+// The input moves on to the next span when it passes the end of its own;
+// at a stop it rests until the output has arrived, dwells, then passes it.
+void Executor::handle_stops() noexcept {
+  while (in_ < stail_) {
+    const Span& s = span(in_);
+    if (s.stop == StopKind::None) {
+      if (x_ >= s.b - kLanding && in_ + 1 < stail_) {
+        ++in_;
+        continue;
+      }
+      return;
+    }
+    if (v_ != 0 || x_ < s.a - kLanding || hold_ || aborting_ || !at_rest()) return;
+    if (s.stop == StopKind::Dwell) {
       if (!dwelling_) {
         dwelling_ = true;
-        dwell_left_ = p.dwell_s;
+        dwell_left_ = piece(s.piece).dwell_s;
       }
-      if (dwell_left_ > 0.5 * T) {
-        dwell_left_ -= T;
+      if (dwell_left_ > 0.5 * T_) {
+        dwell_left_ -= T_;
         return;
       }
       dwelling_ = false;
     }
-    completed_ += p.inputs_done;
-    ++cur_;
-    off_ = 0;
+    x_ = s.a;
+    ++in_;
   }
+}
+
+// The output's piece, and the inputs finished once it passes pieces.
+void Executor::advance_output() noexcept {
+  const uint64_t input_piece = in_ < stail_ ? span(in_).piece : ptail_;
+  while (out_ < ptail_ && out_ < input_piece) {
+    const Piece& p = piece(out_);
+    const bool passed = p.stop != StopKind::None ? (y_ >= p.s0 - kLanding)
+                                                  : (y_ >= p.s0 + p.length && out_ + 1 < ptail_ && piece(out_ + 1).s0 <= y_);
+    if (!passed) break;
+    completed_ += p.inputs_done;
+    ++out_;
+  }
+  // Everything done: the last piece (a stop) is passed too.
+  if (in_ == stail_ && pfin_ == ptail_ && out_ + 1 == ptail_ && at_rest()) {
+    completed_ += piece(out_).inputs_done;
+    ++out_;
+  }
+}
+
+void Executor::release() noexcept {
+  // Pieces behind the output, unless pieces still to be split may take
+  // data from them (within reach_) or a limit window holds them.
+  uint64_t keep = out_;
+  const double back = (pfin_ < ptail_ ? piece(pfin_).s0 : tail_s_) - 2 * reach_;
+  uint64_t k = store_.pieces.released();
+  while (k < keep && piece(k).s0 + piece(k).length < back) ++k;
+  keep = std::min(keep, k);
+  store_.pieces.release_upto(keep);
+  if (keep < ptail_) {
+    uint64_t seg = piece(keep).seg;
+    const uint64_t upto = std::min(ptail_, out_ + 1);
+    for (uint64_t q = keep; q < upto; ++q) seg = std::min({seg, piece(q).seg, piece(q).v_lo});
+    store_.segs.release_upto(seg);
+    store_.verts.release_upto(seg);
+  }
+  sfirst_ = std::max(sfirst_, in_);
 }
 
 void Executor::reset(const Pose& pose) noexcept {
   finish_abort();
-  v_ = 0;
-  a_ = 0;
+  clear_history(x_);
   pose_ = pose;
   speed_ = 0;
 }
 
 void Executor::finish_abort() noexcept {
-  for (uint64_t k = cur_; k < tail_; ++k) tree_.clear(slot(k));
-  cur_ = tail_;
-  off_ = 0;
-  store_.pieces.release_upto(cur_);
+  out_ = pfin_ = ptail_;
+  in_ = sfirst_ = stail_;
+  store_.pieces.release_upto(ptail_);
   store_.segs.release_upto(store_.segs.published());
   store_.verts.release_upto(store_.verts.published());
+  last_stop_ = UINT64_MAX;
   ++epoch_;
   abort_done_ = true;
   aborting_ = false;
   hold_ = false;
   step_active_ = false;
-  active_ = false;
   dwelling_ = false;
-  bp_cursor_ = -1;
 }
 
 void Executor::eval(uint64_t seq, double offset, Pose& out, double* speed) const noexcept {
@@ -899,53 +805,95 @@ void Executor::eval(uint64_t seq, double offset, Pose& out, double* speed) const
 }
 
 bool Executor::evaluate_at(double s, Pose& out) const noexcept {
-  if (cur_ >= tail_) return false;
-  const uint64_t k = piece_at(s);
-  const Piece& p = piece(k);
-  if (s < p.s0 - 1e-9 || s > p.s0 + p.length + 1e-9) return false;
-  eval(k, std::clamp(s - p.s0, 0.0, p.length), out, nullptr);
-  return true;
+  for (uint64_t k = out_; k < ptail_; ++k) {
+    const Piece& p = piece(k);
+    if (p.length > 0 && s >= p.s0 - 1e-9 && s <= p.s0 + p.length + 1e-9) {
+      eval(k, std::clamp(s - p.s0, 0.0, p.length), out, nullptr);
+      return true;
+    }
+    if (p.s0 > s) break;
+  }
+  return false;
 }
+
+double Executor::stop_distance() const noexcept {
+  if (at_rest()) return 0;
+  // The fastest brake the history allows, then the envelope's
+  // accelerations, until rest.
+  const int n = n_;
+  double cx = x_, cv = v_;
+  uint64_t k = in_;
+  for (int i = 0; cv > 0 && i < 10'000'000; ++i) {
+    while (k + 1 < stail_ && span(k).stop == StopKind::None && cx >= span(k).b) ++k;
+    const double al = (k < stail_ && span(k).stop == StopKind::None) ? span(k).alpha : a_top_;
+    double am = al;
+    for (int j = i; j < n; ++j) am = std::max(am, halpha_[ring(n - 1 - j)]);
+    const double old = i < n ? ha_[ring(n - 1 - i)] : -al;
+    const double a = std::max(-al, old - am);
+    cv = std::max(0.0, cv + a * T_);
+    cx += cv * T_;
+  }
+  return std::max(0.0, cx - y_);
+}
+
+// ---------------------------------------------------------------------------
 
 void Executor::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
   ingest();
-  backward_pass(kBackwardBudget);
-  if (!probe_tripped_ && in.probe_input && cur_ < tail_ && piece(cur_).probe && !aborting_) {
+  const double kf = std::max(0.0, in.feed_scale);
+  const double kr = std::max(0.0, in.rapid_scale);
+  if (kf != env_feed_ || kr != env_rapid_) {
+    env_feed_ = kf;
+    env_rapid_ = kr;
+    for (uint64_t k = stail_; k-- > in_;) envelope_span(k, (k + 1 >= stail_) ? 0.0 : span(k + 1).w_start);
+  }
+  if (!probe_tripped_ && in.probe_input && out_ < ptail_ && piece(out_).probe && !aborting_) {
     probe_tripped_ = true;
     probed_ = pose_;
     aborting_ = true;
   }
-  handle_rest();
-  const bool at_rest = v_ == 0 && a_ == 0;
-  if (cur_ < tail_ && !dwelling_) {
-    const bool blocked = at_rest && (hold_ || aborting_ || piece(cur_).stop != StopKind::None);
-    if (!blocked) plan_cycle(in);
+  handle_stops();
+  if (step_active_ && x_ >= step_s_ - kLanding && at_rest()) {
+    step_active_ = false;
+    hold_ = true;
   }
-  if (cur_ < tail_) eval(cur_, off_, pose_, &speed_);
-  // Release what is behind.
-  for (uint64_t k = store_.pieces.released(); k < cur_; ++k) tree_.clear(slot(k));
-  store_.pieces.release_upto(cur_);
-  if (cur_ < tail_) {
-    const Piece& p = piece(cur_);
-    const uint64_t keep = std::min(p.seg, p.v_lo);
-    store_.segs.release_upto(keep);
-    store_.verts.release_upto(keep);
+  const bool resting = in_ >= stail_ || span(in_).stop != StopKind::None || dwelling_;
+  if (!resting) {
+    plan_input(in);
+  } else {
+    // The window fills with the resting position.
+    push_sample(x_, 0, 0, kInf, 0);
+    v_ = 0;
   }
+  update_output();
+  if (aborting_ && at_rest()) finish_abort();
+  advance_output();
+  if (out_ < ptail_) {
+    const Piece& p = piece(out_);
+    if (p.length > 0) {
+      eval(out_, std::clamp(y_ - p.s0, 0.0, p.length), pose_, &speed_);
+    } else if (out_ > store_.pieces.released() && piece(out_ - 1).length > 0) {
+      eval(out_ - 1, piece(out_ - 1).length, pose_, &speed_);
+    }
+  }
+  release();
   out.position = pose_;
-  out.path_velocity = v_ * (cur_ < tail_ ? speed_ : 0.0);
-  out.path_acceleration = a_;
-  if (cur_ < tail_) {
-    const Piece& p = piece(cur_);
+  out.path_velocity = w_ * speed_;
+  out.path_acceleration = b_;
+  if (out_ < ptail_) {
+    const Piece& p = piece(out_);
     const SegmentRecord& sr = store_.segs.at(p.seg);
     out.line = sr.line;
     out.id = sr.id;
-    out.distance_to_go = std::max(0.0, sr.s0 + sr.curve.length - (p.s0 + off_));
+    out.distance_to_go = std::max(0.0, sr.s0 + sr.curve.length - y_);
     out.move_end = sr.curve.end;
   } else {
     out.distance_to_go = 0;
     out.move_end = pose_;
   }
   out.done = is_idle();
+  if (std::getenv("EXEC_DEBUG2")) for (uint64_t k = in_; k < stail_; ++k) std::fprintf(stderr, "  span %lu [%.12f %.12f] stop %d piece %lu\n", (unsigned long)k, span(k).a, span(k).b, (int)span(k).stop, (unsigned long)span(k).piece);
+  if (std::getenv("EXEC_DEBUG2")) std::fprintf(stderr, "in %lu stail %lu pfin %lu ptail %lu out %lu rest %d x %.12f y %.12f completed %lu\n", (unsigned long)in_, (unsigned long)stail_, (unsigned long)pfin_, (unsigned long)ptail_, (unsigned long)out_, (int)at_rest(), x_, y_, (unsigned long)completed_);
   out.probe_tripped = probe_tripped_;
   if (probe_tripped_) out.probed_position = probed_;
 }

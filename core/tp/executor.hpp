@@ -1,24 +1,30 @@
-// The servo-thread side of the planner: follows the published pieces with a
-// jerk-limited motion along the path parameter, one servo period at a time.
+// The servo-thread side of the planner: moves along the published pieces
+// one servo period at a time.
 //
-// Each cycle it takes the motion that speeds up toward the current piece's
-// ceiling unless that would leave a state from which some later ceiling
-// (within the braking horizon) can no longer be met; then it switches, at
-// the latest instant inside the cycle, to the shortest jerk-limited brake
-// for the binding ceiling and follows it exactly. The end of what has been
-// published is always a ceiling of zero, so the machine can always stop
-// within the planned distance. Ceilings of "barrier" pieces (tight corners,
-// passed at nearly constant speed) already include what lies beyond them
-// (a backward pass, bounded work per cycle), so the look-ahead walk stops at
-// the first barrier. Never allocates, never blocks, never throws.
+// Two stages on the path parameter s:
+//  - an *input* motion x_k with bounded acceleration (no jerk limit), chosen
+//    each cycle greedily toward the velocity ceilings and kept safe by a
+//    backward braking envelope (the machine can always stop inside what has
+//    been planned);
+//  - the *output* y_k = mean of the last N input positions, N T = T_f >=
+//    A / J: the moving average turns every acceleration step of the input
+//    into a ramp of jerk a / T_f, so the output is jerk-limited by
+//    construction (an S-curve is exactly an averaged trapezoid).
+// The output is what the machine follows. Its velocity, acceleration and
+// jerk on every axis follow from bounds the input keeps: each input
+// sample's acceleration is limited by what the path allows wherever the
+// outputs it influences can be (within half the distance the window spans),
+// and the velocity ceilings are spread ("eroded") over the same distance.
+// The executor splits the pieces into *spans* with constant input limits
+// for that (exact at the erosion boundaries).
+//
+// Never allocates after construction, never blocks, never throws.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 
-#include "core/tp/jerk_profile.hpp"
-#include "core/tp/limit_tree.hpp"
-#include "core/tp/path_builder.hpp"
 #include "core/tp/path_records.hpp"
 #include "core/tp/planner.hpp"
 
@@ -27,6 +33,9 @@ namespace cnc::tp {
 class Executor {
  public:
   Executor(const PlannerConfig& config, PathStore& store);
+  ~Executor();
+  Executor(const Executor&) = delete;
+  Executor& operator=(const Executor&) = delete;
 
   void set_config(const PlannerConfig& config) noexcept;
   void set_position(const Pose& pose) noexcept;
@@ -40,7 +49,7 @@ class Executor {
   void reset(const Pose& pose) noexcept;
   void clear_probe() noexcept { probe_tripped_ = false; }
 
-  bool is_paused() const noexcept { return hold_ && !aborting_; }
+  bool is_paused() const noexcept { return hold_ && !aborting_ && at_rest(); }
   // At rest with nothing published left to execute.
   bool is_idle() const noexcept;
   bool is_aborting() const noexcept { return aborting_; }
@@ -50,13 +59,18 @@ class Executor {
   bool take_abort_done(uint32_t& epoch) noexcept;
 
   // For the builder's flush policy and for tests.
-  bool is_moving() const noexcept { return v_ > 0 || a_ != 0; }
-  double path_position() const noexcept;
-  double path_velocity() const noexcept { return v_; }
-  double path_acceleration() const noexcept { return a_; }
+  bool is_moving() const noexcept { return !at_rest(); }
+  double path_position() const noexcept { return y_; }
+  double path_velocity() const noexcept { return w_; }
+  double path_acceleration() const noexcept { return b_; }
+  // From the output position to the end of what may be executed.
   double distance_to_tail() const noexcept;
-  double stop_distance(bool* crosses_barrier = nullptr) const noexcept;
+  // How far the output moves until it rests if the input brakes from now
+  // on (the output comes to rest where the input does).
+  double stop_distance() const noexcept;
+  // Cycles in which no safe choice was left (never expected).
   uint64_t overruns() const noexcept { return overruns_; }
+  int filter_length() const noexcept { return n_; }
 
   // Position on the smoothed path at global position s (tests: dense
   // evaluation of the path that is being executed). Only for s within the
@@ -64,68 +78,78 @@ class Executor {
   bool evaluate_at(double s, Pose& out) const noexcept;
 
  private:
-  struct Constraint {
-    double dist;   // from the current position to where the ceiling starts
-    double value;  // ceiling
-    double accel;  // tangential limits on the way there
-    double jerk;
-    uint64_t piece;
-    double jerk_after;  // jerk available just past the point (an arrival
-                        // still accelerating must level off with it)
-    bool tight;         // the value assumes braking may have to go on right
-                        // after the point: arrive no longer accelerating
-  };
-  struct Motion {
-    JerkProfile first;
-    double switch_t = 1e300;  // when `second` takes over
-    JerkProfile second;
-    PathState at(double t) const noexcept;
-  };
+  struct PieceData;
+  struct Span;
+  struct Rows;
 
+  void configure(const PlannerConfig& config) noexcept;
+  void clear_history(double x) noexcept;
   void ingest() noexcept;
-  void backward_pass(int budget) noexcept;
-  double barrier_ceiling(uint64_t b) const noexcept;
-  int collect(double x, const LimitTree::Query& q, Constraint* out, int max, double& boundary) const noexcept;
-  double approach_distance(const PathState& m, double moved, const Constraint& k) const noexcept;
-  double brake_target(const PathState& m, const Constraint& k) const noexcept;
-  bool brake_valid(const JerkProfile& p, double moved, int j, const Constraint* c, int n, double tol) const noexcept;
-  int find_brake(const PathState& m, double moved, const Constraint* c, int n, int prefer, double tol,
-                 JerkProfile& out) const noexcept;
-  JerkProfile choose_brake(const PathState& sw, const Constraint* c, int n, int binding, double& target_dist,
-                           double& target_value) const noexcept;
-  bool feasible(const PathState& m, double moved, const Constraint* c, int n, int* worst, double tol) const noexcept;
-  bool motion_ok(const Motion& mo, const Constraint* c, int n, double T, double tol) const noexcept;
-  void plan_cycle(const CycleInputs& in) noexcept;
-  double plan_step(const CycleInputs& in, double dt, bool split) noexcept;
-  void advance(const PathState& end) noexcept;
-  void handle_rest() noexcept;
+  void finalize() noexcept;
+  void make_spans(uint64_t p) noexcept;
+  void envelope_from(uint64_t last) noexcept;
+  void envelope_span(uint64_t k, double w_end) noexcept;
+  double accel_limit(uint64_t piece, double lo, double hi, double u) const noexcept;
+  double ceiling(const Span& sp) const noexcept;
+  double envelope_at(uint64_t k, double x) const noexcept;
+  double brake_curve(double w_end, double alpha, double d) const noexcept;
+  double min_envelope(double z0, double z1, uint64_t& k) const noexcept;
+  bool safe(double v_new, double a_new) const noexcept;
+  void plan_input(const CycleInputs& in) noexcept;
+  void push_sample(double x, double v, double a, double commit, double alpha) noexcept;
+  void update_output() noexcept;
+  void handle_stops() noexcept;
+  void advance_output() noexcept;
+  void release() noexcept;
   void finish_abort() noexcept;
-  void limits_between(uint64_t from, uint64_t to, double& accel, double& jerk) const noexcept;
-  uint64_t piece_at(double s) const noexcept;
   void eval(uint64_t piece, double offset, Pose& p, double* speed) const noexcept;
-  double current_ceiling(const LimitTree::Query& q) const noexcept;
+  bool at_rest() const noexcept;
+  double final_end() const noexcept;
+  int ring(int ago) const noexcept;
   const Piece& piece(uint64_t seq) const noexcept { return store_.pieces.at(seq); }
-  std::size_t slot(uint64_t seq) const noexcept { return seq & (tree_.size() - 1); }
+  PieceData& pdata(uint64_t seq) noexcept;
+  const PieceData& pdata(uint64_t seq) const noexcept;
+  Span& span(uint64_t seq) noexcept;
+  const Span& span(uint64_t seq) const noexcept;
 
   PlannerConfig cfg_;
-  LimitFloors floors_;
   PathStore& store_;
-  LimitTree tree_;
+  std::unique_ptr<PieceData[]> pdata_;
+  std::size_t pmask_ = 0;
+  std::unique_ptr<Span[]> spans_;
+  std::size_t smask_ = 0;
+  std::unique_ptr<Rows> rows_;
 
-  uint64_t cur_ = 0;    // executing piece
-  uint64_t tail_ = 0;   // one past the last ingested piece
-  double off_ = 0;      // position inside the executing piece
-  double v_ = 0;
-  double a_ = 0;
-  double tail_s_ = 0;   // global end of the ingested path
+  double T_ = 0.001;    // servo period
+  double tf_ = 0.02;    // averaging time T_f = N T
+  int n_ = 20;          // samples averaged
+  double v_bound_ = 0;  // largest path velocity any piece may have
+  double a_top_ = 0;    // largest input acceleration
+  double reach_ = 0;    // farthest a piece's data spreads
+
+  // Pieces: [out_, ptail_) ingested, [pfin_, ptail_) not yet split.
+  uint64_t out_ = 0;    // piece holding the output position
+  uint64_t pfin_ = 0;
+  uint64_t ptail_ = 0;
+  double tail_s_ = 0;   // end of the ingested path
+  uint64_t last_stop_ = UINT64_MAX;  // newest stop piece ingested
+  // Spans: [in_, stail_), the input is in span in_.
+  uint64_t sfirst_ = 0;  // oldest span kept
+  uint64_t in_ = 0;
+  uint64_t stail_ = 0;
   uint32_t epoch_ = 0;
 
-  bool active_ = false;  // following a brake profile
-  JerkProfile brake_;
-  double brake_t_ = 0;
-  double brake_target_s_ = 0;  // where the ceiling it brakes for starts
-  double brake_target_v_ = 0;  // and its value
-  double jerk_now_ = 0;        // jerk available over this step
+  // Input state and the last samples (ring, newest at hist_pos_).
+  double x_ = 0, v_ = 0;
+  std::unique_ptr<double[]> hx_, hv_, ha_, hcommit_, halpha_;
+  int hist_pos_ = 0;
+  // Output.
+  double y_ = 0, w_ = 0, b_ = 0;
+  Pose pose_;
+  double speed_ = 0;
+
+  // Overrides the envelope was computed for.
+  double env_feed_ = 1, env_rapid_ = 1;
 
   bool hold_ = false;
   bool step_active_ = false;
@@ -136,14 +160,8 @@ class Executor {
   Pose probed_;
   bool dwelling_ = false;
   double dwell_left_ = 0;
-
-  bool bp_dirty_ = false;
-  int64_t bp_cursor_ = -1;
   uint64_t completed_ = 0;
   uint64_t overruns_ = 0;
-  Pose pose_;
-  double speed_ = 0;
-  LimitTree::Query last_query_;
 };
 
 }  // namespace cnc::tp

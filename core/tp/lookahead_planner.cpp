@@ -58,7 +58,7 @@ LookaheadPlanner::LookaheadPlanner(const PlannerConfig& config, PlannerThreading
     : cfg_(config), threading_(threading) {
   check_config(config);
   const std::size_t segs = segments_capacity(config);
-  store_ = std::make_unique<PathStore>(segs, segs, 6 * segs);
+  store_ = std::make_unique<PathStore>(segs, segs, 12 * segs + 64);
   builder_ = std::make_unique<PathBuilder>(config, *store_);
   exec_ = std::make_unique<Executor>(config, *store_);
   if (threading_ == PlannerThreading::OwnThread) {

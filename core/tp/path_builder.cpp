@@ -6,98 +6,19 @@
 namespace cnc::tp {
 namespace {
 
-// Limits are planned this far inside the configured ones: room for rounding
-// and for the sampled bounds.
-constexpr double kLimitMargin = 0.999;
-// A piece reserves at least these shares of the smallest axis acceleration
-// and jerk for speeding up and braking along the path...
-constexpr double kRegularAccelShare = 0.5;
-constexpr double kRegularJerkShare = 0.5;
-// ...unless giving most of them to the curvature lets it go this much faster:
-// then it becomes a "barrier", passed at nearly constant speed.
-constexpr double kBarrierAccelShare = 0.05;
-constexpr double kBarrierJerkShare = 0.1;
-constexpr double kBarrierGain = 1.25;
-constexpr int kMaxMerge = 32;
+constexpr int kMaxMerge = 64;
 constexpr double kTangentEps = 1e-9;
-
-struct Row {
-  double c1, c2, c3, vmax, amax, jmax;
-};
-
-int build_rows(const AxisVec& c1, const AxisVec& c2, const AxisVec& c3, const PlannerConfig& cfg, Row* rows) {
-  int n = 0;
-  for (int i = 0; i < kNumAxes; ++i) {
-    if (!(cfg.axis_mask & (1u << i))) continue;
-    const auto k = static_cast<std::size_t>(i);
-    const AxisLimits& l = cfg.axes[k];
-    rows[n++] = {c1[k], c2[k], c3[k], l.max_velocity * kLimitMargin, l.max_acceleration * kLimitMargin,
-                 l.max_jerk * kLimitMargin};
-  }
-  auto xyz = [](const AxisVec& v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); };
-  const double lv = cfg.max_linear_velocity > 0 ? cfg.max_linear_velocity * kLimitMargin : kInf;
-  const double la = cfg.max_linear_acceleration > 0 ? cfg.max_linear_acceleration * kLimitMargin : kInf;
-  const double lj = cfg.max_linear_jerk > 0 ? cfg.max_linear_jerk * kLimitMargin : kInf;
-  if (lv < kInf || la < kInf || lj < kInf) rows[n++] = {xyz(c1), xyz(c2), xyz(c3), lv, la, lj};
-  return n;
-}
-
-struct Option {
-  double v = 0, a = 0, j = 0;
-};
-
-// Largest velocity V with tangential accel >= a_floor and jerk >= j_floor
-// available on every row for every speed up to V.
-Option solve_option(const Row* rows, int n, double v_geo, double a_floor, double j_floor) {
-  auto accel_at = [&](double v) {
-    double a = kInf;
-    for (int r = 0; r < n; ++r) {
-      const Row& w = rows[r];
-      const double rest = w.amax - w.c2 * v * v;
-      if (w.c1 > 1e-12) {
-        a = std::min(a, rest / w.c1);
-      } else if (rest < 0) {
-        a = -1;
-      }
-      if (w.c2 * v > 1e-300) a = std::min(a, (w.jmax - w.c3 * v * v * v - j_floor * w.c1) / (3 * w.c2 * v));
-    }
-    return a;
-  };
-  auto jerk_at = [&](double v, double a) {
-    double j = kInf;
-    for (int r = 0; r < n; ++r) {
-      const Row& w = rows[r];
-      const double rest = w.jmax - w.c3 * v * v * v - 3 * w.c2 * v * a;
-      if (w.c1 > 1e-12) {
-        j = std::min(j, rest / w.c1);
-      } else if (rest < 0) {
-        j = -1;
-      }
-    }
-    return j;
-  };
-  auto feasible = [&](double v) {
-    const double a = accel_at(v);
-    return a >= a_floor && jerk_at(v, a) >= j_floor * (1 - 1e-9);
-  };
-  Option o;
-  if (!feasible(0)) return o;
-  double lo = 0;
-  double hi = v_geo;
-  if (!std::isfinite(hi)) hi = 1e9;
-  if (feasible(hi)) {
-    lo = hi;
-  } else {
-    for (int it = 0; it < 60 && hi - lo > 1e-9 * (1 + hi); ++it) {
-      const double mid = 0.5 * (lo + hi);
-      (feasible(mid) ? lo : hi) = mid;
-    }
-  }
-  o.v = lo;
-  o.a = accel_at(lo);
-  o.j = jerk_at(lo, o.a);
-  return o;
-}
+// Windows are first sized for this share of the tolerance (the rest is room
+// for the neighbours' windows that reach the same points), then verified.
+constexpr double kTolShare = 0.9;
+// Largest rate at which the half widths of neighbouring windows may change
+// along the path: slowly varying windows give slowly varying curvature.
+constexpr double kWidthSlope = 0.5;
+// Naive-CAM merging (G64 Q) uses at most this share of G64 P: the rest is
+// for the corner smoothing (the total stays within P).
+constexpr double kMergeShare = 0.5;
+// Pieces a move may become (see emit_pieces).
+constexpr std::size_t kMaxPiecesPerMove = 40;
 
 double dist_point_segment(const Pose& p, const Pose& a, const Pose& b) {
   double ab2 = 0, t = 0;
@@ -131,44 +52,24 @@ double solve_half(double c1, double c2, double budget) {
 
 }  // namespace
 
-PieceLimits derive_limits(const AxisVec& c1, const AxisVec& c2, const AxisVec& c3, const PlannerConfig& cfg) noexcept {
-  Row rows[kNumAxes + 1];
-  const int n = build_rows(c1, c2, c3, cfg, rows);
-  double v_geo = kInf;
-  for (int r = 0; r < n; ++r) {
-    if (rows[r].c1 > 1e-12) v_geo = std::min(v_geo, rows[r].vmax / rows[r].c1);
-  }
-  const LimitFloors f = limit_floors(cfg);
-  const Option reg = solve_option(rows, n, v_geo, f.accel, f.jerk);
-  const Option bar = solve_option(rows, n, v_geo, f.accel * kBarrierAccelShare / kRegularAccelShare,
-                                  f.jerk * kBarrierJerkShare / kRegularJerkShare);
-  PieceLimits out;
-  if (reg.v > 0 && bar.v <= kBarrierGain * reg.v) {
-    out = {reg.v, reg.a, reg.j, false};
-  } else {
-    out = {bar.v, bar.a, bar.j, true};
-  }
-  // Never a dead end: keep something to crawl with.
-  const double a_min = f.accel * kBarrierAccelShare / kRegularAccelShare;
-  const double j_min = f.jerk * kBarrierJerkShare / kRegularJerkShare;
-  if (!(out.velocity > 1e-9)) out.velocity = 1e-9;
-  if (!(out.accel > 0)) out.accel = a_min;
-  if (!(out.jerk > 0)) out.jerk = j_min;
-  return out;
-}
-
-LimitFloors limit_floors(const PlannerConfig& cfg) noexcept {
-  double a = kInf, j = kInf;
+double ceiling_of(const PieceBounds& b, const PlannerConfig& cfg) noexcept {
+  double v = kInf;
+  auto row = [&](double c1, double c2, double c3, double vmax, double amax, double jmax) {
+    const double keep = 1 - kCeilingReserve;
+    if (c1 > 1e-12) v = std::min(v, vmax * kLimitMargin / c1);
+    if (c2 > 1e-300) v = std::min(v, std::sqrt(keep * amax * kLimitMargin / c2));
+    if (c3 > 1e-300) v = std::min(v, std::cbrt(keep * jmax * kLimitMargin / c3));
+  };
   for (int i = 0; i < kNumAxes; ++i) {
     if (!(cfg.axis_mask & (1u << i))) continue;
-    a = std::min(a, cfg.axes[static_cast<std::size_t>(i)].max_acceleration);
-    j = std::min(j, cfg.axes[static_cast<std::size_t>(i)].max_jerk);
+    const auto k = static_cast<std::size_t>(i);
+    const AxisLimits& l = cfg.axes[k];
+    row(b.c1[k], b.c2[k], b.c3[k], l.max_velocity, l.max_acceleration, l.max_jerk);
   }
-  if (cfg.max_linear_acceleration > 0) a = std::min(a, cfg.max_linear_acceleration);
-  if (cfg.max_linear_jerk > 0) j = std::min(j, cfg.max_linear_jerk);
-  if (!std::isfinite(a)) a = 0;
-  if (!std::isfinite(j)) j = 0;
-  return {a * kLimitMargin * kRegularAccelShare, j * kLimitMargin * kRegularJerkShare};
+  row(b.lin1, b.lin2, b.lin3, cfg.max_linear_velocity > 0 ? cfg.max_linear_velocity : kInf,
+      cfg.max_linear_acceleration > 0 ? cfg.max_linear_acceleration : kInf,
+      cfg.max_linear_jerk > 0 ? cfg.max_linear_jerk : kInf);
+  return std::isfinite(v) ? v : 1e12;
 }
 
 struct PathBuilder::Held {
@@ -179,11 +80,11 @@ struct PathBuilder::Held {
   double dwell = 0;         // with Junction::Stop: dwell at the stop
   uint32_t dwell_inputs = 0;
   Vertex vx;                // with Junction::Window
-  double c1 = 0, c2 = 0;    // deviation of the window: c1 d + c2 d^2
-  double d0 = -1;           // first half width (-1: not computed)
-  double w0 = 0;            // deviation with d0
-  double tol = kInf;        // tolerance over what the d0 window covers
-  bool final = false;
+  double dt_norm = 0;       // |tangent jump| at the corner
+  double m2 = 0;            // curved neighbours: bound of their second derivatives
+  double merge_err = 0;     // distance of the merged-away points from this chord
+  double tent = -1;         // tentative half width: an upper bound of the final one
+  bool final = false;       // vx.half is final
 };
 
 struct PathBuilder::Merge {
@@ -194,6 +95,7 @@ struct PathBuilder::Merge {
   Pose points[kMaxMerge];
   int count = 0;
   uint32_t inputs = 0;
+  double err = 0;  // largest distance of the points from the chord start-end
 };
 
 PathBuilder::PathBuilder(const PlannerConfig& config, PathStore& store)
@@ -230,7 +132,7 @@ bool PathBuilder::has_held() const noexcept { return merge_->active || first_unf
 void PathBuilder::reset(uint32_t epoch) noexcept {
   merge_->active = false;
   epoch_ = epoch;
-  first_seq_ = first_unfinal_ = next_seq_ = store_.segs.head();
+  first_seq_ = first_unfinal_ = next_seq_ = next_tent_ = next_final_ = store_.segs.head();
   // The vertex ring stays aligned with the segment ring.
   while (vertices_out_ < next_seq_) {
     Vertex& v = store_.verts.push_slot();
@@ -266,14 +168,19 @@ Result PathBuilder::add_line(const Pose& end, const SegmentParams& params) noexc
     m.params = params;
     m.count = 0;
     m.inputs = 1;
+    m.err = 0;
     position_ = end;
     return Result::Ok;
   }
-  const Result r = append(probe_curve, params, 1);
+  const Result r = append(probe_curve, params, 1, 0);
   if (r == Result::Ok) position_ = end;
   return r;
 }
 
+// G64 Q (LinuxCNC's naive-CAM detector): collinear-enough feed moves become
+// one chord while every merged end point stays within the tolerance of it.
+// The chord's error is charged to the corner smoothing's budget, so that the
+// path as a whole stays within G64 P.
 bool PathBuilder::try_merge(const Pose& end, const SegmentParams& p) noexcept {
   Merge& m = *merge_;
   if (!m.active || m.count >= kMaxMerge) return false;
@@ -283,10 +190,13 @@ bool PathBuilder::try_merge(const Pose& end, const SegmentParams& p) noexcept {
       p.naive_cam_tolerance != q.naive_cam_tolerance || p.feed_override_allowed != q.feed_override_allowed) {
     return false;
   }
-  const double tol = q.naive_cam_tolerance;
-  if (dist_point_segment(m.end, m.start, end) > tol) return false;
+  double tol = q.naive_cam_tolerance;
+  if (q.tolerance > 0) tol = std::min(tol, kMergeShare * q.tolerance);
+  double err = dist_point_segment(m.end, m.start, end);
+  if (err > tol) return false;
   for (int i = 0; i < m.count; ++i) {
-    if (dist_point_segment(m.points[i], m.start, end) > tol) return false;
+    err = std::max(err, dist_point_segment(m.points[i], m.start, end));
+    if (err > tol) return false;
   }
   // Must keep going forward along the chord.
   double dot = 0;
@@ -296,6 +206,7 @@ bool PathBuilder::try_merge(const Pose& end, const SegmentParams& p) noexcept {
   m.end = end;
   m.params.line = p.line;
   m.params.id = p.id;
+  m.err = err;
   ++m.inputs;
   position_ = end;
   return true;
@@ -306,7 +217,7 @@ void PathBuilder::flush_merge() noexcept {
   if (!m.active) return;
   m.active = false;
   Curve c;
-  if (make_line(m.start, m.end, cfg_.max_blend_half_width, c)) append(c, m.params, m.inputs);
+  if (make_line(m.start, m.end, cfg_.max_blend_half_width, c)) append(c, m.params, m.inputs, m.err);
 }
 
 Result PathBuilder::add_circle(const Pose& end, const std::array<double, 3>& center,
@@ -322,7 +233,7 @@ Result PathBuilder::add_circle(const Pose& end, const std::array<double, 3>& cen
   }
   if (!can_accept()) return Result::QueueFull;
   flush_merge();
-  const Result r = append(c, params, 1);
+  const Result r = append(c, params, 1, 0);
   if (r == Result::Ok) position_ = end;
   return r;
 }
@@ -366,10 +277,11 @@ Result PathBuilder::append_point(const SegmentParams& params) noexcept {
   SegmentParams p = params;
   p.type = MotionType::Dwell;
   p.term = TermCond::ExactStop;
-  return append(c, p, 0);
+  return append(c, p, 0, 0);
 }
 
-Result PathBuilder::append(const Curve& curve, const SegmentParams& params, uint32_t inputs) noexcept {
+Result PathBuilder::append(const Curve& curve, const SegmentParams& params, uint32_t inputs,
+                           double merge_err) noexcept {
   if (!store_.segs.has_room()) return Result::QueueFull;
   const uint64_t seq = next_seq_;
   SegmentRecord& out = store_.segs.push_slot();
@@ -385,14 +297,13 @@ Result PathBuilder::append(const Curve& curve, const SegmentParams& params, uint
   h.rec = out;
   h.params = params;
   h.inputs = inputs;
+  h.merge_err = merge_err;
   next_seq_ = seq + 1;
   s_end_ += curve.length;
   if (seq > first_unfinal_) {
     Held& prev = held(seq - 1);
     if (prev.junction == Junction::Unknown) compute_junction(seq - 1);
   }
-  // Keep only the history the windows can still reach.
-  while (first_seq_ + static_cast<uint64_t>(span_) + 2 < first_unfinal_) ++first_seq_;
   finalize(false);
   return Result::Ok;
 }
@@ -433,47 +344,115 @@ void PathBuilder::compute_junction(uint64_t j) noexcept {
   a.vx.curved = a.rec.curve.is_curved() || b.rec.curve.is_curved();
   a.vx.seg_in = j;
   a.vx.epoch = epoch_;
-  a.c1 = kernel::kDeviationPerHalfWidth * ndt;
-  a.c2 = 0;
+  a.dt_norm = ndt;
+  a.m2 = 0;
   if (a.vx.curved) {
     AxisVec m2{};
     for (std::size_t k = 0; k < m2.size(); ++k) m2[k] = a.rec.curve.bound2[k] + b.rec.curve.bound2[k];
-    a.c2 = 0.25 * norm(m2);
+    a.m2 = norm(m2);
   }
-  a.d0 = -1;
+  a.tent = -1;
   a.final = false;
 }
 
+// What the smoothing may use on segment `seq`: its G64 P less the error of
+// its naive-CAM chord (infinite for G64 without P).
 double PathBuilder::tolerance_of(uint64_t seq) const noexcept {
-  const double t = held(seq).params.tolerance;
-  return t > 0 ? t : kInf;
+  const Held& h = held(seq);
+  const double t = h.params.tolerance;
+  if (!(t > 0)) return kInf;
+  return std::max(0.0, t - h.merge_err);
 }
 
-// Two segments lie in one run when no stop separates them.
-bool PathBuilder::same_run(uint64_t a, uint64_t b) const noexcept {
-  for (uint64_t k = std::min(a, b); k < std::max(a, b); ++k) {
-    if (held(k).junction == Junction::Stop || held(k).junction == Junction::Unknown) return false;
+// The vertex n after j, or the first stop before it: windows never cross a
+// stop, so nothing beyond it interacts with j.
+uint64_t PathBuilder::horizon(uint64_t j, uint64_t n) const noexcept {
+  for (uint64_t k = j; k < j + n && k < next_seq_; ++k) {
+    if (held(k).junction == Junction::Stop) return k;
   }
-  return true;
+  return j + n;
 }
 
-double PathBuilder::initial_half(uint64_t j) noexcept {
+double PathBuilder::tolerance_at(double s, uint64_t near) const noexcept {
+  uint64_t k = near;
+  while (k > first_seq_ && held(k).rec.s0 > s) --k;
+  while (k + 1 < next_seq_ && held(k).rec.s0 + held(k).rec.curve.length < s) ++k;
+  return tolerance_of(k);
+}
+
+// Sum over the windows that cover s (vertices [lo, hi)) of each corner's
+// correction size: a bound of the distance between the smoothed and the
+// programmed path at s (exact when the corrections point the same way, as
+// on a curve given as a polyline). Final windows count with their final
+// width, the others with their tentative one (an upper bound).
+double PathBuilder::deviation_bound(double s, uint64_t lo, uint64_t hi, double* second) const noexcept {
+  double sum = 0;
+  double sec = 0;
+  for (uint64_t k = lo; k < hi; ++k) {
+    const Held& o = held(k);
+    if (o.junction != Junction::Window) continue;
+    const double d = o.final ? o.vx.half : o.tent;
+    if (!(d > 0) || std::fabs(s - o.vx.s) >= d) continue;
+    double sk = 0;
+    sum += correction_norm_at(o.dt_norm, o.m2, d, s - o.vx.s, &sk);
+    sec += sk;
+  }
+  if (second) *second = sec;
+  return sum;
+}
+
+// Deviation at vertex j if every corner near it had half width d (the
+// first estimate of how wide a window a dense run of corners allows).
+double PathBuilder::dense_deviation(uint64_t j, double d) const noexcept {
+  const Held& h = held(j);
+  double sum = correction_norm_at(h.dt_norm, h.m2, d, 0);
+  for (uint64_t k = j + 1; k < next_seq_; ++k) {
+    const Held& o = held(k - 1);
+    if (o.junction == Junction::Stop || o.junction == Junction::Unknown) break;
+    if (held(k).junction == Junction::Unknown) break;
+    if (held(k).junction != Junction::Window) {
+      if (held(k).junction == Junction::Stop) break;
+      continue;
+    }
+    const double x = held(k).vx.s - h.vx.s;
+    if (x >= d) break;
+    sum += correction_norm_at(held(k).dt_norm, held(k).m2, d, x);
+  }
+  for (uint64_t k = j; k > first_seq_;) {
+    --k;
+    const Held& o = held(k);
+    if (o.junction == Junction::Stop) break;
+    if (o.junction != Junction::Window) continue;
+    const double x = h.vx.s - o.vx.s;
+    if (x >= d) break;
+    sum += correction_norm_at(o.dt_norm, o.m2, d, x);
+  }
+  return sum;
+}
+
+// First, tentative width of corner j's window: as wide as the room around
+// it allows (at most `span` moves and max_blend_half_width each way, never
+// across a stop nor over moves with a tighter tolerance), within the
+// tolerance if the corners nearby were as wide, and varying slowly from
+// one corner to the next. Later steps only ever make it narrower.
+void PathBuilder::tentative_half(uint64_t j) noexcept {
   Held& h = held(j);
-  if (h.d0 >= 0) return h.d0;
+  h.tent = 0;
+  if (h.junction != Junction::Window) return;
   const uint64_t span = static_cast<uint64_t>(span_);
-  // The corner's own G64 P bounds its window (LinuxCNC: the termination of
-  // the move that ends at the corner decides how the corner is blended).
-  const double tol = tolerance_of(j);
-  // Geometric room: at most `span` segments back and forward, within the
-  // run, and beyond the two neighbours only over moves whose tolerance is
-  // not tighter than this corner's.
+  const double tol = std::min(tolerance_of(j), tolerance_of(j + 1));
+  const double raw = held(j).params.tolerance > 0 ? held(j).params.tolerance : kInf;
+  auto tighter = [&](uint64_t k) {
+    const double t = held(k).params.tolerance;
+    return (t > 0 ? t : kInf) < raw;
+  };
   double back = 0;
   for (uint64_t k = j;; --k) {
     back += held(k).rec.curve.length;
     if (k == first_seq_ || k + span <= j + 1) break;
     const Held& prev = held(k - 1);
     if (prev.junction == Junction::Stop || prev.junction == Junction::Unknown) break;
-    if (tolerance_of(k - 1) < tol) break;
+    if (tighter(k - 1)) break;
   }
   double fwd = 0;
   for (uint64_t k = j + 1; k < next_seq_; ++k) {
@@ -481,71 +460,119 @@ double PathBuilder::initial_half(uint64_t j) noexcept {
     if (k >= j + span) break;
     const Junction jk = held(k).junction;
     if (jk == Junction::Stop || jk == Junction::Unknown) break;
-    if (k + 1 < next_seq_ && tolerance_of(k + 1) < tol) break;
+    if (k + 1 < next_seq_ && tighter(k + 1)) break;
   }
   double d = std::min({back, fwd, cfg_.max_blend_half_width > 0 ? cfg_.max_blend_half_width : kInf});
   if (!(tol < kInf)) {
     // G64 without P: as large as the two moves allow, like LinuxCNC's blends.
     d = std::min({d, 0.5 * held(j).rec.curve.length, 0.5 * held(j + 1).rec.curve.length});
-  }
-  d = std::min(d, solve_half(h.c1, h.c2, tol));
-  // Dense corners (CAM polylines): share the budget with the windows nearby.
-  for (int pass = 0; pass < 3 && tol < kInf; ++pass) {
-    double s1 = 0, s2 = 0;
-    const uint64_t lo = j >= first_seq_ + 2 * span ? j - 2 * span : first_seq_;
-    const uint64_t hi = std::min(j + 2 * span, next_seq_ - 1);
-    for (uint64_t i = lo; i < hi; ++i) {
-      const Held& o = held(i);
-      if (o.junction != Junction::Window || std::fabs(o.vx.s - h.vx.s) >= 2 * d) continue;
-      if (i != j && !same_run(i, j)) continue;
-      s1 += o.c1;
-      s2 += o.c2;
+  } else {
+    const double budget = kTolShare * tol;
+    d = std::min(d, solve_half(kernel::kDeviationPerHalfWidth * h.dt_norm, 0.25 * h.m2, budget));
+    if (d > 0 && dense_deviation(j, d) > budget) {
+      double lo = 0, hi = d;
+      for (int it = 0; it < 14; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (dense_deviation(j, mid) <= budget ? lo : hi) = mid;
+      }
+      d = lo;
     }
-    const double dn = solve_half(s1, s2, tol);
-    if (dn >= d) break;
-    d = dn;
   }
-  if (!std::isfinite(d)) d = 0;
-  h.d0 = d;
-  h.w0 = h.c1 * d + h.c2 * d * d;
-  h.tol = tol;
-  return d;
+  if (!std::isfinite(d) || d < 0) d = 0;
+  // Slowly varying widths: |d_j - d_k| <= kWidthSlope |s_j - s_k|, against
+  // the nearest earlier corner; earlier tentative widths come down to match.
+  for (uint64_t k = j; k > first_seq_;) {
+    --k;
+    const Held& o = held(k);
+    if (o.junction == Junction::Stop) break;
+    if (o.junction != Junction::Window) continue;
+    const double dk = o.final ? o.vx.half : o.tent;
+    d = std::min(d, dk + kWidthSlope * (h.vx.s - o.vx.s));
+    break;
+  }
+  h.tent = d;
+  for (uint64_t k = j; k > first_seq_;) {
+    --k;
+    Held& o = held(k);
+    if (o.junction == Junction::Stop || o.final) break;
+    if (o.junction != Junction::Window) continue;
+    const double cap = d + kWidthSlope * (h.vx.s - o.vx.s);
+    if (o.tent <= cap) break;
+    o.tent = cap;
+  }
 }
 
+// Makes corner j's window final. Every point its window covers is checked
+// (samples every d/8 plus a margin from the second-derivative bound)
+// against the tolerance there, with the later windows at their tentative
+// widths; where the bound exceeds it, this window and the later ones
+// covering that point shrink. Widths only ever shrink and every correction
+// grows with its width, so what was checked stays true; every point a
+// window covers is checked when the last of the windows covering it
+// becomes final.
 void PathBuilder::final_half(uint64_t j) noexcept {
   Held& h = held(j);
-  if (h.final) return;
   h.final = true;
-  if (h.junction != Junction::Window) {
+  if (h.junction != Junction::Window || !(h.tent > 0)) {
     h.vx.half = 0;
+    h.tent = 0;
     return;
   }
-  const double dj = initial_half(j);
-  double cover = 0;
   const uint64_t span = static_cast<uint64_t>(span_);
-  const uint64_t lo = j >= first_seq_ + 2 * span ? j - 2 * span : first_seq_;
-  const uint64_t hi = std::min(j + 2 * span + 1, next_seq_ - 1);
-  for (uint64_t i = lo; i < hi; ++i) {
-    const Held& o = held(i);
-    if (o.junction != Junction::Window) continue;
-    if (i != j && !same_run(i, j)) continue;
-    const double di = i == j ? dj : initial_half(i);
-    if (std::fabs(o.vx.s - h.vx.s) < di + dj) cover += o.w0;
+  // Corners whose windows may share points with this one: the same run,
+  // within 2 span moves.
+  uint64_t lo = j;
+  while (lo > first_seq_ && lo + 2 * span > j && held(lo - 1).junction != Junction::Stop) --lo;
+  uint64_t hi = j + 1;
+  while (hi < next_tent_ && hi <= j + 2 * span && held(hi - 1).junction != Junction::Stop) ++hi;
+  const double s_j = h.vx.s;
+  h.final = false;  // counts with h.tent while being checked
+  for (int it = 0; it < 24; ++it) {
+    const double d = h.tent;
+    const double a = s_j - d;
+    const double b = s_j + d;
+    if (!(b > a) || !(d > 1e-12)) break;
+    // One bound of the second derivative over [a, b]: the sum over the
+    // windows that reach it.
+    double sec = 0;
+    for (uint64_t k = lo; k < hi; ++k) {
+      const Held& o = held(k);
+      if (o.junction != Junction::Window) continue;
+      const double dk = o.final ? o.vx.half : o.tent;
+      if (!(dk > 0) || o.vx.s + dk <= a || o.vx.s - dk >= b) continue;
+      double sk = 0;
+      correction_norm_at(o.dt_norm, o.m2, dk, dk, &sk);
+      sec += sk;
+    }
+    const int n = std::clamp(static_cast<int>(std::ceil((b - a) / (d / 8))), 1, 64);
+    const double step = (b - a) / n;
+    const double margin = step * step / 8 * sec;
+    double worst = 1;
+    double s_worst = s_j;
+    for (int i = 0; i <= n; ++i) {
+      const double x = a + step * i;
+      const double tol = tolerance_at(x, j);
+      if (!(tol < kInf)) continue;
+      const double dev = deviation_bound(x, lo, hi, nullptr) + margin;
+      const double ratio = tol > 0 ? dev / tol : kInf;
+      if (ratio > worst) {
+        worst = ratio;
+        s_worst = x;
+      }
+    }
+    if (worst <= 1) break;
+    const double f = std::isfinite(worst) ? 0.97 / worst : 0.0;
+    h.tent *= f;
+    for (uint64_t k = j + 1; k < hi; ++k) {
+      Held& o = held(k);
+      if (o.junction == Junction::Window && !o.final && std::fabs(s_worst - o.vx.s) < o.tent) o.tent *= f;
+    }
   }
-  const double f = cover > h.tol ? h.tol / cover : 1.0;
-  // Never sharp: a corner squeezed by its neighbours keeps a tiny window
-  // (passed at a crawl, in a negligible time) rather than a kink.
-  h.vx.half = std::max(dj * f * 0.999, 1e-9);
-}
-
-bool PathBuilder::ready(uint64_t m) const noexcept {
-  const uint64_t need = m + 5 * static_cast<uint64_t>(span_) + 1;
-  for (uint64_t k = m; k < next_seq_ && k <= need; ++k) {
-    const Junction jk = held(k).junction;
-    if (jk == Junction::Stop) return true;
-    if (jk == Junction::Unknown) return false;
-  }
-  return next_seq_ > need;
+  h.final = true;
+  // Never sharp: a corner squeezed to nothing keeps a tiny window (passed
+  // at a crawl, in a negligible time) rather than a kink.
+  h.vx.half = std::max(h.tent, 1e-9);
+  h.tent = h.vx.half;
 }
 
 bool PathBuilder::emit_vertices_upto(uint64_t j) noexcept {
@@ -554,7 +581,6 @@ bool PathBuilder::emit_vertices_upto(uint64_t j) noexcept {
     const uint64_t k = vertices_out_;
     Vertex& out = store_.verts.push_slot();
     if (k >= first_seq_ && k < next_seq_ && held(k).junction == Junction::Window) {
-      final_half(k);
       out = held(k).vx;
     } else {
       out = Vertex{};
@@ -566,25 +592,46 @@ bool PathBuilder::emit_vertices_upto(uint64_t j) noexcept {
   return true;
 }
 
+// Three stages run as far as what is known allows: a corner gets its
+// tentative window once `span` moves after it are known (or a stop), its
+// final window once the tentative windows of the 2 span corners after it
+// are known, and a move's pieces go out once the windows that may reach it
+// are final.
 void PathBuilder::finalize(bool flushing) noexcept {
-  bool any = false;
-  while (first_unfinal_ < next_seq_) {
-    const uint64_t m = first_unfinal_;
-    if (!flushing && !ready(m)) break;
-    // Vertices whose windows may reach into m, up to the end of the run.
-    uint64_t last = m;
-    for (uint64_t k = m; k < next_seq_ && k < m + static_cast<uint64_t>(span_); ++k) {
-      last = k;
+  const uint64_t span = static_cast<uint64_t>(span_);
+  auto room_known = [&](uint64_t j) {
+    for (uint64_t k = j + 1; k <= j + span; ++k) {
+      if (k >= next_seq_) return false;
       const Junction jk = held(k).junction;
-      if (jk == Junction::Stop || jk == Junction::Unknown) break;
+      if (jk == Junction::Stop) return true;
+      if (jk == Junction::Unknown) return false;
     }
-    if (!store_.pieces.has_room(8)) break;
-    if (!emit_vertices_upto(last)) break;
+    return true;
+  };
+  while (next_tent_ < next_seq_) {
+    const uint64_t j = next_tent_;
+    if (held(j).junction == Junction::Unknown) break;
+    if (!flushing && held(j).junction == Junction::Window && !room_known(j)) break;
+    tentative_half(j);
+    ++next_tent_;
+  }
+  while (next_final_ < next_tent_) {
+    const uint64_t j = next_final_;
+    if (horizon(j, 2 * span + 1) >= next_tent_) break;
+    final_half(j);
+    ++next_final_;
+  }
+  bool any = false;
+  while (first_unfinal_ < next_final_) {
+    const uint64_t m = first_unfinal_;
+    if (horizon(m, span + 1) >= next_final_) break;
+    if (!store_.pieces.has_room(kMaxPiecesPerMove)) break;
+    if (!emit_vertices_upto(std::min(m + span, next_final_ - 1))) break;
     if (!emit_pieces(m)) break;
     ++first_unfinal_;
     ++built_;
     any = true;
-    while (first_seq_ + static_cast<uint64_t>(span_) + 2 < first_unfinal_) ++first_seq_;
+    while (first_seq_ + 2 * span + 2 < first_unfinal_) ++first_seq_;
   }
   if (any) {
     store_.verts.publish();
@@ -600,32 +647,59 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
   // Windows that may touch this segment.
   const uint64_t vlo = m >= first_seq_ + span + 1 ? m - span - 1 : first_seq_;
   const uint64_t vhi = std::min(m + span + 1, next_seq_);
-  double cuts[8];
-  int nc = 0;
-  cuts[nc++] = 0;
+  // Pieces: the parts of the move that no window covers keep the move's
+  // own limits; the covered parts are cut every half of the narrowest
+  // window there, so that each piece's limits describe its own stretch.
+  constexpr int kMaxCuts = static_cast<int>(kMaxPiecesPerMove) + 1;
+  double pts[kMaxCuts];
+  int np = 0;
+  pts[np++] = 0;
   if (len > 0) {
-    if (m > first_seq_ && held(m - 1).junction == Junction::Window) {
-      const double d = held(m - 1).vx.half;
-      if (d > 0) {
-        cuts[nc++] = 0.5 * d;
-        cuts[nc++] = d;
+    // The union of the windows on [0, len], as sorted disjoint intervals.
+    struct Span {
+      double a, b, d;
+    };
+    Span spans[4 * 32 + 8];
+    int ns = 0;
+    for (uint64_t i = vlo; i < vhi; ++i) {
+      const Held& o = held(i);
+      if (o.junction != Junction::Window || !(o.vx.half > 0)) continue;
+      const double a = std::max(0.0, o.vx.s - o.vx.half - h.rec.s0);
+      const double b = std::min(len, o.vx.s + o.vx.half - h.rec.s0);
+      if (b > a && ns < static_cast<int>(std::size(spans))) spans[ns++] = {a, b, o.vx.half};
+    }
+    std::sort(spans, spans + ns, [](const Span& x, const Span& y) { return x.a < y.a; });
+    int nm = 0;
+    for (int i = 0; i < ns; ++i) {
+      if (nm > 0 && spans[i].a <= spans[nm - 1].b) {
+        spans[nm - 1].b = std::max(spans[nm - 1].b, spans[i].b);
+        spans[nm - 1].d = std::min(spans[nm - 1].d, spans[i].d);
+      } else {
+        spans[nm++] = spans[i];
       }
     }
-    if (h.junction == Junction::Window && h.vx.half > 0) {
-      cuts[nc++] = len - h.vx.half;
-      cuts[nc++] = len - 0.5 * h.vx.half;
+    // Cuts per covered stretch, within the budget of pieces per move.
+    int budget = kMaxCuts - 2 - 2 * nm;
+    for (int i = 0; i < nm; ++i) {
+      const Span& sp = spans[i];
+      pts[np++] = sp.a;
+      const int want = static_cast<int>(std::ceil((sp.b - sp.a) / (0.5 * sp.d)));
+      const int n = std::clamp(want, 1, std::max(1, budget / std::max(1, nm - i)));
+      budget -= n - 1;
+      for (int k = 1; k < n; ++k) pts[np++] = sp.a + (sp.b - sp.a) * k / n;
+      pts[np++] = sp.b;
     }
+    pts[np++] = len;
+    std::sort(pts, pts + np);
+    int w = 0;
+    const double gap = 1e-9 * std::max(1.0, len);
+    for (int i = 0; i < np; ++i) {
+      const double c = std::clamp(pts[i], 0.0, len);
+      if (w == 0 || c - pts[w - 1] > gap) pts[w++] = c;
+    }
+    np = w;
+    if (np >= 2) pts[np - 1] = len;
   }
-  cuts[nc++] = len;
-  std::sort(cuts, cuts + nc);
-  double pts[8];
-  int np = 0;
-  const double gap = 1e-9 * std::max(1.0, len);
-  for (int i = 0; i < nc; ++i) {
-    const double c = std::clamp(cuts[i], 0.0, len);
-    if (np == 0 || c - pts[np - 1] > gap) pts[np++] = c;
-  }
-  if (np >= 2) pts[np - 1] = len;
   const int pieces = len > 0 ? np - 1 : 0;
   for (int p = 0; p < pieces; ++p) {
     const double a = pts[p];
@@ -641,8 +715,11 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
     AxisVec b1 = curve.bound1;
     AxisVec b2 = curve.bound2;
     AxisVec b3 = curve.bound3;
+    AxisVec b4{};
     uint64_t tlo = m, thi = m;
     bool any = false;
+    bool curved = curve.is_curved();
+    double d_min = kInf;
     for (uint64_t i = vlo; i < vhi; ++i) {
       const Held& o = held(i);
       if (o.junction != Junction::Window || !(o.vx.half > 0)) continue;
@@ -650,15 +727,21 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
       if (!any) tlo = i;
       thi = i + 1;
       any = true;
-      add_correction_bounds(o.vx, ga - o.vx.s, gb - o.vx.s, held(i).rec.curve, held(i + 1).rec.curve, b1, b2, b3);
+      curved = curved || o.vx.curved;
+      d_min = std::min(d_min, o.vx.half);
+      add_correction_bounds(o.vx, ga - o.vx.s, gb - o.vx.s, held(i).rec.curve, held(i + 1).rec.curve, b1, b2, b3,
+                            &b4);
     }
     pc.v_lo = tlo;
     pc.v_hi = thi;
-    // First derivative: analytic on a bare curve, else sampled plus the
-    // Lipschitz margin from the second-derivative bound.
+    // Derivatives: a bare curve has exact bounds; inside corner windows the
+    // corrections of neighbouring corners partly cancel (a polyline along a
+    // curve, a zig-zag), so the sums are sampled densely and the next
+    // derivative's bound covers what lies between samples.
     AxisVec c1 = curve.bound1;
+    AxisVec c2 = b2;
+    AxisVec c3 = b3;
     double speed_max = 1;
-    const double gn = group_norm(b2, curve.group);
     if (curve.kind == CurveKind::Helix && !any) {
       // Bare helix (no corner window here): exact. dP/ds = dr e + rho w f +
       // dh n + rate with e, f, n orthonormal (e, f rotating in the plane),
@@ -671,46 +754,61 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
       AxisVec d1{};
       for (std::size_t k = 0; k < d1.size(); ++k) {
         if (k < 3) {
-          const double m = std::hypot(curve.u[k], curve.v[k]);
-          c1[k] = std::min(b1[k], tang * m + std::fabs(curve.dh * curve.n[k]));
+          const double mk = std::hypot(curve.u[k], curve.v[k]);
+          c1[k] = std::min(b1[k], tang * mk + std::fabs(curve.dh * curve.n[k]));
         }
         d1[k] = k < 3 ? 0.0 : curve.rate[k];
       }
       // The helix part always belongs to the XYZ group; other groups' rates
       // are constant.
       speed_max = curve.group == LengthGroup::Xyz ? std::hypot(tang, curve.dh) : group_norm(d1, curve.group);
-    } else if (curve.kind == CurveKind::Helix || any) {
-      speed_max = 0;
-      AxisVec sampled{};
-      const double xs[3] = {a, 0.5 * (a + b), b};
-      for (double x : xs) {
-        AxisVec pos, d1;
-        curve.eval(x, pos, &d1);
-        for (uint64_t i = tlo; i < thi; ++i) {
-          const Held& o = held(i);
+    } else if (any) {
+      const double step_max = curved ? 0.25 * (b - a) : d_min / 16;
+      const int n = std::clamp(static_cast<int>(std::ceil((b - a) / step_max)), 2, 48);
+      const double step = (b - a) / n;
+      AxisVec m1{}, m2{}, m3{};
+      double speed = 0;
+      for (int i = 0; i <= n; ++i) {
+        const double x = a + step * i;
+        AxisVec pos, d1, d2, d3;
+        curve.eval(x, pos, &d1, &d2, &d3);
+        for (uint64_t k = tlo; k < thi; ++k) {
+          const Held& o = held(k);
           if (o.junction != Junction::Window || !(o.vx.half > 0)) continue;
           const double dx = h.rec.s0 + x - o.vx.s;
           if (std::fabs(dx) >= o.vx.half) continue;
-          add_correction(o.vx, dx, m > i, held(i).rec.curve, held(i + 1).rec.curve, pos, &d1, nullptr, nullptr);
+          add_correction(o.vx, dx, m > k, held(k).rec.curve, held(k + 1).rec.curve, pos, &d1, &d2, &d3);
         }
-        for (std::size_t k = 0; k < d1.size(); ++k) sampled[k] = std::max(sampled[k], std::fabs(d1[k]));
-        speed_max = std::max(speed_max, group_norm(d1, curve.group));
+        for (std::size_t k = 0; k < d1.size(); ++k) {
+          m1[k] = std::max(m1[k], std::fabs(d1[k]));
+          m2[k] = std::max(m2[k], std::fabs(d2[k]));
+          m3[k] = std::max(m3[k], std::fabs(d3[k]));
+        }
+        speed = std::max(speed, group_norm(d1, curve.group));
       }
-      const double margin = 0.25 * (b - a);
-      for (std::size_t k = 0; k < c1.size(); ++k) c1[k] = std::min(b1[k], sampled[k] + b2[k] * margin);
-      speed_max = std::min(speed_max + gn * margin, group_norm(b1, curve.group));
+      const double half_step = 0.5 * step;
+      for (std::size_t k = 0; k < c1.size(); ++k) {
+        c1[k] = std::min(b1[k], m1[k] + b2[k] * half_step);
+        if (!curved) {
+          c2[k] = std::min(b2[k], m2[k] + b3[k] * half_step);
+          c3[k] = std::min(b3[k], m3[k] + b4[k] * half_step);
+        }
+      }
+      speed_max = std::min(speed + group_norm(b2, curve.group) * half_step, group_norm(b1, curve.group));
     }
-    const PieceLimits lim = derive_limits(c1, b2, b3, cfg_);
-    pc.v_hard = lim.velocity;
-    pc.accel = lim.accel;
-    pc.jerk = lim.jerk;
-    pc.barrier = lim.barrier;
+    pc.bounds.c1 = c1;
+    pc.bounds.c2 = c2;
+    pc.bounds.c3 = c3;
+    pc.bounds.lin1 = std::sqrt(c1[0] * c1[0] + c1[1] * c1[1] + c1[2] * c1[2]);
+    pc.bounds.lin2 = std::sqrt(c2[0] * c2[0] + c2[1] * c2[1] + c2[2] * c2[2]);
+    pc.bounds.lin3 = std::sqrt(c3[0] * c3[0] + c3[1] * c3[1] + c3[2] * c3[2]);
+    pc.v_hard = ceiling_of(pc.bounds, cfg_);
     speed_max = std::max(speed_max, 1e-9);
     pc.inv_speed = 1.0 / speed_max;
     // Feeds and caps of this move and of the moves whose corners reach here.
     auto apply = [&](const SegmentParams& sp) {
       if (sp.max_velocity > 0) pc.v_hard = std::min(pc.v_hard, sp.max_velocity / speed_max);
-      if (sp.max_acceleration > 0) pc.accel = std::min(pc.accel, sp.max_acceleration / speed_max);
+      if (sp.max_acceleration > 0) pc.a_cap = std::min(pc.a_cap, sp.max_acceleration / speed_max);
       if (!(sp.feed > 0)) return;
       const double v = sp.feed / speed_max;
       if (sp.type == MotionType::Traverse) {
@@ -738,9 +836,6 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
     st.v_lo = st.v_hi = m;
     st.v_hard = 0;
     st.v_feed = st.v_rapid = kInf;
-    st.accel = kInf;  // zero length: never limits a motion
-    st.jerk = kInf;
-    st.barrier = true;
     st.epoch = epoch_;
     st.stop = h.dwell_inputs > 0 ? StopKind::Dwell : StopKind::Stop;
     st.dwell_s = h.dwell;

@@ -18,23 +18,11 @@
 
 namespace cnc::tp {
 
-// Tangential path limits for one span of the path, from per-axis bounds of
-// the first three derivatives of the smoothed curve (see
-// docs/trajectory-planner.md, "limits of a piece").
-struct PieceLimits {
-  double velocity = 0;
-  double accel = 0;
-  double jerk = 0;
-  bool barrier = false;
-};
-PieceLimits derive_limits(const AxisVec& c1, const AxisVec& c2, const AxisVec& c3, const PlannerConfig& cfg) noexcept;
-
-// Lower bounds every non-barrier piece keeps (what a brake may always use).
-struct LimitFloors {
-  double accel = 0;
-  double jerk = 0;
-};
-LimitFloors limit_floors(const PlannerConfig& cfg) noexcept;
+// The velocity ceiling of a piece: the largest path velocity at which every
+// axis keeps kCeilingReserve of its acceleration and jerk (and every axis
+// and the [TRAJ] linear limits their velocity). Below it the servo side
+// finds more; see executor.hpp.
+double ceiling_of(const PieceBounds& b, const PlannerConfig& cfg) noexcept;
 
 class PathBuilder {
  public:
@@ -64,20 +52,22 @@ class PathBuilder {
   struct Merge;
   enum class Junction : uint8_t { Unknown, Smooth, Window, Stop };
 
-  Result append(const Curve& curve, const SegmentParams& params, uint32_t inputs) noexcept;
+  Result append(const Curve& curve, const SegmentParams& params, uint32_t inputs, double merge_err) noexcept;
   Result append_point(const SegmentParams& params) noexcept;
   void flush_merge() noexcept;
   bool try_merge(const Pose& end, const SegmentParams& params) noexcept;
   void finalize(bool flushing) noexcept;
-  bool ready(uint64_t m) const noexcept;
-  double initial_half(uint64_t j) noexcept;
+  uint64_t horizon(uint64_t j, uint64_t n) const noexcept;
+  void tentative_half(uint64_t j) noexcept;
   void final_half(uint64_t j) noexcept;
+  double deviation_bound(double s, uint64_t lo, uint64_t hi, double* second) const noexcept;
+  double dense_deviation(uint64_t j, double d) const noexcept;
+  double tolerance_at(double s, uint64_t near) const noexcept;
   bool emit_vertices_upto(uint64_t j) noexcept;
   bool emit_pieces(uint64_t m) noexcept;
   void compute_junction(uint64_t j) noexcept;
   Held& held(uint64_t seq) noexcept;
   const Held& held(uint64_t seq) const noexcept;
-  bool same_run(uint64_t a, uint64_t b) const noexcept;
   double tolerance_of(uint64_t seq) const noexcept;
 
   PlannerConfig cfg_;
@@ -89,6 +79,8 @@ class PathBuilder {
   uint64_t first_seq_ = 0;       // oldest segment still kept (history)
   uint64_t next_seq_ = 0;        // next segment number (== store_.segs.head())
   uint64_t first_unfinal_ = 0;   // first segment whose pieces are not yet out
+  uint64_t next_tent_ = 0;       // first vertex without a tentative window
+  uint64_t next_final_ = 0;      // first vertex whose window is not final
   uint64_t vertices_out_ = 0;    // vertex records published so far
   double s_end_ = 0;             // global path position of the end of the last segment
   uint32_t epoch_ = 0;

@@ -17,6 +17,12 @@
 namespace cnc::tp {
 
 inline constexpr double kInf = std::numeric_limits<double>::infinity();
+// Limits are planned this far inside the configured ones: room for rounding
+// and for the difference between derivatives and finite differences.
+inline constexpr double kLimitMargin = 0.999;
+// Share of every axis's acceleration and jerk a piece's velocity ceiling
+// leaves for speeding up and braking along the path.
+inline constexpr double kCeilingReserve = 0.05;
 
 struct SegmentRecord {
   Curve curve;
@@ -29,6 +35,17 @@ struct SegmentRecord {
 
 enum class StopKind : uint8_t { None, Stop, Dwell };
 
+// Bounds, over one piece, of the smoothed path's first three derivatives
+// with respect to the path parameter: per axis, and (in lin*) of their XYZ
+// norm for [TRAJ]MAX_LINEAR_* limits. What the servo side turns into the
+// tangential acceleration available at a given velocity.
+struct PieceBounds {
+  AxisVec c1{};
+  AxisVec c2{};
+  AxisVec c3{};
+  double lin1 = 0, lin2 = 0, lin3 = 0;
+};
+
 struct Piece {
   double s0 = 0;       // global start; the piece spans [s0, s0 + length]
   double length = 0;   // 0 for a stop point
@@ -39,13 +56,12 @@ struct Piece {
   double v_feed = kInf;  // programmed feed (overridable), as path velocity
   double v_rapid = kInf; // requested rapid velocity, as path velocity
   double inv_speed = 1;  // 1 / max |dC/ds| in the length group (max-velocity cap)
-  double accel = 0;      // tangential path acceleration limit
-  double jerk = 0;       // tangential path jerk limit
+  double a_cap = kInf;   // tangential acceleration cap of the move (SET_LINE acc)
+  PieceBounds bounds;
   double dwell_s = 0;
   uint32_t inputs_done = 0;  // input moves finished once this piece is passed
   uint32_t epoch = 0;
   StopKind stop = StopKind::None;
-  bool barrier = false;  // passed at (nearly) constant speed: see executor.hpp
   bool probe = false;
 };
 

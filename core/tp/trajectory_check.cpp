@@ -1,5 +1,8 @@
 #include "core/tp/trajectory_check.hpp"
 
+#include <cstdio>
+#include <cstdlib>
+
 #include <time.h>
 
 #include <algorithm>
@@ -165,6 +168,8 @@ void StreamChecker::add(const CycleOutputs& out, double feed_scale) {
     st_.max_j[k] = std::max(st_.max_j[k], std::fabs(j));
     if (!(cfg_.axis_mask & (1u << i))) continue;
     const AxisLimits& l = cfg_.axes[k];
+    if (std::getenv("TP_DEBUG") && std::fabs(v) / l.max_velocity > 1.0 + 1e-9 && std::fabs(v) / l.max_velocity > st_.ratio_v)
+      std::fprintf(stderr, "v violation axis %d ratio %.4f t=%.3f id=%u pos %.4f %.4f %.4f\n", i, std::fabs(v) / l.max_velocity, st_.time_s, out.id, p[0], p[1], p[2]);
     st_.ratio_v = std::max(st_.ratio_v, std::fabs(v) / l.max_velocity);
     st_.ratio_a = std::max(st_.ratio_a, std::fabs(a) / l.max_acceleration);
     st_.ratio_j = std::max(st_.ratio_j, std::fabs(j) / l.max_jerk);
@@ -190,6 +195,7 @@ void StreamChecker::add(const CycleOutputs& out, double feed_scale) {
       if (lb2 >= d * d) continue;  // cannot be nearer
       d = std::min(d, distance_to_move(p, i));
     }
+    if (std::getenv("TP_DEBUG") && d > st_.max_deviation && d > 0.01) std::fprintf(stderr, "dev %.5f t=%.3f id=%zu pos %.4f %.4f %.4f\n", d, st_.time_s, id, p[0], p[1], p[2]);
     st_.max_deviation = std::max(st_.max_deviation, d);
     // Corners blend with the tolerance of the move that ends there and their
     // windows may reach over neighbouring moves: the largest nearby applies.
@@ -294,10 +300,7 @@ RunResult run_program(TrajectoryPlanner& planner, const PlannerConfig& config, c
       const double s = e.path_position();
       if (s < last_s - 1e-9) r.monotone = false;
       last_s = s;
-      bool barrier = false;
-      const double margin = e.distance_to_tail() - e.stop_distance(&barrier);
-      if (!barrier) r.stop_margin = std::min(r.stop_margin, margin);
-      if (barrier) ++r.barrier_samples;
+      r.stop_margin = std::min(r.stop_margin, e.distance_to_tail() - e.stop_distance());
     }
     if (next == program.moves.size() && out.done && planner.is_done()) {
       r.completed = true;

@@ -103,9 +103,6 @@ struct RunResult {
   // distance needed to stop (negative: could not have stopped in time).
   bool monotone = true;
   double stop_margin = std::numeric_limits<double>::infinity();
-  // Samples whose stop would cross a barrier (tight corner): their margin is
-  // carried by the barrier ceilings and not counted in stop_margin.
-  uint64_t barrier_samples = 0;
   // With starve_from_cycle: the machine came to rest while starved, and
   // where (path position) relative to the end of what was planned.
   bool starve_stopped = false;
