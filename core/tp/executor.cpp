@@ -12,8 +12,15 @@ constexpr int kMaxRows = kNumAxes + 1;
 // Longest averaging window the history rings hold (samples).
 constexpr int kMaxFilter = 8192;
 constexpr int kRing = kMaxFilter + 2;
+// Velocities at which each piece's acceleration limit is tabulated.
+constexpr int kGrid = 16;
+// Tree channels: the limit at each grid velocity, then ceiling, feed, rapid.
+constexpr int kChannels = kGrid + 3;
+constexpr int kChV = kGrid, kChFeed = kGrid + 1, kChRapid = kGrid + 2;
 // A piece becomes at most this many spans.
 constexpr int kSpansPerPiece = 24;
+// Short pieces with equal caps are joined into spans up to this long.
+constexpr double kMergeSpan = 0.5;
 // Erosion boundaries considered inside one piece.
 constexpr int kMaxCuts = 96;
 // A stop closer than this is reached (units).
@@ -36,6 +43,34 @@ struct Executor::PieceData {
   double v = 0;
 };
 
+// Range minima over the pieces of the ring (segment tree over ring slots):
+// the acceleration limit at each grid velocity, the ceiling, feed and rapid.
+struct Executor::Tree {
+  std::size_t n = 0;  // leaves, a power of two
+  std::unique_ptr<double[]> val;  // (2 n) x kChannels
+  double* node(std::size_t i) noexcept { return &val[i * kChannels]; }
+  const double* node(std::size_t i) const noexcept { return &val[i * kChannels]; }
+  void set(std::size_t leaf, const double* v) noexcept {
+    std::size_t i = n + leaf;
+    for (int c = 0; c < kChannels; ++c) node(i)[c] = v[c];
+    for (i /= 2; i >= 1; i /= 2) {
+      const double* l = node(2 * i);
+      const double* r = node(2 * i + 1);
+      double* m = node(i);
+      for (int c = 0; c < kChannels; ++c) m[c] = std::min(l[c], r[c]);
+    }
+  }
+  // Minimum of channel c over leaves [lo, hi).
+  double query(std::size_t lo, std::size_t hi, int c) const noexcept {
+    double m = kInf;
+    for (lo += n, hi += n; lo < hi; lo /= 2, hi /= 2) {
+      if (lo & 1) m = std::min(m, node(lo++)[c]);
+      if (hi & 1) m = std::min(m, node(--hi)[c]);
+    }
+    return m;
+  }
+};
+
 // A stretch of a piece with constant input limits.
 struct Executor::Span {
   double a = 0, b = 0;  // on the path parameter; a == b for a stop
@@ -47,6 +82,7 @@ struct Executor::Span {
   double w_start = 0;   // braking envelope at a
   double w_end = 0;     // and at b
   double alpha = 0;     // braking acceleration the envelope assumes
+  double alpha_own = 0; // what this span alone allows (before spreading)
   bool enveloped = false;  // the envelope values have been computed
 };
 
@@ -56,6 +92,11 @@ Executor::Executor(const PlannerConfig& config, PathStore& store)
   while (c < store.pieces.capacity()) c *= 2;
   pdata_ = std::make_unique<PieceData[]>(c);
   pmask_ = c - 1;
+  tree_ = std::make_unique<Tree>();
+  tree_->n = c;
+  tree_->val = std::make_unique<double[]>(2 * c * kChannels);
+  for (std::size_t i = 0; i < 2 * c * kChannels; ++i) tree_->val[i] = kInf;
+  stops_ = std::make_unique<uint64_t[]>(c);
   std::size_t sc = 2;
   while (sc < c * 2) sc *= 2;
   spans_ = std::make_unique<Span[]>(sc);
@@ -112,6 +153,10 @@ void Executor::configure(const PlannerConfig& config) noexcept {
   if (config.max_linear_velocity > 0) v_bound_ = std::min(v_bound_, 2 * config.max_linear_velocity);
   a_top_ = 2 * std::sqrt(asum);
   reach_ = v_bound_ * (0.5 * tf_ + 2 * T_) + 1e-9;
+  for (int i = 0; i < kGrid; ++i) {
+    const double f = static_cast<double>(i + 1) / kGrid;
+    grid_[static_cast<std::size_t>(i)] = v_bound_ * f * f;
+  }
 }
 
 void Executor::clear_history(double x) noexcept {
@@ -222,31 +267,66 @@ double limit_at(const PieceBounds& b, const int* axis, const double* A, const do
 
 }  // namespace
 
-// The limit for an input sample whose outputs lie within [lo, hi] at
-// velocities up to u: the smallest over the pieces there (stops bound the
-// search: outputs never cross one while the input moves).
-double Executor::accel_limit(uint64_t from, double lo, double hi, double u) const noexcept {
-  const Rows& r = *rows_;
-  double a = a_top_;
-  const uint64_t first = store_.pieces.released();
-  auto take = [&](uint64_t k) {
-    const Piece& q = piece(k);
-    a = std::min({a, q.a_cap, limit_at(q.bounds, r.axis, r.a, r.j, r.n, tf_, std::min(u, pdata(k).v))});
-  };
+// Smallest value of tree channel c over the pieces overlapping [lo, hi]
+// around piece `from`, not across a stop (outputs never cross one while the
+// input moves).
+double Executor::range_min(uint64_t from, double lo, double hi, int c) const noexcept {
   if (from >= ptail_) return 0;
-  take(from);
-  for (uint64_t k = from; k > first;) {
-    --k;
-    const Piece& q = piece(k);
-    if (q.stop != StopKind::None || q.s0 + q.length < lo) break;
-    take(k);
+  const uint64_t first = store_.pieces.released();
+  // Stops bound the range.
+  uint64_t k_lo = first, k_hi = ptail_;
+  {
+    // The first stop after `from`, and the last one before it.
+    uint64_t l = stop_head_, h = stop_tail_;
+    while (l < h) {
+      const uint64_t m = l + (h - l) / 2;
+      if (stops_[m & pmask_] > from) {
+        h = m;
+      } else {
+        l = m + 1;
+      }
+    }
+    if (l < stop_tail_) k_hi = std::min(k_hi, stops_[l & pmask_]);
+    if (l > stop_head_) k_lo = std::max(k_lo, stops_[(l - 1) & pmask_] + 1);
   }
-  for (uint64_t k = from + 1; k < ptail_; ++k) {
-    const Piece& q = piece(k);
-    if (q.stop != StopKind::None || q.s0 > hi) break;
-    take(k);
-  }
-  return std::max(a, 0.0);
+  // Pieces overlapping [lo, hi]: binary search on their starts.
+  auto first_after = [&](double x) {  // first piece with s0 > x
+    uint64_t l = k_lo, h = k_hi;
+    while (l < h) {
+      const uint64_t m = l + (h - l) / 2;
+      if (piece(m).s0 > x) {
+        h = m;
+      } else {
+        l = m + 1;
+      }
+    }
+    return l;
+  };
+  uint64_t a = first_after(lo);
+  if (a > k_lo) --a;  // the piece holding lo
+  a = std::min(a, from);
+  const uint64_t b = std::max(first_after(hi), from + 1);
+  if (b <= a) return kInf;
+  const std::size_t n = tree_->n;
+  const std::size_t sa = static_cast<std::size_t>(a & (n - 1));
+  const uint64_t len = b - a;
+  if (sa + len <= n) return tree_->query(sa, static_cast<std::size_t>(sa + len), c);
+  return std::min(tree_->query(sa, n, c), tree_->query(0, static_cast<std::size_t>(sa + len - n), c));
+}
+
+int Executor::grid_index(double v) const noexcept {
+  // Quadratic grid: v_i = v_bound (i+1)^2 / kGrid^2.
+  const double r = std::sqrt(std::max(0.0, v) / v_bound_) * kGrid - 1;
+  int i = static_cast<int>(std::ceil(r - 1e-12));
+  i = std::clamp(i, 0, kGrid - 1);
+  while (i + 1 < kGrid && grid_[static_cast<std::size_t>(i)] < v) ++i;
+  return i;
+}
+
+// The limit for an input sample whose outputs lie within [lo, hi] at
+// velocities up to u: the smallest over the pieces there.
+double Executor::accel_limit(uint64_t from, double lo, double hi, double u) const noexcept {
+  return std::max(0.0, std::min(a_top_, range_min(from, lo, hi, grid_index(u))));
 }
 
 double Executor::ceiling(const Span& sp) const noexcept {
@@ -274,10 +354,24 @@ void Executor::ingest() noexcept {
     }
     PieceData& d = pdata(ptail_);
     d.v = std::min(p.v_hard, v_bound_);
+    double vals[kChannels];
     if (p.stop != StopKind::None) {
       d.v = 0;
       last_stop_ = ptail_;
+      if (stop_tail_ - stop_head_ > pmask_) ++stop_head_;
+      stops_[stop_tail_++ & pmask_] = ptail_;
+      for (int c = 0; c < kChannels; ++c) vals[c] = kInf;
+    } else {
+      const Rows& r = *rows_;
+      for (int i = 0; i < kGrid; ++i) {
+        const double u = std::min(grid_[static_cast<std::size_t>(i)], d.v);
+        vals[i] = std::min({limit_at(p.bounds, r.axis, r.a, r.j, r.n, tf_, u), p.a_cap, a_top_});
+      }
+      vals[kChV] = d.v;
+      vals[kChFeed] = p.v_feed;
+      vals[kChRapid] = p.v_rapid;
     }
+    tree_->set(static_cast<std::size_t>(ptail_ & pmask_), vals);
     tail_s_ = p.s0 + p.length;
     ++ptail_;
   }
@@ -337,16 +431,23 @@ void Executor::make_spans(uint64_t p) noexcept {
     if (from > lo && ncut < kMaxCuts) cuts[ncut++] = from;
     if (to < hi && ncut < kMaxCuts) cuts[ncut++] = to;
   };
+  // Only pieces with a lower ceiling within this piece's own spread can cap
+  // its velocity; lower feeds or rapids may reach from farther.
+  const double vreach = pdata(p).v * spread;
+  const bool lower_v = range_min(p, lo - vreach, hi + vreach, kChV) < pdata(p).v;
+  const bool lower_feed = range_min(p, lo - reach_, hi + reach_, kChFeed) < pc.v_feed;
+  const bool lower_rapid = range_min(p, lo - reach_, hi + reach_, kChRapid) < pc.v_rapid;
+  const double scan = (lower_feed || lower_rapid) ? reach_ : (lower_v ? vreach : -1);
   const uint64_t first_kept = store_.pieces.released();
-  for (uint64_t k = p; k > first_kept;) {
+  for (uint64_t k = p; scan >= 0 && k > first_kept;) {
     --k;
     const Piece& q = piece(k);
-    if (q.stop != StopKind::None || q.epoch != epoch_ || lo - (q.s0 + q.length) > reach_) break;
+    if (q.stop != StopKind::None || q.epoch != epoch_ || lo - (q.s0 + q.length) > scan) break;
     consider(q, pdata(k).v);
   }
-  for (uint64_t k = p + 1; k < ptail_; ++k) {
+  for (uint64_t k = p + 1; scan >= 0 && k < ptail_; ++k) {
     const Piece& q = piece(k);
-    if (q.stop != StopKind::None || q.s0 - hi > reach_) break;
+    if (q.stop != StopKind::None || q.s0 - hi > scan) break;
     consider(q, pdata(k).v);
   }
   std::sort(cuts, cuts + ncut);
@@ -383,7 +484,7 @@ void Executor::make_spans(uint64_t p) noexcept {
     double pts[64];
     int nq = 0;
     pts[nq++] = parts[i].a;
-    for (double d = 1e-3; d < reach_ && nq < 60; d *= 2) {
+    for (double d = 0.01; d < reach_ && 4 * d < hi - lo && nq < 60; d *= 2) {
       if (lo + d > parts[i].a && lo + d < parts[i].b) pts[nq++] = lo + d;
       if (hi - d > parts[i].a && hi - d < parts[i].b) pts[nq++] = hi - d;
     }
@@ -428,7 +529,26 @@ void Executor::make_spans(uint64_t p) noexcept {
     sub[0].rapid = pc.v_rapid;
     ns = 1;
   }
-  for (int i = 0; i < ns; ++i) span(stail_++) = sub[i];
+  for (int i = 0; i < ns; ++i) {
+    // Dense short pieces with the same caps share a span (fewer spans for
+    // the envelope to walk): the span keeps the lowest caps.
+    if (stail_ > sfirst_ && stail_ > in_ + 1) {
+      Span& last = span(stail_ - 1);
+      const double len = sub[i].b - last.a;
+      auto close = [](double x, double y) { return (x == y) || (std::isfinite(x) && std::isfinite(y) && std::fabs(x - y) <= 0.01 * std::max(x, y)); };
+      if (last.stop == StopKind::None && std::fabs(last.b - sub[i].a) < 1e-12 && len <= kMergeSpan &&
+          sub[i].b - sub[i].a < 0.25 * kMergeSpan && close(last.vc, sub[i].vc) && close(last.feed, sub[i].feed) &&
+          close(last.rapid, sub[i].rapid)) {
+        last.b = sub[i].b;
+        last.vc = std::min(last.vc, sub[i].vc);
+        last.feed = std::min(last.feed, sub[i].feed);
+        last.rapid = std::min(last.rapid, sub[i].rapid);
+        last.enveloped = false;
+        continue;
+      }
+    }
+    span(stail_++) = sub[i];
+  }
 }
 
 // Braking envelope: the largest input velocity at each point from which
@@ -468,9 +588,24 @@ void Executor::envelope_span(uint64_t k, double w_end) noexcept {
     const double vw = w + a_guess * tf_;
     return accel_limit(s.piece, s.a - vw * (tf_ + T_), s.b + w * (0.5 * tf_ + 2 * T_), vw);
   };
-  // The window may still hold the velocities of a harder brake before
-  // this span (at most a_top_ T_f more than now).
-  auto alpha_at = [&](double w) { return brake_limit(w, a_top_); };
+  // The braking acceleration assumed here is also the limit the input
+  // brakes with on this span; the spans within one window of travel ahead
+  // limit it too, so that the window holds no harder braking than each
+  // span assumes when the input reaches it.
+  auto ahead_at = [&](double w) {
+    double m = kInf;
+    for (uint64_t q = k + 1; q < stail_; ++q) {
+      const Span& o = span(q);
+      if (o.stop != StopKind::None || o.a > s.b + w * (tf_ + 2 * T_)) break;
+      if (o.enveloped) m = std::min(m, o.alpha_own);
+    }
+    return m;
+  };
+  auto own_at = [&](double w) {
+    const double a1 = brake_limit(w, 0);
+    return std::min(a1, brake_limit(w, a1));
+  };
+  auto alpha_at = [&](double w) { return std::min(ahead_at(w), own_at(w)); };
   // The largest w with w^2 <= w_end^2 + 2 alpha(w) L (alpha falls with w),
   // and the alpha valid for every velocity up to it.
   const double a0 = alpha_at(w_end);
@@ -492,6 +627,7 @@ void Executor::envelope_span(uint64_t k, double w_end) noexcept {
     hi = lo;
   }
   s.alpha = alpha;
+  s.alpha_own = own_at(hi);
   s.w_start = hi;
 }
 
@@ -630,7 +766,13 @@ void Executor::plan_input(const CycleInputs& in) noexcept {
   // to the window's velocity), speeding up to what the window may reach.
   const double back = x_ - hx_[ring(n - 2 >= 0 ? n - 2 : 0)] + v_ * T_;
   const uint64_t pc_idx = s.piece;
-  const double a_dn = accel_limit(pc_idx, x_ - back, x_ + v_ * (0.5 * tf_ + 2 * T_), vwin);
+  // Braking: the envelope's acceleration of the span the step ends on;
+  // each span's value holds for samples up to one step before it, so the
+  // largest over the spans this step may reach.
+  double a_dn = s.alpha;
+  for (uint64_t k = in_ + 1; k < stail_ && span(k).stop == StopKind::None && span(k).a <= x_ + v_ * T_; ++k) {
+    a_dn = std::max(a_dn, span(k).alpha);
+  }
   const double a_up1 = accel_limit(pc_idx, x_ - back, x_ + vwin * (0.5 * tf_ + 2 * T_), std::max(vwin, v_));
   const double c_up = std::max(vwin, v_ + a_up1 * (tf_ + T_));
   const double a_up = std::min(a_up1, accel_limit(pc_idx, x_ - back, x_ + c_up * (0.5 * tf_ + 2 * T_), c_up));
@@ -730,11 +872,19 @@ void Executor::handle_stops() noexcept {
 
 // The output's piece, and the inputs finished once it passes pieces.
 void Executor::advance_output() noexcept {
-  const uint64_t input_piece = in_ < stail_ ? span(in_).piece : ptail_;
-  while (out_ < ptail_ && out_ < input_piece) {
+  // Spans may join several pieces, so the input's piece is only known as
+  // "at least the first piece of its span"; the output passes a stop only
+  // once the input has left it.
+  const uint64_t input_first = in_ < stail_ ? span(in_).piece : ptail_;
+  while (out_ < ptail_) {
     const Piece& p = piece(out_);
-    const bool passed = p.stop != StopKind::None ? (y_ >= p.s0 - kLanding)
-                                                  : (y_ >= p.s0 + p.length && out_ + 1 < ptail_ && piece(out_ + 1).s0 <= y_);
+    bool passed;
+    if (p.stop != StopKind::None) {
+      passed = out_ < input_first && y_ >= p.s0 - kLanding;
+    } else {
+      passed = out_ + 1 < ptail_ && y_ >= p.s0 + p.length && piece(out_ + 1).s0 <= y_ &&
+               (piece(out_ + 1).stop == StopKind::None || out_ + 1 < input_first);
+    }
     if (!passed) break;
     completed_ += p.inputs_done;
     ++out_;
@@ -779,6 +929,7 @@ void Executor::finish_abort() noexcept {
   store_.segs.release_upto(store_.segs.published());
   store_.verts.release_upto(store_.verts.published());
   last_stop_ = UINT64_MAX;
+  stop_head_ = stop_tail_;
   ++epoch_;
   abort_done_ = true;
   aborting_ = false;

@@ -81,6 +81,7 @@ class Executor {
   struct PieceData;
   struct Span;
   struct Rows;
+  struct Tree;
 
   void configure(const PlannerConfig& config) noexcept;
   void clear_history(double x) noexcept;
@@ -90,6 +91,8 @@ class Executor {
   void envelope_from(uint64_t last) noexcept;
   void envelope_span(uint64_t k, double w_end) noexcept;
   double accel_limit(uint64_t piece, double lo, double hi, double u) const noexcept;
+  double range_min(uint64_t from, double lo, double hi, int channel) const noexcept;
+  int grid_index(double v) const noexcept;
   double ceiling(const Span& sp) const noexcept;
   double envelope_at(uint64_t k, double x) const noexcept;
   double brake_curve(double w_end, double alpha, double d) const noexcept;
@@ -119,6 +122,10 @@ class Executor {
   std::unique_ptr<Span[]> spans_;
   std::size_t smask_ = 0;
   std::unique_ptr<Rows> rows_;
+  std::unique_ptr<Tree> tree_;
+  std::unique_ptr<uint64_t[]> stops_;  // ring of stop pieces, in order
+  uint64_t stop_head_ = 0, stop_tail_ = 0;
+  std::array<double, 16> grid_{};      // velocities of the tabulated limits
 
   double T_ = 0.001;    // servo period
   double tf_ = 0.02;    // averaging time T_f = N T
