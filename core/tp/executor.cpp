@@ -6,6 +6,7 @@
 #include <cstdlib>
 
 namespace cnc::tp {
+static uint64_t g_env_calls = 0, g_env_evals = 0;
 namespace {
 
 constexpr int kMaxRows = kNumAxes + 1;
@@ -17,8 +18,12 @@ constexpr int kGrid = 16;
 // Tree channels: the limit at each grid velocity, then ceiling, feed, rapid.
 constexpr int kChannels = kGrid + 3;
 constexpr int kChV = kGrid, kChFeed = kGrid + 1, kChRapid = kGrid + 2;
+// Parts of a span with their own braking acceleration in the envelope.
+constexpr int kChunks = 4;
 // A piece becomes at most this many spans.
 constexpr int kSpansPerPiece = 24;
+// Ceilings are rounded down to steps of this (logarithmic) size.
+constexpr double kCeilingStep = 0.00995;  // ln 1.01
 // Short pieces with equal caps are joined into spans up to this long.
 constexpr double kMergeSpan = 0.5;
 // Erosion boundaries considered inside one piece.
@@ -81,6 +86,12 @@ struct Executor::Span {
   double rapid = kInf;  // rapid ceiling (eroded; times the rapid override)
   double w_start = 0;   // braking envelope at a
   double w_end = 0;     // and at b
+  // The envelope per chunk (kChunks equal parts): its value at the chunk
+  // boundaries, the braking acceleration assumed on each chunk and what
+  // each chunk alone allows.
+  double wk[kChunks + 1] = {};
+  double ak[kChunks] = {};
+  double ak_own[kChunks] = {};
   double alpha = 0;     // braking acceleration the envelope assumes
   double alpha_own = 0; // what this span alone allows (before spreading)
   bool enveloped = false;  // the envelope values have been computed
@@ -110,7 +121,9 @@ Executor::Executor(const PlannerConfig& config, PathStore& store)
   clear_history(0);
 }
 
-Executor::~Executor() = default;
+Executor::~Executor() {
+  if (std::getenv("EXEC_STATS")) std::fprintf(stderr, "spans %lu envelope_span calls %lu alpha evals %lu\n", (unsigned long)stail_, (unsigned long)g_env_calls, (unsigned long)g_env_evals);
+}
 
 Executor::PieceData& Executor::pdata(uint64_t seq) noexcept { return pdata_[seq & pmask_]; }
 const Executor::PieceData& Executor::pdata(uint64_t seq) const noexcept { return pdata_[seq & pmask_]; }
@@ -353,7 +366,12 @@ void Executor::ingest() noexcept {
       clear_history(p.s0);
     }
     PieceData& d = pdata(ptail_);
+    // Ceilings of curved pieces rounded down to 1 % steps: neighbours with
+    // nearly equal ceilings then share spans (fewer for the envelope).
     d.v = std::min(p.v_hard, v_bound_);
+    bool curved = p.bounds.lin2 > 0 || p.bounds.lin3 > 0;
+    for (int i = 0; i < kNumAxes && !curved; ++i) curved = p.bounds.c2[static_cast<std::size_t>(i)] > 0;
+    if (curved && d.v > 1e-9) d.v = std::exp(std::floor(std::log(d.v) / kCeilingStep) * kCeilingStep);
     double vals[kChannels];
     if (p.stop != StopKind::None) {
       d.v = 0;
@@ -484,7 +502,7 @@ void Executor::make_spans(uint64_t p) noexcept {
     double pts[64];
     int nq = 0;
     pts[nq++] = parts[i].a;
-    for (double d = 0.01; d < reach_ && 4 * d < hi - lo && nq < 60; d *= 2) {
+    for (double d = 0.025; d < reach_ && 4 * d < hi - lo && nq < 60; d *= 1.4142135623730951) {
       if (lo + d > parts[i].a && lo + d < parts[i].b) pts[nq++] = lo + d;
       if (hi - d > parts[i].a && hi - d < parts[i].b) pts[nq++] = hi - d;
     }
@@ -532,10 +550,10 @@ void Executor::make_spans(uint64_t p) noexcept {
   for (int i = 0; i < ns; ++i) {
     // Dense short pieces with the same caps share a span (fewer spans for
     // the envelope to walk): the span keeps the lowest caps.
-    if (stail_ > sfirst_ && stail_ > in_ + 1) {
+    if (ns == 1 && hi - lo < 0.25 * kMergeSpan && stail_ > sfirst_ && stail_ > in_ + 1 && merge_ok_) {
       Span& last = span(stail_ - 1);
       const double len = sub[i].b - last.a;
-      auto close = [](double x, double y) { return (x == y) || (std::isfinite(x) && std::isfinite(y) && std::fabs(x - y) <= 0.01 * std::max(x, y)); };
+      auto close = [](double x, double y) { return (x == y) || (std::isfinite(x) && std::isfinite(y) && std::fabs(x - y) <= 0.03 * std::max(x, y)); };
       if (last.stop == StopKind::None && std::fabs(last.b - sub[i].a) < 1e-12 && len <= kMergeSpan &&
           sub[i].b - sub[i].a < 0.25 * kMergeSpan && close(last.vc, sub[i].vc) && close(last.feed, sub[i].feed) &&
           close(last.rapid, sub[i].rapid)) {
@@ -549,6 +567,8 @@ void Executor::make_spans(uint64_t p) noexcept {
     }
     span(stail_++) = sub[i];
   }
+  // Only whole short pieces join (cuts near long pieces' ends stay).
+  merge_ok_ = ns == 1 && hi - lo < 0.25 * kMergeSpan;
 }
 
 // Braking envelope: the largest input velocity at each point from which
@@ -568,67 +588,94 @@ void Executor::envelope_from(uint64_t last) noexcept {
 }
 
 void Executor::envelope_span(uint64_t k, double w_end) noexcept {
+  ++g_env_calls;
   Span& s = span(k);
   s.enveloped = true;
   if (s.stop != StopKind::None) {
     s.w_start = s.w_end = 0;
-    s.alpha = kInf;
+    for (int c = 0; c <= kChunks; ++c) s.wk[c] = 0;
+    for (int c = 0; c < kChunks; ++c) s.ak[c] = s.ak_own[c] = kInf;
+    s.alpha = s.alpha_own = kInf;
     return;
   }
   s.w_end = w_end;
+  s.wk[kChunks] = w_end;
   const double ceil = ceiling(s);
-  const double L = s.b - s.a;
-  // An upper bound of the start value (the limit at the lowest velocity on
-  // the span), then the limit at that velocity plus what the window may
-  // still hold while braking.
-  // A braking sample on the span at velocity up to w has its outputs
-  // within w (T_f/2 + T) ahead and within the window's span behind (its
-  // velocity at most w + a_guess T_f over T_f).
-  auto brake_limit = [&](double w, double a_guess) {
-    const double vw = w + a_guess * tf_;
-    return accel_limit(s.piece, s.a - vw * (tf_ + T_), s.b + w * (0.5 * tf_ + 2 * T_), vw);
-  };
-  // The braking acceleration assumed here is also the limit the input
-  // brakes with on this span; the spans within one window of travel ahead
-  // limit it too, so that the window holds no harder braking than each
-  // span assumes when the input reaches it.
-  auto ahead_at = [&](double w) {
-    double m = kInf;
-    for (uint64_t q = k + 1; q < stail_; ++q) {
-      const Span& o = span(q);
-      if (o.stop != StopKind::None || o.a > s.b + w * (tf_ + 2 * T_)) break;
-      if (o.enveloped) m = std::min(m, o.alpha_own);
-    }
-    return m;
-  };
-  auto own_at = [&](double w) {
-    const double a1 = brake_limit(w, 0);
-    return std::min(a1, brake_limit(w, a1));
-  };
-  auto alpha_at = [&](double w) { return std::min(ahead_at(w), own_at(w)); };
-  // The largest w with w^2 <= w_end^2 + 2 alpha(w) L (alpha falls with w),
-  // and the alpha valid for every velocity up to it.
-  const double a0 = alpha_at(w_end);
-  double hi = std::min(ceil, brake_curve(w_end, a0, L));
-  double alpha = alpha_at(hi);
-  if (hi > brake_curve(w_end, alpha, L)) {
-    double lo = std::min(w_end, hi);
-    alpha = alpha_at(lo);
-    for (int it = 0; it < 12; ++it) {
-      const double mid = 0.5 * (lo + hi);
-      const double am = alpha_at(mid);
-      if (mid <= brake_curve(w_end, am, L)) {
-        lo = mid;
-        alpha = am;
-      } else {
-        hi = mid;
+  const double h = (s.b - s.a) / kChunks;
+  s.alpha_own = kInf;
+  s.alpha = kInf;
+  for (int c = kChunks - 1; c >= 0; --c) {
+    const double c0 = s.a + c * h;
+    const double c1 = c0 + h;
+    const double we = s.wk[c + 1];
+    // A braking sample on this chunk at velocity up to w has its outputs
+    // within w (T_f/2 + 2T) ahead and within the window's span behind (its
+    // velocity at most w + a_guess T_f over T_f).
+    auto brake_limit = [&](double w, double a_guess) {
+      const double vw = w + a_guess * tf_;
+      return accel_limit(s.piece, c0 - vw * (tf_ + T_), c1 + w * (0.5 * tf_ + 2 * T_), vw);
+    };
+    auto own_at = [&](double w) {
+      const double a1 = brake_limit(w, 0);
+      return std::min(a1, brake_limit(w, a1));
+    };
+    // The braking acceleration assumed here is also the limit the input
+    // brakes with here; what the chunks and spans within one window of
+    // travel ahead allow limits it too, so that the window holds no harder
+    // braking than each assumes when the input reaches it.
+    auto ahead_at = [&](double w) {
+      const double reach = c1 + w * (tf_ + 2 * T_);
+      double m = kInf;
+      for (int q = c + 1; q < kChunks && s.a + q * h < reach; ++q) m = std::min(m, s.ak_own[q]);
+      for (uint64_t q = k + 1; q < stail_; ++q) {
+        const Span& o = span(q);
+        if (o.stop != StopKind::None || o.a > reach) break;
+        if (!o.enveloped) continue;
+        if (o.b <= reach) {
+          m = std::min(m, o.alpha_own);
+          continue;
+        }
+        const double oh = (o.b - o.a) / kChunks;
+        for (int j = 0; j < kChunks && o.a + j * oh < reach; ++j) m = std::min(m, o.ak_own[j]);
       }
+      return m;
+    };
+    auto alpha_at = [&](double w) { ++g_env_evals; return std::min(ahead_at(w), own_at(w)); };
+    // The largest w on the brake curve from `we` with the alpha valid for
+    // every velocity up to it (alpha falls with w).
+    const double a0 = alpha_at(we);
+    double hi = std::min(ceil, brake_curve(we, a0, h));
+    double alpha = alpha_at(hi);
+    if (hi > brake_curve(we, alpha, h)) {
+      double lo = std::min(we, hi);
+      alpha = alpha_at(lo);
+      for (int it = 0; it < 10; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        const double am = alpha_at(mid);
+        if (mid <= brake_curve(we, am, h)) {
+          lo = mid;
+          alpha = am;
+        } else {
+          hi = mid;
+        }
+      }
+      hi = lo;
     }
-    hi = lo;
+    s.wk[c] = hi;
+    s.ak[c] = alpha;
+    s.ak_own[c] = own_at(hi);
+    s.alpha_own = std::min(s.alpha_own, s.ak_own[c]);
+    s.alpha = std::min(s.alpha, alpha);
   }
-  s.alpha = alpha;
-  s.alpha_own = own_at(hi);
-  s.w_start = hi;
+  s.w_start = s.wk[0];
+}
+
+double Executor::chunk_alpha(uint64_t k, double x) const noexcept {
+  const Span& s = span(k);
+  if (s.stop != StopKind::None) return kInf;
+  const double h = (s.b - s.a) / kChunks;
+  const int c = h > 0 ? std::clamp(static_cast<int>((x - s.a) / h), 0, kChunks - 1) : 0;
+  return s.ak[c];
 }
 
 // The envelope within a span for braking in discrete steps of T at alpha:
@@ -645,8 +692,10 @@ double Executor::brake_curve(double w_end, double alpha, double d) const noexcep
 double Executor::envelope_at(uint64_t k, double x) const noexcept {
   const Span& s = span(k);
   if (s.stop != StopKind::None) return 0;
-  const double d = std::max(0.0, s.b - x);
-  return std::min({ceiling(s), s.w_start, brake_curve(s.w_end, s.alpha, d)});
+  const double h = (s.b - s.a) / kChunks;
+  const int c = h > 0 ? std::clamp(static_cast<int>((x - s.a) / h), 0, kChunks - 1) : 0;
+  const double ce = c == kChunks - 1 ? s.b : s.a + (c + 1) * h;
+  return std::min({ceiling(s), s.wk[c], brake_curve(s.wk[c + 1], s.ak[c], std::max(0.0, ce - x))});
 }
 
 // Smallest envelope value over (z0, z1], starting the span search at k
@@ -703,8 +752,7 @@ bool Executor::safe(double v_new, double a_new) const noexcept {
   for (int i = 0; i <= last_pos && cv > 0; ++i) {
     double am = 0;
     for (int j = i; j < n - 1; ++j) am = std::max(am, halpha_[ring(n - 2 - j)]);
-    const Span& s = span(k < stail_ ? k : stail_ - 1);
-    const double al = s.alpha;
+    const double al = chunk_alpha(k < stail_ ? k : stail_ - 1, cx);
     am = std::max(am, al);
     const double a = std::max(-al, old_a(i) - am);
     double nv = cv + a * T_;
@@ -720,7 +768,9 @@ bool Executor::safe(double v_new, double a_new) const noexcept {
       // Brake for the step's end with the smallest envelope acceleration
       // up to it.
       double al = kInf;
-      for (uint64_t q = k; q < stail_ && span(q).a <= step_s_; ++q) al = std::min(al, span(q).alpha);
+      for (uint64_t q = k; q < stail_ && span(q).a <= step_s_; ++q) {
+        for (int j = 0; j < kChunks; ++j) al = std::min(al, span(q).ak[j]);
+      }
       if (!(al < kInf) || cv * cv > 2 * al * std::max(0.0, step_s_ - cx)) return false;
     }
     uint64_t kq = k;
@@ -769,9 +819,18 @@ void Executor::plan_input(const CycleInputs& in) noexcept {
   // Braking: the envelope's acceleration of the span the step ends on;
   // each span's value holds for samples up to one step before it, so the
   // largest over the spans this step may reach.
-  double a_dn = s.alpha;
-  for (uint64_t k = in_ + 1; k < stail_ && span(k).stop == StopKind::None && span(k).a <= x_ + v_ * T_; ++k) {
-    a_dn = std::max(a_dn, span(k).alpha);
+  double a_dn = chunk_alpha(in_, x_);
+  {
+    const double reach = x_ + v_ * T_;
+    for (uint64_t k = in_; k < stail_ && span(k).stop == StopKind::None && span(k).a <= reach; ++k) {
+      const Span& o = span(k);
+      const double oh = (o.b - o.a) / kChunks;
+      for (int j = 0; j < kChunks; ++j) {
+        const double j0 = o.a + j * oh;
+        const double j1 = j0 + oh;
+        if (j1 >= x_ && j0 <= reach) a_dn = std::max(a_dn, o.ak[j]);
+      }
+    }
   }
   const double a_up1 = accel_limit(pc_idx, x_ - back, x_ + vwin * (0.5 * tf_ + 2 * T_), std::max(vwin, v_));
   const double c_up = std::max(vwin, v_ + a_up1 * (tf_ + T_));
@@ -976,7 +1035,7 @@ double Executor::stop_distance() const noexcept {
   uint64_t k = in_;
   for (int i = 0; cv > 0 && i < 10'000'000; ++i) {
     while (k + 1 < stail_ && span(k).stop == StopKind::None && cx >= span(k).b) ++k;
-    const double al = (k < stail_ && span(k).stop == StopKind::None) ? span(k).alpha : a_top_;
+    const double al = (k < stail_ && span(k).stop == StopKind::None) ? chunk_alpha(k, cx) : a_top_;
     double am = al;
     for (int j = i; j < n; ++j) am = std::max(am, halpha_[ring(n - 1 - j)]);
     const double old = i < n ? ha_[ring(n - 1 - i)] : -al;

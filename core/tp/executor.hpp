@@ -96,6 +96,7 @@ class Executor {
   double ceiling(const Span& sp) const noexcept;
   double envelope_at(uint64_t k, double x) const noexcept;
   double brake_curve(double w_end, double alpha, double d) const noexcept;
+  double chunk_alpha(uint64_t span, double x) const noexcept;
   double min_envelope(double z0, double z1, uint64_t& k) const noexcept;
   bool safe(double v_new, double a_new) const noexcept;
   void plan_input(const CycleInputs& in) noexcept;
@@ -145,6 +146,7 @@ class Executor {
   uint64_t in_ = 0;
   uint64_t stail_ = 0;
   uint32_t epoch_ = 0;
+  bool merge_ok_ = false;  // the newest span is a whole short piece
 
   // Input state and the last samples (ring, newest at hist_pos_).
   double x_ = 0, v_ = 0;
