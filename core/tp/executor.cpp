@@ -405,7 +405,11 @@ void Executor::finalize() noexcept {
   while (pfin_ < ptail_) {
     const Piece& p = piece(pfin_);
     const bool stop_ahead = last_stop_ != UINT64_MAX && last_stop_ >= pfin_ && last_stop_ < ptail_;
-    if (!stop_ahead && p.s0 + p.length + reach_ > tail_s_) break;
+    // What may spread onto p from later pieces: lower ceilings within
+    // V_p (T_f/2 + 2T), and outputs of samples braking here at most that
+    // far ahead.
+    const double horizon = pdata(pfin_).v * (0.5 * tf_ + 2 * T_) + 0.5 * a_top_ * (tf_ + 2 * T_) * (tf_ + 2 * T_);
+    if (!stop_ahead && p.s0 + p.length + horizon > tail_s_) break;
     if (stail_ - sfirst_ + kSpansPerPiece + 2 > smask_ + 1) break;
     make_spans(pfin_);
     ++pfin_;
@@ -444,18 +448,17 @@ void Executor::make_spans(uint64_t p) noexcept {
     const double from = q.s0 - r;
     const double to = q.s0 + q.length + r;
     if (to <= lo || from >= hi) return;
-    if (!(vq < pdata(p).v || q.v_feed < pc.v_feed || q.v_rapid < pc.v_rapid)) return;
-    if (ncap < 2 * kMaxCuts) caps[ncap++] = {from, to, vq, q.v_feed, q.v_rapid};
+    if (!(vq < pdata(p).v)) return;
+    if (ncap < 2 * kMaxCuts) caps[ncap++] = {from, to, vq, pc.v_feed, pc.v_rapid};
     if (from > lo && ncut < kMaxCuts) cuts[ncut++] = from;
     if (to < hi && ncut < kMaxCuts) cuts[ncut++] = to;
   };
   // Only pieces with a lower ceiling within this piece's own spread can cap
-  // its velocity; lower feeds or rapids may reach from farther.
+  // its velocity. Feeds and rapids (requests, not machine limits) apply to
+  // the input where they are: the output reaches a lower feed within T_f/2.
   const double vreach = pdata(p).v * spread;
   const bool lower_v = range_min(p, lo - vreach, hi + vreach, kChV) < pdata(p).v;
-  const bool lower_feed = range_min(p, lo - reach_, hi + reach_, kChFeed) < pc.v_feed;
-  const bool lower_rapid = range_min(p, lo - reach_, hi + reach_, kChRapid) < pc.v_rapid;
-  const double scan = (lower_feed || lower_rapid) ? reach_ : (lower_v ? vreach : -1);
+  const double scan = lower_v ? vreach : -1;
   const uint64_t first_kept = store_.pieces.released();
   for (uint64_t k = p; scan >= 0 && k > first_kept;) {
     --k;
@@ -613,11 +616,19 @@ void Executor::envelope_span(uint64_t k, double w_end) noexcept {
     // velocity at most w + a_guess T_f over T_f).
     auto brake_limit = [&](double w, double a_guess) {
       const double vw = w + a_guess * tf_;
-      return accel_limit(s.piece, c0 - vw * (tf_ + T_), c1 + w * (0.5 * tf_ + 2 * T_), vw);
+      return accel_limit(s.piece, c0 - vw * (0.5 * tf_ + 2 * T_), c1 + w * (0.5 * tf_ + 2 * T_), vw);
     };
+    // Self-consistent: braking at alpha here leaves the window at most
+    // alpha T_f faster than now, and alpha must hold for that.
     auto own_at = [&](double w) {
-      const double a1 = brake_limit(w, 0);
-      return std::min(a1, brake_limit(w, a1));
+      const double a_hi = brake_limit(w, 0);
+      if (brake_limit(w, a_hi) >= a_hi) return a_hi;
+      double lo = 0, hi = a_hi;
+      for (int it = 0; it < 8; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (brake_limit(w, mid) >= mid ? lo : hi) = mid;
+      }
+      return lo;
     };
     // The braking acceleration assumed here is also the limit the input
     // brakes with here; what the chunks and spans within one window of
@@ -814,7 +825,7 @@ void Executor::plan_input(const CycleInputs& in) noexcept {
   // the window and, ahead, what the input covers in T_f/2 at the velocity
   // it commits to: braking commits to no faster than now (and its outputs
   // to the window's velocity), speeding up to what the window may reach.
-  const double back = x_ - hx_[ring(n - 2 >= 0 ? n - 2 : 0)] + v_ * T_;
+  const double back = x_ - y_ + v_ * T_;
   const uint64_t pc_idx = s.piece;
   // Braking: the envelope's acceleration of the span the step ends on;
   // each span's value holds for samples up to one step before it, so the
@@ -842,12 +853,16 @@ void Executor::plan_input(const CycleInputs& in) noexcept {
   hi = std::min(hi, (cap - v_) / T_);
   if (hi < lo) hi = lo;
   const double want = std::clamp((target - v_) / T_, lo, hi);
-  if (std::getenv("EXEC_DEBUG")) std::fprintf(stderr, "in %lu stail %lu x %.5f v %.4f target %.3f vc %.3f lo %.2f hi %.2f want %.2f a_up %.2f a_dn %.2f cap %.3f safe %d alpha %.2f wst %.3f wend %.3f span [%.4f %.4f] t0 %.2f t15 %.2f\n", (unsigned long)in_, (unsigned long)stail_, x_, v_, target, s.vc, lo, hi, want, a_up, a_dn, cap, (int)safe(v_ + want * T_, want), s.alpha, s.w_start, s.w_end, s.a, s.b, 0.0, 0.0);
+  if (std::getenv("EXEC_DEBUG")) std::fprintf(stderr, "cyc %lu in %lu stail %lu x %.5f v %.4f target %.3f vc %.3f lo %.2f hi %.2f want %.2f a_up %.2f a_dn %.2f cap %.3f safe %d alpha %.2f wst %.3f wend %.3f span [%.4f %.4f] t0 %.2f t15 %.2f\n", (unsigned long)cycles_, (unsigned long)in_, (unsigned long)stail_, x_, v_, target, s.vc, lo, hi, want, a_up, a_dn, cap, (int)safe(v_ + want * T_, want), s.alpha, s.w_start, s.w_end, s.a, s.b, 0.0, 0.0);
   double a = want;
-  if (!safe(v_ + want * T_, want)) {
+  const bool want_safe = safe(v_ + want * T_, want);
+  if (want_safe) recovering_ = false;
+  if (!want_safe) {
     if (!safe(v_ + lo * T_, lo)) {
+      // After an override dropped, braking as hard as allowed is the
+      // expected reaction, not a broken guarantee.
       if (std::getenv("EXEC_DEBUG4")) std::fprintf(stderr, "OVERRUN x %.6f v %.5f lo %.3f hi %.3f a_dn %.3f a_up %.3f a_old %.3f alpha_win %.3f span [%.5f %.5f] alpha %.3f W(x) %.4f\n", x_, v_, lo, hi, a_dn, a_up, a_old, alpha_win, s.a, s.b, s.alpha, envelope_at(in_, x_));
-      ++overruns_;
+      if (!recovering_) ++overruns_;
       a = lo;
     } else {
       double l = lo, h = want;
@@ -867,8 +882,10 @@ void Executor::plan_input(const CycleInputs& in) noexcept {
   // Land exactly on a stop (or the end of the spans) that is all but
   // reached.
   {
+    // The first stop at or after the input (a stop span follows the span
+    // ending at it).
     uint64_t k = in_;
-    while (k < stail_ && span(k).stop == StopKind::None && span(k).b < xn - kLanding) ++k;
+    while (k < stail_ && span(k).stop == StopKind::None && span(k).b <= xn + kLanding) ++k;
     double stop_at = final_end();
     if (k < stail_ && span(k).stop != StopKind::None) stop_at = std::min(stop_at, span(k).a);
     if (step_active_) stop_at = std::min(stop_at, step_s_);
@@ -878,6 +895,12 @@ void Executor::plan_input(const CycleInputs& in) noexcept {
       xn = std::max(x_, stop_at);
       vn = (xn - x_) / T_;
       a = (vn - v_) / T_;
+      if (a < lo) {
+        // Not within this step's braking: get as close as it allows.
+        a = lo;
+        vn = std::max(0.0, v_ + a * T_);
+        xn = std::min(stop_at, x_ + vn * T_);
+      }
     }
   }
   // What this sample's limit is valid for: later samples stay within it.
@@ -1001,7 +1024,11 @@ void Executor::eval(uint64_t seq, double offset, Pose& out, double* speed) const
   const Piece& p = piece(seq);
   const SegmentRecord& sr = store_.segs.at(p.seg);
   AxisVec pos, d1;
-  sr.curve.eval((p.s0 - sr.s0) + offset, pos, &d1);
+  // The move's end exactly (the curve returns its programmed end point at
+  // s == length).
+  double local = (p.s0 - sr.s0) + offset;
+  if (std::fabs(local - sr.curve.length) <= 1e-12 * (1 + sr.curve.length)) local = sr.curve.length;
+  sr.curve.eval(local, pos, &d1);
   for (uint64_t j = p.v_lo; j < p.v_hi; ++j) {
     const Vertex& vx = store_.verts.at(j);
     if (!(vx.half > 0)) continue;
@@ -1049,10 +1076,12 @@ double Executor::stop_distance() const noexcept {
 // ---------------------------------------------------------------------------
 
 void Executor::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
+  ++cycles_;
   ingest();
   const double kf = std::max(0.0, in.feed_scale);
   const double kr = std::max(0.0, in.rapid_scale);
   if (kf != env_feed_ || kr != env_rapid_) {
+    if (kf < env_feed_ || kr < env_rapid_) recovering_ = true;
     env_feed_ = kf;
     env_rapid_ = kr;
     for (uint64_t k = stail_; k-- > in_;) envelope_span(k, (k + 1 >= stail_) ? 0.0 : span(k + 1).w_start);
@@ -1071,8 +1100,10 @@ void Executor::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
   if (!resting) {
     plan_input(in);
   } else {
-    // The window fills with the resting position.
-    push_sample(x_, 0, 0, kInf, 0);
+    // The window fills with the resting position (the step from the last
+    // velocity to rest is an acceleration like any other).
+    const double a_rest = -v_ / T_;
+    push_sample(x_, 0, a_rest, a_rest < 0 ? v_ : kInf, std::fabs(a_rest));
     v_ = 0;
   }
   update_output();
@@ -1102,7 +1133,7 @@ void Executor::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
     out.move_end = pose_;
   }
   out.done = is_idle();
-  if (std::getenv("EXEC_DEBUG2")) for (uint64_t k = in_; k < stail_; ++k) std::fprintf(stderr, "  span %lu [%.12f %.12f] stop %d piece %lu\n", (unsigned long)k, span(k).a, span(k).b, (int)span(k).stop, (unsigned long)span(k).piece);
+  if (std::getenv("EXEC_DEBUG2")) for (uint64_t k = in_; k < stail_; ++k) std::fprintf(stderr, "  span %lu [%.12f %.12f] stop %d piece %lu vc %.4f ws %.4f we %.4f a0 %.2f a3 %.2f plen %.6f pv %.4f\n", (unsigned long)k, span(k).a, span(k).b, (int)span(k).stop, (unsigned long)span(k).piece, span(k).vc, span(k).w_start, span(k).w_end, span(k).ak[0], span(k).ak[3], piece(span(k).piece).length, piece(span(k).piece).v_hard);
   if (std::getenv("EXEC_DEBUG2")) std::fprintf(stderr, "in %lu stail %lu pfin %lu ptail %lu out %lu rest %d x %.12f y %.12f completed %lu\n", (unsigned long)in_, (unsigned long)stail_, (unsigned long)pfin_, (unsigned long)ptail_, (unsigned long)out_, (int)at_rest(), x_, y_, (unsigned long)completed_);
   out.probe_tripped = probe_tripped_;
   if (probe_tripped_) out.probed_position = probed_;

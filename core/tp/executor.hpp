@@ -147,6 +147,7 @@ class Executor {
   uint64_t stail_ = 0;
   uint32_t epoch_ = 0;
   bool merge_ok_ = false;  // the newest span is a whole short piece
+  bool recovering_ = false;  // an override dropped; braking to meet it
 
   // Input state and the last samples (ring, newest at hist_pos_).
   double x_ = 0, v_ = 0;
@@ -171,6 +172,7 @@ class Executor {
   double dwell_left_ = 0;
   uint64_t completed_ = 0;
   uint64_t overruns_ = 0;
+  uint64_t cycles_ = 0;
 };
 
 }  // namespace cnc::tp

@@ -22,7 +22,7 @@ inline constexpr double kInf = std::numeric_limits<double>::infinity();
 inline constexpr double kLimitMargin = 0.999;
 // Share of every axis's acceleration and jerk a piece's velocity ceiling
 // leaves for speeding up and braking along the path.
-inline constexpr double kCeilingReserve = 0.05;
+inline constexpr double kCeilingReserve = 0.2;
 
 struct SegmentRecord {
   Curve curve;

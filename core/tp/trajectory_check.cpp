@@ -173,7 +173,7 @@ void StreamChecker::add(const CycleOutputs& out, double feed_scale) {
     st_.ratio_v = std::max(st_.ratio_v, std::fabs(v) / l.max_velocity);
     st_.ratio_a = std::max(st_.ratio_a, std::fabs(a) / l.max_acceleration);
     if (std::getenv("TP_DEBUG") && std::fabs(j) / l.max_jerk > 1.0 + 1e-9 && std::fabs(j) / l.max_jerk > st_.ratio_j)
-      std::fprintf(stderr, "j violation axis %d ratio %.4f t=%.3f id=%u pos %.4f %.4f %.4f\n", i, std::fabs(j) / l.max_jerk, st_.time_s, out.id, p[0], p[1], p[2]);
+      std::fprintf(stderr, "j violation axis %d ratio %.4f t=%.3f sample %lu id=%u pos %.4f %.4f %.4f\n", i, std::fabs(j) / l.max_jerk, st_.time_s, (unsigned long)st_.samples, out.id, p[0], p[1], p[2]);
     st_.ratio_j = std::max(st_.ratio_j, std::fabs(j) / l.max_jerk);
   }
   const std::size_t n = program_.moves.size();
