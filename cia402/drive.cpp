@@ -318,6 +318,7 @@ void Drive::run_homing(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) 
       } else {
         home_ = HomePhase::SwitchToHm;
         home_started_ns_ = now;
+        hold_position_ = position_.value();  // held until the drive is in HM (see write_targets)
         home_seen_progress_ = home_seen_other_ = false;
       }
       break;
@@ -468,10 +469,17 @@ void Drive::write_targets(const DriveCommand& cmd, bool operating) noexcept {
   const Scaling& sc = config_.scaling;
   int32_t velocity = 0;
   int16_t torque = 0;
-  if (state_ != State::OperationEnabled || mode_cmd_ == Mode::Homing || mode_display_ == Mode::Homing) {
-    hold_position_ = position_.value();
-  }
-  if (operating && mode_cmd_ == Mode::CyclicSyncPosition) {
+  // In HM the drive moves by itself: the held target follows it (the first
+  // cyclic target after HM is where the drive is). Not while the drive is
+  // still in CSP waiting to switch: there a moving target would follow the
+  // feedback it causes.
+  if (state_ != State::OperationEnabled || mode_display_ == Mode::Homing) hold_position_ = position_.value();
+  // Waiting for standstill before HM, motion already mirrors the feedback
+  // into its command: sending that back as the target would close a loop
+  // through the bus delay (the axis hunts instead of settling). The target
+  // stays where the homing was asked for.
+  const bool hold_for_homing = home_ == HomePhase::SwitchToHm;
+  if (operating && mode_cmd_ == Mode::CyclicSyncPosition && !hold_for_homing) {
     target_ = sc.to_counts(cmd.pos_cmd);
   } else {
     target_ = hold_position_;

@@ -306,6 +306,34 @@ INSTANTIATE_TEST_SUITE_P(Methods, Cia402DriveHoming,
                            return "Method" + std::to_string(i.param.method);
                          });
 
+// Homing asked for while the axis still moves: the switch to HM waits for
+// standstill, and motion already mirrors the feedback into its command.
+// Sent back as the target, that closes a loop through the bus delay in which
+// the axis hunts and never comes to rest; the target is held where the
+// homing was asked for instead, the axis stops there, and homing proceeds.
+TEST(Cia402Drive, HomingAskedForWhileMovingHoldsTheTargetUntilTheDriveIsInHm) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) { ini.set("CIA402_DRIVE_0", "HOME_METHOD", "34"); });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  double p = rig.fb().pos_fb;
+  rig.cycles(300, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });  // 20 mm/s
+  rig.cmd().home_start = true;
+  std::vector<int32_t> targets_before_hm;
+  bool in_hm = false;
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().home_done || rig.fb().home_error; }, 5000, [&](Rig& r) {
+    r.cmd().pos_cmd = r.fb().pos_fb;
+    in_hm = in_hm || r.sim().mode() == Mode::Homing;
+    if (!in_hm) targets_before_hm.push_back(r.host().at(0).od().get<int32_t>({0x607A, 0}));
+  })) << "homing did not start: " << rig.drain_messages().back();
+  EXPECT_TRUE(rig.fb().home_done);
+  ASSERT_GT(targets_before_hm.size(), 3u);
+  // From the request on, one target (the first entries are still in flight).
+  const int32_t held = targets_before_hm.back();
+  int moved = 0;
+  for (std::size_t i = 3; i < targets_before_hm.size(); ++i) moved += targets_before_hm[i] != held ? 1 : 0;
+  EXPECT_EQ(moved, 0);
+}
+
 // Out of HM the first CSP target is motion's command. A command that does
 // not mirror the feedback (here: it keeps the drive's position from before
 // the reference was set, as a compensation ramp clamped against the jump
