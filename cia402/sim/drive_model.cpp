@@ -546,7 +546,7 @@ void DriveModel::update_statusword() noexcept {
   uint16_t s = static_cast<uint16_t>(state_bits(state_) | sw::kRemote);
   if (state_ != State::NotReadyToSwitchOn) s |= sw::kVoltageEnabled;
   if (warning_ || temperature() >= cfg_.warning_c) s |= sw::kWarning;
-  if (internal_limit_ || plant_.current_limited()) s |= sw::kInternalLimit;
+  if (internal_limit_ || torque_limited_ || plant_.current_limited()) s |= sw::kInternalLimit;
   if (state_ == State::OperationEnabled) {
     switch (mode_) {
       case Mode::CyclicSyncPosition:
@@ -731,13 +731,25 @@ void DriveModel::step(double dt) noexcept {
   const ServoGains& g = cfg_.gains;
   const double j = plant_.reflected_inertia();
   const double kv = g.velocity_gain > 0 ? g.velocity_gain : j * 6.283185307179586 * g.velocity_bandwidth_hz;
+  torque_limited_ = false;
   if (power && !torque_mode) {
     if (position_loop) v_ref = g.position_gain * (demand_ - measured_) + g.velocity_ff * vff_;
     const double ev = (v_ref - velocity_est_) / cpr;  // rad/s
-    torque_cmd = kv * ev + integral_ + g.torque_ff * j * aff_ / cpr;
-    if (g.velocity_integral_time > 0 && !plant_.current_limited()) integral_ += kv / g.velocity_integral_time * ev * dt;
-    const double max_t = max_torque_.get() * 0.001 * cfg_.plant.rated_torque;
-    torque_cmd = std::clamp(torque_cmd, -max_t, max_t);
+    const double wanted = kv * ev + integral_ + g.torque_ff * j * aff_ / cpr;
+    // The torque the drive can give: 0x6072, and never more than the power
+    // stage's current limit.
+    const double max_t = std::min(max_torque_.get() * 0.001 * cfg_.plant.rated_torque,
+                                  cfg_.plant.torque_constant * cfg_.plant.max_current);
+    torque_cmd = std::clamp(wanted, -max_t, max_t);
+    torque_limited_ = wanted != torque_cmd || plant_.current_limited();
+    if (g.velocity_integral_time > 0) {
+      // Anti-windup (conditional integration): while the command is at the
+      // torque limit the integral may only move back towards it, and it
+      // never holds more than the limit. Without this a saturated loop winds
+      // up and the axis swings out further with every reversal.
+      const double di = kv / g.velocity_integral_time * ev * dt;
+      if (!torque_limited_ || (di > 0) != (wanted > 0)) integral_ = std::clamp(integral_ + di, -max_t, max_t);
+    }
   } else if (!power) {
     integral_ = 0;
     torque_cmd = 0;

@@ -189,6 +189,7 @@ class DriveModel {
   double ferror_time_ = 0;
   bool ferror_exceeded_ = false;
   bool internal_limit_ = false;
+  bool torque_limited_ = false;     // the loop asks for more than 0x6072 / the current limit
   bool homed_ = false;
   bool homing_started_ = false;
   double frozen_counts_ = 0;
