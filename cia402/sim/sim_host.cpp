@@ -3,6 +3,7 @@
 #include <pthread.h>
 #include <sched.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -66,9 +67,17 @@ void SimHost::step(int64_t now_ns) {
   }
   can::Frame f;
   while (transport_.receive(f)) {
-    // The frame's reception time is when the drive saw it (the wake-up
-    // jitter of this thread does not reach the drives).
-    const int64_t t = f.timestamp_ns > 0 && f.timestamp_ns <= now_ns ? f.timestamp_ns : now_ns;
+    // The frame's reception time is when the drive saw it: neither the
+    // wake-up jitter of this thread nor a stall of this pass reaches the
+    // drives. Frames that arrived while the pass ran are later than
+    // `now_ns` (it was read when the pass began); they keep their own time,
+    // or a backlog of SYNCs would all fall on one instant and each restart
+    // the drives' interpolation with no time between them. Only a time
+    // from another clock (none, or seconds away) is replaced by `now_ns`.
+    int64_t t = f.timestamp_ns;
+    if (t <= 0 || t < now_ns - kTrustedAgeNs || t > now_ns + kTrustedAgeNs) t = now_ns;
+    t = std::max(t, last_frame_ns_);  // never back in time (clock conversion jitter)
+    last_frame_ns_ = t;
     for (auto& d : drives_) d->on_frame(f, t);
   }
   for (auto& d : drives_) d->poll(now_ns);

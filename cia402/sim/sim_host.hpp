@@ -77,8 +77,12 @@ class SimHost {
   // Allocation-free: it may run in the servo thread.
   void apply(const Injection& in, FixedString<200>& why) noexcept;
 
+  // Frame times further than this from the pass's clock are not believed.
+  static constexpr int64_t kTrustedAgeNs = 10'000'000'000;
+
   can::Transport& transport_;
   std::vector<std::unique_ptr<CanopenDrive>> drives_;
+  int64_t last_frame_ns_ = 0;  // reception time of the last frame delivered
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::atomic<bool> stepped_elsewhere_{false};
