@@ -568,6 +568,58 @@ TEST(Cia402Sim, ASetPointStepAtTheTorqueLimitSettlesWithoutWindingUp) {
   EXPECT_NEAR(static_cast<double>(d.position()), static_cast<double>(to), 2.0);
 }
 
+// 0x6080 (rpm) and 0x607F (increments/s) bound the CSP demand: a target
+// further away than one period allows is approached at the limit, with
+// "internal limit active" (bit 11), and reached without a fault.
+TEST(Cia402Sim, ATargetBeyondTheVelocityLimitIsApproachedAtTheLimit) {
+  SimDrive d;
+  ASSERT_EQ(d.sdo_write(0x6080, 0, 600, 4), 0u);  // 600 rpm: 50 mm/s with the 5 mm screw
+  d.enable();
+  d.syncs(20);
+  const int64_t to = d.position() + 20 * static_cast<int64_t>(kCountsPerMm);  // 20 mm at once
+  d.target(to);
+  double fastest = 0;
+  int limited = 0, syncs = 0;
+  while (syncs < 1000 && std::llabs(d.position() - to) > 2) {
+    const double before = d.model.demand();
+    d.sync();
+    ++syncs;
+    fastest = std::max(fastest, std::fabs(d.model.demand() - before) / kCountsPerMm / 0.001);
+    if (d.model.statusword() & sw::kInternalLimit) ++limited;
+  }
+  EXPECT_LE(fastest, 50.0 * 1.0001);  // mm/s of the demand
+  EXPECT_NEAR(syncs, 400, 30);         // 20 mm at 50 mm/s
+  EXPECT_GT(limited, 350);
+  EXPECT_EQ(d.state(), State::OperationEnabled);
+  d.syncs(50);
+  EXPECT_FALSE(d.model.statusword() & sw::kInternalLimit);
+  EXPECT_NEAR(static_cast<double>(d.position()), static_cast<double>(to), 2.0);
+}
+
+// A following-error fault means the axis is not where the demand is; the
+// fault reaction's ramp starts from the axis, not from the old demand (else
+// a load that breaks loose is pulled to the demand at full torque first).
+TEST(Cia402Sim, AFollowingErrorFaultStopsWhereTheAxisIsNotAtTheDemand) {
+  SimDrive d;
+  ASSERT_EQ(d.sdo_write(0x6065, 0, 2000, 4), 0u);  // 1 mm
+  ASSERT_EQ(d.sdo_write(0x6066, 0, 10, 2), 0u);
+  d.enable();
+  d.model.set_jam_force(1e6);  // the table is stuck
+  double p = d.position() / kCountsPerMm;
+  for (int i = 0; i < 500 && d.state() == State::OperationEnabled; ++i) {
+    p += 0.05;  // 50 mm/s
+    d.target(std::llround(p * kCountsPerMm));
+    d.sync();
+  }
+  ASSERT_NE(d.state(), State::OperationEnabled);
+  ASSERT_EQ(d.model.error_code(), err::kFollowingError);
+  const double stuck_at = d.table_mm();
+  d.model.set_jam_force(0);  // and breaks loose during the fault reaction
+  ASSERT_TRUE(d.sync_until([&] { return d.state() == State::Fault; }, 1000));
+  d.syncs(50);
+  EXPECT_NEAR(d.table_mm(), stuck_at, 0.05);
+}
+
 TEST(Cia402Sim, LimitSwitchStopsMotionIntoItAndSetsTheInternalLimitBit) {
   SimDrive d;
   d.enable();
