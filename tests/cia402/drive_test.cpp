@@ -507,6 +507,48 @@ TEST(Cia402Drive, TooSoftALoopTripsTheDrivesFollowingErrorWindow) {
   EXPECT_TRUE(rig.has_message("EMCY 0x8611"));
 }
 
+// Motion waits for amp-ready (the `enabled` pin) after its enable; while the
+// enable sequence runs, a drive that is still in fault (reset by the enable
+// edge) is not an amplifier fault, or a machine turned on after a drive
+// fault would trip at once instead of resetting it.
+TEST(Cia402Drive, TheEnableSequenceIsNotAnAmplifierFaultWhileItRuns) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  EXPECT_EQ(rig.host().inject("drive 1 overcurrent", 0, false), "");
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().fault; }, 50));
+  rig.cmd().enable = false;
+  rig.cycles(300);  // past the reset hold-off
+  ASSERT_EQ(rig.fb().state, State::Fault);
+  rig.cmd().enable = true;
+  bool amp_fault = false;
+  ASSERT_TRUE(rig.cycle_until([&] {
+    amp_fault = amp_fault || rig.fb().amp_fault;
+    return rig.fb().enabled;
+  }, 300));
+  EXPECT_FALSE(amp_fault);
+  EXPECT_TRUE(rig.has_message("fault reset: the drive is in switch on disabled"));
+}
+
+// A drive that is not operational on the bus when the machine is turned on
+// is waited for, then ENABLE_TIMEOUT_MS says why it did not come.
+TEST(Cia402Drive, ADriveNotOnTheBusAtEnableFaultsAfterTheEnableTimeoutSayingSo) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  rig.cycles(10);
+  EXPECT_EQ(rig.host().inject("drive 1 dead", 0, false), "");
+  ASSERT_TRUE(rig.cycle_until([&] { return !rig.fb().link_ok; }, 500));
+  rig.cmd().enable = true;
+  int cycles_without_fault = 0;
+  ASSERT_TRUE(rig.cycle_until([&] {
+    if (!rig.fb().amp_fault) ++cycles_without_fault;
+    return rig.fb().amp_fault;
+  }, 500));
+  EXPECT_NEAR(cycles_without_fault, 200, 5);  // ENABLE_TIMEOUT_MS = 200
+  EXPECT_TRUE(rig.has_message("x-axis: did not reach operation enabled within 200 ms"));
+  EXPECT_TRUE(rig.has_message("the drive is not operational on the bus"));
+}
+
 TEST(Cia402Drive, ALostDriveIsReported) {
   Rig rig(one_axis_ini());
   rig.configure();
