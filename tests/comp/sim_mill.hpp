@@ -119,19 +119,14 @@ class SimMill : private ipc::CommandReporter {
   }
 
   // E-stop reset, machine on, home all, auto mode. Empty on success.
-  // "Machine on" is done once motion is enabled; drives behind a fieldbus
-  // then need a few cycles more for their enable sequence (CiA 402: SOD ->
-  // RTSO -> SO -> OE, about 10 ms here) and motion has no amplifier-ready
-  // input to wait for. An operator's next command comes later than that;
-  // `settle_s` stands for it, so that homing does not start against a drive
-  // that does not follow yet.
-  std::string power_up(double settle_s = 0.2) {
+  // "Machine on" is done once every drive follows (joint.N.amp-ready-in),
+  // so homing goes right after it.
+  std::string power_up() {
     const auto check = [&](const char* what, const Reply& reply) {
       return reply.first == ipc::CommandState::Done ? std::string() : std::string(what) + ": " + reply.second + errors();
     };
     if (std::string e = check("estop reset", send(ipc::CommandType::TaskSetState, 2)); !e.empty()) return e;
     if (std::string e = check("machine on", send(ipc::CommandType::TaskSetState, 4)); !e.empty()) return e;
-    step(static_cast<int>(settle_s * 1e9 / static_cast<double>(info_.period_ns)));
     if (std::string e = check("home all", send(ipc::CommandType::JointHome, -1)); !e.empty()) return e;
     return check("auto", send(ipc::CommandType::TaskSetMode, static_cast<int>(ipc::TaskMode::Auto)));
   }
