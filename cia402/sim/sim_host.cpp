@@ -87,7 +87,7 @@ void SimHost::step(int64_t now_ns) {
 
 void SimHost::start() {
   if (thread_.joinable()) return;
-  power_on(monotonic_ns());
+  power_on(transport_.now_ns());
   stop_.store(false);
   set_stepped_elsewhere(true);
   thread_ = std::thread([this] {
@@ -101,7 +101,7 @@ void SimHost::start() {
     }
     while (!stop_.load(std::memory_order_acquire)) {
       transport_.wait(1'000'000);  // SYNC wakes it at once; between SYNCs the drives keep time at 1 ms
-      step(monotonic_ns());
+      step(transport_.now_ns());
     }
   });
 }
