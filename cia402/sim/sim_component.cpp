@@ -112,7 +112,10 @@ class SimComponent : public hal::Component, public ipc::ControllerService {
       }
       const std::string prefix = "cia402-sim." + std::to_string(g);
       for (const SimNodeConfig& n : cfg.nodes) {
-        bus->host->add(n);
+        // On the in-process bus each drive is a controller of its own, as
+        // separate devices are: their frames meet in arbitration.
+        if (bus->vbus) bus->host->add(n, bus->vbus->open_port("cia402-sim.node-" + std::to_string(n.node_id)));
+        else bus->host->add(n);
         char p[48];
         std::snprintf(p, sizeof p, "%s.node.%02u.", prefix.c_str(), n.node_id);
         const std::string s = p;

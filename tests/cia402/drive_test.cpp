@@ -549,6 +549,59 @@ TEST(Cia402Drive, ADriveNotOnTheBusAtEnableFaultsAfterTheEnableTimeoutSayingSo) 
   EXPECT_TRUE(rig.has_message("the drive is not operational on the bus"));
 }
 
+// Simulated drives are separate devices on the bus: what they answer to a
+// SYNC meets in arbitration by identifier (all TPDO1 before any TPDO2),
+// instead of queueing drive after drive behind one controller, where the
+// last drive's position waited behind the others' lower-priority PDOs.
+TEST(Cia402Drive, SimulatedDrivesAnswerASyncInTheBusPriorityOrder) {
+  std::string ini = R"(
+[EMCMOT]
+SERVO_PERIOD = 1000000
+[CANOPEN]
+INTERFACE = virtual:rig
+NODE = 1 2
+MASTER_HEARTBEAT_MS = 20
+[CIA402]
+BUS = canopen.0
+DRIVE = 0
+[CIA402_DRIVE_0]
+ADDRESS = 1
+NAME = x-axis
+ENCODER_COUNTS = 10000
+SCREW_LEAD = 5
+[CIA402_SIM]
+INTERFACE = virtual:rig
+NODE = 1 2
+[CIA402_SIM_NODE_1]
+NAME = x-axis
+ENCODER_COUNTS = 10000
+[CIA402_SIM_NODE_2]
+NAME = y-axis
+ENCODER_COUNTS = 10000
+)";
+  for (const char* n : {"1", "2"}) {
+    ini += std::string("[CANOPEN_NODE_") + n + "]\nNAME = axis-" + n +
+           "\nHEARTBEAT_MS = 20\nRPDO1 = 0x6040:0:u16 0x607A:0:s32\nTPDO1 = 0x6041:0:u16 0x6064:0:s32\n"
+           "TPDO2 = 0x606C:0:s32 0x60F4:0:s32\n";
+  }
+  Rig rig(ini);
+  auto sniffer = rig.bus().open_port("sniffer");
+  rig.cycles(5);
+  std::vector<uint32_t> after_sync;
+  can::Frame f;
+  bool seen_sync = false;
+  while (sniffer->receive(f)) {
+    if (f.is_error()) continue;
+    if (f.id == 0x080) {
+      if (seen_sync) break;  // one cycle's answers
+      seen_sync = true;
+    } else if (seen_sync && (f.id == 0x181 || f.id == 0x182 || f.id == 0x281 || f.id == 0x282)) {
+      after_sync.push_back(f.id);
+    }
+  }
+  EXPECT_EQ(after_sync, (std::vector<uint32_t>{0x181, 0x182, 0x281, 0x282}));
+}
+
 TEST(Cia402Drive, ALostDriveIsReported) {
   Rig rig(one_axis_ini());
   rig.configure();

@@ -108,7 +108,10 @@ class Rig {
     bus_ = can::VirtualBus::create(o);
     sim_port_ = bus_->open_port("sim");
     host_ = std::make_unique<sim::SimHost>(*sim_port_);
-    for (const auto& n : sim::load_sim_config(ini_, "CIA402_SIM").nodes) host_->add(n);
+    // Each drive a controller of its own on the bus, as cia402_sim does.
+    for (const auto& n : sim::load_sim_config(ini_, "CIA402_SIM").nodes) {
+      host_->add(n, bus_->open_port("sim-" + std::to_string(n.node_id)));
+    }
     host_->power_on(now());
     canopen::BusConfig bc = canopen::load_bus_config(ini_, "CANOPEN", "canopen.0");
     cycle_ns_ = bc.cycle_ns;
