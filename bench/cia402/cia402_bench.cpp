@@ -30,6 +30,7 @@
 #include "cia402/components.hpp"
 #include "fieldbus/canopen/components.hpp"
 #include "tests/comp/sim_mill.hpp"
+#include "tests/fieldbus/canopen/pace.hpp"
 
 using namespace cnc;
 
@@ -129,6 +130,7 @@ int main(int argc, char** argv) {
     canopen::register_components(r);
     cia402::register_components(r);
   });
+  mill.pace = canopen::test::acyclic_pacer(mill.hal());
   if (std::string e = mill.power_up(); !e.empty()) {
     std::printf("FAILED: power up: %s\n", e.c_str());
     return 1;

@@ -332,7 +332,9 @@ void Master::stop_thread() {
 void Master::thread_main() {
   acyclic_thread_id_ = std::this_thread::get_id();
   while (!stop_.load(std::memory_order_acquire)) {
-    poll(acyclic_port_->now_ns());  // the bus's clock: a simulated bus that stands still is not silent
+    const int64_t now = acyclic_port_->now_ns();  // the bus's clock: a simulated bus that stands still is not silent
+    poll(now);
+    last_poll_seen_ns_.store(now, std::memory_order_release);
     acyclic_port_->wait(1'000'000);
   }
 }

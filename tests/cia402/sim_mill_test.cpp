@@ -8,6 +8,7 @@
 #include "cia402/components.hpp"
 #include "fieldbus/canopen/components.hpp"
 #include "tests/comp/sim_mill.hpp"
+#include "tests/fieldbus/canopen/pace.hpp"
 #include "tests/support/testing.hpp"
 
 using namespace cnc;
@@ -19,6 +20,7 @@ TEST(Cia402SimMill, MachineOnIsDoneWhenEveryDriveFollowsAndHomingMayStartAtOnce)
                                canopen::register_components(r);
                                cia402::register_components(r);
                              });
+  mill.pace = canopen::test::acyclic_pacer(mill.hal());
   mill.step(100);
   ASSERT_EQ(mill.send(ipc::CommandType::TaskSetState, 2).first, ipc::CommandState::Done) << mill.errors();
   for (const char* drive : {"00", "01", "02"}) {

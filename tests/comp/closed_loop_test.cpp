@@ -44,6 +44,7 @@ TEST(CompensationClosedLoop, LeadScrewPlantMeasuredFittedCompensatedAndMeasuredA
 #ifdef CNC_HAVE_CIA402
 #include "cia402/components.hpp"
 #include "fieldbus/canopen/components.hpp"
+#include "tests/fieldbus/canopen/pace.hpp"
 
 // The same loop on the project's simulated mill (configs/sim): X is a
 // CiA 402 drive on a CANopen bus, its simulator a motor, screw and table
@@ -71,6 +72,7 @@ TEST(CompensationClosedLoop, SimulatedMillOnCia402DrivesXAxis) {
         cia402::register_components(r);
       },
       extra_hal);
+  mill.pace = canopen::test::acyclic_pacer(mill.hal());
   cnc::testing::ClosedLoopOptions o;
   o.cycle.x_min = 5;
   o.cycle.x_max = 295;

@@ -86,6 +86,7 @@ class SimMill : private ipc::CommandReporter {
       ++info_.cycle;
       now_ns_ += info_.period_ns;
       for (ipc::ControllerService* s : services_) s->update(now_ns_);
+      if (pace) pace();
       if (info_.cycle % 10 == 0) {
         for (ipc::ControllerService* s : services_) s->contribute_status(*status_);
       }
@@ -168,6 +169,9 @@ class SimMill : private ipc::CommandReporter {
 
   // Called after every servo cycle (benchmarks sample pins here).
   std::function<void()> on_cycle;
+  // Called after every step: may wait for threads the simulated time must
+  // not outrun (tests/fieldbus/canopen/pace.hpp).
+  std::function<void()> pace;
   // Every message on stderr with its simulated time (SIMMILL_VERBOSE=1).
   bool verbose = std::getenv("SIMMILL_VERBOSE") != nullptr;
 
