@@ -96,6 +96,15 @@ class SimMill : private ipc::CommandReporter {
 
   Reply send(ipc::Command c, int max_cycles = 600000) {
     c.serial = ++serial_;
+    // A client sends its next command once it has seen the state it waits
+    // for in the published status: publish it (this harness does so only
+    // every 10th cycle, to save time), twice, because a service may read
+    // another's part (screwcomp reads the task's interpreter state, and
+    // comes first): it could still take a program that had just ended for a
+    // running one and refuse JOINT_LOAD_COMP (1 closed-loop run in 6).
+    for (int pass = 0; pass < 2; ++pass) {
+      for (ipc::ControllerService* s : services_) s->contribute_status(*status_);
+    }
     bool taken = false;
     for (ipc::ControllerService* s : services_) {
       if ((taken = s->handle_command(c, *this))) break;
