@@ -223,8 +223,14 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
   const bool warning = (statusword_ & sw::kWarning) != 0;
   if (warning && !fb.warning && !faulted) post(false, "warning (statusword 0x%04X)", statusword_);
   fb.warning = warning;
+  // While the enable sequence runs (the drive has not followed since the
+  // enable rose) a drive still in fault (its reset comes with the enable
+  // edge) or a link not up yet is not ready, not a fault: motion waits for
+  // amp-ready (the `enabled` pin), and ENABLE_TIMEOUT_MS ends the wait with
+  // a reason. Once the drive followed, either is a fault.
+  const bool sequence_running = cmd.enable && !reached_oe_;
   fb.amp_fault = cmd.enable && (enable_failed_ || reset_failed_ || mode_failed_ || lost_enable_ || cmd.quick_stop ||
-                                cmd.inhibit || !fb.link_ok || (faulted && !resetting_));
+                                cmd.inhibit || (!sequence_running && (!fb.link_ok || (faulted && !resetting_))));
 }
 
 // ------------------------------------------------------------------ write
@@ -318,6 +324,7 @@ void Drive::run_homing(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) 
       } else {
         home_ = HomePhase::SwitchToHm;
         home_started_ns_ = now;
+        hold_position_ = position_.value();  // held until the drive is in HM (see write_targets)
         home_seen_progress_ = home_seen_other_ = false;
       }
       break;
@@ -425,15 +432,19 @@ uint16_t Drive::run_state_machine(int64_t now, const DriveCommand& cmd, DriveFee
     lost_enable_ = true;  // the drive left operation enabled by itself
     if (!is_faulted(state_)) post(true, "the drive left operation enabled by itself (%s)", to_string(state_));
   }
-  const bool want = cmd.enable && !cmd.quick_stop && !cmd.inhibit && fb.link_ok && !enable_failed_ && !reset_failed_ &&
-                    !mode_failed_ && !lost_enable_ && !resetting_;
+  const bool asked = cmd.enable && !cmd.quick_stop && !cmd.inhibit && !enable_failed_ && !reset_failed_ &&
+                     !mode_failed_ && !lost_enable_;
+  const bool want = asked && fb.link_ok && !resetting_;
 
-  if (want && !reached_oe_) {  // the enable sequence; later losses of bit 12 are not its business
+  // The enable sequence (later losses of bit 12 are not its business) is
+  // timed from the enable, whether the link is up yet or a reset runs.
+  if (asked && !reached_oe_) {
     if (enable_started_ns_ < 0) enable_started_ns_ = now;
     if (now - enable_started_ns_ > config_.enable_timeout_ns) {
       enable_failed_ = true;
-      post(true, "did not reach operation enabled within %lld ms (stuck in %s, statusword 0x%04X)",
-           ms(config_.enable_timeout_ns), to_string(state_), statusword_);
+      post(true, "did not reach operation enabled within %lld ms (stuck in %s, statusword 0x%04X%s)",
+           ms(config_.enable_timeout_ns), to_string(state_), statusword_,
+           fb.link_ok ? "" : "; the drive is not operational on the bus");
     }
   } else {
     enable_started_ns_ = -1;
@@ -468,10 +479,17 @@ void Drive::write_targets(const DriveCommand& cmd, bool operating) noexcept {
   const Scaling& sc = config_.scaling;
   int32_t velocity = 0;
   int16_t torque = 0;
-  if (state_ != State::OperationEnabled || mode_cmd_ == Mode::Homing || mode_display_ == Mode::Homing) {
-    hold_position_ = position_.value();
-  }
-  if (operating && mode_cmd_ == Mode::CyclicSyncPosition) {
+  // In HM the drive moves by itself: the held target follows it (the first
+  // cyclic target after HM is where the drive is). Not while the drive is
+  // still in CSP waiting to switch: there a moving target would follow the
+  // feedback it causes.
+  if (state_ != State::OperationEnabled || mode_display_ == Mode::Homing) hold_position_ = position_.value();
+  // Waiting for standstill before HM, motion already mirrors the feedback
+  // into its command: sending that back as the target would close a loop
+  // through the bus delay (the axis hunts instead of settling). The target
+  // stays where the homing was asked for.
+  const bool hold_for_homing = home_ == HomePhase::SwitchToHm;
+  if (operating && mode_cmd_ == Mode::CyclicSyncPosition && !hold_for_homing) {
     target_ = sc.to_counts(cmd.pos_cmd);
   } else {
     target_ = hold_position_;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace cnc::cia402::sim {
 namespace {
@@ -71,7 +72,7 @@ void DriveModel::add_objects() {
   add(obj::kSwLimitMax, D::Integer32, A::ReadWrite, 0, false, "Max position limit");
   add(obj::kPolarity, D::Unsigned8, A::ReadOnly, 0, false, "Polarity");
   add(obj::kMaxProfileVelocity, D::Unsigned32, A::ReadWrite, 0xFFFFFFFF, false, "Max profile velocity");
-  add(obj::kMaxMotorSpeed, D::Unsigned32, A::ReadWrite, 0xFFFFFFFF, false, "Max motor speed");
+  add(obj::kMaxMotorSpeed, D::Unsigned32, A::ReadWrite, cfg_.max_motor_speed_rpm, false, "Max motor speed (rpm)");
   add(obj::kProfileAcceleration, D::Unsigned32, A::ReadWrite, pf_decel, false, "Profile acceleration");
   add(obj::kProfileDeceleration, D::Unsigned32, A::ReadWrite, pf_decel, false, "Profile deceleration");
   add(obj::kQuickStopDeceleration, D::Unsigned32, A::ReadWrite, qs_decel, false, "Quick stop deceleration");
@@ -143,6 +144,8 @@ void DriveModel::add_objects() {
   fault_reaction_option_ = od.var<int16_t>(at(obj::kFaultReactionOption));
   abort_option_ = od.var<int16_t>(at(obj::kAbortConnection));
   ferror_window_ = od.var<uint32_t>(at(obj::kFollowingErrorWindow));
+  max_profile_velocity_ = od.var<uint32_t>(at(obj::kMaxProfileVelocity));
+  max_motor_speed_ = od.var<uint32_t>(at(obj::kMaxMotorSpeed));
   quick_stop_decel_ = od.var<uint32_t>(at(obj::kQuickStopDeceleration));
   profile_decel_ = od.var<uint32_t>(at(obj::kProfileDeceleration));
   homing_speed_switch_ = od.var<uint32_t>(at(obj::kHomingSpeedSwitch));
@@ -242,6 +245,7 @@ void DriveModel::enter(State s) noexcept {
     vff_ = aff_ = integral_ = 0;
     ferror_time_ = 0;
     target_valid_ = false;
+    velocity_limited_ = false;
     halted_ = false;
   }
   if (s != State::OperationEnabled && s != State::QuickStopActive && s != State::FaultReactionActive) {
@@ -254,6 +258,14 @@ void DriveModel::begin_stop(int16_t option, State then) noexcept {
   const int o = option > 4 ? option - 4 : option;
   after_stop_ = then;
   ramp_velocity_ = vff_ != 0 ? vff_ : velocity_est_;
+  if (ferror_exceeded_ || std::fabs(demand_ - measured_) > ferror_window_.get()) {
+    // The axis is not where the demand is (a following error): the stop
+    // starts from where the axis is and how fast it moves, or the ramp
+    // would first pull it to the old demand at full torque.
+    demand_ = measured_;
+    ramp_velocity_ = velocity_est_;
+    integral_ = 0;
+  }
   settle_s_ = 0;
   homing_.interrupt();
   switch (o) {
@@ -388,6 +400,7 @@ void DriveModel::apply_mode() noexcept {
   seg_velocity_ = 0;
   vff_ = aff_ = 0;
   target_valid_ = false;
+  velocity_limited_ = false;
 }
 
 void DriveModel::start_segment() noexcept {
@@ -402,14 +415,28 @@ void DriveModel::start_segment() noexcept {
   }
   target_raw_ = raw;
   const double length = static_cast<double>(period_ns()) * 1e-9;
-  const double v_new = (static_cast<double>(target_unwrapped_) - demand_) / length;
+  // A target further than the drive may travel in one period (late
+  // set-points caught up at once, a master's jump) is approached at the
+  // velocity limit; the rest is left for the next periods (bit 11 meanwhile).
+  const double v_max = max_velocity();
+  const double v_new = std::clamp((static_cast<double>(target_unwrapped_) - demand_) / length, -v_max, v_max);
+  velocity_limited_ = std::fabs(static_cast<double>(target_unwrapped_) - demand_) > v_max * length;
   const bool previous_ran_out = seg_elapsed_ > seg_length_ * 1.5;  // a late or missing SYNC: the drive held still
   aff_ = (v_new - (previous_ran_out ? 0.0 : seg_velocity_)) / length;
   seg_velocity_ = v_new;
   seg_start_ = demand_;
-  seg_end_ = static_cast<double>(target_unwrapped_);
+  seg_end_ = velocity_limited_ ? demand_ + v_new * length : static_cast<double>(target_unwrapped_);
   seg_elapsed_ = 0;
   seg_length_ = length;
+}
+
+double DriveModel::max_velocity() const noexcept {
+  // 0x6080 is in motor revolutions per minute, 0x607F in increments/s
+  // (factor group 1:1); 0xFFFFFFFF: no limit.
+  double v = std::numeric_limits<double>::infinity();
+  if (max_motor_speed_.get() != 0xFFFFFFFFu) v = max_motor_speed_.get() / 60.0 * cfg_.plant.encoder_counts;
+  if (max_profile_velocity_.get() != 0xFFFFFFFFu) v = std::min(v, static_cast<double>(max_profile_velocity_.get()));
+  return v;
 }
 
 void DriveModel::on_sync(int64_t now_ns) noexcept {
@@ -546,7 +573,8 @@ void DriveModel::update_statusword() noexcept {
   uint16_t s = static_cast<uint16_t>(state_bits(state_) | sw::kRemote);
   if (state_ != State::NotReadyToSwitchOn) s |= sw::kVoltageEnabled;
   if (warning_ || temperature() >= cfg_.warning_c) s |= sw::kWarning;
-  if (internal_limit_ || plant_.current_limited()) s |= sw::kInternalLimit;
+  const bool csp_limited = velocity_limited_ && state_ == State::OperationEnabled && mode_ == Mode::CyclicSyncPosition;
+  if (internal_limit_ || csp_limited || torque_limited_ || plant_.current_limited()) s |= sw::kInternalLimit;
   if (state_ == State::OperationEnabled) {
     switch (mode_) {
       case Mode::CyclicSyncPosition:
@@ -731,13 +759,25 @@ void DriveModel::step(double dt) noexcept {
   const ServoGains& g = cfg_.gains;
   const double j = plant_.reflected_inertia();
   const double kv = g.velocity_gain > 0 ? g.velocity_gain : j * 6.283185307179586 * g.velocity_bandwidth_hz;
+  torque_limited_ = false;
   if (power && !torque_mode) {
     if (position_loop) v_ref = g.position_gain * (demand_ - measured_) + g.velocity_ff * vff_;
     const double ev = (v_ref - velocity_est_) / cpr;  // rad/s
-    torque_cmd = kv * ev + integral_ + g.torque_ff * j * aff_ / cpr;
-    if (g.velocity_integral_time > 0 && !plant_.current_limited()) integral_ += kv / g.velocity_integral_time * ev * dt;
-    const double max_t = max_torque_.get() * 0.001 * cfg_.plant.rated_torque;
-    torque_cmd = std::clamp(torque_cmd, -max_t, max_t);
+    const double wanted = kv * ev + integral_ + g.torque_ff * j * aff_ / cpr;
+    // The torque the drive can give: 0x6072, and never more than the power
+    // stage's current limit.
+    const double max_t = std::min(max_torque_.get() * 0.001 * cfg_.plant.rated_torque,
+                                  cfg_.plant.torque_constant * cfg_.plant.max_current);
+    torque_cmd = std::clamp(wanted, -max_t, max_t);
+    torque_limited_ = wanted != torque_cmd || plant_.current_limited();
+    if (g.velocity_integral_time > 0) {
+      // Anti-windup (conditional integration): while the command is at the
+      // torque limit the integral may only move back towards it, and it
+      // never holds more than the limit. Without this a saturated loop winds
+      // up and the axis swings out further with every reversal.
+      const double di = kv / g.velocity_integral_time * ev * dt;
+      if (!torque_limited_ || (di > 0) != (wanted > 0)) integral_ = std::clamp(integral_ + di, -max_t, max_t);
+    }
   } else if (!power) {
     integral_ = 0;
     torque_cmd = 0;

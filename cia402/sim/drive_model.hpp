@@ -45,6 +45,7 @@ struct DriveSimConfig {
   int64_t init_ns = 20'000'000;         // not ready to switch on after power-on
   int64_t sync_timeout_ns = 200'000'000;  // cyclic modes in OE: SYNCs missing this long = lost connection
   // Object defaults (increments, increments/s, increments/s^2).
+  uint32_t max_motor_speed_rpm = 6000; // 0x6080; 0xFFFFFFFF: no limit
   uint32_t ferror_window = 0;          // 0: one motor revolution
   uint16_t ferror_timeout_ms = 10;
   uint32_t quick_stop_decel = 0;       // 0: from the plant's torque limit
@@ -122,6 +123,7 @@ class DriveModel {
   bool fault_cause_present() const noexcept;
   void apply_mode() noexcept;
   void start_segment() noexcept;
+  double max_velocity() const noexcept;  // counts/s: 0x607F and 0x6080
   void update_probes(const StepEvents& ev) noexcept;
   void update_statusword() noexcept;
   double encoder_counts() const noexcept;  // exact counts the drive sees (frozen on encoder loss)
@@ -139,6 +141,7 @@ class DriveModel {
       sw_limit_min_, sw_limit_max_, velocity_offset_;
   canopen::ObjectDictionary::Var<int16_t> target_torque_, torque_actual_, torque_offset_, quick_stop_option_,
       shutdown_option_, disable_option_, halt_option_, fault_reaction_option_, abort_option_;
+  canopen::ObjectDictionary::Var<uint32_t> max_profile_velocity_, max_motor_speed_;
   canopen::ObjectDictionary::Var<uint32_t> ferror_window_, quick_stop_decel_, profile_decel_, homing_speed_switch_,
       homing_speed_zero_, homing_accel_, digital_inputs_, supported_modes_, position_window_;
   canopen::ObjectDictionary::Var<uint16_t> ferror_timeout_, probe_function_, probe_status_, max_torque_;
@@ -189,6 +192,8 @@ class DriveModel {
   double ferror_time_ = 0;
   bool ferror_exceeded_ = false;
   bool internal_limit_ = false;
+  bool velocity_limited_ = false;   // the CSP segment was cut to the velocity limit
+  bool torque_limited_ = false;     // the loop asks for more than 0x6072 / the current limit
   bool homed_ = false;
   bool homing_started_ = false;
   double frozen_counts_ = 0;

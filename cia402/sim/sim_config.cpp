@@ -79,6 +79,7 @@ SimNodeConfig load_node(const ini::IniFile& ini, const std::string& s, int id, d
   g.velocity_ff = ini.get_double(s, "VELOCITY_FF", g.velocity_ff, {0, 2});
   g.torque_ff = ini.get_double(s, "TORQUE_FF", g.torque_ff, {0, 2});
   d.step_s = ini.get_double(s, "STEP_US", step_s * 1e6, {1, 1000}) * 1e-6;
+  d.max_motor_speed_rpm = static_cast<uint32_t>(ini.get_int(s, "MAX_MOTOR_SPEED", d.max_motor_speed_rpm, {1, 4294967295.0}));
   d.ferror_window = static_cast<uint32_t>(ini.get_int(s, "FERROR_WINDOW_COUNTS", 0, {0, 4294967295.0}));
   d.ferror_timeout_ms = static_cast<uint16_t>(ini.get_int(s, "FERROR_TIMEOUT_MS", 10, {0, 65535}));
   d.sync_timeout_ns = ini.get_int(s, "SYNC_TIMEOUT_MS", 200, {1, 600'000}) * 1'000'000;

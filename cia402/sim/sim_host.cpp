@@ -3,6 +3,7 @@
 #include <pthread.h>
 #include <sched.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -40,8 +41,11 @@ bool to_number(const char* s, double& out) {
 
 }  // namespace
 
-CanopenDrive& SimHost::add(const SimNodeConfig& config) {
-  drives_.push_back(std::make_unique<CanopenDrive>(config, transport_));
+CanopenDrive& SimHost::add(const SimNodeConfig& config, std::unique_ptr<can::Transport> own) {
+  drives_.push_back(std::make_unique<CanopenDrive>(config, own ? *own : transport_));
+  any_shared_ = any_shared_ || !own;
+  own_.push_back(std::move(own));
+  own_last_frame_ns_.push_back(0);
   return *drives_.back();
 }
 
@@ -64,21 +68,48 @@ void SimHost::step(int64_t now_ns) {
     apply(in, out.why);
     outcomes_.push(out);
   }
-  can::Frame f;
-  while (transport_.receive(f)) {
-    // The frame's reception time is when the drive saw it (the wake-up
-    // jitter of this thread does not reach the drives).
-    const int64_t t = f.timestamp_ns > 0 && f.timestamp_ns <= now_ns ? f.timestamp_ns : now_ns;
-    for (auto& d : drives_) d->on_frame(f, t);
+  if (any_shared_) {
+    deliver(transport_, last_frame_ns_, nullptr, now_ns);
+  } else {
+    can::Frame unused;
+    while (transport_.receive(unused)) {
+    }  // every drive listens on its own transport: nobody reads this one
+  }
+  for (std::size_t i = 0; i < drives_.size(); ++i) {
+    if (own_[i]) deliver(*own_[i], own_last_frame_ns_[i], drives_[i].get(), now_ns);
   }
   for (auto& d : drives_) d->poll(now_ns);
   if (after_pass) after_pass();
   passes_.fetch_add(1, std::memory_order_relaxed);
 }
 
+void SimHost::deliver(can::Transport& from, int64_t& last_frame_ns, CanopenDrive* only, int64_t now_ns) noexcept {
+  can::Frame f;
+  while (from.receive(f)) {
+    // The frame's reception time is when the drive saw it: neither the
+    // wake-up jitter of this thread nor a stall of this pass reaches the
+    // drives. Frames that arrived while the pass ran are later than
+    // `now_ns` (it was read when the pass began); they keep their own time,
+    // or a backlog of SYNCs would all fall on one instant and each restart
+    // the drives' interpolation with no time between them. Only a time
+    // from another clock (none, or seconds away) is replaced by `now_ns`.
+    int64_t t = f.timestamp_ns;
+    if (t <= 0 || t < now_ns - kTrustedAgeNs || t > now_ns + kTrustedAgeNs) t = now_ns;
+    t = std::max(t, last_frame_ns);  // never back in time (clock conversion jitter)
+    last_frame_ns = t;
+    if (only) {
+      only->on_frame(f, t);
+    } else {
+      for (std::size_t i = 0; i < drives_.size(); ++i) {
+        if (!own_[i]) drives_[i]->on_frame(f, t);
+      }
+    }
+  }
+}
+
 void SimHost::start() {
   if (thread_.joinable()) return;
-  power_on(monotonic_ns());
+  power_on(transport_.now_ns());
   stop_.store(false);
   set_stepped_elsewhere(true);
   thread_ = std::thread([this] {
@@ -92,7 +123,7 @@ void SimHost::start() {
     }
     while (!stop_.load(std::memory_order_acquire)) {
       transport_.wait(1'000'000);  // SYNC wakes it at once; between SYNCs the drives keep time at 1 ms
-      step(monotonic_ns());
+      step(transport_.now_ns());
     }
   });
 }

@@ -37,8 +37,11 @@ class SimHost {
   SimHost(const SimHost&) = delete;
   SimHost& operator=(const SimHost&) = delete;
 
-  // Before start(). The host owns its drives.
-  CanopenDrive& add(const SimNodeConfig& config);
+  // Before start(). The host owns its drives. A drive given a transport of
+  // its own is a controller of its own on the bus (frames of several drives
+  // then meet in the bus's arbitration, by identifier, as separate devices'
+  // do; on the host's one transport they queue behind each other in order).
+  CanopenDrive& add(const SimNodeConfig& config, std::unique_ptr<can::Transport> own = nullptr);
   std::size_t size() const noexcept { return drives_.size(); }
   CanopenDrive& at(std::size_t i) noexcept { return *drives_[i]; }
   CanopenDrive* find(uint8_t node) noexcept;
@@ -77,8 +80,19 @@ class SimHost {
   // Allocation-free: it may run in the servo thread.
   void apply(const Injection& in, FixedString<200>& why) noexcept;
 
+  // Frame times further than this from the pass's clock are not believed.
+  static constexpr int64_t kTrustedAgeNs = 10'000'000'000;
+
+  // Frames of one transport to its drives (all on the host's transport, or
+  // the one drive that owns it).
+  void deliver(can::Transport& from, int64_t& last_frame_ns, CanopenDrive* only, int64_t now_ns) noexcept;
+
   can::Transport& transport_;
   std::vector<std::unique_ptr<CanopenDrive>> drives_;
+  std::vector<std::unique_ptr<can::Transport>> own_;  // per drive, or null: the host's
+  std::vector<int64_t> own_last_frame_ns_;
+  bool any_shared_ = false;
+  int64_t last_frame_ns_ = 0;  // reception time of the last frame delivered from transport_
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::atomic<bool> stepped_elsewhere_{false};

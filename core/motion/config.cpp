@@ -26,6 +26,7 @@ void load_joint(const ini::IniFile& ini, int n, JointConfig& j) {
   j.min_ferror = ini.get_double(s, "MIN_FERROR", j.ferror, {0, 1e9});
   if (j.min_ferror > j.ferror) ini.fail(ini.find_entry(s, "MIN_FERROR"), "must not exceed FERROR");
   j.backlash = ini.get_double(s, "BACKLASH", 0.0, {0, 1e3});
+  j.amp_ready_timeout_s = ini.get_double(s, "AMP_READY_TIMEOUT", 2.0, {0.001, 3600});
   j.comp_file = ini.get_string(s, "COMP_FILE", "");
   if (!j.comp_file.empty()) j.comp_file = ini.resolve_path(j.comp_file).string();
   j.comp_file_type = static_cast<int>(ini.get_int(s, "COMP_FILE_TYPE", 0, {0, 1}));

@@ -42,6 +42,7 @@ struct JointConfig {
   double max_velocity = 1, max_acceleration = 1, max_jerk = 50;
   double ferror = 1, min_ferror = 1;
   double backlash = 0;
+  double amp_ready_timeout_s = 2.0;  // [JOINT_n]AMP_READY_TIMEOUT: enable -> amp-ready-in
   std::string comp_file;
   int comp_file_type = 0;
   HomingConfig homing;

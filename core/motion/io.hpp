@@ -19,6 +19,7 @@ inline constexpr int kMaxSpindles = 8;
 struct JointInputs {
   double motor_pos_fb = 0;    // joint.N.motor-pos-fb
   bool amp_fault = false;     // joint.N.amp-fault-in
+  bool amp_ready = true;      // joint.N.amp-ready-in (unconnected: ready)
   bool home_sw = false;       // joint.N.home-sw-in
   bool pos_lim_sw = false;    // joint.N.pos-lim-sw-in
   bool neg_lim_sw = false;    // joint.N.neg-lim-sw-in

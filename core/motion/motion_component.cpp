@@ -14,7 +14,7 @@ using hal::S32Pin;
 struct MotionComponent::JointPins {
   FloatPin motor_pos_cmd, motor_pos_fb, pos_cmd, pos_fb, coarse_pos_cmd, vel_cmd, acc_cmd, f_error, f_error_lim;
   FloatPin motor_offset, backlash_corr, backlash_filt, backlash_vel, free_pos_cmd, free_vel_lim, index_position;
-  BitPin amp_enable_out, amp_fault_in, home_sw_in, pos_lim_sw_in, neg_lim_sw_in, index_enable;
+  BitPin amp_enable_out, amp_fault_in, amp_ready_in, home_sw_in, pos_lim_sw_in, neg_lim_sw_in, index_enable;
   BitPin active, homed, homing, faulted, f_errored, in_position, free_tp_enable, pos_hard_limit, neg_hard_limit;
   BitPin unlock, is_unlocked, drive_home_start, drive_home_busy, drive_home_done, drive_home_error;
   BitPin jog_enable, jog_vel_mode;
@@ -157,6 +157,7 @@ void MotionComponent::make_pins() {
     p->index_position = make_pin<double>(n + "index-position", PinDir::In);
     p->amp_enable_out = make_pin<bool>(n + "amp-enable-out", PinDir::Out);
     p->amp_fault_in = make_pin<bool>(n + "amp-fault-in", PinDir::In);
+    p->amp_ready_in = make_pin<bool>(n + "amp-ready-in", PinDir::In, true);  // unconnected: ready
     p->home_sw_in = make_pin<bool>(n + "home-sw-in", PinDir::In);
     p->pos_lim_sw_in = make_pin<bool>(n + "pos-lim-sw-in", PinDir::In);
     p->neg_lim_sw_in = make_pin<bool>(n + "neg-lim-sw-in", PinDir::In);
@@ -316,6 +317,7 @@ void MotionComponent::read_pins() noexcept {
     JointInputs& ji = in.joints[j];
     ji.motor_pos_fb = p.motor_pos_fb.get();
     ji.amp_fault = p.amp_fault_in.get();
+    ji.amp_ready = p.amp_ready_in.get();
     ji.home_sw = p.home_sw_in.get();
     ji.pos_lim_sw = p.pos_lim_sw_in.get();
     ji.neg_lim_sw = p.neg_lim_sw_in.get();

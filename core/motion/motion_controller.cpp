@@ -226,6 +226,8 @@ bool MotionController::handle(const MotionCommand& c, MotionResult& result) noex
         why = "SET_TELEOP_VECTOR needs teleop mode";
       } else if (!enabled_) {
         why = "motion is not enabled";
+      } else if (const char* not_ready = amps_not_ready("SET_TELEOP_VECTOR")) {
+        why = not_ready;
       } else {
         for (int a = 0; a < kNumAxes; ++a) {
           auto& p = axis_free_[static_cast<std::size_t>(a)];
@@ -402,6 +404,16 @@ const char* MotionController::cmd_enable(bool enable) noexcept {
   if (!usable_forward(kins_)) mode_ = ipc::MotionMode::Free;
   enabled_ = enable;
   if (enable) faulted_ = false;
+  // The amplifiers answer the enable (wait_for_amplifiers); those whose
+  // ready input is already true (or unconnected) need not wait a cycle.
+  amps_wait_s_ = 0;
+  amp_waiting_joint_ = -1;
+  for (int j = 0; enable && j < cfg_.num_joints && amp_waiting_joint_ < 0; ++j) {
+    if (joints_[static_cast<std::size_t>(j)].active && !in_.joints[static_cast<std::size_t>(j)].amp_ready) {
+      amp_waiting_joint_ = j;
+    }
+  }
+  amps_ready_ = enable && amp_waiting_joint_ < 0;
   // Bumpless: the next cycle starts the command where the joints are.
   resync_ = true;
   return nullptr;
@@ -437,6 +449,7 @@ double MotionController::search_span(int j) const noexcept {
 
 const char* MotionController::cmd_home(int joint) noexcept {
   if (!enabled_) return "cannot home: motion is not enabled (machine off)";
+  if (const char* why = amps_not_ready("home")) return why;
   if (mode_ != ipc::MotionMode::Free) return reason("homing needs free mode (now %s)", ipc::to_string(mode_));
   if (in_.homing_inhibit) return "homing is inhibited (motion.homing-inhibit is set)";
   if (joint == -1) {
@@ -510,6 +523,7 @@ const char* MotionController::cmd_unhome(int joint) noexcept {
 const char* MotionController::cmd_jog(const MotionCommand& c) noexcept {
   if (c.type != Cmd::JogStop) {
     if (!enabled_) return "cannot jog: motion is not enabled (machine off)";
+    if (const char* why = amps_not_ready("jog")) return why;
     if (in_.jog_inhibit) return "jogging is inhibited (motion.jog-inhibit is set)";
   }
   return c.axis_mode ? cmd_jog_axis(c) : cmd_jog_joint(c);
@@ -626,6 +640,7 @@ const char* MotionController::cmd_jog_axis(const MotionCommand& c) noexcept {
 const char* MotionController::cmd_segment(const MotionCommand& c, bool& retry) noexcept {
   if (mode_ != ipc::MotionMode::Coord) return reason("%s needs coord mode (now %s)", to_string(c.type), ipc::to_string(mode_));
   if (!enabled_) return "motion is not enabled (machine off)";
+  if (const char* why = amps_not_ready(to_string(c.type))) return why;
   if (c.type != Cmd::SetDwell) {
     for (int a = 0; a < kNumAxes; ++a) {
       const AxisConfig& ax = cfg_.axes[static_cast<std::size_t>(a)];
@@ -701,6 +716,34 @@ void MotionController::fault(const char* fmt, ...) noexcept {
   post_error("%s: motion disabled", text);
   cmd_enable(false);
   faulted_ = true;
+}
+
+// The enable handshake: amp-enable-out is on, and until every active
+// joint's amplifier says it is ready (a CiA 402 drive: operation enabled and
+// following) the command follows the feedback (no following error, nothing
+// moves) and motion commands are refused. A joint whose amplifier is not
+// ready within its AMP_READY_TIMEOUT faults, named. Afterwards
+// amp-fault-in is what stops motion.
+void MotionController::wait_for_amplifiers(double dt) noexcept {
+  amps_wait_s_ += dt;
+  amp_waiting_joint_ = -1;
+  for (int j = 0; j < cfg_.num_joints; ++j) {
+    if (!joints_[static_cast<std::size_t>(j)].active || in_.joints[static_cast<std::size_t>(j)].amp_ready) continue;
+    const double timeout = cfg_.joints[static_cast<std::size_t>(j)].amp_ready_timeout_s;
+    if (amps_wait_s_ > timeout) {
+      fault("joint %d amplifier not ready %.3f s after enable (joint.%d.amp-ready-in stayed false)", j, timeout, j);
+      return;
+    }
+    if (amp_waiting_joint_ < 0) amp_waiting_joint_ = j;
+  }
+  if (amp_waiting_joint_ < 0) amps_ready_ = true;
+  else resync_ = true;
+}
+
+const char* MotionController::amps_not_ready(const char* what) noexcept {
+  if (!enabled_ || amps_ready_) return nullptr;
+  return reason("cannot %s: joint %d's amplifier is not ready yet (joint.%d.amp-ready-in)", what, amp_waiting_joint_,
+                amp_waiting_joint_);
 }
 
 void MotionController::check_faults() noexcept {
@@ -1045,6 +1088,7 @@ void MotionController::update(double dt) noexcept {
   out_.servo_last_period_ns = dt * 1e9;
   for (JointOutputs& o : out_.joints) o.index_enable_write = -1;
   read_feedback();
+  if (enabled_ && !amps_ready_) wait_for_amplifiers(dt);
   if (resync_ || !enabled_) resync_from_feedback();
   check_faults();
   if (enabled_) {
@@ -1165,6 +1209,8 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
   s.jogging = jogging;
   s.tp_done = tp_.is_done();
   s.faulted = faulted_;
+  s.amps_ready = enabled_ && amps_ready_;
+  s.amp_waiting_joint = enabled_ && !amps_ready_ ? amp_waiting_joint_ : -1;
   s.homing_sequence_active = home_sequence_;
 }
 

@@ -112,6 +112,10 @@ class MotionController {
   void read_feedback() noexcept;
   void resync_from_feedback() noexcept;
   void check_faults() noexcept;
+  void wait_for_amplifiers(double dt) noexcept;
+  // Why a command that moves cannot run while an amplifier is not ready
+  // yet (nullptr: all ready).
+  const char* amps_not_ready(const char* what) noexcept;
   void run_free(double dt) noexcept;
   void run_teleop(double dt) noexcept;
   void run_coord(double dt) noexcept;
@@ -157,6 +161,9 @@ class MotionController {
   bool enabled_ = false;
   bool faulted_ = false;
   bool resync_ = true;                // take the command from fresh feedback on the next cycle
+  bool amps_ready_ = false;           // since the enable, every amplifier said ready
+  double amps_wait_s_ = 0;            // how long the enable has waited for them
+  int amp_waiting_joint_ = -1;
   bool watchdog_enabled_ = false;
   bool override_limits_ = false;      // armed by OVERRIDE_LIMITS, consumed by the next jog
   double feed_scale_ = 1, rapid_scale_ = 1, max_velocity_ = 1e99;

@@ -22,6 +22,10 @@ struct MotionStatus {
   bool tp_done = true;
   bool jogging = false;
   bool faulted = false;       // a fault disabled motion and is not cleared yet
+  // Enabled, and every active joint's amplifier reported ready
+  // (joint.N.amp-ready-in) since; until then motion takes no motion command.
+  bool amps_ready = false;
+  int32_t amp_waiting_joint = -1;  // the first joint whose amplifier is not ready yet, -1 none
   int32_t homing_sequence_active = -1;
   double servo_exec_ns = 0;
 };

@@ -407,16 +407,38 @@ std::string TaskController::set_state(const ipc::Command& c) {
       motion::MotionCommand en;
       en.type = Cmd::Enable;
       const uint64_t serial = send(en);
-      answer_after(c, serial, [this, serial]() {
-        if (ms_.last_serial < serial) return false;
-        if (ms_.traj.enabled) {
-          state_ = ipc::TaskState::On;
-          was_enabled_ = true;
-        }
-        return true;
-      });
-      // If a fault disabled motion at once, the waiter reports Done but the
-      // state stays off; the fault is on the error channel.
+      // The machine is on once motion is enabled and every amplifier has
+      // answered the enable (joint.N.amp-ready-in): homing or a jog sent
+      // right after "on" then finds drives that follow. If motion gets
+      // disabled meanwhile (an amplifier fault, or one not ready within its
+      // AMP_READY_TIMEOUT) the command is refused; the fault is on the
+      // error channel.
+      if (serial == 0) return "the motion command queue is full";
+      waiters_.push_back(Waiter{c, [this, c, serial, waiting_joint = -1]() mutable {
+                                  if (ms_.last_serial < serial || !motion_answered(serial)) return false;
+                                  const motion::MotionResult* r = motion_result(serial);
+                                  if (r && !r->accepted) {
+                                    reporter_->report(c, CommandState::Rejected, r->reason.view());
+                                    return true;
+                                  }
+                                  if (ms_.traj.enabled && !ms_.amps_ready) {
+                                    if (ms_.amp_waiting_joint >= 0) waiting_joint = ms_.amp_waiting_joint;
+                                    return false;
+                                  }
+                                  if (ms_.traj.enabled) {
+                                    state_ = ipc::TaskState::On;
+                                    was_enabled_ = true;
+                                    reporter_->report(c, CommandState::Done);
+                                    return true;
+                                  }
+                                  std::string why = "motion was disabled as the machine was turned on";
+                                  if (waiting_joint >= 0) {
+                                    why += " (joint " + std::to_string(waiting_joint) +
+                                           "'s amplifier was not ready yet)";
+                                  }
+                                  reporter_->report(c, CommandState::Rejected, why + ": see the error channel");
+                                  return true;
+                                }});
       return {};
     }
   }

@@ -19,7 +19,7 @@ struct FixedString {
 
   void assign(std::string_view s) noexcept {
     const std::size_t n = s.size() < N - 1 ? s.size() : N - 1;
-    std::memcpy(data, s.data(), n);
+    if (n > 0) std::memcpy(data, s.data(), n);  // an empty view may have no data() at all
     data[n] = '\0';
   }
   __attribute__((format(printf, 2, 3))) void format(const char* fmt, ...) noexcept {

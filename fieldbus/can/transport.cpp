@@ -3,10 +3,13 @@
 #include <stdexcept>
 
 #include "core/util/strings.hpp"
+#include "core/util/time.hpp"
 #include "fieldbus/can/socketcan.hpp"
 #include "fieldbus/can/virtual_bus.hpp"
 
 namespace cnc::can {
+
+int64_t Transport::now_ns() const noexcept { return monotonic_ns(); }
 
 const char* to_string(SendStatus s) noexcept {
   switch (s) {

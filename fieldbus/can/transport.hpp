@@ -74,6 +74,10 @@ class Transport {
   // Bus bit rate when the transport knows it (the virtual bus does; a
   // SocketCAN interface reports it when the driver has bit timing), else 0.
   virtual uint32_t bitrate() const noexcept { return 0; }
+  // The bus's clock, in which received frames are time-stamped and its
+  // users' timeouts should run: CLOCK_MONOTONIC, or a virtual bus's own
+  // (manual) clock, which stands still while nothing advances it.
+  virtual int64_t now_ns() const noexcept;
 };
 
 // Opens a transport from a text specification:

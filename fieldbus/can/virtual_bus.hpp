@@ -158,6 +158,7 @@ class VirtualPort final : public Transport {
   BusState state() const noexcept override { return state_.load(std::memory_order_relaxed); }
   TransportStats stats() const noexcept override;
   uint32_t bitrate() const noexcept override { return bus_->options().bitrate; }
+  int64_t now_ns() const noexcept override { return bus_->now_ns(); }
 
   // Receive this port's own transmissions too (off by default, as SocketCAN).
   void set_receive_own(bool on);

@@ -8,7 +8,6 @@
 #include <stdexcept>
 
 #include "core/util/messages.hpp"
-#include "core/util/time.hpp"
 #include "fieldbus/canopen/emcy.hpp"
 #include "fieldbus/canopen/sdo_abort.hpp"
 
@@ -333,7 +332,9 @@ void Master::stop_thread() {
 void Master::thread_main() {
   acyclic_thread_id_ = std::this_thread::get_id();
   while (!stop_.load(std::memory_order_acquire)) {
-    poll(monotonic_ns());
+    const int64_t now = acyclic_port_->now_ns();  // the bus's clock: a simulated bus that stands still is not silent
+    poll(now);
+    last_poll_seen_ns_.store(now, std::memory_order_release);
     acyclic_port_->wait(1'000'000);
   }
 }
@@ -387,7 +388,9 @@ void Master::handle_frame(const can::Frame& f, int64_t now_ns) {
   const uint32_t id = f.id;
   if (id > cob::kHeartbeatBase && id <= cob::kHeartbeatBase + kMaxNodeId) {
     if (f.is_remote() || f.len < 1) return;
-    if (NodeRt* n = find(static_cast<uint8_t>(id - cob::kHeartbeatBase))) handle_heartbeat(*n, f.data[0] & 0x7F, now_ns);
+    // Heard when it was received (a late poll must not make it older).
+    const int64_t heard = f.timestamp_ns > 0 && f.timestamp_ns <= now_ns ? f.timestamp_ns : now_ns;
+    if (NodeRt* n = find(static_cast<uint8_t>(id - cob::kHeartbeatBase))) handle_heartbeat(*n, f.data[0] & 0x7F, heard);
     return;
   }
   if (id > cob::kSdoTxBase && id <= cob::kSdoTxBase + kMaxNodeId) {

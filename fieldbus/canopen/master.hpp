@@ -147,6 +147,11 @@ class Master {
   NodeStatus node_status_at(std::size_t i) const noexcept;
   NodeStatus node_status(uint8_t node) const noexcept;
   bool is_ready() const noexcept;   // booted, every mandatory node operational and healthy
+  // The bus's clock (Transport::now_ns), and the time of the acyclic side's
+  // last step in it: how far that side lags the bus (a harness that steps a
+  // simulated bus faster than real time waits for it).
+  int64_t bus_now_ns() const noexcept { return acyclic_port_->now_ns(); }
+  int64_t last_poll_ns() const noexcept { return last_poll_seen_ns_.load(std::memory_order_acquire); }
   bool has_fault() const noexcept;  // a mandatory node faulted or the bus is off
 
  private:
@@ -200,6 +205,7 @@ class Master {
   int64_t boot_started_ns_ = 0;
   int64_t next_heartbeat_ns_ = 0;
   int64_t last_poll_ns_ = 0;
+  std::atomic<int64_t> last_poll_seen_ns_{0};  // last_poll_ns_ once the step is done, for other threads
 
   // cyclic
   std::atomic<bool> cyclic_enabled_{false};

@@ -1,18 +1,16 @@
 #include "fieldbus/canopen/slave_runner.hpp"
 
-#include "core/util/time.hpp"
-
 namespace cnc::canopen {
 
 void SlaveRunner::start() {
   if (thread_.joinable()) return;
-  const int64_t now = monotonic_ns();
+  const int64_t now = transport_.now_ns();
   for (SlaveNode* n : nodes_) n->start(now);
   stop_.store(false);
   thread_ = std::thread([this] {
     while (!stop_.load(std::memory_order_acquire)) {
       transport_.wait(1'000'000);
-      step(monotonic_ns());
+      step(transport_.now_ns());
     }
   });
 }

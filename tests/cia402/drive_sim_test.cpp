@@ -37,11 +37,10 @@ struct SimDrive {
   void cw(uint16_t v) { od.set<uint16_t>({0x6040, 0}, v); }
   void target(int64_t counts) { od.set<int32_t>({0x607A, 0}, static_cast<int32_t>(counts)); }
   void mode(Mode m) { od.set<int8_t>({0x6060, 0}, static_cast<int8_t>(m)); }
-  // One SYNC: what was written takes effect, the drive runs 1 ms.
   // One SYNC: the statusword is sampled (as a TPDO is), what was written
-  // takes effect, the drive runs 1 ms.
+  // takes effect, the drive runs one period (1 ms unless 0x60C2 says else).
   void sync() {
-    t += 1'000'000;
+    t += period_ns;
     trace.push_back(model.statusword());
     model.on_sync(t);
   }
@@ -90,6 +89,7 @@ struct SimDrive {
   canopen::ObjectDictionary od;
   DriveModel model;
   int64_t t = 0;
+  int64_t period_ns = 1'000'000;
   std::vector<uint16_t> trace;
   std::vector<uint16_t> emcy;
 };
@@ -531,6 +531,93 @@ TEST(Cia402Sim, FollowingErrorWindowSetsBit13ThenFaults) {
   EXPECT_EQ(d.model.error_code(), err::kFollowingError);
   ASSERT_FALSE(d.emcy.empty());
   EXPECT_EQ(d.emcy.front(), err::kFollowingError);
+}
+
+// Late set-points caught up at once, or a master that jumps, give the drive
+// a target step. At the torque limit the velocity loop's integral must not
+// wind up: the drive clamped its command at 0x6072 (= the power stage's
+// current limit) before the plant, so the plant never reported limiting and
+// the integral ran on; each reversal swung the axis out further, the
+// following-error fault came and its ramp ran under the same loop (this
+// step took the axis to -140 mm; the VM test's X went to -654 mm).
+TEST(Cia402Sim, ASetPointStepAtTheTorqueLimitSettlesWithoutWindingUp) {
+  DriveSimConfig c = base_config();  // the VM test's drives
+  c.step_s = 200e-6;
+  c.gains.velocity_bandwidth_hz = 100;
+  SimDrive d(c);
+  ASSERT_EQ(d.sdo_write(0x60C2, 1, 10, 1), 0u);  // a 10 ms cycle, as in the VM test
+  ASSERT_EQ(d.sdo_write(0x60C2, 2, 0xFD, 1), 0u);
+  d.period_ns = 10'000'000;
+  d.enable();
+  d.syncs(20);
+  const int64_t from = d.position();
+  const int64_t to = from + 3000;  // 1.5 mm in one period: 150 mm/s, under 0x6080
+  d.target(to);
+  int limited = 0;
+  double lo = 1e18, hi = -1e18;
+  for (int i = 0; i < 100; ++i) {
+    d.sync();
+    if (d.model.statusword() & sw::kInternalLimit) ++limited;  // bit 11: at the current limit
+    lo = std::min(lo, static_cast<double>(d.position()));
+    hi = std::max(hi, static_cast<double>(d.position()));
+  }
+  EXPECT_GT(limited, 0) << "the step must reach the torque limit (bit 11) for this test to mean anything";
+  EXPECT_EQ(d.state(), State::OperationEnabled);
+  EXPECT_GE(lo, from - 20.0);  // never back beyond where it started
+  EXPECT_LE(hi, to + 0.5 * 3000);  // overshoot below half the step
+  EXPECT_NEAR(static_cast<double>(d.position()), static_cast<double>(to), 2.0);
+}
+
+// 0x6080 (rpm) and 0x607F (increments/s) bound the CSP demand: a target
+// further away than one period allows is approached at the limit, with
+// "internal limit active" (bit 11), and reached without a fault.
+TEST(Cia402Sim, ATargetBeyondTheVelocityLimitIsApproachedAtTheLimit) {
+  SimDrive d;
+  ASSERT_EQ(d.sdo_write(0x6080, 0, 600, 4), 0u);  // 600 rpm: 50 mm/s with the 5 mm screw
+  d.enable();
+  d.syncs(20);
+  const int64_t to = d.position() + 20 * static_cast<int64_t>(kCountsPerMm);  // 20 mm at once
+  d.target(to);
+  double fastest = 0;
+  int limited = 0, syncs = 0;
+  while (syncs < 1000 && std::llabs(d.position() - to) > 2) {
+    const double before = d.model.demand();
+    d.sync();
+    ++syncs;
+    fastest = std::max(fastest, std::fabs(d.model.demand() - before) / kCountsPerMm / 0.001);
+    if (d.model.statusword() & sw::kInternalLimit) ++limited;
+  }
+  EXPECT_LE(fastest, 50.0 * 1.0001);  // mm/s of the demand
+  EXPECT_NEAR(syncs, 400, 30);         // 20 mm at 50 mm/s
+  EXPECT_GT(limited, 350);
+  EXPECT_EQ(d.state(), State::OperationEnabled);
+  d.syncs(50);
+  EXPECT_FALSE(d.model.statusword() & sw::kInternalLimit);
+  EXPECT_NEAR(static_cast<double>(d.position()), static_cast<double>(to), 2.0);
+}
+
+// A following-error fault means the axis is not where the demand is; the
+// fault reaction's ramp starts from the axis, not from the old demand (else
+// a load that breaks loose is pulled to the demand at full torque first).
+TEST(Cia402Sim, AFollowingErrorFaultStopsWhereTheAxisIsNotAtTheDemand) {
+  SimDrive d;
+  ASSERT_EQ(d.sdo_write(0x6065, 0, 2000, 4), 0u);  // 1 mm
+  ASSERT_EQ(d.sdo_write(0x6066, 0, 10, 2), 0u);
+  d.enable();
+  d.model.set_jam_force(1e6);  // the table is stuck
+  double p = d.position() / kCountsPerMm;
+  for (int i = 0; i < 500 && d.state() == State::OperationEnabled; ++i) {
+    p += 0.05;  // 50 mm/s
+    d.target(std::llround(p * kCountsPerMm));
+    d.sync();
+  }
+  ASSERT_NE(d.state(), State::OperationEnabled);
+  ASSERT_EQ(d.model.error_code(), err::kFollowingError);
+  const double stuck_at = d.table_mm();
+  d.model.set_jam_force(0);  // and breaks loose during the fault reaction
+  ASSERT_TRUE(d.sync_until([&] { return d.state() == State::Fault; }, 1000));
+  d.syncs(50);
+  EXPECT_NEAR(d.table_mm(), stuck_at, 0.05);
 }
 
 TEST(Cia402Sim, LimitSwitchStopsMotionIntoItAndSetsTheInternalLimitBit) {

@@ -306,6 +306,34 @@ INSTANTIATE_TEST_SUITE_P(Methods, Cia402DriveHoming,
                            return "Method" + std::to_string(i.param.method);
                          });
 
+// Homing asked for while the axis still moves: the switch to HM waits for
+// standstill, and motion already mirrors the feedback into its command.
+// Sent back as the target, that closes a loop through the bus delay in which
+// the axis hunts and never comes to rest; the target is held where the
+// homing was asked for instead, the axis stops there, and homing proceeds.
+TEST(Cia402Drive, HomingAskedForWhileMovingHoldsTheTargetUntilTheDriveIsInHm) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) { ini.set("CIA402_DRIVE_0", "HOME_METHOD", "34"); });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  double p = rig.fb().pos_fb;
+  rig.cycles(300, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });  // 20 mm/s
+  rig.cmd().home_start = true;
+  std::vector<int32_t> targets_before_hm;
+  bool in_hm = false;
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().home_done || rig.fb().home_error; }, 5000, [&](Rig& r) {
+    r.cmd().pos_cmd = r.fb().pos_fb;
+    in_hm = in_hm || r.sim().mode() == Mode::Homing;
+    if (!in_hm) targets_before_hm.push_back(r.host().at(0).od().get<int32_t>({0x607A, 0}));
+  })) << "homing did not start: " << rig.drain_messages().back();
+  EXPECT_TRUE(rig.fb().home_done);
+  ASSERT_GT(targets_before_hm.size(), 3u);
+  // From the request on, one target (the first entries are still in flight).
+  const int32_t held = targets_before_hm.back();
+  int moved = 0;
+  for (std::size_t i = 3; i < targets_before_hm.size(); ++i) moved += targets_before_hm[i] != held ? 1 : 0;
+  EXPECT_EQ(moved, 0);
+}
+
 // Out of HM the first CSP target is motion's command. A command that does
 // not mirror the feedback (here: it keeps the drive's position from before
 // the reference was set, as a compensation ramp clamped against the jump
@@ -477,6 +505,101 @@ TEST(Cia402Drive, TooSoftALoopTripsTheDrivesFollowingErrorWindow) {
   EXPECT_TRUE(rig.has_message(
       "x-axis: fault 0x8611 following error: the drive's following error window (0x6065/0x6066) was exceeded"));
   EXPECT_TRUE(rig.has_message("EMCY 0x8611"));
+}
+
+// Motion waits for amp-ready (the `enabled` pin) after its enable; while the
+// enable sequence runs, a drive that is still in fault (reset by the enable
+// edge) is not an amplifier fault, or a machine turned on after a drive
+// fault would trip at once instead of resetting it.
+TEST(Cia402Drive, TheEnableSequenceIsNotAnAmplifierFaultWhileItRuns) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  EXPECT_EQ(rig.host().inject("drive 1 overcurrent", 0, false), "");
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().fault; }, 50));
+  rig.cmd().enable = false;
+  rig.cycles(300);  // past the reset hold-off
+  ASSERT_EQ(rig.fb().state, State::Fault);
+  rig.cmd().enable = true;
+  bool amp_fault = false;
+  ASSERT_TRUE(rig.cycle_until([&] {
+    amp_fault = amp_fault || rig.fb().amp_fault;
+    return rig.fb().enabled;
+  }, 300));
+  EXPECT_FALSE(amp_fault);
+  EXPECT_TRUE(rig.has_message("fault reset: the drive is in switch on disabled"));
+}
+
+// A drive that is not operational on the bus when the machine is turned on
+// is waited for, then ENABLE_TIMEOUT_MS says why it did not come.
+TEST(Cia402Drive, ADriveNotOnTheBusAtEnableFaultsAfterTheEnableTimeoutSayingSo) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  rig.cycles(10);
+  EXPECT_EQ(rig.host().inject("drive 1 dead", 0, false), "");
+  ASSERT_TRUE(rig.cycle_until([&] { return !rig.fb().link_ok; }, 500));
+  rig.cmd().enable = true;
+  int cycles_without_fault = 0;
+  ASSERT_TRUE(rig.cycle_until([&] {
+    if (!rig.fb().amp_fault) ++cycles_without_fault;
+    return rig.fb().amp_fault;
+  }, 500));
+  EXPECT_NEAR(cycles_without_fault, 200, 5);  // ENABLE_TIMEOUT_MS = 200
+  EXPECT_TRUE(rig.has_message("x-axis: did not reach operation enabled within 200 ms"));
+  EXPECT_TRUE(rig.has_message("the drive is not operational on the bus"));
+}
+
+// Simulated drives are separate devices on the bus: what they answer to a
+// SYNC meets in arbitration by identifier (all TPDO1 before any TPDO2),
+// instead of queueing drive after drive behind one controller, where the
+// last drive's position waited behind the others' lower-priority PDOs.
+TEST(Cia402Drive, SimulatedDrivesAnswerASyncInTheBusPriorityOrder) {
+  std::string ini = R"(
+[EMCMOT]
+SERVO_PERIOD = 1000000
+[CANOPEN]
+INTERFACE = virtual:rig
+NODE = 1 2
+MASTER_HEARTBEAT_MS = 20
+[CIA402]
+BUS = canopen.0
+DRIVE = 0
+[CIA402_DRIVE_0]
+ADDRESS = 1
+NAME = x-axis
+ENCODER_COUNTS = 10000
+SCREW_LEAD = 5
+[CIA402_SIM]
+INTERFACE = virtual:rig
+NODE = 1 2
+[CIA402_SIM_NODE_1]
+NAME = x-axis
+ENCODER_COUNTS = 10000
+[CIA402_SIM_NODE_2]
+NAME = y-axis
+ENCODER_COUNTS = 10000
+)";
+  for (const char* n : {"1", "2"}) {
+    ini += std::string("[CANOPEN_NODE_") + n + "]\nNAME = axis-" + n +
+           "\nHEARTBEAT_MS = 20\nRPDO1 = 0x6040:0:u16 0x607A:0:s32\nTPDO1 = 0x6041:0:u16 0x6064:0:s32\n"
+           "TPDO2 = 0x606C:0:s32 0x60F4:0:s32\n";
+  }
+  Rig rig(ini);
+  auto sniffer = rig.bus().open_port("sniffer");
+  rig.cycles(5);
+  std::vector<uint32_t> after_sync;
+  can::Frame f;
+  bool seen_sync = false;
+  while (sniffer->receive(f)) {
+    if (f.is_error()) continue;
+    if (f.id == 0x080) {
+      if (seen_sync) break;  // one cycle's answers
+      seen_sync = true;
+    } else if (seen_sync && (f.id == 0x181 || f.id == 0x182 || f.id == 0x281 || f.id == 0x282)) {
+      after_sync.push_back(f.id);
+    }
+  }
+  EXPECT_EQ(after_sync, (std::vector<uint32_t>{0x181, 0x182, 0x281, 0x282}));
 }
 
 TEST(Cia402Drive, ALostDriveIsReported) {

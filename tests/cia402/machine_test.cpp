@@ -63,7 +63,8 @@ const char* kHal =
     "net pos-cmd joint.0.motor-pos-cmd => cia402.0.drive.00.pos-cmd\n"
     "net pos-fb cia402.0.drive.00.pos-fb => joint.0.motor-pos-fb\n"
     "net enable joint.0.amp-enable-out => cia402.0.drive.00.enable\n"
-    "net fault cia402.0.drive.00.amp-fault => joint.0.amp-fault-in\n";
+    "net fault cia402.0.drive.00.amp-fault => joint.0.amp-fault-in\n"
+    "net ready cia402.0.drive.00.enabled => joint.0.amp-ready-in\n";
 
 struct Machine {
   Machine(double drive_window_mm, double ferror_mm)

@@ -108,7 +108,10 @@ class Rig {
     bus_ = can::VirtualBus::create(o);
     sim_port_ = bus_->open_port("sim");
     host_ = std::make_unique<sim::SimHost>(*sim_port_);
-    for (const auto& n : sim::load_sim_config(ini_, "CIA402_SIM").nodes) host_->add(n);
+    // Each drive a controller of its own on the bus, as cia402_sim does.
+    for (const auto& n : sim::load_sim_config(ini_, "CIA402_SIM").nodes) {
+      host_->add(n, bus_->open_port("sim-" + std::to_string(n.node_id)));
+    }
     host_->power_on(now());
     canopen::BusConfig bc = canopen::load_bus_config(ini_, "CANOPEN", "canopen.0");
     cycle_ns_ = bc.cycle_ns;
@@ -130,7 +133,14 @@ class Rig {
   int64_t now() const { return bus_->now_ns(); }
   void step() {
     bus_->advance(kStepNs);
-    host_->step(now());
+    if (sim_stalled && sim_stalled(now())) {
+      if (stalled_since_ < 0) stalled_since_ = now();
+    } else {
+      // A stalled pass read the clock before it stalled: its `now` is then.
+      host_->step(stalled_since_ >= 0 ? stalled_since_ : now());
+      stalled_since_ = -1;
+    }
+    if (after_step) after_step(*this);
     if (!master_dead_) master_->poll(now());
   }
   void run_for(int64_t ns) {
@@ -211,6 +221,13 @@ class Rig {
   std::vector<std::string> log;
   std::function<void(Rig&)> before_write;
   bool count_allocations = false;  // arm the allocation counter around the servo-thread calls
+  // While it returns true the simulators' process is stalled in the middle of
+  // a pass: it read the clock when the pass began, then lost the CPU; frames
+  // wait in its socket and are read together, with their reception times,
+  // when it runs again, by the pass that still has the old time.
+  std::function<bool(int64_t now_ns)> sim_stalled;
+  // Called after every step of the bus and the simulators (observation).
+  std::function<void(Rig&)> after_step;
 
  private:
   // The production link, except that the blocking start-up transfers step
@@ -275,6 +292,7 @@ class Rig {
   uint64_t cycles_ = 0;
   bool bus_muted_ = false;
   bool master_dead_ = false;
+  int64_t stalled_since_ = -1;
 };
 
 }  // namespace cnc::cia402::test

@@ -44,22 +44,18 @@ TEST(CompensationClosedLoop, LeadScrewPlantMeasuredFittedCompensatedAndMeasuredA
 #ifdef CNC_HAVE_CIA402
 #include "cia402/components.hpp"
 #include "fieldbus/canopen/components.hpp"
+#include "tests/fieldbus/canopen/pace.hpp"
 
 // The same loop on the project's simulated mill (configs/sim): X is a
 // CiA 402 drive on a CANopen bus, its simulator a motor, screw and table
 // with a pitch-error profile and backlash; the interferometer is the
 // simulator's true table position. configs/sim has no compensation: the
-// test adds screwcomp and complog to it as a user would.
-//
-// DISABLED (run it with --gtest_also_run_disabled_tests): motion now holds
-// the compensation ramp while a drive homes itself (it used to leave the
-// motor command ~264 mm behind the drive), but this in-process harness runs
-// the drives and the bus in simulated time while the CANopen master's
-// background thread (heartbeat consumer, SDO timeouts) runs on wall time: on
-// a loaded machine a pause of the stepping thread reads as "heartbeat lost"
-// on every node (seen 2026-11-22 during parallel compiles). It becomes a CI
-// test when the master takes its time from the bus.
-TEST(CompensationClosedLoop, DISABLED_SimulatedMillOnCia402DrivesXAxis) {
+// test adds screwcomp and complog to it as a user would. The harness steps
+// drives and bus in simulated time; the CANopen master's background thread
+// (heartbeat consumer, SDO timeouts) keeps the bus's clock, so a pause of
+// the stepping thread on a loaded machine is no longer "heartbeat lost"
+// (it was, on wall time, and this test was disabled for it).
+TEST(CompensationClosedLoop, SimulatedMillOnCia402DrivesXAxis) {
   cnc::testing::TempDir work;
   const std::string extra_hal =
       "loadrt screwcomp\n"
@@ -76,6 +72,7 @@ TEST(CompensationClosedLoop, DISABLED_SimulatedMillOnCia402DrivesXAxis) {
         cia402::register_components(r);
       },
       extra_hal);
+  mill.pace = canopen::test::acyclic_pacer(mill.hal());
   cnc::testing::ClosedLoopOptions o;
   o.cycle.x_min = 5;
   o.cycle.x_max = 295;

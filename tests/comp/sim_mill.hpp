@@ -86,6 +86,7 @@ class SimMill : private ipc::CommandReporter {
       ++info_.cycle;
       now_ns_ += info_.period_ns;
       for (ipc::ControllerService* s : services_) s->update(now_ns_);
+      if (pace) pace();
       if (info_.cycle % 10 == 0) {
         for (ipc::ControllerService* s : services_) s->contribute_status(*status_);
       }
@@ -95,6 +96,15 @@ class SimMill : private ipc::CommandReporter {
 
   Reply send(ipc::Command c, int max_cycles = 600000) {
     c.serial = ++serial_;
+    // A client sends its next command once it has seen the state it waits
+    // for in the published status: publish it (this harness does so only
+    // every 10th cycle, to save time), twice, because a service may read
+    // another's part (screwcomp reads the task's interpreter state, and
+    // comes first): it could still take a program that had just ended for a
+    // running one and refuse JOINT_LOAD_COMP (1 closed-loop run in 6).
+    for (int pass = 0; pass < 2; ++pass) {
+      for (ipc::ControllerService* s : services_) s->contribute_status(*status_);
+    }
     bool taken = false;
     for (ipc::ControllerService* s : services_) {
       if ((taken = s->handle_command(c, *this))) break;
@@ -119,19 +129,14 @@ class SimMill : private ipc::CommandReporter {
   }
 
   // E-stop reset, machine on, home all, auto mode. Empty on success.
-  // "Machine on" is done once motion is enabled; drives behind a fieldbus
-  // then need a few cycles more for their enable sequence (CiA 402: SOD ->
-  // RTSO -> SO -> OE, about 10 ms here) and motion has no amplifier-ready
-  // input to wait for. An operator's next command comes later than that;
-  // `settle_s` stands for it, so that homing does not start against a drive
-  // that does not follow yet.
-  std::string power_up(double settle_s = 0.2) {
+  // "Machine on" is done once every drive follows (joint.N.amp-ready-in),
+  // so homing goes right after it.
+  std::string power_up() {
     const auto check = [&](const char* what, const Reply& reply) {
       return reply.first == ipc::CommandState::Done ? std::string() : std::string(what) + ": " + reply.second + errors();
     };
     if (std::string e = check("estop reset", send(ipc::CommandType::TaskSetState, 2)); !e.empty()) return e;
     if (std::string e = check("machine on", send(ipc::CommandType::TaskSetState, 4)); !e.empty()) return e;
-    step(static_cast<int>(settle_s * 1e9 / static_cast<double>(info_.period_ns)));
     if (std::string e = check("home all", send(ipc::CommandType::JointHome, -1)); !e.empty()) return e;
     return check("auto", send(ipc::CommandType::TaskSetMode, static_cast<int>(ipc::TaskMode::Auto)));
   }
@@ -173,6 +178,9 @@ class SimMill : private ipc::CommandReporter {
 
   // Called after every servo cycle (benchmarks sample pins here).
   std::function<void()> on_cycle;
+  // Called after every step: may wait for threads the simulated time must
+  // not outrun (tests/fieldbus/canopen/pace.hpp).
+  std::function<void()> pace;
   // Every message on stderr with its simulated time (SIMMILL_VERBOSE=1).
   bool verbose = std::getenv("SIMMILL_VERBOSE") != nullptr;
 

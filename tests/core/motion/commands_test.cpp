@@ -115,6 +115,59 @@ TEST(MotionAmplifier, EnableAndDisableOneAmplifier) {
   EXPECT_STREQ(m.send(Cmd::EnableAmplifier, 7).reason.c_str(), "no joint 7");
 }
 
+// joint.N.amp-ready-in: after ENABLE the amplifiers are on, but motion
+// moves nothing until every active joint's amplifier says it is ready (a
+// drive's enable sequence takes cycles); meanwhile the command follows the
+// feedback and commands that move are refused, naming the joint.
+TEST(MotionAmplifierReady, MotionWaitsUntilEveryAmplifierIsReady) {
+  Machine m;
+  m.sims[2].ready_after = 10;
+  m.step(3);  // the inputs of a running machine: drive 2 not ready while disabled
+  m.accept(Cmd::Enable);
+  m.step();
+  EXPECT_TRUE(m.joint(2).amp_enable);
+  EXPECT_TRUE(m.status().traj.enabled);
+  EXPECT_FALSE(m.status().amps_ready);
+  EXPECT_EQ(m.status().amp_waiting_joint, 2);
+  EXPECT_STREQ(m.send(Cmd::Home, 0).reason.c_str(),
+               "cannot home: joint 2's amplifier is not ready yet (joint.2.amp-ready-in)");
+  EXPECT_STREQ(m.send(Cmd::JogCont, 1, 10).reason.c_str(),
+               "cannot jog: joint 2's amplifier is not ready yet (joint.2.amp-ready-in)");
+  m.sims[2].pos = 0.3;  // it sags while its drive enables: the command follows, no following error
+  m.step();
+  EXPECT_DOUBLE_EQ(m.joint(2).pos_cmd, 0.3);
+  EXPECT_TRUE(m.status().traj.enabled);
+  ASSERT_TRUE(m.run_until([&] { return m.status().amps_ready; }, 20));
+  EXPECT_GE(m.sims[2].enabled_cycles, 10);
+  EXPECT_EQ(m.status().amp_waiting_joint, -1);
+  EXPECT_TRUE(m.send(Cmd::Home, 0).accepted);
+  EXPECT_EQ(m.all_errors(), "");
+}
+
+TEST(MotionAmplifierReady, AnAmplifierNotReadyInTimeDisablesMotionNamingTheJoint) {
+  motion::MotionConfig cfg = cnc::testing::basic_config();
+  cfg.joints[1].amp_ready_timeout_s = 0.05;
+  Machine m(cfg);
+  m.sims[1].ready_after = -1;
+  m.step(3);
+  m.accept(Cmd::Enable);
+  m.step(45);
+  EXPECT_TRUE(m.status().traj.enabled);
+  m.step(10);
+  EXPECT_FALSE(m.status().traj.enabled);
+  EXPECT_FALSE(m.joint(1).amp_enable);
+  EXPECT_EQ(m.all_errors(),
+            "joint 1 amplifier not ready 0.050 s after enable (joint.1.amp-ready-in stayed false): motion disabled\n");
+}
+
+TEST(MotionAmplifierReady, ReadyAmplifiersAndUnconnectedInputsNeedNoWait) {
+  Machine m;  // every amp-ready-in true, as an unconnected pin is
+  m.accept(Cmd::Enable);
+  EXPECT_TRUE(m.send(Cmd::Home, 0).accepted) << "in the same cycle as the enable";
+  m.step();
+  EXPECT_TRUE(m.status().amps_ready);
+}
+
 TEST(MotionJointActivation, DeactivatedJointsKeepTheirAmplifierOnEnable) {
   Machine m;
   m.accept(Cmd::DeactivateJoint, 2);

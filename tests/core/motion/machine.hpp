@@ -26,6 +26,11 @@ struct SimJoint {
   double index_position = 0;
   double lag = 0;                      // extra first-order lag factor per cycle (0: exact)
   bool amp_fault = false;
+  // Cycles with amp-enable-out before the amplifier says ready and follows
+  // (0: at once, as an unconnected joint.N.amp-ready-in; -1: never).
+  int ready_after = 0;
+  int enabled_cycles = 0;
+  bool ready() const { return ready_after == 0 || (ready_after > 0 && enabled_cycles >= ready_after); }
 };
 
 inline motion::MotionConfig basic_config(int joints = 3) {
@@ -92,6 +97,7 @@ class Machine {
         ji.index_enable = s.index_enable;
         ji.index_position = s.index_position;
         ji.amp_fault = s.amp_fault;
+        ji.amp_ready = s.ready();
       }
       mc_.update(cfg_.servo_period_s);
       ++cycles;
@@ -99,7 +105,8 @@ class Machine {
         SimJoint& s = sims[static_cast<std::size_t>(j)];
         const auto& jo = joint(j);
         if (jo.index_enable_write >= 0) s.index_enable = jo.index_enable_write != 0;
-        if (!jo.amp_enable) continue;
+        s.enabled_cycles = jo.amp_enable ? s.enabled_cycles + 1 : 0;
+        if (!jo.amp_enable || !s.ready()) continue;
         const double before = s.pos;
         s.pos = s.lag > 0 ? s.pos + (jo.motor_pos_cmd - s.pos) * (1 - s.lag) : jo.motor_pos_cmd;
         if (s.index_enable && s.index_spacing > 0) {

@@ -62,6 +62,23 @@ TEST(TaskStates, EveryTransitionOfTheDiagram) {
   EXPECT_EQ(r.second, "unknown state 9: expected 1 (E-stop), 2 (reset), 3 (off) or 4 (on)");
 }
 
+// "Machine on" is done when every amplifier answered the enable
+// (joint.N.amp-ready-in); one that does not within its AMP_READY_TIMEOUT
+// disables motion and the command is refused, naming the joint.
+TEST(TaskStates, MachineOnIsRefusedWhenAnAmplifierIsNotReadyInTime) {
+  TaskMachine m({{"JOINT_1", "AMP_READY_TIMEOUT", "0.05"}}, "setp joint.1.amp-ready-in FALSE\n");
+  m.ok(m.send(CommandType::TaskSetState, kReset), "reset");
+  const auto r = m.send(CommandType::TaskSetState, kOn);
+  EXPECT_EQ(r.first, CommandState::Rejected);
+  EXPECT_EQ(r.second,
+            "motion was disabled as the machine was turned on (joint 1's amplifier was not ready yet): see the error "
+            "channel");
+  EXPECT_NE(m.task().state(), TaskState::On);
+  EXPECT_FALSE(m.status().motion.enabled);
+  EXPECT_NE(m.errors().find("joint 1 amplifier not ready 0.050 s after enable (joint.1.amp-ready-in stayed false)"),
+            std::string::npos);
+}
+
 TEST(TaskStates, ResetIsRefusedWhileTheEstopChainStaysOpen) {
   // Break the simulated loop: emc-enable-in is held false.
   TaskMachine m({{"EMCIO", "ESTOP_RESET_TIMEOUT", "0.05"}}, "delsig estop-loop\nsetp iocontrol.0.emc-enable-in FALSE\n");

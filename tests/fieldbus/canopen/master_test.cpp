@@ -1,6 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <chrono>
 #include <optional>
+#include <thread>
 
 #include "core/util/messages.hpp"
 #include "fieldbus/canopen/master.hpp"
@@ -49,7 +52,7 @@ class MasterTest : public ::testing::Test {
   void make_master(BusConfig c) {
     master = std::make_unique<Master>(std::move(c), sim.port("master-cyclic"), sim.port("master-acyclic"), &messages);
     sim.actors.push_back([this](int64_t now) {
-      master->poll(now);
+      if (poll_in_steps) master->poll(now);
       if (now % 1'000'000 == 0) {
         master->cyclic_read(now);
         if (servo) servo(now);
@@ -78,6 +81,7 @@ class MasterTest : public ::testing::Test {
   MessageQueue messages;
   std::unique_ptr<Master> master;
   std::function<void(int64_t)> servo;
+  bool poll_in_steps = true;  // false: the master's own acyclic thread polls
   uint64_t cycles = 0;
   std::vector<std::string> texts;
 };
@@ -317,6 +321,46 @@ TEST_F(MasterTest, HeartbeatLossIsDetectedWithinItsTimeout) {
   const auto e = errors();
   ASSERT_FALSE(e.empty());
   EXPECT_EQ(e.back(), "node 3 (x-axis): heartbeat lost: nothing heard for 50 ms (power, cable, termination or bus-off?)");
+}
+
+// The acyclic thread (heartbeat consumer, SDO timeouts) keeps the bus's
+// clock: a simulated bus in simulated time that stands still (its stepping
+// thread stalled) is not a silent bus, however long the wall clock runs.
+TEST_F(MasterTest, TheAcyclicThreadTimesOutInTheBusClockNotTheWallClock) {
+  EchoDevice a(sim, 3);
+  NodeConfig n = csp_node(3, "x-axis");
+  n.heartbeat_ms = 20;
+  n.heartbeat_timeout_ms = 50;
+  make_master(config({n}));
+  ASSERT_EQ(boot(), BootState::Succeeded) << master->boot_error();
+  poll_in_steps = false;
+  master->start_thread();
+  auto run_bus = [&](int64_t ns) {  // simulated time, a millisecond per millisecond of wall time at most
+    for (int64_t t = 0; t < ns; t += 1'000'000) {
+      sim.run_for(1'000'000);
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  };
+  run_bus(100'000'000);
+  ASSERT_FALSE(master->node_status(3).heartbeat_lost);
+  // The stepping stalls for 300 ms of wall time: six heartbeat timeouts.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_FALSE(master->node_status(3).heartbeat_lost) << "the master counted wall time";
+  run_bus(100'000'000);
+  EXPECT_FALSE(master->node_status(3).heartbeat_lost);
+  EXPECT_EQ(errors(), std::vector<std::string>{});
+  // A device that really goes silent is still found, in bus time.
+  a.node->set_muted(true);
+  run_bus(100'000'000);
+  for (int i = 0; i < 200 && !master->node_status(3).heartbeat_lost; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_TRUE(master->node_status(3).heartbeat_lost);
+  master->stop_thread();
+  const auto e = errors();
+  EXPECT_NE(std::find(e.begin(), e.end(),
+                      "node 3 (x-axis): heartbeat lost: nothing heard for 50 ms (power, cable, termination or bus-off?)"),
+            e.end());
 }
 
 TEST_F(MasterTest, ANodeThatResetsIsAFaultUntilRebooted) {
