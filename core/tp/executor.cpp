@@ -31,6 +31,11 @@ constexpr int kMaxCuts = 96;
 // A stop closer than this is reached (units).
 constexpr double kLanding = 1e-6;
 constexpr double kVelEps = 1e-12;
+// Slack on the envelope for what counts as an overrun, as a distance: the
+// positions' rounding moves a brake that follows the envelope off it, and
+// such a brake keeps v^2 - W^2 (not v - W) nearly constant, so the slack
+// is on the squares: 2 a_top kEnvTol.
+constexpr double kEnvTol = 1e-9;
 
 }  // namespace
 
@@ -166,6 +171,7 @@ void Executor::configure(const PlannerConfig& config) noexcept {
   if (config.max_linear_velocity > 0) v_bound_ = std::min(v_bound_, 2 * config.max_linear_velocity);
   a_top_ = 2 * std::sqrt(asum);
   reach_ = v_bound_ * (0.5 * tf_ + 2 * T_) + 1e-9;
+  env_tol_ = 2 * a_top_ * kEnvTol;
   for (int i = 0; i < kGrid; ++i) {
     const double f = static_cast<double>(i + 1) / kGrid;
     grid_[static_cast<std::size_t>(i)] = v_bound_ * f * f;
@@ -389,6 +395,7 @@ void Executor::ingest() noexcept {
       vals[kChFeed] = p.v_feed;
       vals[kChRapid] = p.v_rapid;
     }
+    if (std::getenv("EXEC_DEBUG5")) std::fprintf(stderr, "piece %lu s0 %.6f len %.6f v %.3f stop %d c1 %.4f %.4f %.4f c2 %.4f %.4f %.4f c3 %.3f %.3f %.3f lim0 %.2f lim15 %.2f\n", (unsigned long)ptail_, p.s0, p.length, d.v, (int)p.stop, p.bounds.c1[0], p.bounds.c1[1], p.bounds.c1[2], p.bounds.c2[0], p.bounds.c2[1], p.bounds.c2[2], p.bounds.c3[0], p.bounds.c3[1], p.bounds.c3[2], vals[0], vals[15]);
     tree_->set(static_cast<std::size_t>(ptail_ & pmask_), vals);
     tail_s_ = p.s0 + p.length;
     ++ptail_;
@@ -616,7 +623,7 @@ void Executor::envelope_span(uint64_t k, double w_end) noexcept {
     // velocity at most w + a_guess T_f over T_f).
     auto brake_limit = [&](double w, double a_guess) {
       const double vw = w + a_guess * tf_;
-      return accel_limit(s.piece, c0 - vw * (0.5 * tf_ + 2 * T_), c1 + w * (0.5 * tf_ + 2 * T_), vw);
+      return accel_limit(s.piece, c0 - vw * (0.5 * tf_ + 4 * T_), c1 + w * (0.5 * tf_ + 2 * T_), vw);
     };
     // Self-consistent: braking at alpha here leaves the window at most
     // alpha T_f faster than now, and alpha must hold for that.
@@ -689,6 +696,27 @@ double Executor::chunk_alpha(uint64_t k, double x) const noexcept {
   return s.ak[c];
 }
 
+// The braking acceleration for a step from x0 that ends by x1: the
+// largest envelope acceleration of the chunks it touches. Braking at it
+// keeps the input under the envelope across chunk boundaries (the curve
+// of the harder-braking chunk is the lower one on the far side), and it
+// is valid for the sample: each chunk's value allows for outputs 2 T
+// beyond the chunk. `k` is a span at or before x0; it is moved on.
+double Executor::brake_alpha(uint64_t& k, double x0, double x1) const noexcept {
+  while (k + 1 < stail_ && span(k).stop == StopKind::None && span(k).b < x0) ++k;
+  if (k >= stail_ || span(k).stop != StopKind::None) return a_top_;
+  double a = chunk_alpha(k, x0);
+  for (uint64_t q = k; q < stail_ && span(q).stop == StopKind::None && span(q).a <= x1; ++q) {
+    const Span& o = span(q);
+    const double oh = (o.b - o.a) / kChunks;
+    for (int j = 0; j < kChunks; ++j) {
+      const double j0 = o.a + j * oh;
+      if (j0 + oh >= x0 && j0 <= x1) a = std::max(a, o.ak[j]);
+    }
+  }
+  return a;
+}
+
 // The envelope within a span for braking in discrete steps of T at alpha:
 // v^2 - alpha T v falls by exactly 2 alpha times the distance covered by
 // such a step, so the curve v = alpha T/2 + sqrt((w_end - alpha T/2)^2 +
@@ -738,17 +766,24 @@ double Executor::min_envelope(double z0, double z1, uint64_t& k) const noexcept 
 // ---------------------------------------------------------------------------
 // The input
 
+// Whether v exceeds the envelope value w: strictly (bar rounding), or by
+// more than the slack on the squares when `loose`.
+bool Executor::above(double v, double w, bool loose) const noexcept {
+  if (!loose) return v > w * (1 + 1e-12) + kVelEps;
+  return v > w && v * v > w * w + env_tol_;
+}
+
 // Whether, after a step to velocity v_new (acceleration a_new), the input
 // can still brake within the envelope: the fastest brake the history rule
 // allows (accelerations still in the window unwind first), at each span's
 // envelope acceleration, must stay under the envelope; once the window's
 // accelerations are all braking, the envelope guarantees the rest.
-bool Executor::safe(double v_new, double a_new) const noexcept {
+bool Executor::safe(double v_new, double a_new, bool loose) const noexcept {
   if (v_new < 0) v_new = 0;
   const double xn = x_ + v_new * T_;
   if (step_active_ && xn > step_s_ + kLanding) return false;
   uint64_t k = in_;
-  if (v_new > min_envelope(x_, xn, k) * (1 + 1e-12) + kVelEps) return false;
+  if (above(v_new, min_envelope(x_, xn, k), loose)) return false;
   const int n = n_;
   // Simulated step i (after this one) has a_{k-N} = the sample i+1 older
   // than the newest stored one's N-th predecessor; the window's limits
@@ -763,14 +798,16 @@ bool Executor::safe(double v_new, double a_new) const noexcept {
   for (int i = 0; i <= last_pos && cv > 0; ++i) {
     double am = 0;
     for (int j = i; j < n - 1; ++j) am = std::max(am, halpha_[ring(n - 2 - j)]);
-    const double al = chunk_alpha(k < stail_ ? k : stail_ - 1, cx);
+    uint64_t kb = k < stail_ ? k : stail_ - 1;
+    const double al = brake_alpha(kb, cx, cx + cv * T_);
     am = std::max(am, al);
     const double a = std::max(-al, old_a(i) - am);
     double nv = cv + a * T_;
     if (nv < 0) nv = 0;
     const double nx = cx + nv * T_;
     if (step_active_ && nx > step_s_ + kLanding) return false;
-    if (nv > min_envelope(cx, nx, k) * (1 + 1e-12) + kVelEps) return false;
+    if (std::getenv("EXEC_DEBUG6") && cycles_ >= 46996 && cycles_ <= 46998) { uint64_t kk = k; std::fprintf(stderr, "   sim cyc %lu i %d old %.2f am %.2f al %.2f a %.2f nv %.6f nx %.6f env %.6f\n", (unsigned long)cycles_, i, old_a(i), am, al, a, nv, nx, min_envelope(cx, nx, kk)); }
+    if (above(nv, min_envelope(cx, nx, k), loose)) return false;
     cx = nx;
     cv = nv;
   }
@@ -785,10 +822,11 @@ bool Executor::safe(double v_new, double a_new) const noexcept {
       if (!(al < kInf) || cv * cv > 2 * al * std::max(0.0, step_s_ - cx)) return false;
     }
     uint64_t kq = k;
-    if (cv > min_envelope(cx, cx, kq) * (1 + 1e-12) + kVelEps) {
+    if (std::getenv("EXEC_DEBUG6") && cycles_ >= 46996 && cycles_ <= 46998) { uint64_t kk = k; std::fprintf(stderr, "   final cyc %lu cv %.9f cx %.9f env %.9f k %lu last_pos %d\n", (unsigned long)cycles_, cv, cx, min_envelope(cx, cx, kk), (unsigned long)k, last_pos); }
+    if (above(cv, min_envelope(cx, cx, kq), loose)) {
       // Exactly at cx: the envelope of the span holding it.
       while (kq < stail_ && span(kq).stop == StopKind::None && span(kq).b < cx) ++kq;
-      if (kq >= stail_ || cv > envelope_at(kq, cx) * (1 + 1e-12) + kVelEps) return false;
+      if (kq >= stail_ || above(cv, envelope_at(kq, cx), loose)) return false;
     }
   }
   return true;
@@ -825,24 +863,13 @@ void Executor::plan_input(const CycleInputs& in) noexcept {
   // the window and, ahead, what the input covers in T_f/2 at the velocity
   // it commits to: braking commits to no faster than now (and its outputs
   // to the window's velocity), speeding up to what the window may reach.
-  const double back = x_ - y_ + v_ * T_;
+  const double back = x_ - y_ + 3 * std::max(v_, vwin) * T_;
   const uint64_t pc_idx = s.piece;
   // Braking: the envelope's acceleration of the span the step ends on;
   // each span's value holds for samples up to one step before it, so the
   // largest over the spans this step may reach.
-  double a_dn = chunk_alpha(in_, x_);
-  {
-    const double reach = x_ + v_ * T_;
-    for (uint64_t k = in_; k < stail_ && span(k).stop == StopKind::None && span(k).a <= reach; ++k) {
-      const Span& o = span(k);
-      const double oh = (o.b - o.a) / kChunks;
-      for (int j = 0; j < kChunks; ++j) {
-        const double j0 = o.a + j * oh;
-        const double j1 = j0 + oh;
-        if (j1 >= x_ && j0 <= reach) a_dn = std::max(a_dn, o.ak[j]);
-      }
-    }
-  }
+  uint64_t k_dn = in_;
+  const double a_dn = brake_alpha(k_dn, x_, x_ + v_ * T_);
   const double a_up1 = accel_limit(pc_idx, x_ - back, x_ + vwin * (0.5 * tf_ + 2 * T_), std::max(vwin, v_));
   const double c_up = std::max(vwin, v_ + a_up1 * (tf_ + T_));
   const double a_up = std::min(a_up1, accel_limit(pc_idx, x_ - back, x_ + c_up * (0.5 * tf_ + 2 * T_), c_up));
@@ -860,9 +887,11 @@ void Executor::plan_input(const CycleInputs& in) noexcept {
   if (!want_safe) {
     if (!safe(v_ + lo * T_, lo)) {
       // After an override dropped, braking as hard as allowed is the
-      // expected reaction, not a broken guarantee.
+      // expected reaction, not a broken guarantee. A brake that follows
+      // the envelope exactly drifts off it by rounding: not counted.
       if (std::getenv("EXEC_DEBUG4")) std::fprintf(stderr, "OVERRUN x %.6f v %.5f lo %.3f hi %.3f a_dn %.3f a_up %.3f a_old %.3f alpha_win %.3f span [%.5f %.5f] alpha %.3f W(x) %.4f\n", x_, v_, lo, hi, a_dn, a_up, a_old, alpha_win, s.a, s.b, s.alpha, envelope_at(in_, x_));
-      if (!recovering_) ++overruns_;
+      if (std::getenv("EXEC_DEBUG4")) { const double vn = v_ + lo * T_; const double xn = x_ + vn * T_; uint64_t kk = in_; const double me = min_envelope(x_, xn, kk); std::fprintf(stderr, "  vn %.17g xn %.17g minenv %.17g k %lu final_end %.6f next span [%.6f %.6f] ws %.6f wk1 %.6f ak0 %.3f stop %d\n", vn, xn, me, (unsigned long)kk, final_end(), span(in_+1).a, span(in_+1).b, span(in_+1).w_start, span(in_+1).wk[1], span(in_+1).ak[0], (int)span(in_+1).stop); }
+      if (!recovering_ && !safe(v_ + lo * T_, lo, true)) ++overruns_;
       a = lo;
     } else {
       double l = lo, h = want;
@@ -964,8 +993,11 @@ void Executor::advance_output() noexcept {
     if (p.stop != StopKind::None) {
       passed = out_ < input_first && y_ >= p.s0 - kLanding;
     } else {
-      passed = out_ + 1 < ptail_ && y_ >= p.s0 + p.length && piece(out_ + 1).s0 <= y_ &&
-               (piece(out_ + 1).stop == StopKind::None || out_ + 1 < input_first);
+      // Up to a stop that follows, the end is the stop's position (the
+      // input lands on it exactly; the piece's end may differ by rounding).
+      const bool next_stop = out_ + 1 < ptail_ && piece(out_ + 1).stop != StopKind::None;
+      const double end = next_stop ? std::min(p.s0 + p.length, piece(out_ + 1).s0) : p.s0 + p.length;
+      passed = out_ + 1 < ptail_ && y_ >= end && (next_stop ? out_ + 1 < input_first : piece(out_ + 1).s0 <= y_);
     }
     if (!passed) break;
     completed_ += p.inputs_done;
@@ -980,9 +1012,11 @@ void Executor::advance_output() noexcept {
 
 void Executor::release() noexcept {
   // Pieces behind the output, unless pieces still to be split may take
-  // data from them (within reach_) or a limit window holds them.
+  // data from them (within reach_) or the output's last samples lie on
+  // them (limits hold over the samples a jerk spans).
   uint64_t keep = out_;
-  const double back = (pfin_ < ptail_ ? piece(pfin_).s0 : tail_s_) - 2 * reach_;
+  const double back = std::min((pfin_ < ptail_ ? piece(pfin_).s0 : tail_s_) - 2 * reach_,
+                               y_ - 4 * std::max(v_, w_) * T_ - 1e-9);
   uint64_t k = store_.pieces.released();
   while (k < keep && piece(k).s0 + piece(k).length < back) ++k;
   keep = std::min(keep, k);
@@ -1061,8 +1095,7 @@ double Executor::stop_distance() const noexcept {
   double cx = x_, cv = v_;
   uint64_t k = in_;
   for (int i = 0; cv > 0 && i < 10'000'000; ++i) {
-    while (k + 1 < stail_ && span(k).stop == StopKind::None && cx >= span(k).b) ++k;
-    const double al = (k < stail_ && span(k).stop == StopKind::None) ? chunk_alpha(k, cx) : a_top_;
+    const double al = brake_alpha(k, cx, cx + cv * T_);
     double am = al;
     for (int j = i; j < n; ++j) am = std::max(am, halpha_[ring(n - 1 - j)]);
     const double old = i < n ? ha_[ring(n - 1 - i)] : -al;

@@ -97,8 +97,10 @@ class Executor {
   double envelope_at(uint64_t k, double x) const noexcept;
   double brake_curve(double w_end, double alpha, double d) const noexcept;
   double chunk_alpha(uint64_t span, double x) const noexcept;
+  double brake_alpha(uint64_t& k, double x0, double x1) const noexcept;
   double min_envelope(double z0, double z1, uint64_t& k) const noexcept;
-  bool safe(double v_new, double a_new) const noexcept;
+  bool above(double v, double w, bool loose) const noexcept;
+  bool safe(double v_new, double a_new, bool loose = false) const noexcept;
   void plan_input(const CycleInputs& in) noexcept;
   void push_sample(double x, double v, double a, double commit, double alpha) noexcept;
   void update_output() noexcept;
@@ -134,6 +136,7 @@ class Executor {
   double v_bound_ = 0;  // largest path velocity any piece may have
   double a_top_ = 0;    // largest input acceleration
   double reach_ = 0;    // farthest a piece's data spreads
+  double env_tol_ = 0;  // slack on the envelope (squared velocity)
 
   // Pieces: [out_, ptail_) ingested, [pfin_, ptail_) not yet split.
   uint64_t out_ = 0;    // piece holding the output position
