@@ -2,11 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 
 namespace cnc::tp {
-static uint64_t g_env_calls = 0, g_env_evals = 0;
 namespace {
 
 constexpr int kMaxRows = kNumAxes + 1;
@@ -29,7 +26,10 @@ constexpr double kMergeSpan = 0.5;
 // Erosion boundaries considered inside one piece.
 constexpr int kMaxCuts = 96;
 // A stop closer than this is reached (units).
-constexpr double kLanding = 1e-6;
+constexpr double kLanding = 1e-9;
+// A gap to a stop at least this small is closed from rest in one step (at
+// 250 us an acceleration of 0.16 units/s^2, far below any limit).
+constexpr double kCreep = 1e-8;
 constexpr double kVelEps = 1e-12;
 // Slack on the envelope for what counts as an overrun, as a distance: the
 // positions' rounding moves a brake that follows the envelope off it, and
@@ -126,9 +126,7 @@ Executor::Executor(const PlannerConfig& config, PathStore& store)
   clear_history(0);
 }
 
-Executor::~Executor() {
-  if (std::getenv("EXEC_STATS")) std::fprintf(stderr, "spans %lu envelope_span calls %lu alpha evals %lu\n", (unsigned long)stail_, (unsigned long)g_env_calls, (unsigned long)g_env_evals);
-}
+Executor::~Executor() = default;
 
 Executor::PieceData& Executor::pdata(uint64_t seq) noexcept { return pdata_[seq & pmask_]; }
 const Executor::PieceData& Executor::pdata(uint64_t seq) const noexcept { return pdata_[seq & pmask_]; }
@@ -395,7 +393,6 @@ void Executor::ingest() noexcept {
       vals[kChFeed] = p.v_feed;
       vals[kChRapid] = p.v_rapid;
     }
-    if (std::getenv("EXEC_DEBUG5")) std::fprintf(stderr, "piece %lu s0 %.6f len %.6f v %.3f stop %d c1 %.4f %.4f %.4f c2 %.4f %.4f %.4f c3 %.3f %.3f %.3f lim0 %.2f lim15 %.2f\n", (unsigned long)ptail_, p.s0, p.length, d.v, (int)p.stop, p.bounds.c1[0], p.bounds.c1[1], p.bounds.c1[2], p.bounds.c2[0], p.bounds.c2[1], p.bounds.c2[2], p.bounds.c3[0], p.bounds.c3[1], p.bounds.c3[2], vals[0], vals[15]);
     tree_->set(static_cast<std::size_t>(ptail_ & pmask_), vals);
     tail_s_ = p.s0 + p.length;
     ++ptail_;
@@ -598,7 +595,6 @@ void Executor::envelope_from(uint64_t last) noexcept {
 }
 
 void Executor::envelope_span(uint64_t k, double w_end) noexcept {
-  ++g_env_calls;
   Span& s = span(k);
   s.enveloped = true;
   if (s.stop != StopKind::None) {
@@ -658,7 +654,7 @@ void Executor::envelope_span(uint64_t k, double w_end) noexcept {
       }
       return m;
     };
-    auto alpha_at = [&](double w) { ++g_env_evals; return std::min(ahead_at(w), own_at(w)); };
+    auto alpha_at = [&](double w) { return std::min(ahead_at(w), own_at(w)); };
     // The largest w on the brake curve from `we` with the alpha valid for
     // every velocity up to it (alpha falls with w).
     const double a0 = alpha_at(we);
@@ -806,7 +802,6 @@ bool Executor::safe(double v_new, double a_new, bool loose) const noexcept {
     if (nv < 0) nv = 0;
     const double nx = cx + nv * T_;
     if (step_active_ && nx > step_s_ + kLanding) return false;
-    if (std::getenv("EXEC_DEBUG6") && cycles_ >= 46996 && cycles_ <= 46998) { uint64_t kk = k; std::fprintf(stderr, "   sim cyc %lu i %d old %.2f am %.2f al %.2f a %.2f nv %.6f nx %.6f env %.6f\n", (unsigned long)cycles_, i, old_a(i), am, al, a, nv, nx, min_envelope(cx, nx, kk)); }
     if (above(nv, min_envelope(cx, nx, k), loose)) return false;
     cx = nx;
     cv = nv;
@@ -822,7 +817,6 @@ bool Executor::safe(double v_new, double a_new, bool loose) const noexcept {
       if (!(al < kInf) || cv * cv > 2 * al * std::max(0.0, step_s_ - cx)) return false;
     }
     uint64_t kq = k;
-    if (std::getenv("EXEC_DEBUG6") && cycles_ >= 46996 && cycles_ <= 46998) { uint64_t kk = k; std::fprintf(stderr, "   final cyc %lu cv %.9f cx %.9f env %.9f k %lu last_pos %d\n", (unsigned long)cycles_, cv, cx, min_envelope(cx, cx, kk), (unsigned long)k, last_pos); }
     if (above(cv, min_envelope(cx, cx, kq), loose)) {
       // Exactly at cx: the envelope of the span holding it.
       while (kq < stail_ && span(kq).stop == StopKind::None && span(kq).b < cx) ++kq;
@@ -880,7 +874,6 @@ void Executor::plan_input(const CycleInputs& in) noexcept {
   hi = std::min(hi, (cap - v_) / T_);
   if (hi < lo) hi = lo;
   const double want = std::clamp((target - v_) / T_, lo, hi);
-  if (std::getenv("EXEC_DEBUG")) std::fprintf(stderr, "cyc %lu in %lu stail %lu x %.5f v %.4f target %.3f vc %.3f lo %.2f hi %.2f want %.2f a_up %.2f a_dn %.2f cap %.3f safe %d alpha %.2f wst %.3f wend %.3f span [%.4f %.4f] t0 %.2f t15 %.2f\n", (unsigned long)cycles_, (unsigned long)in_, (unsigned long)stail_, x_, v_, target, s.vc, lo, hi, want, a_up, a_dn, cap, (int)safe(v_ + want * T_, want), s.alpha, s.w_start, s.w_end, s.a, s.b, 0.0, 0.0);
   double a = want;
   const bool want_safe = safe(v_ + want * T_, want);
   if (want_safe) recovering_ = false;
@@ -889,8 +882,6 @@ void Executor::plan_input(const CycleInputs& in) noexcept {
       // After an override dropped, braking as hard as allowed is the
       // expected reaction, not a broken guarantee. A brake that follows
       // the envelope exactly drifts off it by rounding: not counted.
-      if (std::getenv("EXEC_DEBUG4")) std::fprintf(stderr, "OVERRUN x %.6f v %.5f lo %.3f hi %.3f a_dn %.3f a_up %.3f a_old %.3f alpha_win %.3f span [%.5f %.5f] alpha %.3f W(x) %.4f\n", x_, v_, lo, hi, a_dn, a_up, a_old, alpha_win, s.a, s.b, s.alpha, envelope_at(in_, x_));
-      if (std::getenv("EXEC_DEBUG4")) { const double vn = v_ + lo * T_; const double xn = x_ + vn * T_; uint64_t kk = in_; const double me = min_envelope(x_, xn, kk); std::fprintf(stderr, "  vn %.17g xn %.17g minenv %.17g k %lu final_end %.6f next span [%.6f %.6f] ws %.6f wk1 %.6f ak0 %.3f stop %d\n", vn, xn, me, (unsigned long)kk, final_end(), span(in_+1).a, span(in_+1).b, span(in_+1).w_start, span(in_+1).wk[1], span(in_+1).ak[0], (int)span(in_+1).stop); }
       if (!recovering_ && !safe(v_ + lo * T_, lo, true)) ++overruns_;
       a = lo;
     } else {
@@ -914,13 +905,20 @@ void Executor::plan_input(const CycleInputs& in) noexcept {
     // The first stop at or after the input (a stop span follows the span
     // ending at it).
     uint64_t k = in_;
-    while (k < stail_ && span(k).stop == StopKind::None && span(k).b <= xn + kLanding) ++k;
+    // From (nearly) rest, a gap the braking rules leave (rounding, or a step below
+    // the search's resolution) is closed in one step when that takes a
+    // small fraction of this step's acceleration bounds.
+    double creep = std::max(kCreep, 0.01 * std::min(hi, -lo) * T_ * T_);
+    if (v_ * T_ > creep) creep = 0;
+    const double reach = std::max(xn + kLanding, x_ + creep);
+    while (k < stail_ && span(k).stop == StopKind::None && span(k).b <= reach) ++k;
     double stop_at = final_end();
     if (k < stail_ && span(k).stop != StopKind::None) stop_at = std::min(stop_at, span(k).a);
     if (step_active_) stop_at = std::min(stop_at, step_s_);
     // The remaining distance is within this step's reach (or it would pass
     // the stop): land on it exactly, decelerating.
-    if (xn > stop_at - kLanding || (stop_at - x_ <= vn * T_ && stop_at - x_ >= 0)) {
+    const double gap = stop_at - x_;
+    if (xn > stop_at - kLanding || (gap <= vn * T_ && gap >= 0) || (gap >= 0 && gap <= creep)) {
       xn = std::max(x_, stop_at);
       vn = (xn - x_) / T_;
       a = (vn - v_) / T_;
@@ -1166,8 +1164,6 @@ void Executor::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
     out.move_end = pose_;
   }
   out.done = is_idle();
-  if (std::getenv("EXEC_DEBUG2")) for (uint64_t k = in_; k < stail_; ++k) std::fprintf(stderr, "  span %lu [%.12f %.12f] stop %d piece %lu vc %.4f ws %.4f we %.4f a0 %.2f a3 %.2f plen %.6f pv %.4f\n", (unsigned long)k, span(k).a, span(k).b, (int)span(k).stop, (unsigned long)span(k).piece, span(k).vc, span(k).w_start, span(k).w_end, span(k).ak[0], span(k).ak[3], piece(span(k).piece).length, piece(span(k).piece).v_hard);
-  if (std::getenv("EXEC_DEBUG2")) std::fprintf(stderr, "in %lu stail %lu pfin %lu ptail %lu out %lu rest %d x %.12f y %.12f completed %lu\n", (unsigned long)in_, (unsigned long)stail_, (unsigned long)pfin_, (unsigned long)ptail_, (unsigned long)out_, (int)at_rest(), x_, y_, (unsigned long)completed_);
   out.probe_tripped = probe_tripped_;
   if (probe_tripped_) out.probed_position = probed_;
 }

@@ -1,8 +1,5 @@
 #include "core/tp/trajectory_check.hpp"
 
-#include <cstdio>
-#include <cstdlib>
-
 #include <time.h>
 
 #include <algorithm>
@@ -168,12 +165,8 @@ void StreamChecker::add(const CycleOutputs& out, double feed_scale) {
     st_.max_j[k] = std::max(st_.max_j[k], std::fabs(j));
     if (!(cfg_.axis_mask & (1u << i))) continue;
     const AxisLimits& l = cfg_.axes[k];
-    if (std::getenv("TP_DEBUG") && std::fabs(v) / l.max_velocity > 1.0 + 1e-9 && std::fabs(v) / l.max_velocity > st_.ratio_v)
-      std::fprintf(stderr, "v violation axis %d ratio %.4f t=%.3f id=%u pos %.4f %.4f %.4f\n", i, std::fabs(v) / l.max_velocity, st_.time_s, out.id, p[0], p[1], p[2]);
     st_.ratio_v = std::max(st_.ratio_v, std::fabs(v) / l.max_velocity);
     st_.ratio_a = std::max(st_.ratio_a, std::fabs(a) / l.max_acceleration);
-    if (std::getenv("TP_DEBUG") && std::fabs(j) / l.max_jerk > 1.0 + 1e-9 && std::fabs(j) / l.max_jerk > st_.ratio_j)
-      std::fprintf(stderr, "j violation axis %d ratio %.4f t=%.3f sample %lu id=%u pos %.4f %.4f %.4f\n", i, std::fabs(j) / l.max_jerk, st_.time_s, (unsigned long)st_.samples, out.id, p[0], p[1], p[2]);
     st_.ratio_j = std::max(st_.ratio_j, std::fabs(j) / l.max_jerk);
   }
   const std::size_t n = program_.moves.size();
@@ -197,7 +190,6 @@ void StreamChecker::add(const CycleOutputs& out, double feed_scale) {
       if (lb2 >= d * d) continue;  // cannot be nearer
       d = std::min(d, distance_to_move(p, i));
     }
-    if (std::getenv("TP_DEBUG") && d > st_.max_deviation && d > 0.01) std::fprintf(stderr, "dev %.5f t=%.3f id=%zu pos %.4f %.4f %.4f\n", d, st_.time_s, id, p[0], p[1], p[2]);
     st_.max_deviation = std::max(st_.max_deviation, d);
     // Corners blend with the tolerance of the move that ends there and their
     // windows may reach over neighbouring moves: the largest nearby applies.
