@@ -86,6 +86,9 @@ MotionConfig load_motion_config(const ini::IniFile& ini, int num_joints) {
   c.max_linear_jerk = ini.get_double("TRAJ", "MAX_LINEAR_JERK", 1e99, {1e-9, 1e99});
   c.default_linear_velocity = ini.get_double("TRAJ", "DEFAULT_LINEAR_VELOCITY", 0.0, {0, 1e99});
   c.max_angular_velocity = ini.get_double("TRAJ", "MAX_ANGULAR_VELOCITY", 1e99, {1e-9, 1e99});
+  c.lookahead_segments = static_cast<int>(ini.get_int("TRAJ", "LOOKAHEAD_SEGMENTS", 1000, {1, 1'000'000}));
+  c.blend_span_segments = static_cast<int>(ini.get_int("TRAJ", "BLEND_SPAN_SEGMENTS", 8, {1, 32}));
+  c.max_blend_half_width = ini.get_double("TRAJ", "MAX_BLEND_HALF_WIDTH", 5.0, {1e-6, 1e6});
   const std::string lu = to_lower(ini.get_string("TRAJ", "LINEAR_UNITS", "mm"));
   if (lu == "mm" || lu == "metric" || lu == "1") c.linear_units_per_mm = 1;
   else if (lu == "inch" || lu == "imperial" || lu == "in") c.linear_units_per_mm = 1 / 25.4;

@@ -65,6 +65,11 @@ struct MotionConfig {
   double max_linear_jerk = 1e99;
   double default_linear_velocity = 0;
   double max_angular_velocity = 1e99;
+  // Coordinated planner (docs/tp.md): [TRAJ]LOOKAHEAD_SEGMENTS,
+  // BLEND_SPAN_SEGMENTS, MAX_BLEND_HALF_WIDTH (machine units).
+  int lookahead_segments = 1000;
+  int blend_span_segments = 8;
+  double max_blend_half_width = 5.0;
   double linear_units_per_mm = 1;     // [TRAJ]LINEAR_UNITS: mm -> 1, inch -> 1/25.4
   double angular_units_per_degree = 1;
   bool no_force_homing = false;       // [TRAJ]NO_FORCE_HOMING

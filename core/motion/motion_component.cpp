@@ -50,6 +50,9 @@ tp::PlannerConfig planner_config(const MotionConfig& c, uint32_t axis_mask) {
   p.max_linear_acceleration = c.max_linear_acceleration;
   p.max_linear_jerk = c.max_linear_jerk;
   p.axis_mask = axis_mask;
+  p.lookahead_segments = c.lookahead_segments;
+  p.blend_span_segments = c.blend_span_segments;
+  p.max_blend_half_width = c.max_blend_half_width;
   for (int a = 0; a < kNumAxes; ++a) {
     const AxisConfig& ax = c.axes[static_cast<std::size_t>(a)];
     p.axes[static_cast<std::size_t>(a)] = tp::AxisLimits{ax.max_velocity, ax.max_acceleration, ax.max_jerk};

@@ -2,6 +2,9 @@
 // requires, what it does, and every reason it is refused.
 #include <gtest/gtest.h>
 
+#include "core/ini/ini_file.hpp"
+#include "core/motion/config.hpp"
+#include "core/motion/motion_component.hpp"
 #include "core/motion/params.hpp"
 #include "tests/core/motion/machine.hpp"
 
@@ -445,6 +448,25 @@ TEST(MotionParameters, OneTableSetsJointAxisAndTrajectoryParameters) {
   c.value[0] = 150;
   EXPECT_STREQ(m.send(c).reason.c_str(), "joint.max-limit can only be changed while the machine is stopped");
   EXPECT_FALSE(motion::find_param("joint.colour"));
+}
+
+TEST(MotionParameters, PlannerLookaheadAndBlendWindowComeFromTraj) {
+  const auto ini = ini::IniFile::parse(
+      "[TRAJ]\nLOOKAHEAD_SEGMENTS = 4000\nBLEND_SPAN_SEGMENTS = 12\nMAX_BLEND_HALF_WIDTH = 2.5\n", "m.ini");
+  const tp::PlannerConfig p = motion::planner_config(motion::load_motion_config(ini, 3), 0x7);
+  EXPECT_EQ(p.lookahead_segments, 4000);
+  EXPECT_EQ(p.blend_span_segments, 12);
+  EXPECT_EQ(p.max_blend_half_width, 2.5);
+  const tp::PlannerConfig d = motion::planner_config(motion::load_motion_config(ini::IniFile::parse("", "e.ini"), 3), 0x7);
+  EXPECT_EQ(d.lookahead_segments, 1000);
+  EXPECT_EQ(d.blend_span_segments, 8);
+  try {
+    motion::load_motion_config(ini::IniFile::parse("[TRAJ]\nBLEND_SPAN_SEGMENTS = 40\n", "bad.ini"), 3);
+    FAIL() << "accepted 40";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.ini"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("BLEND_SPAN_SEGMENTS"), std::string::npos) << e.what();
+  }
 }
 
 TEST(MotionOutputs, SynchronisedOutputsChangeWithTheNextMove) {
