@@ -52,6 +52,8 @@ SegmentParams params(double feed_mm_min, double tol, TermCond term = TermCond::B
   p.feed = feed_mm_min / 60.0;
   p.term = term;
   p.tolerance = tol;
+  // G64 P without Q: LinuxCNC (and the interpreter) take Q = P.
+  if (term == TermCond::Blend) p.naive_cam_tolerance = tol;
   return p;
 }
 
@@ -197,6 +199,10 @@ class MoveCanon : public interp::TextCanon {
                                                     : TermCond::Blend;
     tol_ = tolerance;
   }
+  void set_naivecam_tolerance(double tolerance) override {
+    TextCanon::set_naivecam_tolerance(tolerance);
+    naive_tol_ = tolerance;
+  }
   void straight_traverse(int line, const Pose& end) override {
     TextCanon::straight_traverse(line, end);
     push(ProgramMove::Kind::Line, end, line, MotionType::Traverse);
@@ -239,6 +245,7 @@ class MoveCanon : public interp::TextCanon {
     m.params.feed = type == MotionType::Traverse ? 0 : feed_;
     m.params.term = term_;
     m.params.tolerance = tol_;
+    m.params.naive_cam_tolerance = term_ == TermCond::Blend ? naive_tol_ : 0.0;
     prog_.moves.push_back(m);
     if (kind == ProgramMove::Kind::Line) pos_ = end;
     return prog_.moves.back();
@@ -248,6 +255,7 @@ class MoveCanon : public interp::TextCanon {
   double feed_ = 0;
   TermCond term_ = TermCond::Blend;
   double tol_ = 0;
+  double naive_tol_ = 0;
   Pose pos_;
 };
 

@@ -259,6 +259,13 @@ Result LookaheadPlanner::add_dwell(double seconds, const SegmentParams& params) 
 void LookaheadPlanner::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
   ++cycle_;
   const bool full = is_queue_full();
+  // A full queue whose published part is all executed while the machine
+  // stands (the held moves are the whole queue: a short look-ahead, or
+  // long merged chords) would wait forever: plan to the end of what is
+  // held. The stop this bakes in costs nothing, the machine stands anyway.
+  const bool stalled = full && !exec_->is_moving() && !exec_->is_paused() && in.feed_scale > 0;
+  stall_cycles_ = stalled ? stall_cycles_ + 1 : 0;
+  const bool stall = stall_cycles_ >= static_cast<uint64_t>(std::max(1, cfg_.flush_idle_cycles));
   if (threading_ == PlannerThreading::Inline) {
     if (builder_->has_held()) {
       const bool idle = cycle_ - last_input_.load(std::memory_order_relaxed) >=
@@ -273,14 +280,14 @@ void LookaheadPlanner::run_cycle(const CycleInputs& in, CycleOutputs& out) noexc
       const bool urgent = starving && exec_->is_moving() &&
                           exec_->distance_to_tail() < 1.5 * exec_->stop_distance() +
                                                           4 * exec_->path_velocity() * cfg_.cycle_time_s;
-      if (idle || urgent) builder_->flush();
+      if (idle || urgent || stall) builder_->flush();
     }
   } else {
     // As in the inline case: only when the input has dried up.
     const bool starving = cycle_ - last_input_.load(std::memory_order_relaxed) >= 2 && !full;
-    urgent_.store(starving && exec_->is_moving() && exec_->distance_to_tail() <
-                                             2 * exec_->stop_distance() +
-                                                 8 * exec_->path_velocity() * cfg_.cycle_time_s,
+    urgent_.store(stall || (starving && exec_->is_moving() &&
+                            exec_->distance_to_tail() <
+                                2 * exec_->stop_distance() + 8 * exec_->path_velocity() * cfg_.cycle_time_s),
                   std::memory_order_relaxed);
     full_.store(full, std::memory_order_relaxed);
     cycle_pub_.store(cycle_, std::memory_order_release);

@@ -76,6 +76,7 @@ class LookaheadPlanner final : public TrajectoryPlanner {
   uint64_t accepted_ = 0;      // input moves accepted (servo thread)
   uint64_t aborted_ = 0;       // input moves dropped by aborts
   uint64_t cycle_ = 0;
+  uint64_t stall_cycles_ = 0;  // cycles standing with a full queue
   uint32_t epoch_ = 0;
   bool reset_pending_ = false;
   bool position_pending_ = false;

@@ -86,6 +86,7 @@ class PathBuilder {
   uint32_t epoch_ = 0;
   uint64_t built_ = 0;
   int span_ = 8;
+  int merge_cap_ = 1;  // moves one merged chord may take
 };
 
 }  // namespace cnc::tp

@@ -253,7 +253,11 @@ int64_t now_ns() {
 RunResult run_program(TrajectoryPlanner& planner, const PlannerConfig& config, const Program& program,
                       const RunOptions& options) {
   RunResult r;
-  StreamChecker check(config, program, config.blend_span_segments + 4);
+  // A chord merged from collinear moves (G64 Q) reports its last move's id
+  // while the machine is anywhere along it: up to 64 moves back.
+  bool merges = false;
+  for (const ProgramMove& m : program.moves) merges = merges || m.params.naive_cam_tolerance > 0;
+  StreamChecker check(config, program, config.blend_span_segments + 4 + (merges ? 64 : 0));
   const auto* la = dynamic_cast<const LookaheadPlanner*>(&planner);
   planner.set_position(program.start);
   std::size_t next = 0;

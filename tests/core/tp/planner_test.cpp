@@ -314,7 +314,8 @@ TEST(TpShortSegments, TenMicronSegmentsAtOneKilohertzRunAtTheProgrammedFeed) {
 // Known weakness (docs/tp.md): corners are smoothed one by one inside each
 // segment, so a zig-zag of 0.02 mm segments whose 0.002 mm wiggle lies well
 // inside P runs at about 2.4 mm/s instead of treating the band as a straight
-// path. Disabled until the builder smooths across many short segments.
+// path (with G64 Q = P merging it into chords: 31 % of the feed). Disabled
+// until the builder smooths across many short segments.
 TEST(TpShortSegments, DISABLED_NearlyCollinearZigZagWithinToleranceKeepsTheFeed) {
   const PlannerConfig cfg = profile("mill-s", 0.001);
   Program prog;
@@ -325,6 +326,33 @@ TEST(TpShortSegments, DISABLED_NearlyCollinearZigZagWithinToleranceKeepsTheFeed)
   const RunResult r = run(cfg, prog, opt);
   expect_clean(r);
   EXPECT_GT(r.stats.mean_feed_ratio, 0.85);
+}
+
+// A look-ahead shorter in path length than the executor's reach (2 mm of
+// 0.01 mm moves), with and without G64 Q merging: it once stood still with
+// room in the queue (segments behind a stop never freed) or with the queue
+// full of held chords. Slow, stop and go, but it must finish.
+TEST(TpLookahead, ShortLookaheadNeverStalls) {
+  for (double q : {0.0, 0.001}) {
+    for (int depth : {50, 200, 1000}) {
+      PlannerConfig cfg = profile("lc", 0.001);
+      cfg.lookahead_segments = depth;
+      Program prog;
+      SegmentParams p = feed_params(100, 0.001);
+      p.naive_cam_tolerance = q;
+      for (int i = 1; i <= 3000; ++i) prog.moves.push_back(line_to(0.01 * i, 0, 0, p));
+      RunOptions opt;
+      opt.flush_at_end = true;
+      opt.max_cycles = 20000;
+      const RunResult r = run(cfg, prog, opt);
+      SCOPED_TRACE(::testing::Message() << "depth " << depth << " Q " << q);
+      expect_clean(r);
+      // 30 mm at 100 mm/s is 0.3 s and the ramps.
+      if (depth == 1000) {
+        EXPECT_LT(r.stats.time_s, 0.6);
+      }
+    }
+  }
 }
 
 TEST(TpLookahead, QueueTakesAtLeastTheConfiguredDepth) {

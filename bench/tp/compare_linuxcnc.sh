@@ -1,0 +1,91 @@
+#!/usr/bin/env bash
+# Side by side: the project's trajectory planner and LinuxCNC 2.9's on the
+# same programs with the same limits (LC profile: 100 mm/s, 1000 mm/s^2 per
+# axis, 1 ms servo period, G64 P0.01 unless a program says otherwise).
+#
+#   bench/tp/compare_linuxcnc.sh [BUILD_DIR]
+#
+# Writes the benchmark's generated programs as G-code (bench_tp
+# --write-ngc), adds LinuxCNC's own 3D_Chips.ngc, runs each through
+# bench_tp (our planner, checked sample by sample) and through
+# ../shared/tools/linuxcnc/b_sim_motion_time.sh (LinuxCNC's headless
+# simulated machine; its planned motion time), and prints the traverse
+# times and their ratio (ours / LinuxCNC; below 1 is faster). Ours also
+# limits jerk (50,000 mm/s^3), LinuxCNC does not.
+#
+# LinuxCNC (Debian package linuxcnc-uspace) is a yardstick for this script
+# only, never a dependency of the project. It runs in real time: the whole
+# comparison takes about as long as the programs (~3 minutes).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/../.." && pwd)
+build="$root/build"
+for a in "$@"; do
+  case "$a" in
+    -h | --help)
+      sed -n '2,18p' "$0"
+      exit 0
+      ;;
+    *) build="$a" ;;
+  esac
+done
+tools="${LINUXCNC_TOOLS:-$root/../shared/tools/linuxcnc}"
+sim="$tools/b_sim_motion_time.sh"
+chips=/usr/share/linuxcnc/ncfiles/3D_Chips.ngc
+bench="$build/bin/bench_tp"
+
+if [[ ! -x "$bench" ]]; then
+  echo "compare_linuxcnc: $bench not found: build first (scripts/build.sh)" >&2
+  exit 2
+fi
+if [[ ! -x "$sim" ]]; then
+  echo "compare_linuxcnc: $sim not found (set LINUXCNC_TOOLS to the directory holding b_sim_motion_time.sh)" >&2
+  exit 2
+fi
+if ! command -v linuxcnc >/dev/null; then
+  echo "compare_linuxcnc: LinuxCNC is not installed; for benchmarking only: apt-get install linuxcnc-uspace" >&2
+  exit 2
+fi
+
+work=$(mktemp -d /tmp/tp-compare.XXXXXX)
+chmod 755 "$work"  # LinuxCNC runs as an unprivileged user
+trap 'rm -rf "$work"' EXIT
+
+# Ours: the generated programs plus 3D_Chips, LC profile at 1 ms.
+"$bench" --quick --write-ngc "$work" --ngc "$chips" >"$work/ours.txt"
+chmod 644 "$work"/*.ngc
+# "name  LC  1000 ok  time ..." : the name is the first 34 columns.
+ours_time() {
+  awk -v n="$1" 'index($0, "LC ") == 36 && substr($0, 1, 34) ~ "^" n " *$" { split(substr($0, 36), f, " +"); print f[4]; exit }' \
+    "$work/ours.txt"
+}
+
+progs=()
+names=()
+for f in "$work"/tp*.ngc; do
+  progs+=("$f")
+  names+=("$(head -1 "$f" | sed 's/^(//; s/)$//')")
+done
+progs+=("$chips")
+names+=("3D_Chips.ngc")
+
+echo "running ${#progs[@]} programs on LinuxCNC 2.9 (real time) ..." >&2
+"$sim" -v 100 -a 1000 -p 0.01 -o "$work/lcnc" "${progs[@]}" 2>"$work/lcnc.log" | grep '^RESULT' >"$work/lcnc.txt" || true
+
+printf '\n%-34s %10s %10s %8s\n' "program (LC limits, 1 ms)" "ours_s" "lcnc_s" "ratio"
+for i in "${!progs[@]}"; do
+  name="${names[$i]}"
+  base=$(basename "${progs[$i]}")
+  esc=$(printf '%s' "$name" | sed 's/[][\.*^$()+?{}|/]/\\&/g')
+  ours=$(ours_time "$esc")
+  lc=$(awk -v b="$base" '{ p = ""; t = ""; for (k = 1; k <= NF; ++k) { if ($k ~ /^program=/) p = substr($k, 9); if ($k ~ /^motion_busy_s=/) t = substr($k, 15) }
+        n = split(p, parts, "/"); if (parts[n] == b) { print t; exit } }' "$work/lcnc.txt")
+  if [[ -n "$ours" && -n "$lc" ]]; then
+    ratio=$(awk -v a="$ours" -v b="$lc" 'BEGIN { printf "%.2f", (b > 0 ? a / b : 0) }')
+  else
+    ratio="n/a"
+  fi
+  printf '%-34s %10s %10s %8s\n' "$name" "${ours:-n/a}" "${lc:-n/a}" "$ratio"
+done
+if grep -q 'status=' "$work/lcnc.txt" && grep -v 'status=ok' "$work/lcnc.txt" >&2; then
+  echo "(some LinuxCNC runs did not finish: see above)" >&2
+fi
