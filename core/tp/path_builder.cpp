@@ -6,15 +6,14 @@
 namespace cnc::tp {
 namespace {
 
-constexpr int kMaxMerge = 64;
-
 // Moves one merged chord may take: the builder holds back up to about
-// 5 x span chords, and what it holds counts against the queue, so a chord
-// of kMaxMerge moves would fill a short queue with moves nobody may execute
-// yet (the queue full, nothing published: a dead stop).
+// 5 x span chords, and what it holds counts against the queue, so chords
+// of kMaxMergedMoves moves would fill a short queue with moves nobody may
+// execute yet (the queue full, nothing published: a dead stop).
 int merge_cap(const PlannerConfig& c, int span) noexcept {
-  return std::clamp(c.lookahead_segments / (2 * (5 * span + 1)), 1, kMaxMerge - 1);
+  return std::clamp(c.lookahead_segments / (2 * (5 * span + 1)), 1, kMaxMergedMoves - 1);
 }
+
 constexpr double kTangentEps = 1e-9;
 // Windows are first sized for this share of the tolerance (the rest is room
 // for the neighbours' windows that reach the same points), then verified.
@@ -100,7 +99,7 @@ struct PathBuilder::Merge {
   Pose start;
   Pose end;
   SegmentParams params;
-  Pose points[kMaxMerge];
+  Pose points[kMaxMergedMoves];
   int count = 0;
   uint32_t inputs = 0;
   double err = 0;  // largest distance of the points from the chord start-end
@@ -109,7 +108,6 @@ struct PathBuilder::Merge {
 PathBuilder::PathBuilder(const PlannerConfig& config, PathStore& store)
     : cfg_(config), store_(store), merge_(std::make_unique<Merge>()) {
   span_ = std::clamp(cfg_.blend_span_segments, 1, 32);
-  merge_cap_ = merge_cap(cfg_, span_);
   std::size_t c = 2;
   while (c < static_cast<std::size_t>(8 * span_ + 64)) c *= 2;
   held_ = std::make_unique<Held[]>(c);
@@ -125,7 +123,6 @@ void PathBuilder::set_config(const PlannerConfig& config) noexcept {
   const int span = span_;
   cfg_ = config;
   span_ = span;  // the holdback geometry is fixed at construction
-  merge_cap_ = merge_cap(cfg_, span_);
 }
 
 void PathBuilder::set_position(const Pose& pose) noexcept {
@@ -193,7 +190,7 @@ Result PathBuilder::add_line(const Pose& end, const SegmentParams& params) noexc
 // path as a whole stays within G64 P.
 bool PathBuilder::try_merge(const Pose& end, const SegmentParams& p) noexcept {
   Merge& m = *merge_;
-  if (!m.active || m.count >= merge_cap_) return false;
+  if (!m.active || m.count >= merge_cap(cfg_, span_)) return false;
   const SegmentParams& q = m.params;
   if (p.type != q.type || p.feed != q.feed || p.max_velocity != q.max_velocity ||
       p.max_acceleration != q.max_acceleration || p.term != q.term || p.tolerance != q.tolerance ||

@@ -18,6 +18,9 @@
 
 namespace cnc::tp {
 
+// Most moves one chord of the G64 Q merge takes (fewer with a short queue).
+constexpr int kMaxMergedMoves = 64;
+
 // The velocity ceiling of a piece: the largest path velocity at which every
 // axis keeps kCeilingReserve of its acceleration and jerk (and every axis
 // and the [TRAJ] linear limits their velocity). Below it the servo side
@@ -86,7 +89,6 @@ class PathBuilder {
   uint32_t epoch_ = 0;
   uint64_t built_ = 0;
   int span_ = 8;
-  int merge_cap_ = 1;  // moves one merged chord may take
 };
 
 }  // namespace cnc::tp

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/tp/lookahead_planner.hpp"
+#include "core/tp/path_builder.hpp"
 
 namespace cnc::tp {
 namespace {
@@ -254,10 +255,10 @@ RunResult run_program(TrajectoryPlanner& planner, const PlannerConfig& config, c
                       const RunOptions& options) {
   RunResult r;
   // A chord merged from collinear moves (G64 Q) reports its last move's id
-  // while the machine is anywhere along it: up to 64 moves back.
+  // while the machine is anywhere along it: up to kMaxMergedMoves back.
   bool merges = false;
   for (const ProgramMove& m : program.moves) merges = merges || m.params.naive_cam_tolerance > 0;
-  StreamChecker check(config, program, config.blend_span_segments + 4 + (merges ? 64 : 0));
+  StreamChecker check(config, program, config.blend_span_segments + 4 + (merges ? kMaxMergedMoves : 0));
   const auto* la = dynamic_cast<const LookaheadPlanner*>(&planner);
   planner.set_position(program.start);
   std::size_t next = 0;
