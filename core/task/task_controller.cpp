@@ -660,8 +660,12 @@ std::string TaskController::program_run(const ipc::Command& c) {
   } catch (const interp::InterpError& e) {
     return e.message();
   }
+  // The interpreter starts where the machine stands, not where its reset
+  // left it (machine zero): otherwise the first move would carry every axis
+  // the program does not name back to 0.
   view_.position = ms_.traj.position;
   canon_->set_end_position(ms_.traj.position);
+  interp_->synch();
   program_started_ns_ = monotonic_ns();
   program_elapsed_ns_ = 0;
   blocks_ = 0;
