@@ -4,7 +4,10 @@
 // segment's command channel and answered by the controller.
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <climits>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <functional>
@@ -15,6 +18,8 @@
 
 #include "core/cli/status_format.hpp"
 #include "core/ipc/client.hpp"
+#include "core/ipc/command_check.hpp"
+#include "core/util/pose.hpp"
 #include "core/util/strings.hpp"
 #include "core/util/time.hpp"
 
@@ -35,15 +40,28 @@ struct Context {
   std::exit(2);
 }
 
-double number(const std::string& s, const char* what) {
+// A real argument: finite and within +-limit (the controller checks the
+// same bounds; refusing here names the argument as typed).
+double number(const std::string& s, const char* what, double limit = ipc::kMaxLinearArgument) {
   const auto v = parse_double(s);
   if (!v) fail_usage(std::string(what) + ": \"" + s + "\" is not a number");
+  if (std::fabs(*v) > limit) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%g", limit);
+    fail_usage(std::string(what) + ": " + s + " is out of range (at most " + buf + " in magnitude)");
+  }
   return *v;
 }
 
-int integer(const std::string& s, const char* what) {
+// An integer argument in [lo, hi]: never wraps into another joint, macro
+// or line.
+int integer(const std::string& s, const char* what, int64_t lo = 0, int64_t hi = INT32_MAX) {
   const auto v = parse_int(s);
   if (!v) fail_usage(std::string(what) + ": \"" + s + "\" is not an integer");
+  if (*v < lo || *v > hi) {
+    fail_usage(std::string(what) + ": " + s + " is out of range (expected " + std::to_string(lo) + " to " +
+               std::to_string(hi) + ")");
+  }
   return static_cast<int>(*v);
 }
 
@@ -53,8 +71,9 @@ bool on_off(const std::string& s) {
   return *b;
 }
 
-void need_args(const Context& c, std::size_t n, const char* usage) {
-  if (c.args.size() < n) fail_usage(std::string("usage: cnc ") + usage);
+// Between `n` and `most` arguments (default: exactly n).
+void need_args(const Context& c, std::size_t n, const char* usage, std::size_t most = 0) {
+  if (c.args.size() < n || c.args.size() > std::max(n, most)) fail_usage(std::string("usage: cnc ") + usage);
 }
 
 // Sends a command and waits for its answer; prints a rejection's reason.
@@ -116,11 +135,11 @@ void target(const std::string& s, Command& cmd) {
     cmd.i[1] = 0;
     return;
   }
-  cmd.i[0] = integer(s, "joint");
+  cmd.i[0] = integer(s, "joint", 0, kMaxJoints - 1);
   cmd.i[1] = 1;
 }
 
-int joint_or_all(const std::string& s) { return s == "all" ? -1 : integer(s, "joint"); }
+int joint_or_all(const std::string& s) { return s == "all" ? -1 : integer(s, "joint", 0, kMaxJoints - 1); }
 
 int cmd_status(const Context& c) {
   bool json = false;
@@ -139,11 +158,12 @@ int cmd_watch(const Context& c) {
   bool json = false;
   int count = -1;
   for (std::size_t i = 0; i < c.args.size(); ++i) {
-    if (c.args[i] == "--interval" && i + 1 < c.args.size()) interval = number(c.args[++i], "interval");
-    else if (c.args[i] == "--count" && i + 1 < c.args.size()) count = integer(c.args[++i], "count");
+    if (c.args[i] == "--interval" && i + 1 < c.args.size()) interval = number(c.args[++i], "interval", 3600);
+    else if (c.args[i] == "--count" && i + 1 < c.args.size()) count = integer(c.args[++i], "count", 1);
     else if (c.args[i] == "--json") json = true;
     else fail_usage("watch: unknown option " + c.args[i]);
   }
+  if (interval <= 0) fail_usage("watch: --interval must be more than 0 s");
   ipc::Client client(c.instance);
   const bool tty = ::isatty(1);
   for (int n = 0; count < 0 || n < count; ++n) {
@@ -270,15 +290,15 @@ std::map<std::string, Entry> commands() {
   m["shutdown"] = {"shutdown", "stop the controller (drives to a safe state first)",
                    [](Context& c) { return send(c, cmd_of(CommandType::Shutdown)); }};
   m["error"] = {"error TEXT", "post an operator error", [](Context& c) {
-                  need_args(c, 1, "error TEXT");
+                  need_args(c, 1, "error TEXT", SIZE_MAX);
                   return send(c, with_text(CommandType::OperatorError, join_args(c)));
                 }};
   m["text"] = {"text TEXT", "post an operator text", [](Context& c) {
-                 need_args(c, 1, "text TEXT");
+                 need_args(c, 1, "text TEXT", SIZE_MAX);
                  return send(c, with_text(CommandType::OperatorText, join_args(c)));
                }};
   m["display"] = {"display TEXT", "post an operator display message", [](Context& c) {
-                    need_args(c, 1, "display TEXT");
+                    need_args(c, 1, "display TEXT", SIZE_MAX);
                     return send(c, with_text(CommandType::OperatorDisplay, join_args(c)));
                   }};
   m["estop"] = {"estop", "E-stop", [](Context& c) { return send(c, with_i(CommandType::TaskSetState, 1)); }};
@@ -294,14 +314,14 @@ std::map<std::string, Entry> commands() {
                  return send(c, with_i(CommandType::TaskSetMode, v));
                }};
   m["mdi"] = {"mdi G-CODE...", "execute one MDI line", [](Context& c) {
-                need_args(c, 1, "mdi G-CODE");
+                need_args(c, 1, "mdi G-CODE", SIZE_MAX);
                 Command cmd = with_text(CommandType::TaskPlanExecute, join_args(c));
                 cmd.i[0] = -1;
                 return send(c, cmd);
               }};
   m["macro"] = {"macro N", "run [MDI_COMMAND_LIST] macro N", [](Context& c) {
                   need_args(c, 1, "macro N");
-                  return send(c, with_i(CommandType::TaskPlanExecute, integer(c.args[0], "macro")));
+                  return send(c, with_i(CommandType::TaskPlanExecute, integer(c.args[0], "macro", 0, 999)));
                 }};
   m["open"] = {"open FILE", "open a program", [](Context& c) {
                  need_args(c, 1, "open FILE");
@@ -313,6 +333,7 @@ std::map<std::string, Entry> commands() {
                  return send(c, with_text(CommandType::TaskPlanOpen, path));
                }};
   m["run"] = {"run [LINE]", "run the open program (from LINE)", [](Context& c) {
+                need_args(c, 0, "run [LINE]", 1);
                 return send(c, with_i(CommandType::TaskPlanRun, c.args.empty() ? 0 : integer(c.args[0], "line")));
               }};
   m["pause"] = {"pause", "pause the program", [](Context& c) { return send(c, cmd_of(CommandType::TaskPlanPause)); }};
@@ -339,7 +360,7 @@ std::map<std::string, Entry> commands() {
   m["override-limits"] = {"override-limits", "allow jogging off a limit switch (until the next jog ends)",
                           [](Context& c) { return send(c, with_i(CommandType::JointOverrideLimits, -1)); }};
   m["jog"] = {"jog AXIS|JOINT VELOCITY [DISTANCE]", "jog continuously, or by DISTANCE", [](Context& c) {
-                need_args(c, 2, "jog AXIS|JOINT VELOCITY [DISTANCE]");
+                need_args(c, 2, "jog AXIS|JOINT VELOCITY [DISTANCE]", 3);
                 Command cmd = cmd_of(c.args.size() > 2 ? CommandType::JogIncr : CommandType::JogCont);
                 target(c.args[0], cmd);
                 cmd.d[0] = number(c.args[1], "velocity");
@@ -368,11 +389,11 @@ std::map<std::string, Entry> commands() {
                    }};
   m["feed-override"] = {"feed-override PERCENT", "feed override", [](Context& c) {
                           need_args(c, 1, "feed-override PERCENT");
-                          return send(c, with_d(CommandType::TrajSetScale, number(c.args[0], "percent") / 100));
+                          return send(c, with_d(CommandType::TrajSetScale, number(c.args[0], "percent", 100 * ipc::kMaxOverrideScale) / 100));
                         }};
   m["rapid-override"] = {"rapid-override PERCENT", "rapid override", [](Context& c) {
                            need_args(c, 1, "rapid-override PERCENT");
-                           return send(c, with_d(CommandType::TrajSetRapidScale, number(c.args[0], "percent") / 100));
+                           return send(c, with_d(CommandType::TrajSetRapidScale, number(c.args[0], "percent", 100 * ipc::kMaxOverrideScale) / 100));
                          }};
   m["max-velocity"] = {"max-velocity UNITS_PER_S", "maximum velocity override", [](Context& c) {
                          need_args(c, 1, "max-velocity UNITS_PER_S");
@@ -380,13 +401,13 @@ std::map<std::string, Entry> commands() {
                        }};
   m["spindle-override"] = {"spindle-override PERCENT", "spindle override", [](Context& c) {
                              need_args(c, 1, "spindle-override PERCENT");
-                             return send(c, with_d(CommandType::SpindleOverride, number(c.args[0], "percent") / 100));
+                             return send(c, with_d(CommandType::SpindleOverride, number(c.args[0], "percent", 100 * ipc::kMaxOverrideScale) / 100));
                            }};
   m["spindle"] = {"spindle RPM|off", "start (negative: reverse) or stop spindle 0", [](Context& c) {
                     need_args(c, 1, "spindle RPM|off");
                     if (c.args[0] == "off") return send(c, with_i(CommandType::SpindleOff, 0));
                     Command cmd = with_i(CommandType::SpindleOn, 0);
-                    cmd.d[0] = number(c.args[0], "rpm");
+                    cmd.d[0] = number(c.args[0], "rpm", ipc::kMaxSpindleRpm);
                     return send(c, cmd);
                   }};
   m["flood"] = {"flood on|off", "flood coolant", [](Context& c) {
@@ -405,19 +426,19 @@ std::map<std::string, Entry> commands() {
                           [](Context& c) { return send(c, cmd_of(CommandType::ToolLoadTable)); }};
   m["tool-set-number"] = {"tool-set-number TOOL", "declare the tool in the spindle (M61)", [](Context& c) {
                             need_args(c, 1, "tool-set-number TOOL");
-                            return send(c, with_i(CommandType::ToolSetNumber, integer(c.args[0], "tool")));
+                            return send(c, with_i(CommandType::ToolSetNumber, integer(c.args[0], "tool", 0, 99'999'999)));
                           }};
   m["set"] = {"set PARAMETER INDEX VALUE", "set a motion parameter (SET_xxx)", [](Context& c) {
                 need_args(c, 3, "set PARAMETER INDEX VALUE");
                 Command cmd = with_text(CommandType::SetParameter, c.args[0]);
-                cmd.i[0] = integer(c.args[1], "index");
-                cmd.d[0] = number(c.args[2], "value");
+                cmd.i[0] = integer(c.args[1], "index", 0, kMaxJoints - 1);
+                cmd.d[0] = number(c.args[2], "value", 1e12);
                 return send(c, cmd);
               }};
   m["inject"] = {"inject WHAT [VALUE]", "fault injection on simulated machines", [](Context& c) {
-                   need_args(c, 1, "inject WHAT [VALUE]");
+                   need_args(c, 1, "inject WHAT [VALUE]", 2);
                    Command cmd = with_text(CommandType::SimInject, c.args[0]);
-                   if (c.args.size() > 1) cmd.d[0] = number(c.args[1], "value");
+                   if (c.args.size() > 1) cmd.d[0] = number(c.args[1], "value", 1e12);
                    return send(c, cmd);
                  }};
   return m;
@@ -438,7 +459,10 @@ int main(int argc, char** argv) {
   for (; i < argc; ++i) {
     const std::string a = argv[i];
     if ((a == "-i" || a == "--instance") && i + 1 < argc) c.instance = argv[++i];
-    else if (a == "--timeout" && i + 1 < argc) c.timeout_s = number(argv[++i], "timeout");
+    else if (a == "--timeout" && i + 1 < argc) {
+      c.timeout_s = number(argv[++i], "timeout", 1e6);
+      if (c.timeout_s <= 0) fail_usage("--timeout must be more than 0 s");
+    }
     else break;
   }
   const auto table = commands();
@@ -450,6 +474,10 @@ int main(int argc, char** argv) {
   for (int k = i + 1; k < argc; ++k) c.args.emplace_back(argv[k]);
   const auto it = table.find(name);
   if (it == table.end()) fail_usage("unknown command \"" + name + "\"");
+  // A usage without arguments: anything after the name is a mistake.
+  if (std::strchr(it->second.usage, ' ') == nullptr && !c.args.empty()) {
+    fail_usage(name + " takes no arguments (got \"" + c.args[0] + "\")");
+  }
   try {
     return it->second.run(c);
   } catch (const std::exception& e) {

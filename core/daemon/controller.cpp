@@ -8,6 +8,7 @@
 #include <ctime>
 #include <thread>
 
+#include "core/ipc/command_check.hpp"
 #include "core/rt/periodic_task.hpp"
 #ifdef CNC_HAVE_IO
 #include "core/io/io_controller.hpp"
@@ -152,6 +153,10 @@ void Controller::dispatch(const ipc::Command& cmd) {
     }
     default:
       break;
+  }
+  if (const std::string why = ipc::check_arguments(cmd); !why.empty()) {
+    report(cmd, ipc::CommandState::Rejected, std::string(ipc::to_string(cmd.type)) + ": " + why);
+    return;
   }
   for (ipc::ControllerService* s : services_) {
     if (s->handle_command(cmd, *this)) return;

@@ -223,3 +223,38 @@ TEST(Halcmd, SaysWhenTheControllerIsNotRunning) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.text.find("controller not running"), std::string::npos) << r.text;
 }
+
+// Numbers that would wrap, overflow or mean nothing are refused by the CLI
+// as typed, and by the controller whatever client sent them.
+TEST(Daemon, OutOfRangeArgumentsAreRefusedByTheCliAndTheController) {
+  cnc::testing::TempDir dir;
+  Daemon d(dir, kBasicHal);
+  ASSERT_TRUE(d.wait_ready()) << d.log();
+  const auto wraps = run(d.cnc("home 4294967296"));  // used to home joint 0
+  EXPECT_EQ(wraps.code, 2);
+  EXPECT_NE(wraps.text.find("joint: 4294967296 is out of range (expected 0 to 15)"), std::string::npos) << wraps.text;
+  const auto macro = run(d.cnc("macro 4294967297"));  // used to run macro 1
+  EXPECT_EQ(macro.code, 2);
+  EXPECT_NE(macro.text.find("macro: 4294967297 is out of range"), std::string::npos) << macro.text;
+  const auto huge = run(d.cnc("spindle 1e308"));
+  EXPECT_EQ(huge.code, 2);
+  EXPECT_NE(huge.text.find("rpm: 1e308 is out of range"), std::string::npos) << huge.text;
+  EXPECT_EQ(run(d.cnc("watch --count -5")).code, 2);
+  const auto extra = run(d.cnc("estop-reset extra args"));
+  EXPECT_EQ(extra.code, 2);
+  EXPECT_NE(extra.text.find("estop-reset takes no arguments"), std::string::npos) << extra.text;
+  EXPECT_EQ(run(d.cnc("jog x 10 1 2")).code, 2);
+
+  // A client that is not the CLI: the controller checks before anyone acts.
+  ipc::Client client(d.instance());
+  ipc::Command spin = ipc::make_command(ipc::CommandType::SpindleOn);
+  spin.d[0] = 1e308;
+  auto r = client.execute(spin, std::chrono::seconds(5));
+  EXPECT_EQ(r.state, ipc::CommandState::Rejected);
+  EXPECT_EQ(r.reason.view(), "spindle-on: speed (rpm) 1e+308 is out of range (expected -1e+06 to 1e+06)");
+  ipc::Command home = ipc::make_command(ipc::CommandType::JointHome);
+  home.i[0] = 99;
+  r = client.execute(home, std::chrono::seconds(5));
+  EXPECT_EQ(r.state, ipc::CommandState::Rejected);
+  EXPECT_NE(std::string(r.reason.view()).find("joint 99 is out of range"), std::string::npos) << r.reason.view();
+}

@@ -347,3 +347,79 @@ TEST(TaskRules, BadSpindleIncrementStopsTheStartNamingTheKey) {
     EXPECT_NE(std::string(e.what()).find("INCREMENT"), std::string::npos) << e.what();
   }
 }
+
+// A program starts where the machine stands: axes it does not name stay
+// put, whatever moved the machine before (MDI, a jog, an aborted program)
+// and whatever offsets are active. (It used to start as if the machine
+// stood at machine zero: Y and Z travelled back to 0 at rapid.)
+namespace {
+void run_program(TaskMachine& m, const std::string& text) {
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("axes.ngc", text), "open");
+  m.ok(m.send(CommandType::TaskPlanRun, 0), "run");
+  ASSERT_TRUE(m.run_until([&] { return !m.program_running(); }, 400000)) << m.errors();
+  ASSERT_EQ(m.errors(), "");
+}
+void expect_at(TaskMachine& m, double x, double y, double z) {
+  const auto s = m.status();
+  EXPECT_NEAR(s.motion.position[0], x, 1e-9);
+  EXPECT_NEAR(s.motion.position[1], y, 1e-9);
+  EXPECT_NEAR(s.motion.position[2], z, 1e-9);
+}
+}  // namespace
+
+TEST(TaskProgram, AfterAnMdiMoveAProgramMovesOnlyTheAxesItNames) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  m.ok(m.mdi("G53 G0 X200 Y150 Z-60"), "mdi move");
+  run_program(m, "G0 X250\nM2\n");
+  expect_at(m, 250, 150, -60);
+  // Relative moves start from there too (not refused as outside the limits).
+  run_program(m, "G91 G0 X-5\nG90\nM2\n");
+  expect_at(m, 245, 150, -60);
+}
+
+TEST(TaskProgram, AfterAJogAProgramMovesOnlyTheAxesItNames) {
+  TaskMachine m;
+  m.power_up_and_home();
+  cnc::ipc::Command jog;
+  jog.type = CommandType::JogAbs;
+  jog.i[0] = 2;  // axis Z, teleop
+  jog.d[0] = 50;
+  jog.d[1] = -10;
+  m.ok(m.send(jog), "jog z");
+  jog.i[0] = 1;
+  jog.d[1] = 150;
+  m.ok(m.send(jog), "jog y");
+  ASSERT_TRUE(m.run_until([&] { return m.status().motion.inpos; }));
+  run_program(m, "G0 X250\nM2\n");
+  expect_at(m, 250, 150, -10);
+}
+
+TEST(TaskProgram, WithAWorkOffsetAProgramMovesOnlyTheAxesItNames) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  m.ok(m.mdi("G10 L2 P1 X100 Y50 Z-80"), "G54");
+  m.ok(m.mdi("G54 G0 X10 Y20 Z5"), "mdi move");
+  run_program(m, "G54 G0 X30\nM2\n");
+  expect_at(m, 130, 70, -75);
+}
+
+TEST(TaskProgram, AfterAnAbortAProgramMovesOnlyTheAxesItNames) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("p.ngc", "G53 G0 X0 Y0 Z-20\nG53 G1 Y150 F1500\nM2\n"), "open");
+  m.ok(m.send(CommandType::TaskPlanRun, 0), "run");
+  ASSERT_TRUE(m.run_until([&] { return m.status().motion.position[1] < 1; }));
+  ASSERT_TRUE(m.run_until([&] { return m.status().motion.position[1] > 40; }));
+  m.ok(m.send(CommandType::TaskAbort), "abort");
+  ASSERT_TRUE(m.run_until([&] { return m.status().motion.inpos; }));
+  const double y = m.status().motion.position[1];
+  ASSERT_GT(y, 40);
+  ASSERT_LT(y, 150);
+  run_program(m, "G0 X120\nM2\n");
+  expect_at(m, 120, y, -20);
+}
