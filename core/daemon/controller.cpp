@@ -10,6 +10,7 @@
 
 #include "core/ipc/command_check.hpp"
 #include "core/rt/periodic_task.hpp"
+#include "core/util/error.hpp"
 #ifdef CNC_HAVE_IO
 #include "core/io/io_controller.hpp"
 #endif
@@ -38,6 +39,10 @@ void log_line(const char* kind, const std::string& source, const std::string& te
 Controller::Controller(const Options& options) : options_(options), status_(std::make_unique<ipc::Status>()) {
   started_ns_ = realtime_ns();
   ini_ = ini::IniFile::load(options.ini_file);
+  if (ini_.find_all_entries("HAL", "HALFILE").empty() && ini_.find_all_entries("HAL", "HALCMD").empty()) {
+    throw ConfigError(ini_.path().string(), 0,
+                      "no [HAL]HALFILE or [HAL]HALCMD: nothing to run (is this a machine's INI file?)");
+  }
   const double cycle_s = ini_.get_double("TASK", "CYCLE_TIME", 0.001, {0.0001, 1.0});
   cycle_ns_ = static_cast<int64_t>(cycle_s * 1e9);
   server_ = std::make_unique<ipc::Server>(options.instance);

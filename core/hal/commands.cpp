@@ -133,6 +133,10 @@ std::string CommandInterpreter::substitute(std::string_view line) const {
   return out;
 }
 
+namespace {
+constexpr std::size_t kMaxSourceDepth = 16;
+}  // namespace
+
 std::string CommandInterpreter::execute(std::string_view line) {
   std::lock_guard lock(mutex_);
   const auto words = tokenize_hal_line(substitute(line));
@@ -144,8 +148,8 @@ void CommandInterpreter::run_file(const std::filesystem::path& path) {
   std::string text;
   try {
     text = read_file(path);
-  } catch (const std::exception&) {
-    throw ConfigError(path.string(), 0, "cannot read HAL file");
+  } catch (const FileError& e) {
+    throw ConfigError(path.string(), 0, "cannot read HAL file: " + e.reason());
   }
   run_text(text, path.string());
 }
@@ -313,6 +317,20 @@ std::string CommandInterpreter::dispatch(const std::vector<std::string>& w) {
     need(w, 2, "source <file.hal>");
     std::filesystem::path p = w[1];
     if (p.is_relative() && !file_stack_.empty()) p = file_stack_.back().parent_path() / p;
+    // A file that sources itself, directly or through others, would recurse
+    // until the stack overflows.
+    std::error_code ec;
+    const auto canon = std::filesystem::weakly_canonical(p, ec);
+    std::string chain;
+    bool loop = false;
+    for (const auto& f : file_stack_) {
+      chain += f.filename().string() + " -> ";
+      loop = loop || std::filesystem::weakly_canonical(f, ec) == canon;
+    }
+    if (loop) throw HalError("source " + p.string() + ": a source loop (" + chain + p.filename().string() + ")");
+    if (file_stack_.size() >= kMaxSourceDepth) {
+      throw HalError("source " + p.string() + ": files nested deeper than " + std::to_string(kMaxSourceDepth));
+    }
     run_file(p);
     return {};
   }

@@ -86,8 +86,8 @@ IniFile IniFile::load(const std::filesystem::path& path) {
   std::string text;
   try {
     text = read_file(path);
-  } catch (const std::exception& e) {
-    throw ConfigError(path.string(), 0, "cannot read INI file");
+  } catch (const FileError& e) {
+    throw ConfigError(path.string(), 0, "cannot read INI file: " + e.reason());
   }
   IniFile ini;
   ini.path_ = path;
@@ -122,8 +122,8 @@ void IniFile::parse_into(std::string_view text, const std::string& filename, int
       std::string inc_text;
       try {
         inc_text = read_file(inc);
-      } catch (const std::exception&) {
-        throw ConfigError(filename, line_no, "#INCLUDE: cannot read \"" + inc.string() + "\"");
+      } catch (const FileError& e) {
+        throw ConfigError(filename, line_no, "#INCLUDE: cannot read \"" + inc.string() + "\": " + e.reason());
       }
       const std::string saved = section;
       parse_into(inc_text, inc.string(), depth + 1);

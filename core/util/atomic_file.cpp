@@ -6,8 +6,6 @@
 
 #include <cerrno>
 #include <cstring>
-#include <fstream>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -15,7 +13,7 @@ namespace cnc {
 namespace {
 
 [[noreturn]] void fail(const std::filesystem::path& path, const char* step, int err) {
-  throw std::runtime_error(path.string() + ": cannot " + step + ": " + std::strerror(err));
+  throw FileError(path, std::string("cannot ") + step + ": " + std::strerror(err));
 }
 
 }  // namespace
@@ -62,12 +60,59 @@ void write_file_atomically(const std::filesystem::path& path, std::string_view c
   }
 }
 
-std::string read_file(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path.string() + ": cannot open: " + std::strerror(errno));
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+const char* not_regular_reason(unsigned mode) noexcept {
+  if (S_ISREG(mode)) return nullptr;
+  if (S_ISDIR(mode)) return "is a directory, not a regular file";
+  if (S_ISFIFO(mode)) return "is a FIFO (named pipe), not a regular file";
+  if (S_ISSOCK(mode)) return "is a socket, not a regular file";
+  if (S_ISCHR(mode) || S_ISBLK(mode)) return "is a device, not a regular file";
+  return "is not a regular file";
+}
+
+int open_regular_file(const std::filesystem::path& path, bool no_follow) {
+  // O_NONBLOCK: opening a FIFO must not wait for a writer; it is refused
+  // below like any other special file.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | (no_follow ? O_NOFOLLOW : 0));
+  if (fd < 0) {
+    if (no_follow && errno == ELOOP) throw FileError(path, "is a symbolic link (refused here)");
+    fail(path, "open", errno);
+  }
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) {
+    const int err = errno;
+    ::close(fd);
+    fail(path, "stat", err);
+  }
+  if (const char* why = not_regular_reason(st.st_mode)) {
+    ::close(fd);
+    throw FileError(path, why);
+  }
+  // Back to blocking reads: a regular file never blocks anyway.
+  ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+  return fd;
+}
+
+std::string read_file(const std::filesystem::path& path, std::size_t max_bytes) {
+  const int fd = open_regular_file(path);
+  std::string out;
+  char buf[65536];
+  for (;;) {
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const int err = errno;
+      ::close(fd);
+      fail(path, "read", err);
+    }
+    if (n == 0) break;
+    if (out.size() + static_cast<std::size_t>(n) > max_bytes) {
+      ::close(fd);
+      throw FileError(path, "larger than " + std::to_string(max_bytes / (1024 * 1024)) + " MiB (is this the right file?)");
+    }
+    out.append(buf, static_cast<std::size_t>(n));
+  }
+  ::close(fd);
+  return out;
 }
 
 }  // namespace cnc

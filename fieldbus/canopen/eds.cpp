@@ -6,6 +6,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/util/atomic_file.hpp"
 #include "core/util/error.hpp"
 #include "core/util/strings.hpp"
 
@@ -422,11 +423,13 @@ DeviceDescription parse_eds(std::string_view text, const std::string& filename) 
 }
 
 DeviceDescription load_eds(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ConfigError(path.string(), 0, "cannot open the device description");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return parse_eds(ss.str(), path.string());
+  std::string text;
+  try {
+    text = read_file(path);
+  } catch (const FileError& e) {
+    throw ConfigError(path.string(), 0, "cannot read the device description: " + e.reason());
+  }
+  return parse_eds(text, path.string());
 }
 
 }  // namespace cnc::canopen

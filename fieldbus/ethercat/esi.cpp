@@ -6,6 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/util/atomic_file.hpp"
+
 namespace cnc::ethercat {
 namespace {
 
@@ -199,11 +201,13 @@ EsiFile parse_esi(const std::string& xml, const std::string& filename) {
 }
 
 EsiFile load_esi(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path.string() + ": cannot open the ESI file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return parse_esi(ss.str(), path.string());
+  std::string text;
+  try {
+    text = read_file(path);
+  } catch (const FileError& e) {
+    throw std::runtime_error(path.string() + ": cannot read the ESI file: " + e.reason());
+  }
+  return parse_esi(text, path.string());
 }
 
 }  // namespace cnc::ethercat

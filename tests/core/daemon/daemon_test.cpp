@@ -258,3 +258,20 @@ TEST(Daemon, OutOfRangeArgumentsAreRefusedByTheCliAndTheController) {
   EXPECT_EQ(r.state, ipc::CommandState::Rejected);
   EXPECT_NE(std::string(r.reason.view()).find("joint 99 is out of range"), std::string::npos) << r.reason.view();
 }
+
+// An INI that is empty, a directory or names nothing to run stops start-up
+// with the reason instead of running a controller with nothing loaded.
+TEST(Daemon, AnIniWithNothingToRunIsRefused) {
+  cnc::testing::TempDir dir;
+  const auto empty = dir.write("empty.ini", "");
+  auto r = run(bin("cncd") + " --instance " + cnc::testing::unique_name("e") + " " + empty.string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.text.find("empty.ini: no [HAL]HALFILE or [HAL]HALCMD: nothing to run"), std::string::npos) << r.text;
+  r = run(bin("cncd") + " --instance " + cnc::testing::unique_name("e") + " " + dir.path().string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.text.find("cannot read INI file: is a directory, not a regular file"), std::string::npos) << r.text;
+  dir.write("h.ini", "[HAL]\nHALFILE = /dev/zero\n");
+  r = run(bin("cncd") + " --instance " + cnc::testing::unique_name("e") + " " + (dir / "h.ini").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.text.find("/dev/zero: cannot read HAL file: is a device, not a regular file"), std::string::npos) << r.text;
+}

@@ -154,3 +154,23 @@ TEST(HalFile, RemoteComponentsOwnPinsWrittenWithSetr) {
   EXPECT_THROW(f.interp.execute("newpin nosuch nosuch.x bit in"), HalError);
   EXPECT_THROW(f.interp.execute("newpin panel panel.y colour in"), HalError);
 }
+
+// A file that sources itself (directly or through another) is an error
+// naming the loop, not a stack overflow; special files are refused.
+TEST(HalFile, SourceLoopsAndSpecialFilesAreErrors) {
+  cnc::testing::TempDir dir;
+  dir.write("a.hal", "echo a\nsource b.hal\n");
+  dir.write("b.hal", "\n\nsource a.hal\n");
+  Fixture f;
+  EXPECT_EQ(error_of([&] { f.interp.run_file(dir / "a.hal"); }),
+            (dir / "b.hal").string() + ":3: source " + (dir / "a.hal").string() + ": a source loop (a.hal -> b.hal -> a.hal)");
+  dir.write("self.hal", "source self.hal\n");
+  EXPECT_NE(error_of([&] { f.interp.run_file(dir / "self.hal"); }).find("a source loop (self.hal -> self.hal)"),
+            std::string::npos);
+  EXPECT_EQ(error_of([&] { f.interp.run_file("/dev/zero"); }),
+            "/dev/zero: cannot read HAL file: is a device, not a regular file");
+  EXPECT_EQ(error_of([&] { f.interp.execute("source " + dir.path().string()); }),
+            dir.path().string() + ": cannot read HAL file: is a directory, not a regular file");
+  // The interpreter is usable afterwards (its file stack unwound).
+  EXPECT_EQ(error_of([&] { f.interp.execute("echo still here"); }), "(no error)");
+}

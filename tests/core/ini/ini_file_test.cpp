@@ -95,7 +95,7 @@ TEST(IniFile, SyntaxErrorsNameTheLine) {
 }
 
 TEST(IniFile, MissingFileIsAClearError) {
-  EXPECT_EQ(error_of([] { IniFile::load("/nonexistent/mill.ini"); }), "/nonexistent/mill.ini: cannot read INI file");
+  EXPECT_EQ(error_of([] { IniFile::load("/nonexistent/mill.ini"); }), "/nonexistent/mill.ini: cannot read INI file: cannot open: No such file or directory");
 }
 
 TEST(IniFile, ResolvePathIsRelativeToTheIniFolder) {
@@ -104,4 +104,13 @@ TEST(IniFile, ResolvePathIsRelativeToTheIniFolder) {
   const auto ini = IniFile::load(p);
   EXPECT_EQ(ini.resolve_path(*ini.find("EMCIO", "TOOL_TABLE")), dir.path() / "cfg/tool.tbl");
   EXPECT_EQ(ini.resolve_path("/abs/x"), std::filesystem::path("/abs/x"));
+}
+
+TEST(IniFile, SpecialFilesAreRefusedNamingWhy) {
+  cnc::testing::TempDir dir;
+  EXPECT_EQ(error_of([&] { IniFile::load(dir.path()); }),
+            dir.path().string() + ": cannot read INI file: is a directory, not a regular file");
+  const auto ini = dir.write("m.ini", "[EMC]\nMACHINE = m\n#INCLUDE /dev/zero\n");
+  EXPECT_EQ(error_of([&] { IniFile::load(ini); }),
+            ini.string() + ":3: #INCLUDE: cannot read \"/dev/zero\": is a device, not a regular file");
 }

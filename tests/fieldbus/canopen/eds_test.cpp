@@ -115,6 +115,6 @@ TEST(Eds, MissingFile) {
     load_eds("/nonexistent/x.eds");
     FAIL();
   } catch (const ConfigError& e) {
-    EXPECT_EQ(std::string(e.what()), "/nonexistent/x.eds: cannot open the device description");
+    EXPECT_EQ(std::string(e.what()), "/nonexistent/x.eds: cannot read the device description: cannot open: No such file or directory");
   }
 }
