@@ -23,6 +23,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "core/util/atomic_file.hpp"
+#include "core/util/strings.hpp"
 #include "core/util/time.hpp"
 #include "hmi/panels.hpp"
 #include "hmi/positions.hpp"
@@ -665,9 +667,21 @@ void MainWindow::hal_setup() {
     }
   }
   // POSTGUI: after the screen's pins exist (the requests run in order).
+  // The screen reads the files itself and sends their lines: the
+  // controller never reads a file for a client (docs/security.md).
   for (const auto& f : config_.postgui_halfiles) {
-    hal_->request(QString::fromStdString("source " + f.string()), kTagPostgui);
-    ++hal_pending_;
+    std::string text;
+    try {
+      text = read_file(f);
+    } catch (const std::exception& e) {
+      screen_.log(LogLevel::Error, std::string("POSTGUI: ") + e.what(), "hal");
+      continue;
+    }
+    for (const NumberedLine& l : continued_lines(text)) {
+      if (trim(l.text).empty() || trim(l.text).front() == '#') continue;
+      hal_->request(QString::fromStdString(l.text), kTagPostgui);
+      ++hal_pending_;
+    }
   }
   for (const auto& c : config_.postgui_halcmds) {
     hal_->request(QString::fromStdString(c), kTagPostgui);

@@ -2,12 +2,14 @@
 #include <unistd.h>
 
 #include <cstdio>
-#include <fstream>
+#include <filesystem>
 #include <iostream>
 #include <string>
 
 #include "core/ipc/admin.hpp"
 #include "core/ipc/segment.hpp"
+#include "core/util/atomic_file.hpp"
+#include "core/util/strings.hpp"
 
 namespace {
 void usage() {
@@ -33,6 +35,43 @@ bool run_line(cnc::ipc::AdminClient& client, const std::string& line, const std:
   return false;
 }
 
+bool is_source(const std::string& line) { return line.compare(0, 7, "source ") == 0 || line.compare(0, 7, "source\t") == 0; }
+
+// Runs a .hal file line by line: halcmd reads it itself, with its user's
+// permissions, and sends the lines (the controller never reads a file for a
+// client). `source FILE` lines inside are followed the same way.
+int run_file(cnc::ipc::AdminClient& client, const std::filesystem::path& path, bool keep_going, int depth,
+             const std::string& where) {
+  if (depth >= 16) {
+    std::fprintf(stderr, "%ssource %s: files nested deeper than 16 (a source loop?)\n", where.c_str(), path.c_str());
+    return 1;
+  }
+  std::string text;
+  try {
+    text = cnc::read_file(path);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s%s\n", where.c_str(), e.what());
+    return 1;
+  }
+  int errors = 0;
+  for (const cnc::NumberedLine& l : cnc::continued_lines(text)) {
+    const std::string at = path.string() + ":" + std::to_string(l.line) + ": ";
+    bool ok = true;
+    if (is_source(l.text)) {
+      std::filesystem::path next = cnc::trim(std::string_view(l.text).substr(7));
+      if (next.is_relative()) next = path.parent_path() / next;
+      ok = run_file(client, next, keep_going, depth + 1, at) == 0;
+    } else {
+      ok = run_line(client, l.text, at);
+    }
+    if (!ok) {
+      ++errors;
+      if (!keep_going) return 1;
+    }
+  }
+  return errors == 0 ? 0 : 1;
+}
+
 int run_stream(cnc::ipc::AdminClient& client, std::istream& in, const std::string& name, bool keep_going,
                bool interactive) {
   std::string line;
@@ -51,7 +90,10 @@ int run_stream(cnc::ipc::AdminClient& client, std::istream& in, const std::strin
     }
     if (line == "exit" || line == "quit") break;
     const std::string where = interactive ? "" : name + ":" + std::to_string(first) + ": ";
-    if (!run_line(client, line, where)) {
+    const bool ok = is_source(line)
+                        ? run_file(client, std::string(cnc::trim(std::string_view(line).substr(7))), keep_going, 0, where) == 0
+                        : run_line(client, line, where);
+    if (!ok) {
       ++errors;
       if (!keep_going && !interactive) return 1;
     }
@@ -82,12 +124,7 @@ int main(int argc, char** argv) {
     cnc::ipc::AdminClient client(instance);
     if (!file.empty()) {
       if (file == "-") return run_stream(client, std::cin, "<stdin>", keep_going, false);
-      std::ifstream in(file);
-      if (!in) {
-        std::fprintf(stderr, "halcmd: cannot read %s\n", file.c_str());
-        return 1;
-      }
-      return run_stream(client, in, file, keep_going, false);
+      return run_file(client, file, keep_going, 0, "halcmd: ");
     }
     if (i < argc) {
       std::string line;
@@ -95,6 +132,13 @@ int main(int argc, char** argv) {
         std::string w = argv[k];
         if (w.find_first_of(" \t") != std::string::npos) w = "\"" + w + "\"";
         line += (k > i ? " " : "") + w;
+      }
+      if (std::string(argv[i]) == "source") {
+        if (argc - i != 2) {
+          std::fprintf(stderr, "halcmd: usage: source <file.hal>\n");
+          return 1;
+        }
+        return run_file(client, argv[i + 1], keep_going, 0, "");
       }
       return run_line(client, line, "") ? 0 : 1;
     }

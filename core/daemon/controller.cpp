@@ -45,7 +45,13 @@ Controller::Controller(const Options& options) : options_(options), status_(std:
   }
   const double cycle_s = ini_.get_double("TASK", "CYCLE_TIME", 0.001, {0.0001, 1.0});
   cycle_ns_ = static_cast<int64_t>(cycle_s * 1e9);
-  server_ = std::make_unique<ipc::Server>(options.instance);
+  try {
+    access_ = ipc::AccessPolicy::for_current_user(ini_.get_string("EMC", "OPERATOR_GROUP", ""));
+  } catch (const std::runtime_error& e) {
+    const ini::Entry* entry = ini_.find_all_entries("EMC", "OPERATOR_GROUP").front();
+    throw ConfigError(entry->file, entry->line, std::string("[EMC]OPERATOR_GROUP: ") + e.what());
+  }
+  server_ = std::make_unique<ipc::Server>(options.instance, access_);
 
   const rt::RealtimeCapabilities& caps = rt::prepare_process();
   if (!caps.note.empty()) {
@@ -109,8 +115,8 @@ Controller::Controller(const Options& options) : options_(options), status_(std:
                    [](const ipc::ControllerService* a, const ipc::ControllerService* b) {
                      return a->service_order() < b->service_order();
                    });
-  admin_ = std::make_unique<ipc::AdminServer>(options.instance,
-                                              [this](const std::string& line) { return admin_request(line); });
+  admin_ = std::make_unique<ipc::AdminServer>(
+      options.instance, [this](const std::string& line) { return admin_request(line); }, access_);
   hal_.start_threads();
   publish_status();
   server_->set_ready(true);
@@ -123,7 +129,7 @@ Controller::~Controller() { shutdown(); }
 
 ipc::AdminReply Controller::admin_request(const std::string& line) {
   try {
-    return {true, interp_->execute(line)};
+    return {true, interp_->execute(line, hal::CommandInterpreter::Origin::Client)};
   } catch (const std::exception& e) {
     return {false, e.what()};
   }

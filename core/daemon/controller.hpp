@@ -53,6 +53,7 @@ class Controller : private ipc::CommandReporter {
   Options options_;
   ini::IniFile ini_;
   MessageQueue messages_;
+  ipc::AccessPolicy access_;
   std::unique_ptr<ipc::Server> server_;
   hal::Hal hal_;
   hal::ComponentRegistry registry_;

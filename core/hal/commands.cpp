@@ -2,6 +2,7 @@
 
 #include <fnmatch.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -137,11 +138,11 @@ namespace {
 constexpr std::size_t kMaxSourceDepth = 16;
 }  // namespace
 
-std::string CommandInterpreter::execute(std::string_view line) {
+std::string CommandInterpreter::execute(std::string_view line, Origin origin) {
   std::lock_guard lock(mutex_);
   const auto words = tokenize_hal_line(substitute(line));
   if (words.empty()) return {};
-  return dispatch(words);
+  return dispatch(words, origin);
 }
 
 void CommandInterpreter::run_file(const std::filesystem::path& path) {
@@ -157,15 +158,9 @@ void CommandInterpreter::run_file(const std::filesystem::path& path) {
 void CommandInterpreter::run_text(std::string_view text, const std::string& name) {
   std::lock_guard lock(mutex_);
   file_stack_.emplace_back(name);
-  const auto lines = split(text, '\n');
-  for (std::size_t i = 0; i < lines.size(); ++i) {
-    const int line_no = static_cast<int>(i) + 1;
-    std::string line = lines[i];
-    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
-    while (!line.empty() && line.back() == '\\' && i + 1 < lines.size()) {
-      line.pop_back();
-      line += " " + lines[++i];
-    }
+  for (const NumberedLine& l : continued_lines(text)) {
+    const int line_no = l.line;
+    const std::string& line = l.text;
     try {
       execute(line);
     } catch (const ConfigError&) {
@@ -179,7 +174,7 @@ void CommandInterpreter::run_text(std::string_view text, const std::string& name
   file_stack_.pop_back();
 }
 
-std::string CommandInterpreter::dispatch(const std::vector<std::string>& w) {
+std::string CommandInterpreter::dispatch(const std::vector<std::string>& w, Origin origin) {
   const std::string& cmd = w[0];
   // "name = value" is setp.
   if (w.size() == 3 && w[1] == "=") {
@@ -315,6 +310,10 @@ std::string CommandInterpreter::dispatch(const std::vector<std::string>& w) {
   }
   if (cmd == "source") {
     need(w, 2, "source <file.hal>");
+    if (origin == Origin::Client) {
+      throw HalError("source: the controller reads only its configuration's files; halcmd reads a file itself "
+                     "(halcmd -f FILE, or source FILE typed to halcmd) and sends its lines");
+    }
     std::filesystem::path p = w[1];
     if (p.is_relative() && !file_stack_.empty()) p = file_stack_.back().parent_path() / p;
     // A file that sources itself, directly or through others, would recurse
@@ -376,14 +375,15 @@ std::string CommandInterpreter::cmd_loadusr(const std::vector<std::string>& w) {
     ++i;
   }
   if (i >= w.size()) throw HalError("loadusr: no program given");
+  const std::string program = loadusr_program(w[i]).string();
   std::vector<char*> argv;
   for (std::size_t k = i; k < w.size(); ++k) argv.push_back(const_cast<char*>(w[k].c_str()));
   argv.push_back(nullptr);
   const pid_t pid = ::fork();
   if (pid < 0) throw HalError("loadusr: fork failed");
   if (pid == 0) {
-    ::execvp(argv[0], argv.data());
-    std::fprintf(stderr, "loadusr: cannot run %s\n", argv[0]);
+    ::execv(program.c_str(), argv.data());
+    std::fprintf(stderr, "loadusr: cannot run %s\n", program.c_str());
     ::_exit(127);
   }
   if (wait_exit) {
@@ -396,6 +396,54 @@ std::string CommandInterpreter::cmd_loadusr(const std::vector<std::string>& w) {
     children_.push_back(pid);
   }
   return {};
+}
+
+std::filesystem::path CommandInterpreter::loadusr_program(const std::string& name) const {
+  namespace fs = std::filesystem;
+  std::vector<fs::path> dirs;
+  if (ini_) {
+    if (const auto v = ini_->find("HAL", "LOADUSR_PATH")) {
+      for (const auto& d : split(*v, ':', true)) dirs.push_back(ini_->resolve_path(d));
+    }
+    if (ini_->path().has_parent_path()) dirs.push_back(ini_->path().parent_path());
+  }
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) dirs.push_back(self.parent_path());
+  std::string allowed;
+  for (auto& d : dirs) {
+    d = fs::weakly_canonical(d, ec);
+    allowed += (allowed.empty() ? "" : ", ") + d.string();
+  }
+  fs::path candidate;
+  if (name.find('/') != std::string::npos) {
+    candidate = fs::weakly_canonical(name, ec);
+  } else {
+    for (const auto& d : dirs) {
+      if (fs::exists(d / name, ec)) {
+        candidate = fs::weakly_canonical(d / name, ec);
+        break;
+      }
+    }
+    if (candidate.empty()) {
+      throw HalError("loadusr " + name + ": no such program in the allowed folders (" + allowed +
+                     "; [HAL]LOADUSR_PATH adds folders)");
+    }
+  }
+  bool inside = false;
+  for (const auto& d : dirs) {
+    const auto rel = candidate.lexically_relative(d);
+    inside = inside || (!rel.empty() && *rel.begin() != "..");
+  }
+  if (!inside) {
+    throw HalError("loadusr " + name + ": " + candidate.string() + " is outside the allowed folders (" + allowed +
+                   "; [HAL]LOADUSR_PATH adds folders)");
+  }
+  struct stat st {};
+  if (::stat(candidate.c_str(), &st) != 0 || !S_ISREG(st.st_mode) || ::access(candidate.c_str(), X_OK) != 0) {
+    throw HalError("loadusr " + name + ": " + candidate.string() + " is not an executable file");
+  }
+  return candidate;
 }
 
 void CommandInterpreter::stop_user_programs() {

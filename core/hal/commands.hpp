@@ -8,6 +8,7 @@
 #include <mutex>
 #include <string>
 #include <string_view>
+#include <cstdint>
 #include <sys/types.h>
 #include <vector>
 
@@ -29,9 +30,15 @@ class CommandInterpreter {
   CommandInterpreter(Hal& hal, const ComponentRegistry& registry, const ini::IniFile* ini, MessageQueue* messages);
   ~CommandInterpreter();
 
+  // Where a line comes from: a HAL file the configuration names (trusted
+  // as the configuration is), or a halcmd client at run time, which may not
+  // make the controller read files (`source`: halcmd reads them itself,
+  // with its user's permissions, and sends their lines).
+  enum class Origin : uint8_t { File, Client };
+
   // Executes one line; returns what halcmd prints. Throws HalError with the
   // reason (the caller adds file and line).
-  std::string execute(std::string_view line);
+  std::string execute(std::string_view line, Origin origin = Origin::File);
 
   // Runs a .hal file: every line in order; the first error stops it and
   // throws ConfigError naming the file and line.
@@ -46,7 +53,11 @@ class CommandInterpreter {
   void stop_user_programs();
 
  private:
-  std::string dispatch(const std::vector<std::string>& words);
+  std::string dispatch(const std::vector<std::string>& words, Origin origin);
+  // The program loadusr may start: inside one of the allowed folders
+  // ([HAL]LOADUSR_PATH, the configuration's folder, the controller's own
+  // bin folder), a regular executable file; throws HalError otherwise.
+  std::filesystem::path loadusr_program(const std::string& name) const;
   std::string cmd_loadrt(const std::vector<std::string>& w);
   std::string cmd_loadusr(const std::vector<std::string>& w);
   std::string cmd_show(const std::vector<std::string>& w) const;

@@ -18,6 +18,8 @@
 namespace cnc::ipc {
 namespace {
 
+constexpr std::size_t kMaxRequestBytes = 65536;  // one halcmd line
+
 sockaddr_un make_address(const std::string& path) {
   sockaddr_un addr{};
   addr.sun_family = AF_UNIX;
@@ -45,8 +47,8 @@ std::string encode(const AdminReply& r) {
 
 }  // namespace
 
-AdminServer::AdminServer(const std::string& instance, Handler handler)
-    : path_(admin_socket_path(instance)), handler_(std::move(handler)) {
+AdminServer::AdminServer(const std::string& instance, Handler handler, const AccessPolicy& access)
+    : path_(admin_socket_path(instance)), handler_(std::move(handler)), access_(access) {
   ::unlink(path_.c_str());
   listen_fd_ = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
   if (listen_fd_ < 0) throw std::runtime_error("cannot create admin socket: " + std::string(std::strerror(errno)));
@@ -54,7 +56,7 @@ AdminServer::AdminServer(const std::string& instance, Handler handler)
   if (::bind(listen_fd_, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
     throw std::runtime_error("cannot bind admin socket " + path_ + ": " + std::strerror(errno));
   }
-  ::chmod(path_.c_str(), 0660);
+  access_.apply(path_, "the HAL socket " + path_);
   ::listen(listen_fd_, 8);
   if (::pipe2(wake_fd_, O_CLOEXEC) != 0) throw std::runtime_error("pipe failed");
   thread_ = std::thread([this] { loop(); });
@@ -87,7 +89,18 @@ void AdminServer::loop() {
     if (fds[0].revents) break;
     if (fds[1].revents & POLLIN) {
       const int c = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
-      if (c >= 0) clients[c] = {};
+      if (c >= 0) {
+        ucred peer{};
+        socklen_t len = sizeof peer;
+        if (::getsockopt(c, SOL_SOCKET, SO_PEERCRED, &peer, &len) == 0 && access_.permits(peer.uid)) {
+          clients[c] = {};
+        } else {
+          write_all(c, encode({false, "not permitted: uid " + std::to_string(peer.uid) +
+                                          " is neither the controller's user nor in its trusted group "
+                                          "(docs/security.md)"}));
+          ::close(c);
+        }
+      }
     }
     for (std::size_t i = 2; i < fds.size(); ++i) {
       if (!fds[i].revents) continue;
@@ -101,6 +114,12 @@ void AdminServer::loop() {
       }
       std::string& pending = clients[fd];
       pending.append(buf, static_cast<std::size_t>(n));
+      if (pending.size() > kMaxRequestBytes && pending.find('\n') == std::string::npos) {
+        write_all(fd, encode({false, "request longer than " + std::to_string(kMaxRequestBytes) + " bytes"}));
+        ::close(fd);
+        clients.erase(fd);
+        continue;
+      }
       std::size_t nl;
       bool alive = true;
       while (alive && (nl = pending.find('\n')) != std::string::npos) {

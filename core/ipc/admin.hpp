@@ -1,5 +1,6 @@
 // The administration channel: request/response text over a Unix socket
-// (/dev/shm/cnc-<instance>.hal, mode 0660) for halcmd. Machine commands go
+// (/dev/shm/cnc-<instance>.hal, mode 0600, or 0660 for a trusted group) for
+// halcmd; each peer's credentials are checked against the access policy. Machine commands go
 // through the shared segment; this channel carries only halcmd lines and
 // their printed answers, which can be long and have no place in a ring.
 #pragma once
@@ -8,6 +9,8 @@
 #include <functional>
 #include <string>
 #include <thread>
+
+#include "core/ipc/access.hpp"
 
 namespace cnc::ipc {
 
@@ -21,7 +24,9 @@ class AdminServer {
   using Handler = std::function<AdminReply(const std::string& line)>;
 
   // Listens on the instance's socket; handles requests on its own thread.
-  AdminServer(const std::string& instance, Handler handler);
+  // A peer `access` does not permit is answered with an error and dropped.
+  AdminServer(const std::string& instance, Handler handler,
+              const AccessPolicy& access = AccessPolicy::for_current_user());
   ~AdminServer();
   AdminServer(const AdminServer&) = delete;
   AdminServer& operator=(const AdminServer&) = delete;
@@ -31,6 +36,7 @@ class AdminServer {
 
   std::string path_;
   Handler handler_;
+  AccessPolicy access_;
   int listen_fd_ = -1;
   int wake_fd_[2] = {-1, -1};
   std::thread thread_;

@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <sys/file.h>
 #include <sys/mman.h>
+#include <pwd.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -15,23 +16,67 @@
 
 namespace cnc::ipc {
 
-Server::Server(const std::string& instance) : instance_(instance) {
+namespace {
+
+std::string user_name(uid_t uid) {
+  char buf[4096];
+  passwd pw{};
+  passwd* found = nullptr;
+  if (::getpwuid_r(uid, &pw, buf, sizeof buf, &found) == 0 && found) {
+    return std::string(found->pw_name) + " (uid " + std::to_string(uid) + ")";
+  }
+  return "uid " + std::to_string(uid);
+}
+
+// /dev/shm is writable by everyone: a file another user put where the lock
+// belongs (a symbolic link to make us create a file elsewhere, or a plain
+// file to keep the controller from starting) is removed when we may (root),
+// and named otherwise.
+void clear_foreign_file(const std::string& path, const char* what) {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0) return;
+  const bool ours = S_ISREG(st.st_mode) && st.st_uid == ::geteuid();
+  if (ours) return;
+  if (::geteuid() == 0 && ::unlink(path.c_str()) == 0) return;
+  throw std::runtime_error(std::string("cannot use ") + what + " " + path + ": it is " +
+                           (S_ISLNK(st.st_mode) ? "a symbolic link" : S_ISREG(st.st_mode) ? "a file" : "a special file") +
+                           " of " + user_name(st.st_uid) + ", not of this user; only that user or root can remove it");
+}
+
+}  // namespace
+
+Server::Server(const std::string& instance, const AccessPolicy& access) : instance_(instance) {
   validate_instance_name(instance);
-  lock_fd_ = ::open(lock_path(instance).c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0660);
-  if (lock_fd_ < 0) {
-    throw std::runtime_error("cannot create lock file " + lock_path(instance) + ": " + std::strerror(errno));
+  const std::string lock = lock_path(instance);
+  clear_foreign_file(lock, "the instance lock");
+  lock_fd_ = ::open(lock.c_str(), O_RDWR | O_CREAT | O_NOFOLLOW | O_CLOEXEC, 0600);
+  if (lock_fd_ < 0) throw std::runtime_error("cannot create lock file " + lock + ": " + std::strerror(errno));
+  struct stat lst {};
+  if (::fstat(lock_fd_, &lst) != 0 || !S_ISREG(lst.st_mode) || lst.st_uid != ::geteuid()) {
+    ::close(lock_fd_);
+    lock_fd_ = -1;
+    throw std::runtime_error("lock file " + lock + " changed owner while it was opened: refusing to start");
   }
   if (::flock(lock_fd_, LOCK_EX | LOCK_NB) != 0) {
     ::close(lock_fd_);
     lock_fd_ = -1;
     throw std::runtime_error("another controller is already running on instance \"" + instance +
-                             "\" (lock " + lock_path(instance) + " is held)");
+                             "\" (lock " + lock + " is held)");
   }
   // We hold the lock: any existing segment is a crashed controller's.
   ::shm_unlink(shm_name(instance).c_str());
-  shm_fd_ = ::shm_open(shm_name(instance).c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0660);
-  if (shm_fd_ < 0) throw std::runtime_error("cannot create shared segment " + shm_name(instance) + ": " + std::strerror(errno));
-  ::fchmod(shm_fd_, 0660);  // whatever the umask
+  shm_fd_ = ::shm_open(shm_name(instance).c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+  if (shm_fd_ < 0) {
+    const int err = errno;
+    struct stat sst {};
+    const std::string path = "/dev/shm" + shm_name(instance);
+    if (err == EEXIST && ::lstat(path.c_str(), &sst) == 0 && sst.st_uid != ::geteuid()) {
+      throw std::runtime_error("cannot create shared segment " + path + ": it exists and belongs to " +
+                               user_name(sst.st_uid) + "; only that user or root can remove it");
+    }
+    throw std::runtime_error("cannot create shared segment " + shm_name(instance) + ": " + std::strerror(err));
+  }
+  access.apply(shm_fd_, "the shared segment");  // whatever the umask
   if (::ftruncate(shm_fd_, sizeof(Segment)) != 0) {
     throw std::runtime_error("cannot size shared segment: " + std::string(std::strerror(errno)));
   }

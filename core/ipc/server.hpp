@@ -6,6 +6,7 @@
 
 #include <string>
 
+#include "core/ipc/access.hpp"
 #include "core/ipc/segment.hpp"
 
 namespace cnc::ipc {
@@ -13,9 +14,11 @@ namespace cnc::ipc {
 class Server {
  public:
   // Takes the instance lock, removes a stale segment left by a crashed
-  // controller, creates and initialises a fresh one (mode 0660). Throws
-  // std::runtime_error when another controller runs on this instance.
-  explicit Server(const std::string& instance);
+  // controller, creates and initialises a fresh one (mode and group from
+  // `access`). Throws std::runtime_error when another controller runs on
+  // this instance, or when another user's file sits where the lock or the
+  // segment belongs (naming that user).
+  explicit Server(const std::string& instance, const AccessPolicy& access = AccessPolicy::for_current_user());
   ~Server();  // removes the segment and the lock
   Server(const Server&) = delete;
   Server& operator=(const Server&) = delete;

@@ -27,6 +27,25 @@ std::vector<std::string> split(std::string_view s, char sep, bool skip_empty) {
   return out;
 }
 
+std::vector<NumberedLine> continued_lines(std::string_view text) {
+  const auto lines = split(text, '\n');
+  std::vector<NumberedLine> out;
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    NumberedLine l{static_cast<int>(i) + 1, lines[i]};
+    auto trim_end = [](std::string& t) {
+      while (!t.empty() && (t.back() == '\r' || t.back() == ' ')) t.pop_back();
+    };
+    trim_end(l.text);
+    while (!l.text.empty() && l.text.back() == '\\' && i + 1 < lines.size()) {
+      l.text.pop_back();
+      l.text += " " + lines[++i];
+      trim_end(l.text);
+    }
+    out.push_back(std::move(l));
+  }
+  return out;
+}
+
 std::vector<std::string> split_blanks(std::string_view s) {
   std::vector<std::string> out;
   std::size_t i = 0;

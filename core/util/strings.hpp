@@ -13,6 +13,14 @@ namespace cnc {
 
 std::string_view trim(std::string_view s) noexcept;
 std::vector<std::string> split(std::string_view s, char sep, bool skip_empty = false);
+// The logical lines of a HAL file or halcmd input: a trailing backslash
+// joins the next line (with a blank); trailing CR and blanks are dropped.
+// Each keeps the number (1-based) of its first physical line.
+struct NumberedLine {
+  int line = 0;
+  std::string text;
+};
+std::vector<NumberedLine> continued_lines(std::string_view text);
 // Splits on runs of blanks (space, tab).
 std::vector<std::string> split_blanks(std::string_view s);
 bool iequals(std::string_view a, std::string_view b) noexcept;

@@ -2,6 +2,7 @@
 // programs of this build, run as separate processes.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -274,4 +275,86 @@ TEST(Daemon, AnIniWithNothingToRunIsRefused) {
   r = run(bin("cncd") + " --instance " + cnc::testing::unique_name("e") + " " + (dir / "h.ini").string());
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.text.find("/dev/zero: cannot read HAL file: is a device, not a regular file"), std::string::npos) << r.text;
+}
+
+// The local security model (docs/security.md): only the controller's user
+// (and root) may command it; another user's files where the lock belongs
+// neither redirect nor block the controller. These run only as root, which
+// can act as another user (runuser); otherwise they are skipped.
+namespace {
+bool can_switch_user() { return ::geteuid() == 0 && ::access("/usr/sbin/runuser", X_OK) == 0; }
+std::string as_nobody(const std::string& command) { return "/usr/sbin/runuser -u nobody -- " + command; }
+}  // namespace
+
+TEST(Security, OtherUsersCannotCommandTheController) {
+  if (!can_switch_user()) GTEST_SKIP() << "needs root and runuser";
+  cnc::testing::TempDir dir;
+  Daemon d(dir, kBasicHal);
+  ASSERT_TRUE(d.wait_ready()) << d.log();
+  struct stat st {};
+  ASSERT_EQ(::stat(("/dev/shm/cnc-" + d.instance()).c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u) << "the segment is the owner's alone without [EMC]OPERATOR_GROUP";
+  ASSERT_EQ(::stat(("/dev/shm/cnc-" + d.instance() + ".hal").c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  const auto shell = run(as_nobody(d.halcmd("loadusr -w /bin/sh -c id")));
+  EXPECT_NE(shell.code, 0);
+  EXPECT_EQ(shell.text.find("uid=0"), std::string::npos) << shell.text;
+  const auto status = run(as_nobody(d.cnc("estop-reset")));
+  EXPECT_NE(status.code, 0) << status.text;
+  // The controller's own user cannot start a shell through halcmd either.
+  const auto own = run(d.halcmd("loadusr -w /bin/sh -c id"));
+  EXPECT_NE(own.code, 0);
+  EXPECT_NE(own.text.find("outside the allowed folders"), std::string::npos) << own.text;
+  // halcmd reads a sourced file itself: what its user cannot read, it cannot show.
+  const auto shadow = run(as_nobody(d.halcmd("source /etc/shadow")));
+  EXPECT_NE(shadow.code, 0);
+  EXPECT_EQ(shadow.text.find("root:"), std::string::npos) << shadow.text;
+}
+
+TEST(Security, AnotherUsersFileWhereTheLockBelongsIsRemovedByRoot) {
+  if (!can_switch_user()) GTEST_SKIP() << "needs root and runuser";
+  cnc::testing::TempDir dir;
+  const std::string instance = cnc::testing::unique_name("sq");
+  const std::string lock = "/dev/shm/cnc-" + instance + ".lock";
+  const auto target = dir / "victim";
+  // A symbolic link planted by another user must not make root create or
+  // truncate the file it points to.
+  ASSERT_EQ(::symlink(target.c_str(), lock.c_str()), 0);
+  ASSERT_EQ(::lchown(lock.c_str(), 65534, 65534), 0);
+  dir.write("m.hal", kBasicHal);
+  const auto ini = dir.write("m.ini", "[EMCMOT]\nSERVO_PERIOD = 1000000\n[HAL]\nHALFILE = m.hal\n");
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::freopen((dir / "log").c_str(), "w", stderr);
+    ::execl(bin("cncd").c_str(), "cncd", "--instance", instance.c_str(), ini.c_str(), nullptr);
+    ::_exit(127);
+  }
+  const auto ready = run(bin("cnc") + " -i " + instance + " --timeout 10 wait-ready");
+  EXPECT_EQ(ready.code, 0) << ready.text << Daemon::read_file(dir / "log");
+  EXPECT_FALSE(std::filesystem::exists(target)) << "root followed the planted link";
+  struct stat st {};
+  ASSERT_EQ(::lstat(lock.c_str(), &st), 0);
+  EXPECT_TRUE(S_ISREG(st.st_mode));
+  EXPECT_EQ(st.st_uid, 0u);
+  run(bin("cnc") + " -i " + instance + " shutdown");
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+}
+
+TEST(Security, AnotherUsersLockIsNamedWhenItCannotBeRemoved) {
+  if (!can_switch_user()) GTEST_SKIP() << "needs root and runuser";
+  cnc::testing::TempDir dir;
+  std::filesystem::permissions(dir.path(), std::filesystem::perms::all);
+  const std::string instance = cnc::testing::unique_name("sq");
+  const std::string lock = "/dev/shm/cnc-" + instance + ".lock";
+  { std::ofstream(lock) << ""; }  // root's file: nobody's controller may not use it
+  dir.write("m.hal", kBasicHal);
+  const auto ini = dir.write("m.ini", "[EMCMOT]\nSERVO_PERIOD = 1000000\n[HAL]\nHALFILE = m.hal\n");
+  std::filesystem::permissions(dir / "m.hal", std::filesystem::perms::all);
+  std::filesystem::permissions(ini, std::filesystem::perms::all);
+  const auto r = run(as_nobody(bin("cncd") + " --instance " + instance + " " + ini.string()));
+  ::unlink(lock.c_str());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.text.find("it is a file of root (uid 0), not of this user; only that user or root can remove it"),
+            std::string::npos) << r.text;
 }

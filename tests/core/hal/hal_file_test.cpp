@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include "core/hal/commands.hpp"
 #include "core/ini/ini_file.hpp"
 #include "core/util/error.hpp"
@@ -132,14 +134,44 @@ TEST(HalFile, ThreadsComponentValidatesArguments) {
             std::string::npos);
 }
 
-TEST(HalFile, LoadusrRunsAProgram) {
+TEST(HalFile, LoadusrRunsAProgramFromTheAllowedFolders) {
   cnc::testing::TempDir dir;
-  Fixture f;
+  const auto tools = dir / "tools";
+  std::filesystem::create_directories(tools);
+  const auto script = tools / "mark";
+  { std::ofstream(script) << "#!/bin/sh\ntouch \"$1\"\n"; }
+  std::filesystem::permissions(script, std::filesystem::perms::owner_all);
+  { std::ofstream(tools / "fail") << "#!/bin/sh\nexit 1\n"; }
+  std::filesystem::permissions(tools / "fail", std::filesystem::perms::owner_all);
+  { std::ofstream(tools / "data.txt") << "not a program\n"; }
+  const auto ini_path = dir.write("mill.ini", "[HAL]\nLOADUSR_PATH = tools\n");
+  auto ini = cnc::ini::IniFile::load(ini_path);
+  Hal hal;
+  ComponentRegistry registry;
+  CommandInterpreter interp{hal, registry, &ini, nullptr};
   const auto marker = dir / "ran";
-  f.interp.execute("loadusr -w touch " + marker.string());
+  interp.execute("loadusr -w mark " + marker.string());
   EXPECT_TRUE(std::filesystem::exists(marker));
-  EXPECT_NE(error_of([&] { f.interp.execute("loadusr -w false"); }).find("exited with status 1"), std::string::npos);
-  EXPECT_NE(error_of([&] { f.interp.execute("loadusr -W halui"); }).find("not supported"), std::string::npos);
+  EXPECT_NE(error_of([&] { interp.execute("loadusr -w fail"); }).find("exited with status 1"), std::string::npos);
+  EXPECT_NE(error_of([&] { interp.execute("loadusr -W halui"); }).find("not supported"), std::string::npos);
+  // Never a shell or anything else outside those folders (a halcmd client
+  // used to get a root shell with `loadusr -w /bin/sh -c id`).
+  EXPECT_NE(error_of([&] { interp.execute("loadusr -w /bin/sh -c id"); }).find("/bin/sh") , std::string::npos);
+  EXPECT_NE(error_of([&] { interp.execute("loadusr -w /bin/sh -c id"); }).find("is outside the allowed folders"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { interp.execute("loadusr -w sh -c id"); }).find("no such program in the allowed folders"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { interp.execute("loadusr -w tools/../../../bin/sh"); }).find("outside"), std::string::npos);
+  // A program that does not exist is an error now, not a child that fails.
+  EXPECT_NE(error_of([&] { interp.execute("loadusr /nonexistent"); }).find("outside"), std::string::npos);
+  EXPECT_NE(error_of([&] { interp.execute("loadusr data.txt"); }).find("is not an executable file"), std::string::npos);
+}
+
+TEST(HalFile, AClientMayNotMakeTheControllerReadAFile) {
+  Fixture f;
+  EXPECT_NE(error_of([&] { f.interp.execute("source /etc/shadow", CommandInterpreter::Origin::Client); })
+                .find("the controller reads only its configuration's files"),
+            std::string::npos);
 }
 
 TEST(HalFile, RemoteComponentsOwnPinsWrittenWithSetr) {
