@@ -130,6 +130,8 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
   fb.link_ok = health_.operational && !health_.lost;
   if (!fb.link_ok && link_was_ok_) {
     post(true, "lost the drive on %s (heartbeat lost, reset, or no longer operational)", link_.name().c_str());
+    // The status (and the task's message when motion stops) says why.
+    fault_text_.format("lost on %s (heartbeat lost, reset, or no longer operational)", link_.name().c_str());
   }
   link_was_ok_ = fb.link_ok;
 
@@ -212,7 +214,7 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
   }
   if (!faulted && !resetting_) {
     fault_explained_ = false;
-    if (state_ != State::Invalid && state_ != State::NotReadyToSwitchOn) fault_text_.assign("");
+    if (state_ != State::Invalid && state_ != State::NotReadyToSwitchOn && fb.link_ok) fault_text_.assign("");
   }
 
   fb.state = state_;
@@ -228,9 +230,13 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
   // edge) or a link not up yet is not ready, not a fault: motion waits for
   // amp-ready (the `enabled` pin), and ENABLE_TIMEOUT_MS ends the wait with
   // a reason. Once the drive followed, either is a fault.
+  // A drive lost on the bus (it was there, now its heartbeat is gone, it
+  // reset or left the cyclic state) is a fault enabled or not: motion stops
+  // on it, whatever the drive moves (an axis, or a spindle that is off now).
   const bool sequence_running = cmd.enable && !reached_oe_;
-  fb.amp_fault = cmd.enable && (enable_failed_ || reset_failed_ || mode_failed_ || lost_enable_ || cmd.quick_stop ||
-                                cmd.inhibit || (!sequence_running && (!fb.link_ok || (faulted && !resetting_))));
+  fb.amp_fault = health_.lost ||
+                 (cmd.enable && (enable_failed_ || reset_failed_ || mode_failed_ || lost_enable_ || cmd.quick_stop ||
+                                 cmd.inhibit || (!sequence_running && (!fb.link_ok || (faulted && !resetting_)))));
 }
 
 // ------------------------------------------------------------------ write
