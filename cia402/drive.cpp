@@ -230,13 +230,9 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
   // edge) or a link not up yet is not ready, not a fault: motion waits for
   // amp-ready (the `enabled` pin), and ENABLE_TIMEOUT_MS ends the wait with
   // a reason. Once the drive followed, either is a fault.
-  // A drive lost on the bus (it was there, now its heartbeat is gone, it
-  // reset or left the cyclic state) is a fault enabled or not: motion stops
-  // on it, whatever the drive moves (an axis, or a spindle that is off now).
   const bool sequence_running = cmd.enable && !reached_oe_;
-  fb.amp_fault = health_.lost ||
-                 (cmd.enable && (enable_failed_ || reset_failed_ || mode_failed_ || lost_enable_ || cmd.quick_stop ||
-                                 cmd.inhibit || (!sequence_running && (!fb.link_ok || (faulted && !resetting_)))));
+  fb.amp_fault = cmd.enable && (enable_failed_ || reset_failed_ || mode_failed_ || lost_enable_ || cmd.quick_stop ||
+                                cmd.inhibit || (!sequence_running && (!fb.link_ok || (faulted && !resetting_))));
 }
 
 // ------------------------------------------------------------------ write
