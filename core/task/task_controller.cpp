@@ -1358,12 +1358,13 @@ void TaskController::check_safety(int64_t now_ns) {
     f = FaultReport{};
     f.pending = true;
     f.since_ns = now_ns;
-    f.program = interp_state_ != ipc::InterpState::Idle || running_mdi_ || !mdi_queue_.empty();
+    f.program = interp_state_ != ipc::InterpState::Idle;
+    f.mdi = running_mdi_ || !mdi_queue_.empty();
     f.line = f.program ? (ms_.traj.motion_line > 0 ? ms_.traj.motion_line : current_line_) : 0;
     f.reason = ms_.fault_reason.empty() ? std::string("motion was disabled") : std::string(ms_.fault_reason.view());
     f.joint = ms_.fault_joint;
     f.spindle = ms_.fault_spindle;
-    if (f.program && interp_state_ != ipc::InterpState::Idle) ++errors_;  // the program did not end well
+    if (f.program) ++errors_;  // the program did not end well
     abort_all(f.reason, true);
     state_ = ipc::TaskState::Off;
     was_enabled_ = false;
@@ -1393,6 +1394,8 @@ void TaskController::report_motion_fault(int64_t now_ns) {
   std::string text = f.reason + drives;
   if (f.program) {
     text = "program aborted" + (f.line > 0 ? " at line " + std::to_string(f.line) : std::string()) + ": " + text;
+  } else if (f.mdi) {
+    text = "MDI aborted: " + text;
   }
   messages_.post(MessageKind::Error, "task", text);
   post(MessageKind::Text, "machine off: motion was disabled by a fault");

@@ -154,7 +154,8 @@ class TaskController : public ipc::ControllerService {
   struct FaultReport {
     bool pending = false;
     int64_t since_ns = 0;
-    bool program = false;      // a program or MDI was running
+    bool program = false;      // a program was running
+    bool mdi = false;          // an MDI command was running
     int line = 0;
     std::string reason;        // motion's
     int joint = -1, spindle = -1;
