@@ -130,6 +130,8 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
   fb.link_ok = health_.operational && !health_.lost;
   if (!fb.link_ok && link_was_ok_) {
     post(true, "lost the drive on %s (heartbeat lost, reset, or no longer operational)", link_.name().c_str());
+    // The status (and the task's message when motion stops) says why.
+    fault_text_.format("lost on %s (heartbeat lost, reset, or no longer operational)", link_.name().c_str());
   }
   link_was_ok_ = fb.link_ok;
 
@@ -212,7 +214,7 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
   }
   if (!faulted && !resetting_) {
     fault_explained_ = false;
-    if (state_ != State::Invalid && state_ != State::NotReadyToSwitchOn) fault_text_.assign("");
+    if (state_ != State::Invalid && state_ != State::NotReadyToSwitchOn && fb.link_ok) fault_text_.assign("");
   }
 
   fb.state = state_;

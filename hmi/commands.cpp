@@ -115,6 +115,14 @@ bool CommandTracker::send(const ipc::Command& cmd, const std::string& what, Done
   return start(std::move(p), cmd);
 }
 
+bool CommandTracker::estop(const std::string& what) {
+  std::string why;
+  if (!link_.request_estop(why)) return send(commands::set_state(ipc::TaskState::Estop), what);
+  std::string ignored;
+  link_.send(commands::set_state(ipc::TaskState::Estop), ignored);  // best effort: the stop is done
+  return true;
+}
+
 bool CommandTracker::send_sequence(std::vector<ipc::Command> cmds, const std::string& what, Done done) {
   if (cmds.empty()) return false;
   Pending p;

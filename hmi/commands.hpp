@@ -69,6 +69,11 @@ class CommandTracker {
   // Sends the commands one after the other, each once the previous one is
   // Done; `done` gets the last answer or the first rejection.
   bool send_sequence(std::vector<ipc::Command> cmds, const std::string& what, Done done = {});
+  // E-stop: the segment's E-stop word first (the servo thread acts on it,
+  // whatever the channels and the task cycle do), then the task is told
+  // (so that it records who asked) without tracking its answer. When the
+  // word cannot be set the command is sent and tracked as any other.
+  bool estop(const std::string& what);
   // Looks at the answers; call once per cycle. `now_ns`: monotonic time.
   void poll(int64_t now_ns);
 

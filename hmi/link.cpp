@@ -84,4 +84,21 @@ bool ClientLink::next_message(Message& out, uint64_t& lost) {
   return client_->next_message(out, &lost);
 }
 
+bool ClientLink::request_estop(std::string& why) {
+  if (!connect(why)) return false;
+  try {
+    client_->request_estop();
+    return true;
+  } catch (const std::exception& e) {
+    why = e.what();
+    drop();
+    return false;
+  }
+}
+
+ipc::Liveness ClientLink::liveness(const ipc::Status& s) {
+  if (!client_) return {};
+  return client_->liveness(s);
+}
+
 }  // namespace cnc::hmi

@@ -11,6 +11,7 @@
 #include <optional>
 #include <string>
 
+#include "core/ipc/estop.hpp"
 #include "core/ipc/status.hpp"
 #include "core/util/messages.hpp"
 
@@ -33,6 +34,12 @@ class MachineLink {
   virtual ipc::CommandResult poll_result(uint32_t serial) = 0;
   // The next message of the error channel, in order.
   virtual bool next_message(Message& out, uint64_t& lost) = 0;
+  // E-stop through the segment's E-stop word: acted on by motion in the
+  // servo thread, without a command channel or the task cycle. False (with
+  // the reason) when no controller is connected.
+  virtual bool request_estop(std::string& why) = 0;
+  // How fresh `s` (just read) is: task cycle and servo heartbeat.
+  virtual ipc::Liveness liveness(const ipc::Status& s) = 0;
 };
 
 class ClientLink final : public MachineLink {
@@ -43,6 +50,8 @@ class ClientLink final : public MachineLink {
   std::optional<uint32_t> send(const ipc::Command& cmd, std::string& why) override;
   ipc::CommandResult poll_result(uint32_t serial) override;
   bool next_message(Message& out, uint64_t& lost) override;
+  bool request_estop(std::string& why) override;
+  ipc::Liveness liveness(const ipc::Status& s) override;
   const std::string& instance() const noexcept { return instance_; }
 
  private:

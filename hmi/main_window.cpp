@@ -373,6 +373,7 @@ void MainWindow::tick() {
   }
   if (ok) {
     screen_.status = s;
+    screen_.liveness = link_->liveness(s);
     if (just_connected) on_connected();  // also after a controller restart
     ever_connected_ = true;
     Message m;
@@ -776,8 +777,7 @@ bool MainWindow::handle_key(QKeyEvent* e, bool press) {
     return true;
   }
   if (press && e->key() == Qt::Key_F1) {
-    jog_.stop_all();
-    screen_.send(commands::set_state(ipc::TaskState::Estop), "E-stop (F1)");
+    screen_.estop("E-stop (F1)");
     return true;
   }
   if (ui::is_text_input(QApplication::focusWidget())) return false;  // the text field gets the key

@@ -49,6 +49,7 @@ class StatusStrip : public QWidget {
   QLabel* state_;
   QLabel* homed_;
   QLabel* chain_;
+  QLabel* stale_;
   QPushButton* alarms_;
   QLabel* message_;
   QProgressBar* progress_;

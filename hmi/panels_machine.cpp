@@ -33,6 +33,11 @@ bool Screen::send(const ipc::Command& cmd, const std::string& what, CommandTrack
   return tracker.send(cmd, what, std::move(done));
 }
 
+bool Screen::estop(const std::string& what) {
+  jog.stop_all();
+  return tracker.estop(what);
+}
+
 bool Screen::send_in_mode(ipc::TaskMode mode, std::vector<ipc::Command> cmds, const std::string& what,
                           CommandTracker::Done done) {
   if (!connected || status.task.mode != mode) {
@@ -144,8 +149,13 @@ StatusStrip::StatusStrip(Screen& s, QWidget* parent) : QWidget(parent), s_(s) {
   homed_->setObjectName("homedLabel");
   chain_ = new QLabel(this);
   chain_->setObjectName("chainLabel");
+  stale_ = new QLabel(this);
+  stale_->setObjectName("staleLabel");
+  stale_->setWordWrap(true);
+  stale_->hide();
   right->addWidget(homed_);
   right->addWidget(chain_);
+  right->addWidget(stale_);
   row->addLayout(right);
   alarms_ = ui::button("No alarms", "alarmBadge", this);
   alarms_->setMinimumSize(110, 54);
@@ -156,8 +166,7 @@ StatusStrip::StatusStrip(Screen& s, QWidget* parent) : QWidget(parent), s_(s) {
     if (s_.connected && s_.status.task.state == ipc::TaskState::Estop) {
       s_.send(commands::set_state(ipc::TaskState::EstopReset), "E-stop reset");
     } else {
-      s_.jog.stop_all();
-      s_.send(commands::set_state(ipc::TaskState::Estop), "E-stop");
+      s_.estop("E-stop");
     }
   });
   connect(machine_, &QPushButton::clicked, this, [this]() {
@@ -217,6 +226,18 @@ void StatusStrip::refresh() {
   ui::set_style(homed_, !c ? "" : homed ? "color:#208020;font-weight:bold;" : "color:white;background:#c00000;font-weight:bold;padding:2px;");
   ui::set_text(chain_, !c ? "" : st.io.estop_chain_ok ? "E-stop chain closed" : "E-stop chain OPEN");
   ui::set_style(chain_, !c ? "" : st.io.estop_chain_ok ? "color:#208020;" : "color:#b00000;font-weight:bold;");
+  // A frozen status must not look like a live one.
+  QString stale;
+  if (c && s_.liveness.task_stalled) {
+    stale = QString("TASK STALLED %1 s: status frozen, E-STOP still works")
+                .arg(static_cast<double>(s_.liveness.status_age_ns) * 1e-9, 0, 'f', 1);
+  }
+  if (c && (s_.liveness.servo_stalled || st.motion.servo_stalled)) {
+    stale += QString(stale.isEmpty() ? "" : "\n") + "MOTION NOT RUNNING: only the drives' watchdogs stop them";
+  }
+  ui::set_text(stale_, stale);
+  ui::set_style(stale_, "color:white;background:#c00000;font-weight:bold;padding:2px;");
+  stale_->setVisible(!stale.isEmpty());
   const std::size_t n = s_.alarms.active_count();
   ui::set_text(alarms_, n ? QString("ALARMS: %1").arg(n) : QString("No alarms"));
   ui::set_style(alarms_, n ? "QPushButton{background:#c00000;color:white;font-weight:bold;}" : "");

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "core/ipc/estop.hpp"
 #include "core/ipc/status.hpp"
 #include "core/tooltable/tool_table.hpp"
 #include "hmi/alarms.hpp"
@@ -31,6 +32,7 @@ struct Screen {
   ipc::Status status{};
   bool connected = false;
   bool show_actual = false;  // DRO and preview follow the feedback
+  ipc::Liveness liveness{};  // how fresh `status` is (a stalled task cycle, motion not running)
   tooltable::ToolTable tools;  // as last read from [EMCIO]TOOL_TABLE, for display
   std::function<int64_t()> now_ns;  // CLOCK_REALTIME, for log entries
 
@@ -39,6 +41,8 @@ struct Screen {
   void log(LogLevel level, const std::string& text, const std::string& source = "screen");
   // Sends a command; rejections are logged by the tracker's sink.
   bool send(const ipc::Command& cmd, const std::string& what, CommandTracker::Done done = {});
+  // Stops jogs and E-stops (CommandTracker::estop).
+  bool estop(const std::string& what);
   // Switches to `mode` first when the controller is in another one.
   bool send_in_mode(ipc::TaskMode mode, std::vector<ipc::Command> cmds, const std::string& what,
                     CommandTracker::Done done = {});

@@ -161,6 +161,8 @@ class SimComponent : public hal::Component, public ipc::ControllerService {
     }
   }
 
+  bool is_simulator() const override { return true; }
+
   bool handle_command(const ipc::Command& cmd, ipc::CommandReporter& reporter) override {
     if (cmd.type != ipc::CommandType::SimInject) return false;
     const std::string text(cmd.text.view());

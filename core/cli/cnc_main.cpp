@@ -1,7 +1,9 @@
 // cnc: the command-line client of a running controller: status, messages,
 // and every operator command (E-stop, machine on, modes, MDI, programs,
 // jogging, homing, overrides...). Each command is sent through the shared
-// segment's command channel and answered by the controller.
+// segment's command channel and answered by the controller; E-stop also,
+// and first, goes through the segment's E-stop word, which motion acts on
+// in the servo thread without a channel or the task cycle.
 #include <unistd.h>
 
 #include <algorithm>
@@ -149,8 +151,47 @@ int cmd_status(const Context& c) {
   }
   ipc::Client client(c.instance);
   const ipc::Status s = client.status();
-  std::fputs((json ? cli::status_json(s) + "\n" : cli::format_status(s)).c_str(), stdout);
+  const ipc::Liveness live = client.liveness(s);
+  std::fputs((json ? cli::status_json(s, 2, &live) + "\n" : cli::format_status(s, &live)).c_str(), stdout);
   return 0;
+}
+
+// E-stop through the segment's E-stop word (acted on by motion in the servo
+// thread, acknowledged there): it needs no command channel and no task
+// cycle. The task is told too, when a channel is free, so that it records
+// who asked; success does not depend on it.
+int cmd_estop(const Context& c) {
+  ipc::Client client(c.instance);
+  const uint64_t request = client.request_estop();
+  uint32_t serial = 0;
+  std::string not_told;
+  try {
+    if (!client.try_send(with_i(CommandType::TaskSetState, 1), serial)) not_told = "its command queue is full";
+  } catch (const ipc::ClientError& e) {
+    not_told = e.what();
+  }
+  const double budget_s = std::min(c.timeout_s, 5.0);
+  const ipc::Liveness live = client.liveness(client.status());
+  if (live.servo_age_ns >= 0) {
+    if (client.wait_estop_acknowledged(request, std::chrono::milliseconds(static_cast<int64_t>(budget_s * 1000)))) {
+      if (!not_told.empty()) {
+        std::fprintf(stderr, "cnc: estop: done in the servo thread; the task was not told (%s)\n", not_told.c_str());
+      }
+      return 0;
+    }
+    std::fprintf(stderr, "cnc: estop: requested, but motion did not act on it within %.1f s%s\n", budget_s,
+                 live.servo_stalled ? " (motion-controller is not running: only the drives' watchdogs stop them)" : "");
+    return 3;
+  }
+  // A controller without motion: the task's answer is all there is.
+  if (!not_told.empty()) {
+    std::fprintf(stderr, "cnc: estop: %s\n", not_told.c_str());
+    return 1;
+  }
+  const ipc::CommandResult r = client.wait(serial, std::chrono::milliseconds(static_cast<int64_t>(budget_s * 1000)));
+  if (r.state == ipc::CommandState::Done) return 0;
+  std::fprintf(stderr, "cnc: estop: %s\n", r.state == ipc::CommandState::Rejected ? r.reason.c_str() : "no answer from the controller");
+  return r.state == ipc::CommandState::Rejected ? 1 : 3;
 }
 
 int cmd_watch(const Context& c) {
@@ -172,8 +213,9 @@ int cmd_watch(const Context& c) {
       return 1;
     }
     const ipc::Status s = client.status();
+    const ipc::Liveness live = client.liveness(s);
     if (tty && !json) std::fputs("\033[H\033[2J", stdout);
-    std::fputs((json ? cli::status_json(s, -1) + "\n" : cli::format_status(s)).c_str(), stdout);
+    std::fputs((json ? cli::status_json(s, -1, &live) + "\n" : cli::format_status(s, &live)).c_str(), stdout);
     std::fflush(stdout);
     std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int64_t>(interval * 1000)));
   }
@@ -301,7 +343,7 @@ std::map<std::string, Entry> commands() {
                     need_args(c, 1, "display TEXT", SIZE_MAX);
                     return send(c, with_text(CommandType::OperatorDisplay, join_args(c)));
                   }};
-  m["estop"] = {"estop", "E-stop", [](Context& c) { return send(c, with_i(CommandType::TaskSetState, 1)); }};
+  m["estop"] = {"estop", "E-stop (acted on in the servo thread, needs no free channel)", cmd_estop};
   m["estop-reset"] = {"estop-reset", "reset the E-stop",
                       [](Context& c) { return send(c, with_i(CommandType::TaskSetState, 2)); }};
   m["off"] = {"off", "machine off", [](Context& c) { return send(c, with_i(CommandType::TaskSetState, 3)); }};

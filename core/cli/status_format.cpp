@@ -33,8 +33,18 @@ nlohmann::json pose_json(const Pose& p) { return nlohmann::json(p.v); }
 
 }  // namespace
 
-std::string format_status(const ipc::Status& s) {
+std::string format_status(const ipc::Status& s, const ipc::Liveness* live) {
   std::ostringstream o;
+  if (live && live->task_stalled) {
+    o << fmt("WARNING: the task cycle has not run for %.1f s: this status is stale. E-stop still works "
+             "(cnc estop and the E-stop chain act in the servo thread).\n",
+             static_cast<double>(live->status_age_ns) * 1e-9);
+  }
+  if (live && live->servo_stalled) {
+    o << fmt("WARNING: motion has not run in the servo thread for %.1f s: E-stop requests are not acted on by "
+             "motion; only the drives' own watchdogs stop them.\n",
+             static_cast<double>(live->servo_age_ns) * 1e-9);
+  }
   const double uptime = static_cast<double>(s.health.time_ns - s.health.started_ns) * 1e-9;
   o << fmt("Controller pid %d, up %.1f s, machine \"%s\"\n", s.health.pid, uptime, s.health.machine.c_str());
   o << fmt("  config     %s\n", s.health.ini_file.c_str());
@@ -52,9 +62,20 @@ std::string format_status(const ipc::Status& s) {
     o << "Task: no task controller loaded\n";
   }
   if (s.motion.joints > 0) {
-    o << fmt("Motion: mode %s, %s, %s, queue %d, line %d, velocity %.3f\n", to_string(s.motion.mode),
-             s.motion.enabled ? "enabled" : "disabled", s.motion.inpos ? "in position" : "moving", s.motion.queue,
-             s.motion.motion_line, s.motion.current_vel);
+    if (s.motion.servo_stalled) {
+      o << "Motion: NOT RUNNING (motion-controller stopped in the servo thread; nothing is commanded to move; the "
+           "values below are its last)\n";
+    } else {
+      o << fmt("Motion: mode %s, %s, %s, queue %d, line %d, velocity %.3f\n", to_string(s.motion.mode),
+               s.motion.enabled ? "enabled" : "disabled", s.motion.inpos ? "in position" : "moving", s.motion.queue,
+               s.motion.motion_line, s.motion.current_vel);
+    }
+    if (s.motion.estop_latched) {
+      o << fmt("  E-stop     latched in the servo thread: %s\n",
+               s.motion.estop_cause == ipc::EstopCause::Request
+                   ? fmt("requested by process %d", s.motion.estop_pid).c_str()
+                   : "the E-stop chain is open");
+    }
     if (s.motion.max_velocity < 1e90) {
       o << fmt("  overrides  feed %.0f%%, rapid %.0f%%, max velocity %.3f\n", s.motion.feed_scale * 100,
                s.motion.rapid_scale * 100, s.motion.max_velocity);
@@ -107,7 +128,7 @@ std::string format_status(const ipc::Status& s) {
   return o.str();
 }
 
-std::string status_json(const ipc::Status& s, int indent) {
+std::string status_json(const ipc::Status& s, int indent, const ipc::Liveness* live) {
   using nlohmann::json;
   json j;
   j["health"] = {{"heartbeat", s.health.heartbeat},
@@ -120,6 +141,7 @@ std::string status_json(const ipc::Status& s, int indent) {
                  {"ini_file", s.health.ini_file.c_str()},
                  {"machine", s.health.machine.c_str()},
                  {"messages_dropped", s.health.messages_dropped},
+                 {"task_cycle_ns", s.health.task_cycle_ns},
                  {"shutting_down", s.health.shutting_down}};
   j["echo"] = {{"serial", s.echo.serial}, {"state", to_string(s.echo.state)}, {"type", to_string(s.echo.type)}};
   j["task"] = {{"available", s.task.available},
@@ -166,7 +188,17 @@ std::string status_json(const ipc::Status& s, int indent) {
                  {"probe_tripped", s.motion.probe_tripped},
                  {"probed_position", pose_json(s.motion.probed_position)},
                  {"watchdog_enabled", s.motion.watchdog_enabled},
-                 {"servo_cycles", s.motion.servo_cycles}};
+                 {"servo_cycles", s.motion.servo_cycles},
+                 {"estop_latched", s.motion.estop_latched},
+                 {"estop_cause", to_string(s.motion.estop_cause)},
+                 {"estop_pid", s.motion.estop_pid},
+                 {"servo_stalled", s.motion.servo_stalled}};
+  if (live) {
+    j["liveness"] = {{"status_age_s", static_cast<double>(live->status_age_ns) * 1e-9},
+                     {"task_stalled", live->task_stalled},
+                     {"servo_age_s", live->servo_age_ns < 0 ? -1.0 : static_cast<double>(live->servo_age_ns) * 1e-9},
+                     {"servo_stalled", live->servo_stalled}};
+  }
   json joints = json::array();
   for (int i = 0; i < s.motion.joints && i < kMaxJoints; ++i) {
     const ipc::JointStatus& js = s.joints[i];
@@ -199,7 +231,8 @@ std::string status_json(const ipc::Status& s, int indent) {
   for (int i = 0; i < s.motion.spindles && i < ipc::kMaxSpindles; ++i) {
     const ipc::SpindleStatus& sp = s.spindles[i];
     spindles.push_back({{"speed", sp.speed}, {"direction", sp.direction}, {"enabled", sp.enabled},
-                        {"override", sp.override_scale}, {"at_speed", sp.at_speed}, {"brake", sp.brake}});
+                        {"override", sp.override_scale}, {"at_speed", sp.at_speed}, {"brake", sp.brake},
+                        {"amp_fault", sp.amp_fault}});
   }
   j["spindles"] = spindles;
   json threads = json::array();

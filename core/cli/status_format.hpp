@@ -4,11 +4,14 @@
 
 #include <string>
 
+#include "core/ipc/estop.hpp"
 #include "core/ipc/status.hpp"
 
 namespace cnc::cli {
 
-std::string format_status(const ipc::Status& s);
-std::string status_json(const ipc::Status& s, int indent = 2);
+// `live` (optional): how fresh the status is; a stalled task cycle or servo
+// heartbeat is shown as a warning first.
+std::string format_status(const ipc::Status& s, const ipc::Liveness* live = nullptr);
+std::string status_json(const ipc::Status& s, int indent = 2, const ipc::Liveness* live = nullptr);
 
 }  // namespace cnc::cli

@@ -11,6 +11,9 @@
 #include "core/ipc/command_check.hpp"
 #include "core/rt/periodic_task.hpp"
 #include "core/util/error.hpp"
+#ifdef CNC_HAVE_MOTION
+#include "core/motion/motion_component.hpp"
+#endif
 #ifdef CNC_HAVE_IO
 #include "core/io/io_controller.hpp"
 #endif
@@ -115,6 +118,7 @@ Controller::Controller(const Options& options) : options_(options), status_(std:
                    [](const ipc::ControllerService* a, const ipc::ControllerService* b) {
                      return a->service_order() < b->service_order();
                    });
+  wire_estop();
   admin_ = std::make_unique<ipc::AdminServer>(
       options.instance, [this](const std::string& line) { return admin_request(line); }, access_);
   hal_.start_threads();
@@ -126,6 +130,44 @@ Controller::Controller(const Options& options) : options_(options), status_(std:
 }
 
 Controller::~Controller() { shutdown(); }
+
+// E-stop is acted on in the servo thread for every configuration, without a
+// HAL file: motion reads the segment's E-stop requests and the E-stop chain
+// (docs/architecture.md, "E-stop").
+void Controller::wire_estop() {
+#ifdef CNC_HAVE_MOTION
+  auto* motion = hal_.find<motion::MotionComponent>("motmod");
+  if (!motion) return;
+  hal::BitPin chain;
+#ifdef CNC_HAVE_IO
+  if (auto* io = hal_.find<io::IoController>("iocontrol")) chain = io->estop_chain_pin();
+#endif
+  motion->set_estop_inputs(&server_->segment().header.estop, chain);
+#endif
+}
+
+bool Controller::inject(const ipc::Command& cmd) {
+  const auto words = split_blanks(cmd.text.view());
+  if (words.empty() || !iequals(words[0], "task")) return false;
+  bool simulated = false;
+  for (const ipc::ControllerService* s : services_) simulated = simulated || s->is_simulator();
+  if (!simulated) {
+    report(cmd, ipc::CommandState::Rejected,
+           "\"" + std::string(cmd.text.view()) + "\": fault injection works on simulated machines only");
+    return true;
+  }
+  const auto seconds = words.size() == 3 && iequals(words[1], "stall") ? parse_double(words[2]) : std::nullopt;
+  if (!seconds || !(*seconds > 0 && *seconds <= 60)) {
+    report(cmd, ipc::CommandState::Rejected,
+           "\"" + std::string(cmd.text.view()) + "\": expected \"task stall SECONDS\" (0 to 60)");
+    return true;
+  }
+  // Answered first: the stall is what the client wants to observe.
+  report(cmd, ipc::CommandState::Done, {});
+  stall_ns_ = static_cast<int64_t>(*seconds * 1e9);
+  messages_.post(MessageKind::Text, "cncd", "fault injection: the task cycle stalls for " + format_double(*seconds) + " s");
+  return true;
+}
 
 ipc::AdminReply Controller::admin_request(const std::string& line) {
   try {
@@ -144,6 +186,10 @@ void Controller::report(const ipc::Command& cmd, ipc::CommandState state, std::s
 
 void Controller::dispatch(const ipc::Command& cmd) {
   using ipc::CommandType;
+  if (const std::string why = ipc::check_arguments(cmd); !why.empty()) {
+    report(cmd, ipc::CommandState::Rejected, std::string(ipc::to_string(cmd.type)) + ": " + why);
+    return;
+  }
   switch (cmd.type) {
     case CommandType::Ping:
       report(cmd, ipc::CommandState::Done, {});
@@ -162,12 +208,11 @@ void Controller::dispatch(const ipc::Command& cmd) {
       report(cmd, ipc::CommandState::Done, {});
       return;
     }
+    case CommandType::SimInject:
+      if (inject(cmd)) return;
+      break;
     default:
       break;
-  }
-  if (const std::string why = ipc::check_arguments(cmd); !why.empty()) {
-    report(cmd, ipc::CommandState::Rejected, std::string(ipc::to_string(cmd.type)) + ": " + why);
-    return;
   }
   for (ipc::ControllerService* s : services_) {
     if (s->handle_command(cmd, *this)) return;
@@ -197,6 +242,7 @@ void Controller::publish_status() {
   s.health.ini_file.assign(ini_.path().string());
   s.health.machine.assign(ini_.get_string("EMC", "MACHINE", ""));
   s.health.messages_dropped = messages_.dropped();
+  s.health.task_cycle_ns = cycle_ns_;
   s.health.shutting_down = stop_requested_.load();
   int i = 0;
   bool fifo = false;
@@ -233,6 +279,10 @@ void Controller::cycle() {
   for (ipc::ControllerService* s : services_) s->update(now);
   drain_messages();
   publish_status();
+  if (stall_ns_ > 0) {
+    std::this_thread::sleep_for(std::chrono::nanoseconds(stall_ns_));
+    stall_ns_ = 0;
+  }
 }
 
 void Controller::run(bool handle_signals) {

@@ -45,6 +45,9 @@ class Controller : private ipc::CommandReporter {
  private:
   void report(const ipc::Command& cmd, ipc::CommandState state, std::string_view reason) override;
   void dispatch(const ipc::Command& cmd);
+  // `cnc inject "task ..."` on a simulated machine; false: not ours.
+  bool inject(const ipc::Command& cmd);
+  void wire_estop();
   void publish_status();
   void drain_messages();
   void shutdown();
@@ -67,6 +70,7 @@ class Controller : private ipc::CommandReporter {
   int64_t cycle_ns_ = 1'000'000;
   int64_t started_ns_ = 0;
   uint64_t heartbeat_ = 0;
+  int64_t stall_ns_ = 0;  // an injected task-cycle stall, taken at the end of this cycle
 };
 
 // Every component the controller can load by name (core blocks, kinematics,

@@ -33,6 +33,8 @@ class IoController : public hal::Component, public ipc::ControllerService {
 
   // --- E-stop chain ---
   bool estop_chain_closed() const noexcept { return emc_enable_in_.get(); }
+  // The chain's input pin, for motion to read in the servo thread.
+  hal::BitPin estop_chain_pin() const noexcept { return emc_enable_in_; }
   // user-enable-out; a rising request also pulses user-request-enable.
   void set_user_enable(bool on, bool request_reset = false);
   bool user_enabled() const noexcept { return user_enable_out_.get(); }

@@ -196,6 +196,26 @@ void Client::rewind_messages() {
   messages_cursor_ = h > n ? h - n : 0;
 }
 
+uint64_t Client::request_estop() {
+  check_alive();
+  return bump_estop_request(seg_->header.estop, ::getpid());
+}
+
+bool Client::wait_estop_acknowledged(uint64_t request, std::chrono::milliseconds timeout) const {
+  const int64_t deadline = monotonic_ns() + static_cast<int64_t>(timeout.count()) * 1'000'000;
+  for (;;) {
+    if (estop_acknowledges(seg_->header.estop.acknowledged.load(std::memory_order_acquire), request)) return true;
+    if (monotonic_ns() > deadline || !controller_alive()) return false;
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+}
+
+Liveness Client::liveness(const Status& s) const {
+  return assess_liveness(monotonic_ns(), seg_->header.heartbeat_ns.load(std::memory_order_acquire),
+                         seg_->header.estop.servo_heartbeat_ns.load(std::memory_order_acquire), s.health.task_cycle_ns,
+                         s.motion.cycle_time_s);
+}
+
 Command make_command(CommandType type) {
   Command c;
   c.type = type;

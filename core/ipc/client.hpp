@@ -45,6 +45,19 @@ class Client {
   // send + wait.
   CommandResult execute(const Command& cmd, std::chrono::milliseconds timeout);
 
+  // E-stop without a command channel: bumps the segment's E-stop request
+  // (one atomic operation, whatever the channels or the task cycle do) and
+  // returns the request word. Motion acts on it in the servo thread within
+  // a cycle or two and acknowledges it. Throws ClientError when the
+  // controller is gone.
+  uint64_t request_estop();
+  // Waits until the servo thread acknowledged `request`; false on timeout
+  // or when the controller stopped.
+  bool wait_estop_acknowledged(uint64_t request, std::chrono::milliseconds timeout) const;
+  // The ages of the status and of the servo heartbeat, judged; `s` is a
+  // status just read (it carries the task cycle and the servo period).
+  Liveness liveness(const Status& s) const;
+
   // Messages from the controller, in order. Reading starts with what is
   // posted after the client connected; call rewind_messages() for the oldest
   // still held. `lost` (optional) counts messages overwritten unread.

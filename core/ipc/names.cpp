@@ -140,4 +140,13 @@ const char* to_string(MotionMode m) noexcept {
   return "?";
 }
 
+const char* to_string(EstopCause c) noexcept {
+  switch (c) {
+    case EstopCause::None: return "none";
+    case EstopCause::Request: return "request";
+    case EstopCause::ChainOpen: return "chain open";
+  }
+  return "?";
+}
+
 }  // namespace cnc::ipc

@@ -12,6 +12,7 @@
 
 #include "core/ipc/broadcast_ring.hpp"
 #include "core/ipc/command.hpp"
+#include "core/ipc/estop.hpp"
 #include "core/ipc/status.hpp"
 #include "core/util/messages.hpp"
 #include "core/util/seqlock.hpp"
@@ -21,7 +22,7 @@ namespace cnc::ipc {
 
 inline constexpr uint64_t kSegmentMagic = 0x31474553434e43ULL;  // "CNCSEG1"
 // Bump whenever any structure in the segment changes.
-inline constexpr uint32_t kLayoutVersion = 1;
+inline constexpr uint32_t kLayoutVersion = 2;
 inline constexpr int kMaxClients = 32;
 inline constexpr std::size_t kClientQueueDepth = 16;
 
@@ -40,7 +41,8 @@ struct SegmentHeader {
   uint64_t owner_start = 0;
   std::atomic<uint32_t> ready{0};        // 1 once the controller is up
   std::atomic<uint32_t> next_serial{1};
-  std::atomic<int64_t> heartbeat_ns{0};  // CLOCK_MONOTONIC of the last publication
+  std::atomic<int64_t> heartbeat_ns{0};  // CLOCK_MONOTONIC of the last status publication (task cycle)
+  EstopWords estop;                      // E-stop requests and the servo thread's heartbeat
   FixedString<64> instance;
 };
 

@@ -41,6 +41,10 @@ class ControllerService {
   virtual void on_controller_shutdown() {}
   // During shutdown, after on_shutdown(): true once outputs are safe.
   virtual bool is_safe_to_stop() const { return true; }
+  // This service simulates machine hardware (simulated drives): the
+  // controller then accepts fault injections of its own (`cnc inject "task
+  // stall S"`), which a real machine refuses.
+  virtual bool is_simulator() const { return false; }
 };
 
 }  // namespace cnc::ipc

@@ -28,12 +28,15 @@ enum class ExecState : uint8_t {
   WaitingForSpindleOriented = 10,
 };
 enum class MotionMode : uint8_t { Free = 1, Coord = 2, Teleop = 3 };
+// Why motion latched an E-stop (docs/motion.md, "E-stop").
+enum class EstopCause : uint8_t { None = 0, Request = 1, ChainOpen = 2 };
 
 const char* to_string(TaskState s) noexcept;
 const char* to_string(TaskMode m) noexcept;
 const char* to_string(InterpState s) noexcept;
 const char* to_string(ExecState s) noexcept;
 const char* to_string(MotionMode m) noexcept;
+const char* to_string(EstopCause c) noexcept;
 
 inline constexpr int kMaxSpindles = 8;
 inline constexpr int kMaxThreads = 4;
@@ -49,6 +52,7 @@ struct HealthStatus {
   FixedString<256> ini_file;
   FixedString<64> machine;         // [EMC]MACHINE
   uint64_t messages_dropped = 0;   // error-channel entries lost in the controller
+  int64_t task_cycle_ns = 0;       // [TASK]CYCLE_TIME: how often this block is published
   bool shutting_down = false;
 };
 
@@ -126,6 +130,14 @@ struct TrajStatus {
   double angular_units = 1;      // per degree
   double cycle_time_s = 0.001;
   uint64_t servo_cycles = 0;
+  // E-stop latched in the servo thread (a request through the segment, or
+  // the E-stop chain open); cleared only by E-stop reset with the chain closed.
+  bool estop_latched = false;
+  EstopCause estop_cause = EstopCause::None;
+  int32_t estop_pid = 0;         // the requesting process (cause Request)
+  // motion-controller no longer runs (delf, or its thread stalls): the
+  // values above are its last; nothing is commanded to move.
+  bool servo_stalled = false;
 };
 
 struct JointStatus {
@@ -176,6 +188,7 @@ struct SpindleStatus {
   bool override_enabled = true;
   int32_t orient_state = 0;
   int32_t orient_fault = 0;
+  bool amp_fault = false;        // spindle.N.amp-fault-in disabled motion
 };
 
 struct IoStatus {

@@ -24,8 +24,7 @@ enum class Cmd : uint8_t {
   DisableAmplifier,   // joint
   ActivateJoint,      // joint
   DeactivateJoint,    // joint
-  EnableWatchdog,
-  DisableWatchdog,
+  EstopReset,         // clears the E-stop latch; refused while the E-stop chain is open
   Pause,
   Resume,
   Step,

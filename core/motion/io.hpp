@@ -92,6 +92,11 @@ struct MotionInputs {
   bool jog_stop = false;       // motion.jog-stop
   bool jog_stop_immediate = false;
   double adaptive_feed = 1.0;  // motion.adaptive-feed
+  // Not motion pins: the shared segment's E-stop request word and the
+  // E-stop chain (iocontrol.0.emc-enable-in), wired by the daemon
+  // (MotionComponent::set_estop_inputs) so that every configuration has them.
+  uint64_t estop_request = 0;
+  bool estop_chain_closed = true;
   std::array<bool, kMaxDio> digital_in{};
   std::array<double, kMaxAio> analog_in{};
   std::array<JointInputs, kMaxJoints> joints{};
@@ -103,8 +108,8 @@ struct MotionOutputs {
   bool motion_enabled = false, in_position = true, coord_mode = false, teleop_mode = false;
   bool coord_error = false, on_soft_limit = false, is_all_homed = false;
   bool jog_is_active = false, tp_reverse = false;
-  bool watchdog = false;       // motion.watchdog: toggles every cycle while the watchdog is enabled
-  bool watchdog_enabled = false;
+  bool watchdog = false;       // motion.watchdog: toggles every cycle while motion is enabled
+  bool watchdog_enabled = false;  // motion.watchdog-enabled: motion is enabled
   int32_t program_line = 0, motion_type = 0;
   double current_vel = 0, requested_vel = 0, distance_to_go = 0;
   double servo_last_period_ns = 0;

@@ -259,6 +259,49 @@ void MotionComponent::set_compensation(int joint, JointCompensation* comp) {
   controller_->set_compensation(joint, comp);
 }
 
+void MotionComponent::set_estop_inputs(ipc::EstopWords* words, hal::BitPin chain) {
+  if (hal().threads_running()) throw hal::HalError("motmod: E-stop inputs can only be set before the threads start");
+  estop_words_ = words;
+  estop_chain_ = chain;
+}
+
+void MotionComponent::update(int64_t now_ns) {
+  if (!controller_) return;
+  const MotionStatus s = status_.read();
+  if (s.cycles != last_cycles_ || last_advance_ns_ == 0) {
+    last_cycles_ = s.cycles;
+    last_advance_ns_ = now_ns;
+    stale_updates_ = 0;
+    stalled_ = false;
+    return;
+  }
+  // A few task cycles without progress as well as the time: after the
+  // whole process was stopped (SIGSTOP, a debugger) the task cycle may run
+  // once before the servo thread does.
+  ++stale_updates_;
+  const int64_t threshold = ipc::servo_stall_threshold_ns(static_cast<int64_t>(config_.servo_period_s * 1e9));
+  if (stalled_ || stale_updates_ < 5 || now_ns - last_advance_ns_ < threshold) return;
+  stalled_ = true;
+  std::string thread;
+  bool running = false;
+  for (const hal::ThreadView& t : hal().thread_views()) {
+    for (const std::string& f : t.functions) {
+      if (f == "motion-controller") {
+        thread = t.name;
+        running = t.running;
+      }
+    }
+  }
+  const std::string age = std::to_string((now_ns - last_advance_ns_) / 1'000'000) + " ms";
+  if (thread.empty()) {
+    stall_reason_ = "motion-controller is in no HAL thread any more (removed with delf?): motion has not run for " + age;
+  } else if (!running) {
+    stall_reason_ = "thread " + thread + " (which runs motion-controller) is stopped: motion has not run for " + age;
+  } else {
+    stall_reason_ = "motion-controller in thread " + thread + " has not run for " + age + " (the thread stalls)";
+  }
+}
+
 void MotionComponent::on_shutdown() {
   MotionCommand c;
   c.type = Cmd::Abort;
@@ -286,10 +329,20 @@ void MotionComponent::contribute_status(ipc::Status& st) {
   for (int j = 0; j < kMaxJoints; ++j) st.joints[j] = s.joints[j];
   for (int a = 0; a < kNumAxes; ++a) st.axes[a] = s.axes[a];
   for (int i = 0; i < ipc::kMaxSpindles; ++i) st.spindles[i] = s.spindles[i];
+  if (stalled_) {
+    // The pins hold their last values: nothing is commanded to move.
+    st.motion.servo_stalled = true;
+    st.motion.current_vel = 0;
+    st.motion.inpos = true;
+    for (int j = 0; j < kMaxJoints; ++j) st.joints[j].velocity = 0;
+  }
 }
 
 void MotionComponent::command_handler(const rt::CycleInfo&) noexcept {
   if (!controller_) return;
+  // ESTOP_RESET judges the chain as it is now, not as the last cycle read it
+  // (the task closes it and asks for the reset within one task cycle).
+  controller_->in().estop_chain_closed = !estop_chain_.valid() || estop_chain_.get();
   for (int n = 0; n < 64; ++n) {
     const MotionCommand* cmd = commands_.front();
     if (!cmd) break;
@@ -313,6 +366,8 @@ void MotionComponent::read_pins() noexcept {
   in.jog_stop = m.jog_stop.get();
   in.jog_stop_immediate = m.jog_stop_immediate.get();
   in.adaptive_feed = m.adaptive_feed.get();
+  if (estop_words_) in.estop_request = estop_words_->request.load(std::memory_order_acquire);
+  in.estop_chain_closed = !estop_chain_.valid() || estop_chain_.get();
   for (std::size_t i = 0; i < din_.size(); ++i) in.digital_in[i] = din_[i].get();
   for (std::size_t i = 0; i < ain_.size(); ++i) in.analog_in[i] = ain_[i].get();
   for (std::size_t j = 0; j < joint_pins_.size(); ++j) {
@@ -440,6 +495,12 @@ void MotionComponent::controller(const rt::CycleInfo& info) noexcept {
   // Planners integrate over the nominal period; the measured one is jitter.
   controller_->update(static_cast<double>(info.period_ns) * 1e-9);
   write_pins();
+  if (estop_words_) {
+    // After the outputs: an acknowledged E-stop has the amplifiers off.
+    estop_words_->acknowledged.store(controller_->estop_request_seen(), std::memory_order_release);
+    estop_words_->servo_cycles.store(info.cycle, std::memory_order_relaxed);
+    estop_words_->servo_heartbeat_ns.store(info.now_ns, std::memory_order_release);
+  }
   controller_->fill_status(scratch_status_);
   scratch_status_.servo_exec_ns = 0;
   status_.write(scratch_status_);

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/hal/component.hpp"
+#include "core/ipc/estop.hpp"
 #include "core/ipc/service.hpp"
 #include "core/motion/motion_controller.hpp"
 #include "core/util/seqlock.hpp"
@@ -45,9 +46,21 @@ class MotionComponent : public hal::Component, public ipc::ControllerService {
   int free_queue_slots() const noexcept { return static_cast<int>(kQueueDepth - commands_.size()); }
   // Screw compensation for a joint; only before the threads start.
   void set_compensation(int joint, JointCompensation* comp);
+  // Only before the threads start (the daemon does it for every
+  // configuration, no HAL file needed): the shared segment's E-stop words
+  // (requests read, acknowledgement and servo heartbeat written every
+  // cycle) and the E-stop chain input, iocontrol.0.emc-enable-in. Either
+  // may be absent (null / an invalid pin).
+  void set_estop_inputs(ipc::EstopWords* words, hal::BitPin chain);
+  // Task side: motion-controller has not advanced its status for at least
+  // servo_stall_threshold_ns and a few task cycles (delf, or a stalled
+  // servo thread); the reason names the function and what happened to it.
+  bool servo_stalled() const noexcept { return stalled_; }
+  const std::string& stall_reason() const noexcept { return stall_reason_; }
 
   // --- ControllerService ---
   int service_order() const noexcept override { return 10; }
+  void update(int64_t now_ns) override;
   void contribute_status(ipc::Status& status) override;
   bool is_safe_to_stop() const override;
 
@@ -80,6 +93,14 @@ class MotionComponent : public hal::Component, public ipc::ControllerService {
   std::unique_ptr<MotionPins> pins_;
   std::vector<hal::BitPin> din_, dout_;
   std::vector<hal::FloatPin> ain_, aout_;
+  ipc::EstopWords* estop_words_ = nullptr;
+  hal::BitPin estop_chain_;
+  // stall detection (task side)
+  uint64_t last_cycles_ = 0;
+  int64_t last_advance_ns_ = 0;
+  int stale_updates_ = 0;
+  bool stalled_ = false;
+  std::string stall_reason_;
 };
 
 // Registers motmod and the simulation components (sim_joint).

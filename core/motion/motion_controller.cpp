@@ -5,6 +5,7 @@
 #include <cstdarg>
 #include <cstdio>
 
+#include "core/ipc/estop.hpp"
 #include "core/motion/params.hpp"
 #include "core/util/messages.hpp"
 #include "core/util/time.hpp"
@@ -172,11 +173,8 @@ bool MotionController::handle(const MotionCommand& c, MotionResult& result) noex
       if (!joint_ok(c.joint)) why = reason("no joint %d", c.joint);
       else joints_[static_cast<std::size_t>(c.joint)].active = c.type == Cmd::ActivateJoint;
       break;
-    case Cmd::EnableWatchdog:
-      watchdog_enabled_ = true;
-      break;
-    case Cmd::DisableWatchdog:
-      watchdog_enabled_ = false;
+    case Cmd::EstopReset:
+      why = cmd_estop_reset();
       break;
     case Cmd::Pause:
       tp_.pause();
@@ -387,7 +385,19 @@ const char* MotionController::cmd_mode(ipc::MotionMode target) noexcept {
   return nullptr;
 }
 
+const char* MotionController::cmd_estop_reset() noexcept {
+  if (!in_.estop_chain_closed) return "the E-stop chain is open (iocontrol.0.emc-enable-in is false)";
+  estop_latched_ = false;
+  estop_cause_ = ipc::EstopCause::None;
+  estop_pid_ = 0;
+  return nullptr;
+}
+
 const char* MotionController::cmd_enable(bool enable) noexcept {
+  if (enable && estop_latched_) {
+    return reason("cannot enable: E-stop is latched (%s%s): reset the E-stop first", ipc::to_string(estop_cause_),
+                  estop_cause_ == ipc::EstopCause::Request ? " by a client" : "");
+  }
   if (enable == enabled_) return nullptr;
   // Queues and planners flushed, moves and homing ended (3.8.5, 3.8.6).
   for (int j = 0; j < cfg_.num_joints; ++j) {
@@ -398,6 +408,15 @@ const char* MotionController::cmd_enable(bool enable) noexcept {
     jt.amp_fault = false;
     jt.ferror_high = 0;
     if (jt.active) jt.amp_enabled = enable;
+  }
+  // Spindles stop with the machine and stay stopped when it comes back on.
+  if (!enable) {
+    for (Spindle& sp : spindles_) sp.on = sp.orient = false;
+  }
+  spindle_fault_ = {};
+  if (enable) {
+    fault_reason_.assign("");
+    fault_joint_ = fault_spindle_ = -1;
   }
   home_all_ = false;
   home_sequence_ = -1;
@@ -707,7 +726,7 @@ void MotionController::read_feedback() noexcept {
   }
 }
 
-void MotionController::fault(const char* fmt, ...) noexcept {
+void MotionController::fault(int joint, int spindle, const char* fmt, ...) noexcept {
   char text[200];
   va_list ap;
   va_start(ap, fmt);
@@ -716,6 +735,31 @@ void MotionController::fault(const char* fmt, ...) noexcept {
   post_error("%s: motion disabled", text);
   cmd_enable(false);
   faulted_ = true;
+  fault_reason_.assign(text);
+  fault_joint_ = joint;
+  fault_spindle_ = spindle;
+  if (spindle >= 0) spindle_fault_[static_cast<std::size_t>(spindle)] = true;
+}
+
+// An E-stop request through the segment, or the E-stop chain open: acted on
+// here, in the servo thread, whatever the task cycle does. The message is
+// the task's when it catches up (it names the requesting process).
+void MotionController::check_estop() noexcept {
+  if (in_.estop_request != estop_seen_) {
+    estop_seen_ = in_.estop_request;
+    latch_estop(ipc::EstopCause::Request, ipc::estop_pid(in_.estop_request));
+  }
+  if (!in_.estop_chain_closed) latch_estop(ipc::EstopCause::ChainOpen, 0);
+}
+
+void MotionController::latch_estop(ipc::EstopCause cause, int32_t pid) noexcept {
+  if (!estop_latched_) {
+    estop_latched_ = true;
+    estop_cause_ = cause;
+    estop_pid_ = pid;
+  }
+  // Amplifiers and spindles off, planners flushed, homing and jogs ended.
+  if (enabled_) cmd_enable(false);
 }
 
 // The enable handshake: amp-enable-out is on, and until every active
@@ -731,7 +775,7 @@ void MotionController::wait_for_amplifiers(double dt) noexcept {
     if (!joints_[static_cast<std::size_t>(j)].active || in_.joints[static_cast<std::size_t>(j)].amp_ready) continue;
     const double timeout = cfg_.joints[static_cast<std::size_t>(j)].amp_ready_timeout_s;
     if (amps_wait_s_ > timeout) {
-      fault("joint %d amplifier not ready %.3f s after enable (joint.%d.amp-ready-in stayed false)", j, timeout, j);
+      fault(j, -1, "joint %d amplifier not ready %.3f s after enable (joint.%d.amp-ready-in stayed false)", j, timeout, j);
       return;
     }
     if (amp_waiting_joint_ < 0) amp_waiting_joint_ = j;
@@ -749,7 +793,7 @@ const char* MotionController::amps_not_ready(const char* what) noexcept {
 void MotionController::check_faults() noexcept {
   if (!enabled_) return;
   if (!in_.enable) {
-    fault("motion.enable went false (external stop)");
+    fault(-1, -1, "motion.enable went false (external stop)");
     return;
   }
   for (int j = 0; j < cfg_.num_joints; ++j) {
@@ -758,7 +802,7 @@ void MotionController::check_faults() noexcept {
     const JointConfig& c = cfg_.joints[static_cast<std::size_t>(j)];
     const JointInputs& ji = in_.joints[static_cast<std::size_t>(j)];
     if (ji.amp_fault && jt.amp_enabled) {
-      fault("joint %d amplifier fault", j);
+      fault(j, -1, "joint %d amplifier fault (joint.%d.amp-fault-in)", j, j);
       jt.amp_fault = true;
       return;
     }
@@ -767,15 +811,23 @@ void MotionController::check_faults() noexcept {
     // (and for the jog that consumed it), never under coordinated motion.
     const bool overridden = (override_limits_ && mode_ == ipc::MotionMode::Free) || jt.jog_override_limits;
     if ((jt.on_pos_limit || jt.on_neg_limit) && !homing_ignores && !overridden) {
-      fault("joint %d on its %s limit switch%s (send override-limits, then jog off it)", j,
+      fault(-1, -1, "joint %d on its %s limit switch%s (send override-limits, then jog off it)", j,
             jt.on_pos_limit ? "positive" : "negative", jt.home_state != HomeState::Idle ? " while homing" : "");
       return;
     }
     const bool drive_moves = jt.home_state == HomeState::DriveHoming;
     if (!drive_moves && std::fabs(jt.ferror) > jt.ferror_limit) {
       const double fe = jt.ferror, lim = jt.ferror_limit;
-      fault("joint %d following error %.4f exceeds its limit %.4f", j, fe, lim);
+      fault(-1, -1, "joint %d following error %.4f exceeds its limit %.4f", j, fe, lim);
       jt.ferror_fault = true;
+      return;
+    }
+  }
+  // A spindle's drive (or VFD) in fault stops everything, as in LinuxCNC:
+  // the axes must not keep cutting with a spindle that stopped.
+  for (int s = 0; s < cfg_.spindles; ++s) {
+    if (in_.spindles[static_cast<std::size_t>(s)].amp_fault) {
+      fault(-1, s, "spindle %d amplifier fault (spindle.%d.amp-fault-in)", s, s);
       return;
     }
   }
@@ -1042,7 +1094,7 @@ void MotionController::compute_outputs(double dt) noexcept {
   }
   if (mode_ == ipc::MotionMode::Coord) {
     out_.program_line = tp_out_.line;
-    out_.current_vel = tp_out_.path_velocity;
+    out_.current_vel = enabled_ ? tp_out_.path_velocity : 0.0;  // disabled: nothing moves
     out_.motion_type = 0;
   } else {
     out_.current_vel = 0;
@@ -1061,8 +1113,10 @@ void MotionController::compute_outputs(double dt) noexcept {
     }
     out_.distance_to_go = std::sqrt(dtg);
   }
-  out_.watchdog_enabled = watchdog_enabled_;
-  out_.watchdog = watchdog_enabled_ && !out_.watchdog;
+  // The watchdog toward the drives runs whenever motion is enabled: if this
+  // function stops, the drive layer sees it stand still and stops the drives.
+  out_.watchdog_enabled = enabled_;
+  out_.watchdog = enabled_ && !out_.watchdog;
   out_.tool_offset = tool_offset_;
   for (int s = 0; s < cfg_.spindles; ++s) {
     const Spindle& sp = spindles_[static_cast<std::size_t>(s)];
@@ -1088,6 +1142,7 @@ void MotionController::update(double dt) noexcept {
   out_.servo_last_period_ns = dt * 1e9;
   for (JointOutputs& o : out_.joints) o.index_enable_write = -1;
   read_feedback();
+  check_estop();
   if (enabled_ && !amps_ready_) wait_for_amplifiers(dt);
   if (resync_ || !enabled_) resync_from_feedback();
   check_faults();
@@ -1115,7 +1170,10 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
   t.probe_input = in_.probe_input;
   t.probed_position = probed_pos_;
   t.carte_fb_valid = carte_fb_valid_;
-  t.watchdog_enabled = watchdog_enabled_;
+  t.watchdog_enabled = enabled_;
+  t.estop_latched = estop_latched_;
+  t.estop_cause = estop_cause_;
+  t.estop_pid = estop_pid_;
   t.feed_override_enabled = feed_override_enabled_;
   t.adaptive_feed_enabled = adaptive_enabled_;
   t.feed_hold_enabled = feed_hold_enabled_;
@@ -1196,6 +1254,7 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
     ss.speed_feedback = in_.spindles[static_cast<std::size_t>(i)].speed_in * 60;
     ss.orient_state = sp.orient ? (in_.spindles[static_cast<std::size_t>(i)].is_oriented ? 2 : 1) : 0;
     ss.orient_fault = in_.spindles[static_cast<std::size_t>(i)].orient_fault;
+    ss.amp_fault = spindle_fault_[static_cast<std::size_t>(i)];
   }
   s.cycles = cycles_;
   s.last_serial = last_serial_;
@@ -1212,6 +1271,9 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
   s.amps_ready = enabled_ && amps_ready_;
   s.amp_waiting_joint = enabled_ && !amps_ready_ ? amp_waiting_joint_ : -1;
   s.homing_sequence_active = home_sequence_;
+  s.fault_reason = fault_reason_;
+  s.fault_joint = fault_joint_;
+  s.fault_spindle = fault_spindle_;
 }
 
 }  // namespace cnc::motion

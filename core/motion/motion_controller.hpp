@@ -63,6 +63,9 @@ class MotionController {
   const MotionConfig& config() const noexcept { return cfg_; }
   ipc::MotionMode mode() const noexcept { return mode_; }
   bool enabled() const noexcept { return enabled_; }
+  bool estop_latched() const noexcept { return estop_latched_; }
+  // The E-stop request word last acted on (the segment's acknowledgement).
+  uint64_t estop_request_seen() const noexcept { return estop_seen_; }
   bool all_homed() const noexcept;
   bool in_position() const noexcept;
   const Pose& carte_pos_cmd() const noexcept { return carte_cmd_; }
@@ -107,10 +110,13 @@ class MotionController {
   const char* cmd_jog_axis(const MotionCommand& c) noexcept;
   const char* cmd_segment(const MotionCommand& c, bool& retry) noexcept;
   void abort_all() noexcept;
+  const char* cmd_estop_reset() noexcept;
 
   // cycle parts
   void read_feedback() noexcept;
   void resync_from_feedback() noexcept;
+  void check_estop() noexcept;
+  void latch_estop(ipc::EstopCause cause, int32_t pid) noexcept;
   void check_faults() noexcept;
   void wait_for_amplifiers(double dt) noexcept;
   // Why a command that moves cannot run while an amplifier is not ready
@@ -132,8 +138,10 @@ class MotionController {
   void compute_outputs(double dt) noexcept;
   void update_backlash(int j, double dt) noexcept;
   FreeLimits joint_limits(int j, double vel) const noexcept;
-  // Disables motion after a fault and says why on the error channel.
-  void fault(const char* fmt, ...) noexcept __attribute__((format(printf, 2, 3)));
+  // Disables motion after a fault of a joint's or a spindle's amplifier
+  // (-1: neither), says why on the error channel and keeps the reason for
+  // the status.
+  void fault(int joint, int spindle, const char* fmt, ...) noexcept __attribute__((format(printf, 4, 5)));
   const char* reason(const char* fmt, ...) noexcept __attribute__((format(printf, 2, 3)));
   // Distance to go of axis `a`: to the end of the executing move (coord),
   // to the jog target (teleop), 0 in free mode (joints move, not axes).
@@ -164,7 +172,14 @@ class MotionController {
   bool amps_ready_ = false;           // since the enable, every amplifier said ready
   double amps_wait_s_ = 0;            // how long the enable has waited for them
   int amp_waiting_joint_ = -1;
-  bool watchdog_enabled_ = false;
+  // E-stop latched in the servo thread (docs/motion.md, "E-stop").
+  bool estop_latched_ = false;
+  ipc::EstopCause estop_cause_ = ipc::EstopCause::None;
+  int32_t estop_pid_ = 0;
+  uint64_t estop_seen_ = 0;           // the request word last acted on
+  FixedString<200> fault_reason_;
+  int fault_joint_ = -1, fault_spindle_ = -1;
+  std::array<bool, kMaxSpindles> spindle_fault_{};
   bool override_limits_ = false;      // armed by OVERRIDE_LIMITS, consumed by the next jog
   double feed_scale_ = 1, rapid_scale_ = 1, max_velocity_ = 1e99;
   bool feed_override_enabled_ = true, adaptive_enabled_ = false, feed_hold_enabled_ = true;

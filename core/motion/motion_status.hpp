@@ -7,6 +7,7 @@
 #include <cstdint>
 
 #include "core/ipc/status.hpp"
+#include "core/util/fixed_string.hpp"
 
 namespace cnc::motion {
 
@@ -27,6 +28,11 @@ struct MotionStatus {
   bool amps_ready = false;
   int32_t amp_waiting_joint = -1;  // the first joint whose amplifier is not ready yet, -1 none
   int32_t homing_sequence_active = -1;
+  // The last fault that disabled motion (cleared by the next enable): its
+  // text, and the joint or spindle whose amplifier faulted (-1 none).
+  FixedString<200> fault_reason;
+  int32_t fault_joint = -1;
+  int32_t fault_spindle = -1;
   double servo_exec_ns = 0;
 };
 

@@ -14,8 +14,7 @@ const char* to_string(Cmd c) noexcept {
     case Cmd::DisableAmplifier: return "DISABLE_AMPLIFIER";
     case Cmd::ActivateJoint: return "ACTIVATE_JOINT";
     case Cmd::DeactivateJoint: return "DEACTIVATE_JOINT";
-    case Cmd::EnableWatchdog: return "ENABLE_WATCHDOG";
-    case Cmd::DisableWatchdog: return "DISABLE_WATCHDOG";
+    case Cmd::EstopReset: return "ESTOP_RESET";
     case Cmd::Pause: return "PAUSE";
     case Cmd::Resume: return "RESUME";
     case Cmd::Step: return "STEP";

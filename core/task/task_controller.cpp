@@ -66,6 +66,15 @@ CanonConfig canon_config(const ini::IniFile& ini, const motion::MotionConfig& m,
   return c;
 }
 
+// "process 1234 (cnc)": who asked, for the message channel.
+std::string describe_process(int32_t pid) {
+  if (pid <= 0) return "an unknown process";
+  std::ifstream in("/proc/" + std::to_string(pid) + "/comm");
+  std::string name;
+  std::getline(in, name);
+  return "process " + std::to_string(pid) + " (" + (name.empty() ? std::string("no longer running") : name) + ")";
+}
+
 int count_lines(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   int n = 0;
@@ -373,26 +382,44 @@ bool TaskController::handle_command(const ipc::Command& cmd, ipc::CommandReporte
 std::string TaskController::set_state(const ipc::Command& c) {
   switch (static_cast<ipc::TaskState>(c.i[0])) {
     case ipc::TaskState::Estop:
-      enter_estop("E-stop by the operator");
+      enter_estop("E-stop by the operator (" + describe_process(c.client_pid) + ")");
       return {};
     case ipc::TaskState::EstopReset: {
       if (state_ != ipc::TaskState::Estop) return {};
+      if (motion_.servo_stalled()) return "cannot reset the E-stop: " + motion_.stall_reason();
       io_.set_user_enable(true, true);
       const int64_t deadline = monotonic_ns() + static_cast<int64_t>(io::IoConfig::from_ini(ini_).estop_reset_timeout_s * 1e9);
-      waiters_.push_back(Waiter{c, [this, c, deadline]() {
-                                  if (io_.estop_chain_closed()) {
-                                    state_ = ipc::TaskState::EstopReset;
-                                    reporter_->report(c, CommandState::Done);
-                                    return true;
-                                  }
-                                  if (monotonic_ns() > deadline) {
+      // The chain closes, then motion clears its E-stop latch (which it
+      // refuses while the chain is open): only then is the E-stop reset.
+      waiters_.push_back(Waiter{c, [this, c, deadline, serial = uint64_t{0}]() mutable {
+                                  const auto refuse = [&](std::string_view why) {
                                     io_.set_user_enable(false);
-                                    reporter_->report(c, CommandState::Rejected,
-                                                      "the E-stop chain did not close (iocontrol.0.emc-enable-in stayed "
-                                                      "false): check the E-stop buttons and the HAL E-stop loop");
+                                    reporter_->report(c, CommandState::Rejected, why);
                                     return true;
+                                  };
+                                  if (serial == 0) {
+                                    if (!io_.estop_chain_closed()) {
+                                      if (monotonic_ns() <= deadline) return false;
+                                      return refuse("the E-stop chain did not close (iocontrol.0.emc-enable-in stayed "
+                                                    "false): check the E-stop buttons and the HAL E-stop loop");
+                                    }
+                                    motion::MotionCommand reset;
+                                    reset.type = Cmd::EstopReset;
+                                    serial = send(reset);
+                                    if (serial == 0) return refuse("the motion command queue is full");
+                                    return false;
                                   }
-                                  return false;
+                                  if (!motion_answered(serial) || ms_.last_serial < serial) return false;
+                                  if (const motion::MotionResult* r = motion_result(serial); r && !r->accepted) {
+                                    return refuse(r->reason.view());
+                                  }
+                                  if (ms_.traj.estop_latched) {
+                                    return refuse(std::string("E-stop latched again (") +
+                                                  ipc::to_string(ms_.traj.estop_cause) + ") as it was reset");
+                                  }
+                                  state_ = ipc::TaskState::EstopReset;
+                                  reporter_->report(c, CommandState::Done);
+                                  return true;
                                 }});
       return {};
     }
@@ -1254,17 +1281,7 @@ void TaskController::update(int64_t now_ns) {
   ms_ = motion_.status();
   view_.position = waiting_synch_ ? view_.position : ms_.traj.position;
 
-  // Safety: an opened E-stop chain, a motion fault.
-  if (state_ != ipc::TaskState::Estop && !io_.estop_chain_closed()) {
-    messages_.post(MessageKind::Error, "iocontrol", "E-stop chain opened (iocontrol.0.emc-enable-in went false)");
-    enter_estop("E-stop chain opened");
-  }
-  if (state_ == ipc::TaskState::On && was_enabled_ && !ms_.traj.enabled) {
-    abort_all("motion was disabled by a fault", true);
-    state_ = ipc::TaskState::Off;
-    post(MessageKind::Text, "machine off: motion was disabled by a fault (see the error above)");
-  }
-  if (state_ == ipc::TaskState::On && ms_.traj.enabled) was_enabled_ = true;
+  check_safety(now_ns);
 
   // Program.
   if (interp_state_ != ipc::InterpState::Idle) {
@@ -1322,6 +1339,68 @@ void TaskController::update(int64_t now_ns) {
   if (program_started_ns_ && interp_state_ != ipc::InterpState::Idle) program_elapsed_ns_ = now_ns - program_started_ns_;
 }
 
+// Motion has already acted on an E-stop or a fault in the servo thread; the
+// task follows with its state, the program and the reason.
+void TaskController::check_safety(int64_t now_ns) {
+  if (state_ != ipc::TaskState::Estop) {
+    if (motion_.servo_stalled()) {
+      messages_.post(MessageKind::Error, "task", "E-stop: " + motion_.stall_reason());
+      enter_estop("E-stop: motion stopped running");
+    } else if (ms_.traj.estop_latched && ms_.traj.estop_cause == ipc::EstopCause::Request) {
+      enter_estop("E-stop requested by " + describe_process(ms_.traj.estop_pid));
+    } else if (ms_.traj.estop_latched || !io_.estop_chain_closed()) {
+      messages_.post(MessageKind::Error, "iocontrol", "E-stop chain opened (iocontrol.0.emc-enable-in went false)");
+      enter_estop("E-stop chain opened");
+    }
+  }
+  if (state_ == ipc::TaskState::On && was_enabled_ && !ms_.traj.enabled) {
+    FaultReport& f = fault_report_;
+    f = FaultReport{};
+    f.pending = true;
+    f.since_ns = now_ns;
+    f.program = interp_state_ != ipc::InterpState::Idle;
+    f.mdi = running_mdi_ || !mdi_queue_.empty();
+    f.line = f.program ? (ms_.traj.motion_line > 0 ? ms_.traj.motion_line : current_line_) : 0;
+    f.reason = ms_.fault_reason.empty() ? std::string("motion was disabled") : std::string(ms_.fault_reason.view());
+    f.joint = ms_.fault_joint;
+    f.spindle = ms_.fault_spindle;
+    if (f.program) ++errors_;  // the program did not end well
+    abort_all(f.reason, true);
+    state_ = ipc::TaskState::Off;
+    was_enabled_ = false;
+  }
+  if (state_ == ipc::TaskState::On && ms_.traj.enabled) was_enabled_ = true;
+  report_motion_fault(now_ns);
+}
+
+// Says why motion was disabled, with the drive layer's explanation (which
+// drive, which fault) when the fault is an amplifier's: that text comes
+// from the drive a few cycles later, so it is waited for a little.
+void TaskController::report_motion_fault(int64_t now_ns) {
+  FaultReport& f = fault_report_;
+  if (!f.pending) return;
+  std::string drives;
+  bool any_drive = false;
+  for (const ipc::DriveStatus& d : drives_) {
+    const bool concerned = d.present && ((f.joint >= 0 && d.joint == f.joint) || (f.spindle >= 0 && d.joint < 0));
+    if (!concerned) continue;
+    any_drive = true;
+    if (d.fault_text.empty()) continue;
+    drives += std::string("; drive ") + d.name.c_str() + ": " + d.fault_text.c_str();
+  }
+  constexpr int64_t kWaitForDriveNs = 250'000'000;
+  if (any_drive && drives.empty() && now_ns - f.since_ns < kWaitForDriveNs) return;
+  f.pending = false;
+  std::string text = f.reason + drives;
+  if (f.program) {
+    text = "program aborted" + (f.line > 0 ? " at line " + std::to_string(f.line) : std::string()) + ": " + text;
+  } else if (f.mdi) {
+    text = "MDI aborted: " + text;
+  }
+  messages_.post(MessageKind::Error, "task", text);
+  post(MessageKind::Text, "machine off: motion was disabled by a fault");
+}
+
 void TaskController::contribute_status(ipc::Status& s) {
   ipc::TaskStatus& t = s.task;
   t.available = true;
@@ -1357,6 +1436,9 @@ void TaskController::contribute_status(ipc::Status& s) {
   t.errors_since_start = errors_;
   t.run_from_line_pending = run_from_line_;
   t.run_from_line_start = run_from_start_;
+  // The drive layer contributed its panel before the task (lower service
+  // order): kept for naming a faulted drive in messages.
+  for (std::size_t i = 0; i < drives_.size(); ++i) drives_[i] = s.drives[i];
 }
 
 bool TaskController::is_safe_to_stop() const { return !ms_.traj.enabled; }

@@ -80,6 +80,10 @@ class TaskController : public ipc::ControllerService {
 
   void stop_motion();  // abort, disable, forget VOLATILE_HOME homes
   void enter_estop(const std::string& why);
+  // Catches up with what motion did on its own in the servo thread (an
+  // E-stop latch, a fault) and notices motion that stopped running.
+  void check_safety(int64_t now_ns);
+  void report_motion_fault(int64_t now_ns);
   void machine_off(const std::string& why);
   void abort_all(const std::string& why, bool quiet = false);
   void program_error(const std::string& what);
@@ -145,6 +149,19 @@ class TaskController : public ipc::ControllerService {
   int run_from_line_ = 0;
   Pose run_from_start_;
   bool was_enabled_ = false;
+  // A fault that disabled motion, said once the drive layer explained it
+  // (its fault text) or after a short wait.
+  struct FaultReport {
+    bool pending = false;
+    int64_t since_ns = 0;
+    bool program = false;      // a program was running
+    bool mdi = false;          // an MDI command was running
+    int line = 0;
+    std::string reason;        // motion's
+    int joint = -1, spindle = -1;
+  } fault_report_;
+  // The drive panel as last contributed to the status (drive names, fault texts).
+  std::array<ipc::DriveStatus, kMaxJoints + 1> drives_{};
 };
 
 }  // namespace cnc::task

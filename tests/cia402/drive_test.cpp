@@ -612,6 +612,24 @@ TEST(Cia402Drive, ALostDriveIsReported) {
   EXPECT_TRUE(rig.has_message("x-axis: lost the drive on canopen.0"));
 }
 
+// A drive that vanishes from the bus says so in its status: the task quotes
+// that text when motion stops on the drive's amp-fault. Not enabled, it is
+// not an amplifier fault yet (at the next enable it is waited for; it may
+// be booting again).
+TEST(Cia402Drive, ALostDriveSaysSoInItsFaultText) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  ASSERT_TRUE(rig.cycle_until([&] { return rig.fb().link_ok; }, 500));
+  rig.cycles(20);
+  EXPECT_STREQ(rig.group().drive(0).fault_text(), "");
+  EXPECT_EQ(rig.host().inject("drive 1 dead", 0, false), "");
+  ASSERT_TRUE(rig.cycle_until([&] { return !rig.fb().link_ok; }, 500));
+  rig.cycles(20);
+  EXPECT_STREQ(rig.group().drive(0).fault_text(),
+               "lost on canopen.0 (heartbeat lost, reset, or no longer operational)");
+  EXPECT_FALSE(rig.fb().amp_fault);
+}
+
 TEST(Cia402Drive, LostFramesAreRiddenThroughOrReported) {
   Rig rig(one_axis_ini());
   rig.configure();

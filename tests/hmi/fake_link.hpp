@@ -22,6 +22,8 @@ class FakeLink : public MachineLink {
   std::map<ipc::CommandType, std::pair<ipc::CommandState, std::string>> answers;
   std::vector<ipc::Command> sent;
   std::deque<Message> messages;
+  int estop_requests = 0;         // E-stops through the segment's word
+  ipc::Liveness live{};           // what liveness() reports
 
   FakeLink() {
     status.task.available = true;
@@ -83,6 +85,16 @@ class FakeLink : public MachineLink {
     messages.pop_front();
     return true;
   }
+
+  bool request_estop(std::string& why) override {
+    if (!connected) {
+      why = "controller not running (fake)";
+      return false;
+    }
+    ++estop_requests;
+    return true;
+  }
+  ipc::Liveness liveness(const ipc::Status&) override { return live; }
 
   // Finishes a command left Executing/None.
   void answer(uint32_t serial, ipc::CommandState state, const std::string& reason = {}) {

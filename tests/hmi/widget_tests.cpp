@@ -217,6 +217,31 @@ class WidgetTests : public QObject {
     r.tick();
     QTest::mouseClick(r.find<QPushButton>("estopButton"), Qt::LeftButton);
     QCOMPARE(r.link->sent.back().i[0], 1);
+    QCOMPARE(r.link->estop_requests, 1);  // through the E-stop word first
+  }
+  // E-stop needs neither a command channel nor the task: the word is set
+  // even when the command cannot be sent; a frozen status is shown as such.
+  void estop_without_a_channel_and_a_stale_status_warning() {
+    Rig r;
+    r.link->set_on();
+    r.tick();
+    QVERIFY(!r.find<QLabel>("staleLabel")->isVisible());
+    r.link->accept_sends = false;  // every channel taken
+    QTest::mouseClick(r.find<QPushButton>("estopButton"), Qt::LeftButton);
+    QCOMPARE(r.link->estop_requests, 1);
+    r.w->activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(r.w.get()));
+    QTest::keyPress(r.w.get(), Qt::Key_F1);
+    QCOMPARE(r.link->estop_requests, 2);
+    r.link->live.task_stalled = true;
+    r.link->live.status_age_ns = 2'300'000'000;
+    r.tick();
+    QVERIFY(r.find<QLabel>("staleLabel")->isVisible());
+    QVERIFY(r.find<QLabel>("staleLabel")->text().contains("TASK STALLED 2.3 s"));
+    QVERIFY(r.find<QLabel>("staleLabel")->text().contains("E-STOP still works"));
+    r.link->live = {};
+    r.tick();
+    QVERIFY(!r.find<QLabel>("staleLabel")->isVisible());
   }
   void keyboard_jog_and_its_safety_rules() {
     Rig r;

@@ -1,4 +1,5 @@
 #include <gtest/gtest.h>
+#include <grp.h>
 #include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/wait.h>
@@ -33,20 +34,32 @@ TEST(Segment, ClientWithoutControllerSeesNotRunning) {
   EXPECT_EQ(error_of([&] { Client c(inst); }), "controller not running (instance \"" + inst + "\")");
 }
 
-TEST(Segment, SegmentIsCreatedMode0660AndRemovedOnExit) {
+// The owner's alone by default; group-readable and -writable, owned by the
+// group, with a trusted group (docs/security.md).
+TEST(Segment, SegmentIsCreatedForItsOwnerOrTheTrustedGroupAndRemovedOnExit) {
   const auto inst = cnc::testing::unique_name("mode");
   {
     ::umask(022);
     Server s(inst);
     struct stat st {};
     ASSERT_EQ(::stat(("/dev/shm/cnc-" + inst).c_str(), &st), 0);
-    EXPECT_EQ(st.st_mode & 0777, 0660u);
+    EXPECT_EQ(st.st_mode & 0777, 0600u);
     Client c(inst);
     EXPECT_TRUE(c.controller_alive());
   }
   struct stat st {};
   EXPECT_NE(::stat(("/dev/shm/cnc-" + inst).c_str(), &st), 0);
   EXPECT_NE(::stat(lock_path(inst).c_str(), &st), 0);
+  {
+    // A group the current user belongs to: its primary group.
+    ::group* g = ::getgrgid(::getegid());
+    ASSERT_NE(g, nullptr);
+    Server s(inst, cnc::ipc::AccessPolicy::for_current_user(g->gr_name));
+    ASSERT_EQ(::stat(("/dev/shm/cnc-" + inst).c_str(), &st), 0);
+    EXPECT_EQ(st.st_mode & 0777, 0660u);
+    EXPECT_EQ(st.st_gid, ::getegid());
+  }
+  EXPECT_THROW(cnc::ipc::AccessPolicy::for_current_user("no-such-group-here"), std::runtime_error);
 }
 
 TEST(Segment, SecondControllerOnTheSameInstanceIsRefused) {

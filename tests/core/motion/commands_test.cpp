@@ -186,23 +186,6 @@ TEST(MotionJointActivation, DeactivatedJointsKeepTheirAmplifierOnEnable) {
   EXPECT_STREQ(m.send(Cmd::ActivateJoint, -1).reason.c_str(), "no joint -1");
 }
 
-TEST(MotionWatchdog, HeartbeatTogglesOnlyWhileEnabled) {
-  Machine m;
-  m.step(3);
-  EXPECT_FALSE(m.out().watchdog);
-  m.accept(Cmd::EnableWatchdog);
-  bool seen_true = false, seen_false = false;
-  for (int i = 0; i < 4; ++i) {
-    m.step();
-    (m.out().watchdog ? seen_true : seen_false) = true;
-  }
-  EXPECT_TRUE(seen_true && seen_false) << "the pin changes every cycle";
-  EXPECT_TRUE(m.status().traj.watchdog_enabled);
-  m.accept(Cmd::DisableWatchdog);
-  m.step(3);
-  EXPECT_FALSE(m.out().watchdog);
-}
-
 TEST(MotionPause, PauseDeceleratesResumeContinuesStepRunsOneSegment) {
   Machine m;
   m.enable_home_coord();

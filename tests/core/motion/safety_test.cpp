@@ -46,7 +46,7 @@ TEST(MotionSafety, AmplifierFaultDisablesMotion) {
   m.sims[2].amp_fault = true;
   m.step(2);
   EXPECT_FALSE(m.out().motion_enabled);
-  EXPECT_NE(m.all_errors().find("joint 2 amplifier fault: motion disabled"), std::string::npos);
+  EXPECT_NE(m.all_errors().find("joint 2 amplifier fault (joint.2.amp-fault-in): motion disabled"), std::string::npos);
   EXPECT_TRUE(m.joint(2).faulted);
 }
 
@@ -83,7 +83,6 @@ TEST(MotionRealtime, ServoPathAllocatesNothingInAnyMode) {
   m.sims[0].index_spacing = 5;
   cnc::testing::ScopedAllocationCheck check;
   m.accept(Cmd::Enable);
-  m.accept(Cmd::EnableWatchdog);
   m.accept(Cmd::Home, 0);
   m.run_until([&] { return m.status().joints[0].homed; }, 200000);
   m.accept(Cmd::Home, 1);

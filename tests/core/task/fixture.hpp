@@ -65,6 +65,9 @@ class TaskMachine {
     motion_ = hal_.find<motion::MotionComponent>("motmod");
     io_ = hal_.find<io::IoController>("iocontrol");
     task_ = std::make_unique<task::TaskController>(ini_, hal_, *motion_, *io_, messages);
+    // As the daemon wires them: the E-stop words (here not in a segment)
+    // and the E-stop chain.
+    motion_->set_estop_inputs(&estop, io_->estop_chain_pin());
     thread_ = hal_.find_thread("servo-thread");
     info_.period_ns = info_.actual_period_ns = 1'000'000;
   }
@@ -79,9 +82,21 @@ class TaskMachine {
     for (int i = 0; i < n; ++i) {
       thread_->run_cycle(info_);
       ++info_.cycle;
-      const int64_t now = monotonic_ns();
-      io_->update(now);
-      task_->update(now);
+      task_cycle();
+    }
+  }
+  // One task cycle without a servo cycle; the services in the daemon's order.
+  void task_cycle() {
+    const int64_t now = monotonic_ns();
+    motion_->update(now);
+    io_->update(now);
+    task_->update(now);
+  }
+  // Servo cycles only: the task cycle stalls meanwhile.
+  void servo_only(int n = 1) {
+    for (int i = 0; i < n; ++i) {
+      thread_->run_cycle(info_);
+      ++info_.cycle;
     }
   }
   template <class Pred>
@@ -161,6 +176,7 @@ class TaskMachine {
   motion::MotionComponent& motion() { return *motion_; }
 
   TempDir dir;
+  ipc::EstopWords estop;
   MessageQueue messages;
   Reporter reporter;
   std::string log;
