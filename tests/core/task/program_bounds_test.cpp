@@ -126,12 +126,29 @@ TEST(TaskInterpBounds, RunFromLineAndItsPreviewReadALongComputationAcrossTaskCyc
   m.power_up_and_home();
   m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
   m.ok(m.open("long.ngc", kLong), "open");
+  // Both commands are answered after the cycles that read the 400000
+  // lines, not within the cycle that took them.
+  const auto answered_after = [&](cnc::ipc::Command c) {
+    c.serial = 90000 + static_cast<uint32_t>(c.type);
+    EXPECT_TRUE(m.task().handle_command(c, m.reporter));
+    EXPECT_EQ(m.reporter.last[c.serial].first, CommandState::Executing);
+    int cycles = 0;
+    while (m.reporter.last[c.serial].first == CommandState::Executing && cycles < 100000) {
+      m.step();
+      ++cycles;
+    }
+    EXPECT_EQ(m.reporter.last[c.serial].first, CommandState::Done) << m.reporter.last[c.serial].second;
+    return cycles;
+  };
   cnc::ipc::Command preview;
   preview.type = CommandType::TaskPlanRunPreview;
   preview.i[0] = 5;
-  m.ok(m.send(preview), "preview");
+  EXPECT_GE(answered_after(preview), 2);
   EXPECT_NEAR(m.status().task.run_from_line_start[0], 20, 1e-9);
-  m.ok(m.send(CommandType::TaskPlanRun, 5), "run from line 5");
+  cnc::ipc::Command run;
+  run.type = CommandType::TaskPlanRun;
+  run.i[0] = 5;
+  EXPECT_GE(answered_after(run), 2);
   ASSERT_TRUE(m.run_until([&] { return !m.program_running(); }, 200000)) << m.errors();
   EXPECT_EQ(m.errors(), "");
   EXPECT_NEAR(m.status().motion.position[0], 20, 1e-9);
