@@ -113,7 +113,6 @@ struct TaskController::Reconstruction {
 
 // Run-from-line preview: a scratch interpreter stepped within the budget.
 struct TaskController::PreviewJob {
-  ipc::Command cmd;
   int line = 0;
   std::deque<Item> items;
   MachineView view;
