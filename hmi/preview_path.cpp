@@ -366,6 +366,7 @@ PreviewResult build_preview(const PreviewInput& in, const std::atomic<bool>* can
           it.synch();
           continue;
         }
+        if (rs == interp::Status::Yield) continue;  // a long computation: the cancel flag is seen meanwhile
         if (rs == interp::Status::ProgramEnd || rs == interp::Status::EndOfFile) break;
         ++r.blocks;
         const interp::Status es = it.execute();

@@ -75,6 +75,7 @@ V2 arc_tangent(V2 center, V2 p, int rotation) {
 }  // namespace
 
 void Interpreter::State::comp_emit(const CompMove& m) {
+  queueing.count_output();
   Canon& out = queueing.real();
   if (m.kind == CompMove::Traverse) {
     out.straight_traverse(m.line, m.end);
@@ -106,7 +107,10 @@ CompMove* Interpreter::State::held_move() {
   return nullptr;
 }
 
-void Interpreter::State::hold_move(const CompMove& m) { queueing.queue().push_back(QueuedCall{true, m, {}}); }
+void Interpreter::State::hold_move(const CompMove& m) {
+  queueing.count_output();
+  queueing.queue().push_back(QueuedCall{true, m, {}});
+}
 
 void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
   int a1, a2, a3;

@@ -22,8 +22,9 @@ void Interpreter::State::open_file(const std::string& path) {
   SourceFile f;
   try {
     f.reader = std::make_unique<LineReader>(path);
-  } catch (const std::exception&) {
-    fail("Unable to open file <" + path + ">");
+  } catch (const InterpError& e) {
+    // LinuxCNC's wording, and why (missing, a FIFO, a directory, ...).
+    fail("Unable to open file <" + path + ">: " + e.message());
   }
   f.path = path;
   push_source(std::move(f));
@@ -98,21 +99,40 @@ std::optional<std::string> Interpreter::State::find_sub_file(const std::string& 
   for (const auto& d : dirs) {
     for (const std::string& n : {name + ".ngc", name + ".NGC"}) {
       const auto p = d.empty() ? std::filesystem::path(n) : d / n;
+      // Whatever exists under the name is taken: a FIFO or a folder there
+      // is refused by open_file() with the reason, not silently passed over.
       std::error_code ec;
-      if (std::filesystem::is_regular_file(p, ec)) return p.string();
+      if (std::filesystem::exists(p, ec)) return p.string();
     }
   }
   return std::nullopt;
 }
 
-bool Interpreter::State::read_block() {
+void Interpreter::State::count_line() {
+  ++lines_this_read;
+  const uint64_t outputs = queueing.outputs();
+  if (outputs != outputs_seen) {
+    outputs_seen = outputs;
+    lines_without_output = 0;
+  }
+  if (++lines_without_output > config.max_blocks_without_output) {
+    const std::string n = std::to_string(config.max_blocks_without_output);
+    fail(n + " blocks in a row without machine output (motion, dwell, spindle, coolant, tool, output or input "
+             "wait): an endless loop? ([RS274NGC]MAX_BLOCKS_WITHOUT_OUTPUT = " + n + ")");
+  }
+}
+
+ReadResult Interpreter::State::read_block() {
   std::string_view raw;
   for (;;) {
+    // Back to the caller between two lines once this call has read its
+    // share; everything needed to go on is in the state.
+    if (lines_this_read >= config.lines_per_read) return ReadResult::Yield;
     if (!next_raw_line(raw)) {
-      if (files.empty()) return false;
+      if (files.empty()) return ReadResult::End;
       if (files.size() > 1 && files.back().path == "<mdi>") {
         pop_source();
-        return false;
+        return ReadResult::End;
       }
       if (skipping) {
         line_text.clear();
@@ -121,12 +141,13 @@ bool Interpreter::State::read_block() {
       }
       if (files.back().path == "<mdi>") {
         pop_source();
-        return false;
+        return ReadResult::End;
       }
       if (frames.size() > 1) fail("File ended with no percent sign or program end");
       fail(percent_seen ? "File ended with no percent sign" : "File ended with no percent sign or program end");
     }
     line_text.assign(raw);
+    count_line();
     const bool at_top = files.size() == 1 && files.back().path != "<mdi>";
     if (first_line && at_top) {
       first_line = false;
@@ -138,7 +159,7 @@ bool Interpreter::State::read_block() {
       program_ended = true;
       canon.begin_block(current_line, -1, {});
       canon.finish();
-      return false;
+      return ReadResult::End;
     }
     if (skipping) {
       if (!skip_line_matches(raw)) continue;
@@ -170,7 +191,7 @@ bool Interpreter::State::read_block() {
       for (int g : block.g) any_g = any_g || g != -1;
       if (!any_g) continue;
     }
-    return true;
+    return ReadResult::Block;
   }
 }
 
@@ -415,7 +436,13 @@ void Interpreter::State::do_call() {
         if (!program_path.empty() && shown == program_path) shown = program_display_name;
         fail("EOF in file:" + shown + " seeking o-word: o<" + label + "> from line: " + std::to_string(saved_line));
       }
-      LineReader fr(*path);
+      std::unique_ptr<LineReader> opened;
+      try {
+        opened = std::make_unique<LineReader>(*path);
+      } catch (const InterpError& e) {
+        fail("Unable to open file <" + *path + ">: " + e.message());
+      }
+      LineReader& fr = *opened;
       while (fr.next(raw)) {
         if (skip_line_matches_sub(raw, label)) {
           subs[label] = SubDef{*path, fr.offset(), fr.line_number()};

@@ -11,6 +11,10 @@
 
 namespace cnc::interp {
 
+// What read_block() found: a block to execute, the end of the input, or
+// nothing yet after Config::lines_per_read lines.
+enum class ReadResult : uint8_t { Block, End, Yield };
+
 struct Interpreter::State {
   State(Canon& c, Config cfg);
 
@@ -41,6 +45,19 @@ struct Interpreter::State {
   int64_t line_offset = 0;  // offset of the line being read
   std::size_t o_args_pos = 0;  // where an O-word's condition/arguments start in norm
   std::string current_file;
+
+  // ---------------- bounded work
+  int lines_this_read = 0;           // lines read by this read() call
+  int64_t lines_without_output = 0;  // lines read since machine output or synch()
+  uint64_t outputs_seen = 0;         // queueing.outputs() when last compared
+  // Counts the line just read; fails past config.max_blocks_without_output.
+  void count_line();
+  // The machine was waited for (synch), or a new program or MDI command
+  // starts: the count of lines without output starts again.
+  void machine_waited() noexcept {
+    lines_without_output = 0;
+    outputs_seen = queueing.outputs();
+  }
 
   // ---------------- the block
   Block block;
@@ -109,7 +126,7 @@ struct Interpreter::State {
   ModalSnapshot saved_m70;  // M70
 
   // ---------------- read.cpp
-  bool read_block();  // false at end of input
+  ReadResult read_block();
   bool next_raw_line(std::string_view& text);
   void parse_line(std::string_view raw);
   void normalize(std::string_view raw);

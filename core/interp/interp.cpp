@@ -20,6 +20,7 @@ const char* to_string(Status s) noexcept {
     case Status::SynchRequired: return "synch-required";
     case Status::ProgramEnd: return "program-end";
     case Status::EndOfFile: return "end-of-file";
+    case Status::Yield: return "yield";
   }
   return "?";
 }
@@ -62,6 +63,8 @@ Config Config::from_ini(const cnc::ini::IniFile& ini) {
       ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_INCH", c.center_arc_radius_tolerance_inch, {0, 1});
   c.center_arc_radius_tolerance_mm =
       ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_MM", c.center_arc_radius_tolerance_mm, {0, 25});
+  c.max_blocks_without_output =
+      ini.get_int("RS274NGC", "MAX_BLOCKS_WITHOUT_OUTPUT", c.max_blocks_without_output, {10, 1e12});
   if (const auto v = ini.find("TRAJ", "COORDINATES")) {
     unsigned mask = 0;
     for (char ch : *v) {
@@ -104,6 +107,7 @@ void Interpreter::init() {
 
 void Interpreter::reset() {
   State& s = *s_;
+  s.machine_waited();
   s.files.clear();
   s.subs.clear();
   s.program_path.clear();
@@ -128,6 +132,7 @@ void Interpreter::open(const std::filesystem::path& program) {
   s.line_text.clear();
   s.program_path = program.string();
   s.program_display_name = program.string();
+  s.machine_waited();
   s.open_file(program.string());
   // As LinuxCNC: leading blank lines are skipped looking for a '%' line; a
   // file with nothing else cannot be opened.
@@ -195,13 +200,14 @@ Status Interpreter::read() {
     if (s.program_ended) return Status::ProgramEnd;
     throw InterpError("File not open", "", 0, "");
   }
-  if (!s.read_block()) {
-    s.block_ready = false;
-    if (s.program_ended) return Status::ProgramEnd;
-    return Status::EndOfFile;
+  s.block_ready = false;
+  s.lines_this_read = 0;
+  switch (s.read_block()) {
+    case ReadResult::Block: s.block_ready = true; return Status::Ok;
+    case ReadResult::Yield: return Status::Yield;
+    case ReadResult::End: break;
   }
-  s.block_ready = true;
-  return Status::Ok;
+  return s.program_ended ? Status::ProgramEnd : Status::EndOfFile;
 }
 
 Status Interpreter::read(std::string_view mdi_line) {
@@ -212,12 +218,15 @@ Status Interpreter::read(std::string_view mdi_line) {
   f.path = "<mdi>";
   s.push_source(std::move(f));
   s.first_line = false;
-  if (!s.read_block()) {
-    s.block_ready = false;
-    return Status::EndOfFile;
+  s.machine_waited();  // a new command: its own count of lines without output
+  s.block_ready = false;
+  s.lines_this_read = 0;
+  switch (s.read_block()) {
+    case ReadResult::Block: s.block_ready = true; return Status::Ok;
+    case ReadResult::Yield: return Status::Yield;
+    case ReadResult::End: break;
   }
-  s.block_ready = true;
-  return Status::Ok;
+  return Status::EndOfFile;
 }
 
 Status Interpreter::execute() {
@@ -239,7 +248,12 @@ Status Interpreter::execute(std::string_view mdi_line) {
   const std::size_t depth = s.files.size();
   Status st = read(mdi_line);
   Status last = Status::Ok;
-  while (st == Status::Ok) {
+  for (;;) {
+    if (st == Status::Yield) {
+      st = read();
+      continue;
+    }
+    if (st != Status::Ok) break;
     last = execute();
     if (last == Status::ExecuteFinish) synch();
     if (last == Status::ProgramEnd) return last;
@@ -263,6 +277,7 @@ void Interpreter::synch() {
   }
   s.params[5399] = s.canon.input_value();
   s.synch_pending = false;
+  s.machine_waited();
 }
 
 bool Interpreter::is_synch_pending() const noexcept { return s_->synch_pending; }
@@ -274,6 +289,7 @@ Status Interpreter::run_to_end() {
       synch();
       continue;
     }
+    if (st == Status::Yield) continue;
     if (st != Status::Ok) return st;
     st = execute();
     if (st == Status::ExecuteFinish) synch();

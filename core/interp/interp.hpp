@@ -10,6 +10,14 @@
 // read(); until it does, read() returns Status::SynchRequired and reads
 // nothing. synch() re-reads position, probe result, input value and the tool
 // table through the Canon queries.
+//
+// Bounded work: one read() reads at most Config::lines_per_read lines; when
+// they were all O-word flow, assignments, comments or skipped lines it
+// returns Status::Yield and the caller calls read() again when it likes (the
+// task controller in its next cycle). More than
+// Config::max_blocks_without_output lines in a row without machine output is
+// an error naming the file and line (an endless loop), counted in lines so
+// that the outcome never depends on the speed of the computer.
 #pragma once
 
 #include <filesystem>
@@ -48,7 +56,8 @@ enum class Status {
   ExecuteFinish,  // executed; machine must finish, then synch() before read()
   SynchRequired,  // read() refused: call synch() first
   ProgramEnd,     // M2/M30 executed, or end of file after %
-  EndOfFile,      // no more blocks (file ended without M2/% )
+  EndOfFile,      // no more blocks (file ended without M2/% ); for MDI: the line is done
+  Yield,          // read() read lines_per_read lines and no block yet: call read() again
 };
 const char* to_string(Status s) noexcept;
 
@@ -83,6 +92,15 @@ struct Config {
   // The informational COMMENT calls LinuxCNC emits ("interpreter: feed mode
   // set to ...", "... cutter radius compensation on left", ...).
   bool linuxcnc_comments = true;
+  // [RS274NGC]MAX_BLOCKS_WITHOUT_OUTPUT: lines read in a row (O-word flow,
+  // assignments, comments, lines skipped by if/while, subroutine lines)
+  // without any machine output (motion, dwell, spindle, coolant, tool,
+  // digital/analog output, input wait, stop, user M code) or synch(); one
+  // more is the error "... an endless loop?" naming the file and line.
+  int64_t max_blocks_without_output = 10'000'000;
+  // Lines one read() call reads at most before it returns Status::Yield
+  // (not an INI key: it bounds the work per call, not what a program may do).
+  int lines_per_read = 256;
 
   // Fills the fields above from [RS274NGC], [EMCIO] and [TRAJ].
   static Config from_ini(const cnc::ini::IniFile& ini);
@@ -112,21 +130,29 @@ class Interpreter {
   bool is_open() const noexcept;
 
   // Reads the next block of the open program (with O-word flow). Ok: a
-  // block is ready for execute(). Throws InterpError.
+  // block is ready for execute(); Yield: lines_per_read lines were read
+  // without finding one, call read() again. Throws InterpError.
   Status read();
-  // Reads an MDI line instead of the program.
+  // Starts reading an MDI line instead of the program (the line is read
+  // from a source above the program). Ok: a block is ready; Yield: call
+  // read(). Later read() calls go on with the line and any subroutine it
+  // called, stepwise like a program, until they return EndOfFile (or
+  // ProgramEnd): the MDI line is done.
   Status read(std::string_view mdi_line);
   // Executes the block last read. Throws InterpError.
   Status execute();
-  // read(line) then execute() (and whatever subroutine it calls).
+  // read(line) then execute() and whatever subroutine it calls, to the end,
+  // synchronising at once at synch points (start-up code, offset lines,
+  // tools and tests; the task controller reads MDI stepwise instead).
   Status execute(std::string_view mdi_line);
   // Re-reads the machine state after the machine caught up.
   void synch();
   bool is_synch_pending() const noexcept;
 
   // Runs the whole open program to the end, calling synch() at every
-  // synch point (for tools, tests and benchmarks where the Canon answers at
-  // once). Returns ProgramEnd or EndOfFile.
+  // synch point and reading on after every Yield (for tools, tests and
+  // benchmarks where the Canon answers at once). Returns ProgramEnd or
+  // EndOfFile.
   Status run_to_end();
 
   // Writes the persistent parameters to the parameter file (atomically).

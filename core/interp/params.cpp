@@ -39,29 +39,33 @@ void Interpreter::State::init_parameters() {
 
 void Interpreter::State::load_parameter_file() {
   if (config.parameter_file.empty()) return;
-  std::string text;
-  try {
-    text = cnc::read_file(config.parameter_file);
-  } catch (const std::exception&) {
-    return;  // a missing file starts from zeros and is created on save
-  }
   const std::string file = config.parameter_file.string();
-  std::istringstream in(text);
-  std::string line;
-  int line_no = 0;
+  std::error_code ec;
+  if (!std::filesystem::exists(config.parameter_file, ec)) return;  // starts from zeros; created on save
+  // A regular file only (a FIFO would block, /dev/zero never end), read
+  // line by line with the interpreter's line length limit.
+  std::unique_ptr<LineReader> reader;
+  try {
+    reader = std::make_unique<LineReader>(file);
+  } catch (const InterpError& e) {
+    throw InterpError("Unable to open parameter file: " + e.message(), file, 0, "");
+  }
+  std::string_view line;
   int last = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
+  while (reader->next(line)) {
+    const int line_no = reader->line_number();
     const std::string_view t = cnc::trim(line);
     if (t.empty() || t[0] == '#' || t[0] == ';') continue;
     const auto words = cnc::split_blanks(t);
     const auto index = cnc::parse_int(words[0]);
     const auto value = words.size() >= 2 ? cnc::parse_double(words[1]) : std::nullopt;
     if (!index || !value || words.size() > 2) {
-      throw InterpError("Bad line in parameter file, expected '<number> <value>'", file, line_no, line);
+      throw InterpError("Bad line in parameter file, expected '<number> <value>'", file, line_no, std::string(line));
     }
-    if (*index < 1 || *index >= kMaxParameters) throw InterpError("Parameter number out of range", file, line_no, line);
-    if (*index <= last) throw InterpError("Parameter file out of order", file, line_no, line);
+    if (*index < 1 || *index >= kMaxParameters) {
+      throw InterpError("Parameter number out of range", file, line_no, std::string(line));
+    }
+    if (*index <= last) throw InterpError("Parameter file out of order", file, line_no, std::string(line));
     last = static_cast<int>(*index);
     params[static_cast<std::size_t>(*index)] = *value;
     persistent[static_cast<std::size_t>(*index)] = true;

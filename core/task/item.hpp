@@ -24,7 +24,7 @@ struct Item {
     Message,       // (MSG,...): text
     WaitInput,     // M66: i0 = index, i1 = digital, i2 = wait type, d0 = timeout
     UserMCode,     // M100-M199: i0 = code, d0 = P, d1 = Q
-    ProgramStop,   // M0 / M60
+    ProgramStop,   // M0 / M60 (pauses)
     OptionalStop,  // M1
     ProgramEnd,    // M2 / M30
     StepMark,      // end of a block in single-block mode

@@ -120,7 +120,10 @@ class TaskCanon : public interp::Canon {
   void print(std::string_view text) override;
   void program_stop() override { simple(Item::Kind::ProgramStop, 0); }
   void optional_program_stop() override { simple(Item::Kind::OptionalStop, 0); }
-  void pallet_shuttle() override { simple(Item::Kind::ProgramStop, 0); }
+  // No pallet changer: nothing to do, as LinuxCNC's emccanon. M60's pause
+  // is the program_stop() the interpreter calls after it; M30 ends the
+  // program like M2.
+  void pallet_shuttle() override {}
   void program_end() override { simple(Item::Kind::ProgramEnd, 0); }
   void user_m_code(int code, double p, double q) override;
 

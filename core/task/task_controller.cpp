@@ -4,11 +4,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 
 #include "core/ini/ini_file.hpp"
+#include "core/interp/line_reader.hpp"
 #include "core/motion/params.hpp"
 #include "core/util/strings.hpp"
 #include "core/util/time.hpp"
@@ -75,17 +77,58 @@ std::string describe_process(int32_t pid) {
   return "process " + std::to_string(pid) + " (" + (name.empty() ? std::string("no longer running") : name) + ")";
 }
 
+// Lines of a program the interpreter has just opened (for the status);
+// a regular file only, like everything the interpreter reads.
 int count_lines(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
+  int fd = -1;
+  try {
+    fd = interp::open_regular_file(path);
+  } catch (const interp::InterpError&) {
+    return 0;  // replaced since the interpreter opened it: the count is not known
+  }
   int n = 0;
   char buf[65536];
-  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
-    for (std::streamsize i = 0; i < in.gcount(); ++i) n += buf[i] == '\n' ? 1 : 0;
+  for (;;) {
+    const ssize_t got = ::read(fd, buf, sizeof buf);
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) break;
+    for (ssize_t i = 0; i < got; ++i) n += buf[i] == '\n' ? 1 : 0;
   }
+  ::close(fd);
   return n;
 }
 
+// Reading and executing per task cycle, in the program, MDI, run from line
+// and its preview.
+constexpr int64_t kReadBudgetNs = 2'000'000;
+
+// An interpreter error as the message channel shows it: file:line: text,
+// without the file for an MDI line.
+std::string describe(const interp::InterpError& e) {
+  if (e.file().empty() || e.file() == "<mdi>") return e.message();
+  return e.file() + ":" + std::to_string(e.line()) + ": " + e.message();
+}
+
 }  // namespace
+
+// Run from line in progress: what the lines before the target left behind.
+struct TaskController::Reconstruction {
+  int line = 0;
+  bool done = false;
+  std::string error;  // empty: done and running
+  std::deque<Item> kept;
+  Item spindle, flood, mist, tool_change, tool_offset;
+  bool have_spindle = false, have_flood = false, have_mist = false, have_tool = false, have_offset = false;
+};
+
+// Run-from-line preview: a scratch interpreter stepped within the budget.
+struct TaskController::PreviewJob {
+  int line = 0;
+  std::deque<Item> items;
+  MachineView view;
+  std::unique_ptr<TaskCanon> canon;
+  std::unique_ptr<interp::Interpreter> interp;
+};
 
 TaskController::TaskController(const ini::IniFile& ini, hal::Hal& hal, motion::MotionComponent& motion,
                                io::IoController& io, MessageQueue& messages)
@@ -102,8 +145,10 @@ TaskController::TaskController(const ini::IniFile& ini, hal::Hal& hal, motion::M
   try {
     interp_->init();
   } catch (const interp::InterpError& e) {
+    const bool params = !interp_config_.parameter_file.empty() && e.file() == interp_config_.parameter_file.string();
     throw ConfigError(e.file().empty() ? ini.path().string() : e.file(), e.line(),
-                      "[RS274NGC]RS274NGC_STARTUP_CODE: " + e.message());
+                      std::string(params ? "[RS274NGC]PARAMETER_FILE: " : "[RS274NGC]RS274NGC_STARTUP_CODE: ") +
+                          e.message());
   }
   items_.clear();
   canon_->set_end_position(ms_.traj.position);
@@ -214,7 +259,7 @@ bool TaskController::handle_command(const ipc::Command& cmd, ipc::CommandReporte
     case CommandType::TaskPlanRun: why = program_run(cmd); break;
     case CommandType::TaskPlanRunPreview:
       if (!idle) why = "a program or MDI is running";
-      else why = run_from_line_preview(cmd.i[0]);
+      else why = run_from_line_preview(cmd);
       break;
     case CommandType::TaskPlanPause:
       if (interp_state_ == ipc::InterpState::Idle && !running_mdi_) why = "nothing is running to pause";
@@ -651,12 +696,17 @@ std::string TaskController::tool_command(const ipc::Command& c) {
 }
 
 std::string TaskController::program_open(const std::string& path) {
-  std::ifstream probe(path);
-  if (!probe) return "cannot read program " + path;
+  // A regular file only: a FIFO, a device or a folder is refused here
+  // without blocking (the interpreter checks the same when it opens it).
+  try {
+    ::close(interp::open_regular_file(path));
+  } catch (const interp::InterpError& e) {
+    return "cannot read program " + path + ": " + e.message();
+  }
   try {
     interp_->open(path);
   } catch (const interp::InterpError& e) {
-    return e.file() + ":" + std::to_string(e.line()) + ": " + e.message();
+    return describe(e);
   }
   file_ = path;
   total_lines_ = count_lines(path);
@@ -703,79 +753,100 @@ std::string TaskController::program_run(const ipc::Command& c) {
   interp_state_ = ipc::InterpState::Reading;
   const int start = c.i[0];
   if (start > 1) {
-    reconstruct_until(start);
-    if (interp_state_ == ipc::InterpState::Idle) return "run from line " + std::to_string(start) + " failed (see the error messages)";
+    // Reconstructed stepwise in the task cycles that follow (the lines
+    // before may be many, or loop); the command is answered when it is done.
+    reconstruct_ = std::make_shared<Reconstruction>();
+    reconstruct_->line = start;
+    waiters_.push_back(Waiter{c, [this, c, r = reconstruct_]() {
+                                if (!r->done) return false;
+                                if (r->error.empty()) reporter_->report(c, CommandState::Done);
+                                else reporter_->report(c, CommandState::Rejected, r->error);
+                                return true;
+                              }});
   }
   post(MessageKind::Text, "running " + file_ + (start > 1 ? " from line " + std::to_string(start) : ""));
   return {};
 }
 
-// Executes the lines before `line` with motion suppressed, then queues what
-// restores the machine state there: tool, offsets, spindle, coolant, and an
-// approach (up, over, down) to where the program would be.
-void TaskController::reconstruct_until(int line) {
-  std::deque<Item> kept;
-  int spindle_item = -1;
-  Item flood, mist, tool_change, tool_offset;
-  bool have_flood = false, have_mist = false, have_tool = false, have_offset = false;
-  Item spindle;
+bool TaskController::reconstruct_step(int64_t deadline) {
+  Reconstruction& r = *reconstruct_;
   try {
     for (;;) {
       const interp::Status rs = interp_->read();
+      if (rs == interp::Status::Yield) {
+        if (monotonic_ns() > deadline) return false;
+        continue;
+      }
       if (rs == interp::Status::SynchRequired) {
         canon_->set_end_position(canon_->end_position());
         interp_->synch();
         continue;
       }
       if (rs == interp::Status::ProgramEnd || rs == interp::Status::EndOfFile) {
-        program_error("run from line " + std::to_string(line) + ": the program ends before that line");
-        return;
+        reconstruction_failed("run from line " + std::to_string(r.line) + ": the program ends before that line");
+        return false;
       }
-      if (interp_->line() >= line) break;
+      if (interp_->line() >= r.line) break;
       interp_->execute();
       for (Item& it : items_) {
         switch (it.kind) {
           case Item::Kind::MotionAtRest:
             if (it.motion.type == Cmd::SetSpindle) {
-              spindle = it;
-              spindle_item = 1;
+              r.spindle = it;
+              r.have_spindle = true;
             } else {
-              kept.push_back(it);  // override enables
+              r.kept.push_back(it);  // override enables
             }
             break;
           case Item::Kind::Motion:
             if (it.motion.type == Cmd::SetToolOffset) {
-              tool_offset = it;
-              have_offset = true;
+              r.tool_offset = it;
+              r.have_offset = true;
             }
             break;
-          case Item::Kind::Flood: flood = it; have_flood = true; break;
-          case Item::Kind::Mist: mist = it; have_mist = true; break;
+          case Item::Kind::Flood: r.flood = it; r.have_flood = true; break;
+          case Item::Kind::Mist: r.mist = it; r.have_mist = true; break;
           case Item::Kind::ToolChange:
-          case Item::Kind::ToolNumber: tool_change = it; have_tool = true; break;
-          case Item::Kind::ToolSetEntry: kept.push_back(it); break;
+          case Item::Kind::ToolNumber: r.tool_change = it; r.have_tool = true; break;
+          case Item::Kind::ToolSetEntry: r.kept.push_back(it); break;
           default: break;
         }
       }
       items_.clear();
       if (interp_->is_synch_pending()) interp_->synch();
+      if (monotonic_ns() > deadline) return false;
     }
   } catch (const interp::InterpError& e) {
-    program_error(e.file() + ":" + std::to_string(e.line()) + ": " + e.message());
-    return;
+    reconstruction_failed(describe(e));
+    return false;
   }
-  // The block at `line` is read; it runs after the restored state.
+  finish_reconstruction();
+  return reconstruct_ == nullptr && interp_state_ != ipc::InterpState::Idle;
+}
+
+void TaskController::reconstruction_failed(const std::string& what) {
+  reconstruct_->error = "run from line " + std::to_string(reconstruct_->line) + " failed: " + what;
+  program_error(what);  // aborts, which ends the reconstruction
+}
+
+// The block at the target line is read: queue what restores the state the
+// lines before left (tool, offsets, coolant, spindle), an approach (up,
+// over, down) to where the program would be, then execute that block.
+void TaskController::finish_reconstruction() {
+  const std::shared_ptr<Reconstruction> keep = reconstruct_;
+  Reconstruction& r = *keep;
+  const int line = r.line;
   const Pose target = canon_->end_position();
   run_from_start_ = target;
-  items_ = std::move(kept);
-  if (have_tool) {
-    const int index = tool_change.i0;
-    if (io_.table().at(index).number != io_.tool_in_spindle()) items_.push_back(tool_change);
+  items_ = std::move(r.kept);
+  if (r.have_tool) {
+    const int index = r.tool_change.i0;
+    if (io_.table().at(index).number != io_.tool_in_spindle()) items_.push_back(r.tool_change);
   }
-  if (have_offset) items_.push_back(tool_offset);
-  if (have_flood) items_.push_back(flood);
-  if (have_mist) items_.push_back(mist);
-  if (spindle_item >= 0) items_.push_back(spindle);
+  if (r.have_offset) items_.push_back(r.tool_offset);
+  if (r.have_flood) items_.push_back(r.flood);
+  if (r.have_mist) items_.push_back(r.mist);
+  if (r.have_spindle) items_.push_back(r.spindle);
   // Approach: up to the higher Z, across, then down at the feed.
   const Pose here = ms_.traj.position;
   Pose up = here;
@@ -798,52 +869,85 @@ void TaskController::reconstruct_until(int line) {
     items_.push_back(it);
   }
   canon_->set_id_base(id);
-  // The block at `line` was read above; execute it now.
+  r.done = true;  // the state is restored: the run command is answered
+  reconstruct_.reset();
+  // The block at `line` was read by the last step; execute it now.
   try {
     const interp::Status st = interp_->execute();
     if (st == interp::Status::ExecuteFinish) waiting_synch_ = true;
-    if (st == interp::Status::ProgramEnd) program_ended_ = true;
+    if (st == interp::Status::ProgramEnd) {
+      program_ended_ = true;
+      interp_state_ = ipc::InterpState::Waiting;
+    }
   } catch (const interp::InterpError& e) {
-    program_error(e.file() + ":" + std::to_string(e.line()) + ": " + e.message());
+    program_error(describe(e));
   }
 }
 
-std::string TaskController::run_from_line_preview(int line) {
+std::string TaskController::run_from_line_preview(const ipc::Command& c) {
+  const int line = c.i[0];
   if (file_.empty()) return "no program is open";
   if (line < 1) return "run from line: the line must be 1 or more";
-  // Interpret up to the line on a scratch interpreter and report where the
-  // program would be: the approach shown before it is executed.
-  std::deque<Item> scratch_items;
-  MachineView scratch_view = view_;
-  TaskCanon scratch(canon_config(ini_, motion_.config(), ms_.traj.axis_mask), scratch_items, scratch_view);
-  scratch.set_end_position(ms_.traj.position);
-  interp::Interpreter scratch_interp(scratch, interp_config_);
+  // Interpret up to the line on a scratch interpreter, stepwise in the task
+  // cycles that follow, and report where the program would be: the
+  // approach shown before it is executed.
+  auto job = std::make_shared<PreviewJob>();
+  job->line = line;
+  job->view = view_;
+  job->canon = std::make_unique<TaskCanon>(canon_config(ini_, motion_.config(), ms_.traj.axis_mask), job->items, job->view);
+  job->canon->set_end_position(ms_.traj.position);
+  job->interp = std::make_unique<interp::Interpreter>(*job->canon, interp_config_);
   try {
-    scratch_interp.init();
-    scratch_interp.open(file_);
+    job->interp->init();
+    job->interp->open(file_);
+  } catch (const interp::InterpError& e) {
+    return describe(e);
+  }
+  waiters_.push_back(Waiter{c, [this, c, job]() { return preview_step(c, *job); }});
+  return {};
+}
+
+bool TaskController::preview_step(const ipc::Command& c, PreviewJob& job) {
+  const int64_t deadline = monotonic_ns() + kReadBudgetNs;
+  interp::Interpreter& in = *job.interp;
+  std::string error;
+  try {
     for (;;) {
-      const interp::Status rs = scratch_interp.read();
-      if (rs == interp::Status::SynchRequired) {
-        scratch_interp.synch();
+      const interp::Status rs = in.read();
+      if (rs == interp::Status::Yield) {
+        if (monotonic_ns() > deadline) return false;
         continue;
       }
-      if (rs != interp::Status::Ok) return "run from line " + std::to_string(line) + ": the program ends before that line";
-      if (scratch_interp.line() >= line) break;
-      scratch_interp.execute();
-      scratch_items.clear();
-      if (scratch_interp.is_synch_pending()) scratch_interp.synch();
+      if (rs == interp::Status::SynchRequired) {
+        in.synch();
+        continue;
+      }
+      if (rs != interp::Status::Ok) {
+        error = "run from line " + std::to_string(job.line) + ": the program ends before that line";
+        break;
+      }
+      if (in.line() >= job.line) break;
+      in.execute();
+      job.items.clear();
+      if (in.is_synch_pending()) in.synch();
+      if (monotonic_ns() > deadline) return false;
     }
   } catch (const interp::InterpError& e) {
-    return e.file() + ":" + std::to_string(e.line()) + ": " + e.message();
+    error = describe(e);
   }
-  run_from_line_ = line;
-  run_from_start_ = scratch.end_position();
+  if (!error.empty()) {
+    reporter_->report(c, CommandState::Rejected, error);
+    return true;
+  }
+  run_from_line_ = job.line;
+  run_from_start_ = job.canon->end_position();
   char buf[200];
   std::snprintf(buf, sizeof buf, "run from line %d: approach up to Z%.4f, then to X%.4f Y%.4f, then down to Z%.4f (machine)",
-                line, std::max(ms_.traj.position[2], run_from_start_[2]), run_from_start_[0], run_from_start_[1],
+                job.line, std::max(ms_.traj.position[2], run_from_start_[2]), run_from_start_[0], run_from_start_[1],
                 run_from_start_[2]);
   post(MessageKind::Display, buf);
-  return {};
+  reporter_->report(c, CommandState::Done);
+  return true;
 }
 
 std::string TaskController::mdi(const ipc::Command& c) {
@@ -939,8 +1043,13 @@ void TaskController::abort_all(const std::string& why, bool quiet) {
     if (reporter_) reporter_->report(q.first, CommandState::Rejected, "aborted: " + why);
   }
   mdi_queue_.clear();
-  running_mdi_ = false;
+  running_mdi_ = mdi_reading_ = mdi_line_started_ = false;
   mdi_current_ = ipc::Command{};
+  if (reconstruct_) {
+    reconstruct_->done = true;
+    if (reconstruct_->error.empty()) reconstruct_->error = "aborted: " + why;
+    reconstruct_.reset();
+  }
   try {
     interp_->reset();
   } catch (const interp::InterpError&) {
@@ -974,7 +1083,7 @@ void TaskController::program_error(const std::string& what) {
       if (q.first.serial != mdi_current_.serial) rest.push_back(q);
     }
     mdi_queue_.swap(rest);
-    running_mdi_ = false;
+    running_mdi_ = mdi_reading_ = mdi_line_started_ = false;
     mdi_current_ = ipc::Command{};
   }
   const auto mdi_left = mdi_queue_;
@@ -1020,40 +1129,87 @@ void TaskController::resume() {
 
 void TaskController::start_mdi_line(const std::string& line, const ipc::Command& cmd) {
   running_mdi_ = true;
+  mdi_reading_ = true;
+  mdi_line_started_ = false;
   mdi_current_ = cmd;
   mdi_text_ = line;
   view_.position = ms_.traj.position;
   canon_->set_end_position(ms_.traj.position);
-  try {
-    interp_->synch();
-    const interp::Status st = interp_->execute(line);
-    if (st == interp::Status::ExecuteFinish) waiting_synch_ = true;
-    if (const std::string e = canon_->take_error(); !e.empty()) program_error(e);
-  } catch (const interp::InterpError& e) {
-    program_error(e.message());
+  interp_->synch();
+  waiting_synch_ = false;
+}
+
+void TaskController::synch_interpreter() {
+  view_.position = ms_.traj.position;
+  view_.probed_position = ms_.traj.probed_position;
+  view_.probe_tripped = ms_.traj.probe_tripped;
+  view_.tool_in_spindle = io_.tool_in_spindle();
+  canon_->set_end_position(ms_.traj.position);
+  interp_->synch();
+  waiting_synch_ = false;
+}
+
+// MDI runs like a program: the line, then any subroutine it called, read
+// and executed within the cycle's budget, synchronised where it must wait.
+void TaskController::run_mdi() {
+  if (!mdi_reading_ || paused_) return;
+  const int64_t deadline = monotonic_ns() + kReadBudgetNs;
+  while (mdi_reading_ && items_.size() < cfg_.readahead_items) {
+    if (waiting_synch_) {
+      if (!(items_.empty() && motion_idle())) return;
+      synch_interpreter();
+    }
+    try {
+      const interp::Status rs = mdi_line_started_ ? interp_->read() : interp_->read(mdi_text_);
+      if (rs != interp::Status::SynchRequired) mdi_line_started_ = true;
+      if (rs == interp::Status::SynchRequired) {
+        waiting_synch_ = true;
+        continue;
+      }
+      if (rs == interp::Status::EndOfFile || rs == interp::Status::ProgramEnd) {
+        mdi_reading_ = false;  // the line and what it called are read
+        return;
+      }
+      if (rs == interp::Status::Ok) {
+        const interp::Status st = interp_->execute();
+        if (const std::string e = canon_->take_error(); !e.empty()) {
+          program_error(e);
+          return;
+        }
+        if (st == interp::Status::ExecuteFinish) waiting_synch_ = true;
+        if (st == interp::Status::ProgramEnd) {
+          mdi_reading_ = false;
+          return;
+        }
+      }
+    } catch (const interp::InterpError& e) {
+      program_error(describe(e));
+      return;
+    }
+    if (monotonic_ns() > deadline) return;
   }
 }
 
 void TaskController::run_interpreter() {
   if (interp_state_ == ipc::InterpState::Idle || paused_ || program_ended_) return;
-  const int64_t deadline = monotonic_ns() + 2'000'000;  // at most 2 ms of reading per cycle
+  const int64_t deadline = monotonic_ns() + kReadBudgetNs;
+  if (reconstruct_ && !reconstruct_step(deadline)) return;
   while (items_.size() < cfg_.readahead_items) {
     if (waiting_synch_) {
       if (!(items_.empty() && motion_idle())) {
         exec_state_ = ipc::ExecState::WaitingForMotion;
         return;
       }
-      view_.position = ms_.traj.position;
-      view_.probed_position = ms_.traj.probed_position;
-      view_.probe_tripped = ms_.traj.probe_tripped;
-      view_.tool_in_spindle = io_.tool_in_spindle();
-      canon_->set_end_position(ms_.traj.position);
-      interp_->synch();
-      waiting_synch_ = false;
+      synch_interpreter();
     }
     if (stepping_ && !items_.empty()) return;
     try {
       const interp::Status rs = interp_->read();
+      if (rs == interp::Status::Yield) {
+        // Lines without a block (a loop computing): the cycle goes on.
+        if (monotonic_ns() > deadline) return;
+        continue;
+      }
       if (rs == interp::Status::SynchRequired) {
         waiting_synch_ = true;
         continue;
@@ -1083,7 +1239,7 @@ void TaskController::run_interpreter() {
         return;
       }
     } catch (const interp::InterpError& e) {
-      program_error(e.file() + ":" + std::to_string(e.line()) + ": " + e.message());
+      program_error(describe(e));
       return;
     }
     if (stepping_) return;
@@ -1295,27 +1451,9 @@ void TaskController::update(int64_t now_ns) {
       start_mdi_line(line, cmd);
     }
     if (running_mdi_) {
-      if (waiting_synch_ && items_.empty() && motion_idle()) {
-        view_.position = ms_.traj.position;
-        view_.probed_position = ms_.traj.probed_position;
-        view_.probe_tripped = ms_.traj.probe_tripped;
-        view_.tool_in_spindle = io_.tool_in_spindle();
-        canon_->set_end_position(ms_.traj.position);
-        interp_->synch();
-        waiting_synch_ = false;
-        // A subroutine called from MDI may continue after the synch point.
-        try {
-          while (interp_->call_level() > 0 && !waiting_synch_) {
-            const interp::Status rs = interp_->read();
-            if (rs != interp::Status::Ok) break;
-            if (interp_->execute() == interp::Status::ExecuteFinish) waiting_synch_ = true;
-          }
-        } catch (const interp::InterpError& e) {
-          program_error(e.message());
-        }
-      }
+      run_mdi();
       if (running_mdi_) execute_items(now_ns);
-      if (running_mdi_ && items_.empty() && !waiting_synch_ && motion_idle() && !paused_) {
+      if (running_mdi_ && !mdi_reading_ && items_.empty() && !waiting_synch_ && motion_idle() && !paused_) {
         running_mdi_ = false;
         bool more = false;  // a macro's later lines belong to the same command
         for (const auto& q : mdi_queue_) more = more || q.first.serial == mdi_current_.serial;

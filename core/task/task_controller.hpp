@@ -66,7 +66,7 @@ class TaskController : public ipc::ControllerService {
   std::string program_open(const std::string& path);
   std::string program_run(const ipc::Command& c);
   std::string mdi(const ipc::Command& c);
-  std::string run_from_line_preview(int line);
+  std::string run_from_line_preview(const ipc::Command& c);
   std::string set_parameter(const ipc::Command& c);
   std::string tool_command(const ipc::Command& c);
 
@@ -88,13 +88,28 @@ class TaskController : public ipc::ControllerService {
   void abort_all(const std::string& why, bool quiet = false);
   void program_error(const std::string& what);
   void program_finished();
+  // The interpreter runs stepwise: each of these reads and executes for at
+  // most kReadBudgetNs per task cycle (read() itself returns every few
+  // hundred lines), so a long or endless computation never stalls the
+  // cycle; the interpreter's MAX_BLOCKS_WITHOUT_OUTPUT ends an endless one.
   void run_interpreter();
+  void run_mdi();
+  void synch_interpreter();  // the machine is at rest: the interpreter re-reads it
   void execute_items(int64_t now_ns);
   bool execute_item(Item& it, int64_t now_ns);  // true: done, pop it
   void start_mdi_line(const std::string& line, const ipc::Command& cmd);
   void pause(bool operator_request);
   void resume();
-  void reconstruct_until(int line);
+  // Run from line: executes the lines before the target with motion
+  // suppressed (stepwise, within the cycle's budget), then queues what
+  // restores the machine state there. True once it is done and the program
+  // reads on; false while it goes on or after it failed.
+  struct Reconstruction;
+  bool reconstruct_step(int64_t deadline);
+  void reconstruction_failed(const std::string& what);
+  void finish_reconstruction();
+  struct PreviewJob;
+  bool preview_step(const ipc::Command& c, PreviewJob& job);  // true once `c` is answered
   void post(MessageKind kind, const std::string& text);
   bool machine_homed() const;
   double read_input(int index, bool digital) const;
@@ -117,6 +132,8 @@ class TaskController : public ipc::ControllerService {
   bool stepping_ = false;
   bool program_ended_ = false;
   bool running_mdi_ = false;
+  bool mdi_reading_ = false;       // the MDI line, or a subroutine it called, has lines left to read
+  bool mdi_line_started_ = false;  // the interpreter took the MDI line (read(line) done)
 
   motion::MotionStatus ms_;
   uint64_t last_submitted_ = 0;
@@ -146,6 +163,7 @@ class TaskController : public ipc::ControllerService {
   int64_t item_started_ns_ = 0;
   int user_m_pid_ = 0;
   // run from line
+  std::shared_ptr<Reconstruction> reconstruct_;  // shared with the run command's waiter
   int run_from_line_ = 0;
   Pose run_from_start_;
   bool was_enabled_ = false;

@@ -65,14 +65,17 @@ const char* not_regular_reason(unsigned mode) noexcept {
   if (S_ISDIR(mode)) return "is a directory, not a regular file";
   if (S_ISFIFO(mode)) return "is a FIFO (named pipe), not a regular file";
   if (S_ISSOCK(mode)) return "is a socket, not a regular file";
-  if (S_ISCHR(mode) || S_ISBLK(mode)) return "is a device, not a regular file";
+  if (S_ISCHR(mode)) return "is a character device, not a regular file";
+  if (S_ISBLK(mode)) return "is a block device, not a regular file";
   return "is not a regular file";
 }
 
 int open_regular_file(const std::filesystem::path& path, bool no_follow) {
-  // O_NONBLOCK: opening a FIFO must not wait for a writer; it is refused
-  // below like any other special file.
-  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | (no_follow ? O_NOFOLLOW : 0));
+  // O_NONBLOCK: opening a FIFO must not wait for a writer (nor a serial
+  // device for carrier); it is refused below like any other special file.
+  // O_NOCTTY: a terminal never becomes the controller's.
+  const int fd =
+      ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_NOCTTY | O_CLOEXEC | (no_follow ? O_NOFOLLOW : 0));
   if (fd < 0) {
     if (no_follow && errno == ELOOP) throw FileError(path, "is a symbolic link (refused here)");
     fail(path, "open", errno);

@@ -274,7 +274,7 @@ TEST(Daemon, AnIniWithNothingToRunIsRefused) {
   dir.write("h.ini", "[HAL]\nHALFILE = /dev/zero\n");
   r = run(bin("cncd") + " --instance " + cnc::testing::unique_name("e") + " " + (dir / "h.ini").string());
   EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.text.find("/dev/zero: cannot read HAL file: is a device, not a regular file"), std::string::npos) << r.text;
+  EXPECT_NE(r.text.find("/dev/zero: cannot read HAL file: is a character device, not a regular file"), std::string::npos) << r.text;
 }
 
 // The local security model (docs/security.md): only the controller's user

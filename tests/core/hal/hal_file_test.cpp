@@ -200,7 +200,7 @@ TEST(HalFile, SourceLoopsAndSpecialFilesAreErrors) {
   EXPECT_NE(error_of([&] { f.interp.run_file(dir / "self.hal"); }).find("a source loop (self.hal -> self.hal)"),
             std::string::npos);
   EXPECT_EQ(error_of([&] { f.interp.run_file("/dev/zero"); }),
-            "/dev/zero: cannot read HAL file: is a device, not a regular file");
+            "/dev/zero: cannot read HAL file: is a character device, not a regular file");
   EXPECT_EQ(error_of([&] { f.interp.execute("source " + dir.path().string()); }),
             dir.path().string() + ": cannot read HAL file: is a directory, not a regular file");
   // The interpreter is usable afterwards (its file stack unwound).

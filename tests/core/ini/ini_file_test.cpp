@@ -112,5 +112,5 @@ TEST(IniFile, SpecialFilesAreRefusedNamingWhy) {
             dir.path().string() + ": cannot read INI file: is a directory, not a regular file");
   const auto ini = dir.write("m.ini", "[EMC]\nMACHINE = m\n#INCLUDE /dev/zero\n");
   EXPECT_EQ(error_of([&] { IniFile::load(ini); }),
-            ini.string() + ":3: #INCLUDE: cannot read \"/dev/zero\": is a device, not a regular file");
+            ini.string() + ":3: #INCLUDE: cannot read \"/dev/zero\": is a character device, not a regular file");
 }

@@ -378,11 +378,11 @@ TEST(Interpreter, FileWithoutEndIsAnErrorWithTheLastLine) {
   EXPECT_EQ(error_of(in), "2: File ended with no percent sign or program end");
 }
 
-TEST(Interpreter, LongLinesAndLoopsAcrossBufferBoundaries) {
-  // Lines longer than the reader's 64 KiB buffer, and a loop whose start is
-  // far behind the buffer when it jumps back.
+TEST(Interpreter, LongestLinesAndLoopsAcrossBufferBoundaries) {
+  // A line of the longest length (256), and a loop whose start is far
+  // behind the reader's 64 KiB buffer when it jumps back.
   cnc::testing::TempDir dir;
-  std::string text = "G21 G90 F100\n(" + std::string(100000, 'x') + ")\n#1 = 0\no1 while [#1 LT 3]\n";
+  std::string text = "G21 G90 F100\n(" + std::string(254, 'x') + ")\n#1 = 0\no1 while [#1 LT 3]\n";
   for (int i = 0; i < 3000; ++i) text += "(filler " + std::to_string(i) + " " + std::string(40, 'y') + ")\n";
   text += "G1 X#1\n#1 = [#1 + 1]\no1 endwhile\nM2\n";
   RecordingCanon canon(tools());

@@ -334,7 +334,7 @@ TEST(TaskRules, CommandsAreRefusedWithReasons) {
   cnc::ipc::Command open;
   open.type = CommandType::TaskPlanOpen;
   open.text.assign("/nonexistent/x.ngc");
-  EXPECT_EQ(m.send(open).second, "cannot read program /nonexistent/x.ngc");
+  EXPECT_EQ(m.send(open).second, "cannot read program /nonexistent/x.ngc: No such file or directory");
 }
 
 // A bad INI value the task reads is an error at start-up naming the key, not

@@ -46,7 +46,7 @@ TEST(ReadFile, OnlyRegularFilesAreRead) {
   const auto fifo = dir / "pipe";
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   EXPECT_EQ(reason(fifo), "is a FIFO (named pipe), not a regular file");
-  EXPECT_EQ(reason("/dev/zero"), "is a device, not a regular file");
+  EXPECT_EQ(reason("/dev/zero"), "is a character device, not a regular file");
   EXPECT_EQ(reason(dir / "missing"), "cannot open: No such file or directory");
   EXPECT_EQ(cnc::read_file(dir.write("ok.txt", "text\n")), "text\n");
 }
