@@ -92,6 +92,11 @@ struct MotionInputs {
   bool jog_stop = false;       // motion.jog-stop
   bool jog_stop_immediate = false;
   double adaptive_feed = 1.0;  // motion.adaptive-feed
+  // From the servo thread's rt::CycleInfo, not from pins: the thread is
+  // late (OVERRUN_STREAK reached), with the streak and the slots just missed.
+  bool servo_late = false;
+  uint32_t overrun_streak = 0;
+  int64_t missed_cycles = 0;
   std::array<bool, kMaxDio> digital_in{};
   std::array<double, kMaxAio> analog_in{};
   std::array<JointInputs, kMaxJoints> joints{};

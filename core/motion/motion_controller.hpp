@@ -112,6 +112,7 @@ class MotionController {
   void read_feedback() noexcept;
   void resync_from_feedback() noexcept;
   void check_faults() noexcept;
+  void apply_overrun_action() noexcept;
   void wait_for_amplifiers(double dt) noexcept;
   // Why a command that moves cannot run while an amplifier is not ready
   // yet (nullptr: all ready).
@@ -165,6 +166,9 @@ class MotionController {
   double amps_wait_s_ = 0;            // how long the enable has waited for them
   int amp_waiting_joint_ = -1;
   bool watchdog_enabled_ = false;
+  bool servo_was_late_ = false;       // in_.servo_late of the previous cycle
+  bool overrun_hold_ = false;         // paused by OVERRUN_ACTION = HOLD, until resume
+  uint32_t overrun_holds_ = 0;
   bool override_limits_ = false;      // armed by OVERRIDE_LIMITS, consumed by the next jog
   double feed_scale_ = 1, rapid_scale_ = 1, max_velocity_ = 1e99;
   bool feed_override_enabled_ = true, adaptive_enabled_ = false, feed_hold_enabled_ = true;

@@ -27,6 +27,10 @@ struct MotionStatus {
   bool amps_ready = false;
   int32_t amp_waiting_joint = -1;  // the first joint whose amplifier is not ready yet, -1 none
   int32_t homing_sequence_active = -1;
+  // Coordinated motion is paused because the servo thread was late
+  // (OVERRUN_ACTION = HOLD); cleared by resume, step, abort or disable.
+  bool overrun_hold = false;
+  uint32_t overrun_holds = 0;  // such holds so far: the task pauses on each new one
   double servo_exec_ns = 0;
 };
 

@@ -145,6 +145,7 @@ class TaskController : public ipc::ControllerService {
   int run_from_line_ = 0;
   Pose run_from_start_;
   bool was_enabled_ = false;
+  uint32_t overrun_holds_seen_ = 0;  // motion's OVERRUN_ACTION = HOLD pauses already adopted
 };
 
 }  // namespace cnc::task
