@@ -27,8 +27,10 @@ run_case() {
   local action="$1"
   rm -rf "$work/sim" && cp -r "$config" "$work/sim"
   if [ "$action" != default ]; then
-    # A long streak limit (0.5 s): the scheduling noise of a loaded test host
-    # without SCHED_FIFO does not stop the machine before the stall does.
+    # Inserted first in [EMCMOT], so they win over the copy's own keys (the
+    # first occurrence of a key counts). A long streak limit (0.5 s): the
+    # scheduling noise of a loaded test host without SCHED_FIFO does not
+    # stop the machine before the stall does.
     sed -i "s/^\[EMCMOT\]$/[EMCMOT]\nOVERRUN_ACTION = $action\nOVERRUN_STREAK = 500/" "$work/sim/sim.ini"
     grep -q "^OVERRUN_ACTION = $action" "$work/sim/sim.ini" || fail "could not set OVERRUN_ACTION"
   fi
