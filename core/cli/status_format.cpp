@@ -123,6 +123,16 @@ std::string format_status(const ipc::Status& s, const ipc::Liveness* live) {
              static_cast<double>(t.latency_max_ns) / 1e3, static_cast<double>(t.period_min_ns) / 1e3,
              static_cast<double>(t.period_max_ns) / 1e3, static_cast<double>(t.exec_last_ns) / 1e3,
              static_cast<double>(t.exec_max_ns) / 1e3);
+    if (t.overruns > 0) {
+      o << fmt("                 overruns: streak %u now, longest %u; %" PRIu64 " periods missed, longest gap %" PRId64
+               "; %" PRIu64 " blamed on late wake-ups",
+               t.overrun_streak, t.longest_streak, t.missed_cycles, t.longest_gap, t.late_wakes);
+      if (!t.overrun_function.empty()) {
+        o << fmt(", %u on %s (max %.1f us)", t.overrun_function_count, t.overrun_function.c_str(),
+                 static_cast<double>(t.overrun_function_max_ns) / 1e3);
+      }
+      o << "\n";
+    }
   }
   o << fmt("Last command: serial %u %s, %s\n", s.echo.serial, to_string(s.echo.type), to_string(s.echo.state));
   return o.str();
@@ -243,6 +253,14 @@ std::string status_json(const ipc::Status& s, int indent, const ipc::Liveness* l
                        {"period_ns", t.period_ns},
                        {"cycles", t.cycles},
                        {"overruns", t.overruns},
+                       {"missed_cycles", t.missed_cycles},
+                       {"overrun_streak", t.overrun_streak},
+                       {"longest_streak", t.longest_streak},
+                       {"longest_gap", t.longest_gap},
+                       {"late_wakes", t.late_wakes},
+                       {"overrun_function", t.overrun_function.c_str()},
+                       {"overrun_function_count", t.overrun_function_count},
+                       {"overrun_function_max_ns", t.overrun_function_max_ns},
                        {"latency_min_ns", t.latency_min_ns},
                        {"latency_p50_ns", t.latency_p50_ns},
                        {"latency_p99_ns", t.latency_p99_ns},

@@ -223,6 +223,16 @@ void Controller::dispatch(const ipc::Command& cmd) {
 }
 
 void Controller::drain_messages() {
+  // The threads' overrun reports, formatted here, not in the thread. They
+  // are errors where SCHED_FIFO promised the timing; without it (the
+  // operator was told at start-up) they inform.
+  hal::OverrunEvent ev;
+  for (hal::Thread* t : hal_.threads()) {
+    while (t->poll_overrun_event(ev)) {
+      const bool error = t->task().uses_fifo() && ev.kind != hal::OverrunEvent::Kind::Ended;
+      messages_.post(error ? MessageKind::Error : MessageKind::Text, t->name(), hal::describe(ev));
+    }
+  }
   Message m;
   while (messages_.pop(m)) {
     server_->post(m);
@@ -256,6 +266,15 @@ void Controller::publish_status() {
     ts.period_ns = t->period_ns();
     ts.cycles = snap.cycles;
     ts.overruns = snap.overruns;
+    ts.missed_cycles = snap.missed_cycles;
+    ts.overrun_streak = snap.overrun_streak;
+    ts.longest_streak = snap.longest_streak;
+    ts.longest_gap = snap.longest_gap;
+    ts.late_wakes = t->late_wakes();
+    const hal::Function* worst = t->worst_function();
+    ts.overrun_function.assign(worst ? std::string_view(worst->name) : std::string_view());
+    ts.overrun_function_count = worst ? hal::Thread::overruns_of(*worst) : 0;
+    ts.overrun_function_max_ns = worst ? worst->overrun_max_ns.load(std::memory_order_relaxed) : 0;
     ts.latency_min_ns = snap.latency_min_ns;
     ts.latency_p50_ns = snap.latency_percentile_ns(0.5);
     ts.latency_p99_ns = snap.latency_percentile_ns(0.99);

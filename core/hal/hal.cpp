@@ -67,6 +67,7 @@ void Hal::export_function(Component* owner, const std::string& name, FunctionFn 
   if (auto why = check_name(name); !why.empty()) throw HalError("function name: " + why);
   ParamObj* time = create_param(owner, name + ".time", Type::S64, ParamDir::RO, 0);
   ParamObj* tmax = create_param(owner, name + ".tmax", Type::S64, ParamDir::RW, 0);
+  ParamObj* overruns = create_param(owner, name + ".overruns", Type::U32, ParamDir::RO, 0);
   std::lock_guard lock(mutex_);
   if (functions_.count(name)) throw HalError("a function named \"" + name + "\" already exists");
   auto f = std::make_unique<Function>();
@@ -77,6 +78,7 @@ void Hal::export_function(Component* owner, const std::string& name, FunctionFn 
   f->uses_fp = uses_fp;
   f->time = time;
   f->tmax = tmax;
+  f->overruns = overruns;
   functions_.emplace(name, std::move(f));
 }
 
@@ -92,9 +94,16 @@ Thread& Hal::new_thread(const std::string& name, int64_t period_ns, bool uses_fp
   std::lock_guard lock(mutex_);
   auto t = std::make_unique<Thread>(name, period_ns, uses_fp);
   t->set_params(time, tmax);
+  t->set_overrun_limit(overrun_limit_);
   Thread& ref = *t;
   threads_.emplace(name, std::move(t));
   return ref;
+}
+
+void Hal::set_overrun_limit(uint32_t cycles) {
+  std::lock_guard lock(mutex_);
+  overrun_limit_ = cycles;
+  for (auto& [name, t] : threads_) t->set_overrun_limit(cycles);
 }
 
 Component& Hal::add_component(std::unique_ptr<Component> c) {

@@ -73,6 +73,8 @@ class Hal {
   }
   void export_function(Component* owner, const std::string& name, FunctionFn fn, void* arg, bool uses_fp = true);
   Thread& new_thread(const std::string& name, int64_t period_ns, bool uses_fp = true);
+  // The overrun limit of every thread, present and future (Thread::set_overrun_limit).
+  void set_overrun_limit(uint32_t cycles);
 
   // --- components ---
   Component& add_component(std::unique_ptr<Component> c);
@@ -146,6 +148,7 @@ class Hal {
   std::map<std::string, std::unique_ptr<Function>> functions_;
   std::map<std::string, std::unique_ptr<Thread>> threads_;
   std::vector<std::unique_ptr<Component>> components_;
+  uint32_t overrun_limit_ = Thread::kDefaultOverrunLimit;
 };
 
 }  // namespace cnc::hal

@@ -57,6 +57,10 @@ struct Function {
   int users = 0;                         // threads it is added to
   detail::ParamObj* time = nullptr;      // <name>.time: last execution, ns
   detail::ParamObj* tmax = nullptr;      // <name>.tmax: maximum, ns (writable to reset)
+  // Overruns blamed on this function (it ran longest in a cycle that ended
+  // after its deadline, and longer than the thread's late wake-up).
+  detail::ParamObj* overruns = nullptr;  // <name>.overruns (u32)
+  std::atomic<int64_t> overrun_max_ns{0};  // its longest run in such a cycle
 };
 
 }  // namespace cnc::hal

@@ -224,7 +224,15 @@ struct ThreadStatus {
   bool fifo = false;
   int64_t period_ns = 0;
   uint64_t cycles = 0;
-  uint64_t overruns = 0;
+  uint64_t overruns = 0;              // cycles that ended after their deadline
+  uint64_t missed_cycles = 0;         // periods that got no cycle (a 2 s stall at 1 ms: ~2000)
+  uint32_t overrun_streak = 0;        // consecutive overruns now
+  uint32_t longest_streak = 0;
+  int64_t longest_gap = 0;            // most periods missed at once
+  uint64_t late_wakes = 0;            // overruns blamed on waking late (host, scheduler), not on a function
+  FixedString<48> overrun_function;   // the function blamed for the most overruns ("" none)
+  uint32_t overrun_function_count = 0;
+  int64_t overrun_function_max_ns = 0;  // its longest run in a cycle it was blamed for
   int64_t latency_min_ns = 0;
   int64_t latency_p50_ns = 0;
   int64_t latency_p99_ns = 0;

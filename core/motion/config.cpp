@@ -73,6 +73,15 @@ void load_axis(const ini::IniFile& ini, int a, AxisConfig& ax) {
 
 }  // namespace
 
+const char* to_string(OverrunAction a) noexcept {
+  switch (a) {
+    case OverrunAction::Warn: return "WARN";
+    case OverrunAction::Hold: return "HOLD";
+    case OverrunAction::Stop: return "STOP";
+  }
+  return "?";
+}
+
 MotionConfig load_motion_config(const ini::IniFile& ini, int num_joints) {
   MotionConfig c;
   if (num_joints < 1 || num_joints > kMaxJoints) {
@@ -101,6 +110,12 @@ MotionConfig load_motion_config(const ini::IniFile& ini, int num_joints) {
   c.no_force_homing = ini.get_bool("TRAJ", "NO_FORCE_HOMING", false);
   c.spindles = static_cast<int>(ini.get_int("TRAJ", "SPINDLES", 1, {0, 8}));
   c.comp_reserve = ini.get_double("EMCMOT", "COMP_RESERVE", 0.05, {0, 0.5});
+  c.overrun_streak = static_cast<int>(ini.get_int("EMCMOT", "OVERRUN_STREAK", 3, {1, 1'000'000}));
+  const std::string action = to_upper(ini.get_string("EMCMOT", "OVERRUN_ACTION", "WARN"));
+  if (action == "WARN") c.overrun_action = OverrunAction::Warn;
+  else if (action == "HOLD") c.overrun_action = OverrunAction::Hold;
+  else if (action == "STOP") c.overrun_action = OverrunAction::Stop;
+  else ini.fail(ini.find_entry("EMCMOT", "OVERRUN_ACTION"), "expected WARN, HOLD or STOP, got \"" + action + "\"");
   for (int j = 0; j < num_joints; ++j) load_joint(ini, j, c.joints[static_cast<std::size_t>(j)]);
   for (int a = 0; a < kNumAxes; ++a) load_axis(ini, a, c.axes[static_cast<std::size_t>(a)]);
   return c;

@@ -36,6 +36,15 @@ struct HomingConfig {
   HomeMode mode = HomeMode::Motion;  // HOME_MODE = MOTION | DRIVE
 };
 
+// What motion does when the servo thread is late (OVERRUN_STREAK
+// consecutive overruns, or that many periods missed at once).
+enum class OverrunAction : uint8_t {
+  Warn,  // the thread's message only
+  Hold,  // coordinated motion pauses (feed hold) until the operator resumes
+  Stop,  // motion is disabled with the reason (the machine goes off)
+};
+const char* to_string(OverrunAction a) noexcept;
+
 struct JointConfig {
   JointType type = JointType::Linear;
   double min_limit = -1e99, max_limit = 1e99;
@@ -78,6 +87,9 @@ struct MotionConfig {
   // Fraction of each joint's velocity and acceleration kept free for
   // backlash and screw compensation (the planners use the rest).
   double comp_reserve = 0.05;
+  // [EMCMOT]OVERRUN_STREAK, OVERRUN_ACTION (docs/configuration.md).
+  int overrun_streak = 3;
+  OverrunAction overrun_action = OverrunAction::Warn;
 };
 
 // Reads the configuration for `num_joints` joints. Throws ConfigError.

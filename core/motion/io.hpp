@@ -97,6 +97,11 @@ struct MotionInputs {
   // (MotionComponent::set_estop_inputs) so that every configuration has them.
   uint64_t estop_request = 0;
   bool estop_chain_closed = true;
+  // From the servo thread's rt::CycleInfo, not from pins: the thread is
+  // late (OVERRUN_STREAK reached), with the streak and the slots just missed.
+  bool servo_late = false;
+  uint32_t overrun_streak = 0;
+  int64_t missed_cycles = 0;
   std::array<bool, kMaxDio> digital_in{};
   std::array<double, kMaxAio> analog_in{};
   std::array<JointInputs, kMaxJoints> joints{};

@@ -87,6 +87,8 @@ MotionComponent::MotionComponent(hal::ComponentContext& ctx, const hal::LoadArgs
   config_.num_dio = static_cast<int>(args.get_int("num_dio", 4, 1, kMaxDio));
   config_.num_aio = static_cast<int>(args.get_int("num_aio", 4, 1, kMaxAio));
   config_.spindles = static_cast<int>(args.get_int("num_spindles", config_.spindles, 0, kMaxSpindles));
+  // [EMCMOT]OVERRUN_STREAK is when any thread counts as late (and reports it).
+  ctx.hal.set_overrun_limit(static_cast<uint32_t>(config_.overrun_streak));
   make_pins();
   export_method<&MotionComponent::command_handler>("motion-command-handler", this);
   export_method<&MotionComponent::controller>("motion-controller", this);
@@ -492,6 +494,10 @@ void MotionComponent::write_pins() noexcept {
 void MotionComponent::controller(const rt::CycleInfo& info) noexcept {
   if (!controller_) return;
   read_pins();
+  MotionInputs& in = controller_->in();
+  in.servo_late = info.is_late;
+  in.overrun_streak = info.overrun_streak;
+  in.missed_cycles = info.missed_cycles;
   // Planners integrate over the nominal period; the measured one is jitter.
   controller_->update(static_cast<double>(info.period_ns) * 1e-9);
   write_pins();

@@ -181,9 +181,11 @@ bool MotionController::handle(const MotionCommand& c, MotionResult& result) noex
       break;
     case Cmd::Resume:
       tp_.resume();
+      overrun_hold_ = false;
       break;
     case Cmd::Step:
       tp_.step();
+      overrun_hold_ = false;
       break;
     case Cmd::Scale:
       if (!(c.value[0] >= 0 && c.value[0] <= 10)) why = reason("feed override %g is outside 0 to 10", c.value[0]);
@@ -343,6 +345,7 @@ void MotionController::abort_all() noexcept {
   tp_.abort();
   home_all_ = false;
   home_sequence_ = -1;
+  overrun_hold_ = false;
 }
 
 const char* MotionController::cmd_mode(ipc::MotionMode target) noexcept {
@@ -420,6 +423,7 @@ const char* MotionController::cmd_enable(bool enable) noexcept {
   }
   home_all_ = false;
   home_sequence_ = -1;
+  overrun_hold_ = false;
   if (!usable_forward(kins_)) mode_ = ipc::MotionMode::Free;
   enabled_ = enable;
   if (enable) faulted_ = false;
@@ -790,6 +794,34 @@ const char* MotionController::amps_not_ready(const char* what) noexcept {
                 amp_waiting_joint_);
 }
 
+// The servo thread became late (OVERRUN_STREAK consecutive overruns, or
+// that many periods missed at once): once per streak, what OVERRUN_ACTION
+// says. The thread itself reports the streak and the function to blame.
+void MotionController::apply_overrun_action() noexcept {
+  const bool became_late = in_.servo_late && !servo_was_late_;
+  servo_was_late_ = in_.servo_late;
+  if (!became_late || !enabled_) return;
+  switch (cfg_.overrun_action) {
+    case OverrunAction::Warn:
+      break;
+    case OverrunAction::Hold:
+      // The operator's pause: the planner brakes along the path, or does
+      // not start its next move, and holds until resume (the task adopts
+      // the pause, or resumes at once when nothing runs). Jogs and homing
+      // (free, teleop) are not held.
+      if (mode_ == ipc::MotionMode::Coord && !tp_.is_paused()) {
+        tp_.pause();
+        overrun_hold_ = true;
+        ++overrun_holds_;
+      }
+      break;
+    case OverrunAction::Stop:
+      fault(-1, -1, "the servo thread is late: %u consecutive overruns, %lld periods missed just now (OVERRUN_ACTION = STOP)",
+            in_.overrun_streak, static_cast<long long>(in_.missed_cycles));
+      break;
+  }
+}
+
 void MotionController::check_faults() noexcept {
   if (!enabled_) return;
   if (!in_.enable) {
@@ -1145,6 +1177,7 @@ void MotionController::update(double dt) noexcept {
   check_estop();
   if (enabled_ && !amps_ready_) wait_for_amplifiers(dt);
   if (resync_ || !enabled_) resync_from_feedback();
+  apply_overrun_action();
   check_faults();
   if (enabled_) {
     switch (mode_) {
@@ -1274,6 +1307,8 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
   s.fault_reason = fault_reason_;
   s.fault_joint = fault_joint_;
   s.fault_spindle = fault_spindle_;
+  s.overrun_hold = overrun_hold_;
+  s.overrun_holds = overrun_holds_;
 }
 
 }  // namespace cnc::motion

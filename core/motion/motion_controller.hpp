@@ -118,6 +118,7 @@ class MotionController {
   void check_estop() noexcept;
   void latch_estop(ipc::EstopCause cause, int32_t pid) noexcept;
   void check_faults() noexcept;
+  void apply_overrun_action() noexcept;
   void wait_for_amplifiers(double dt) noexcept;
   // Why a command that moves cannot run while an amplifier is not ready
   // yet (nullptr: all ready).
@@ -180,6 +181,9 @@ class MotionController {
   FixedString<200> fault_reason_;
   int fault_joint_ = -1, fault_spindle_ = -1;
   std::array<bool, kMaxSpindles> spindle_fault_{};
+  bool servo_was_late_ = false;       // in_.servo_late of the previous cycle
+  bool overrun_hold_ = false;         // paused by OVERRUN_ACTION = HOLD, until resume
+  uint32_t overrun_holds_ = 0;
   bool override_limits_ = false;      // armed by OVERRIDE_LIMITS, consumed by the next jog
   double feed_scale_ = 1, rapid_scale_ = 1, max_velocity_ = 1e99;
   bool feed_override_enabled_ = true, adaptive_enabled_ = false, feed_hold_enabled_ = true;

@@ -33,6 +33,10 @@ struct MotionStatus {
   FixedString<200> fault_reason;
   int32_t fault_joint = -1;
   int32_t fault_spindle = -1;
+  // Coordinated motion is paused because the servo thread was late
+  // (OVERRUN_ACTION = HOLD); cleared by resume, step, abort or disable.
+  bool overrun_hold = false;
+  uint32_t overrun_holds = 0;  // such holds so far: the task pauses on each new one
   double servo_exec_ns = 0;
 };
 

@@ -111,13 +111,13 @@ void PeriodicTask::loop() {
 
     const int64_t done = monotonic_ns();
     stats_.record_exec(done - now);
-    next += period_ns_;
-    if (done > next) {
-      // Overrun: count it and rejoin the grid instead of bursting to catch up.
-      stats_.record_overrun();
-      const int64_t missed = (done - next) / period_ns_ + 1;
-      next += missed * period_ns_;
-    }
+    // Overrun: counted, and the grid is rejoined instead of bursting to
+    // catch up; the next cycle is told (the motion controller acts on it).
+    const CycleEnd end = end_cycle(next, done, period_ns_);
+    stats_.record_cycle_end(end);
+    info.missed_cycles = end.missed;
+    info.overrun_streak = stats_.overrun_streak();
+    next = end.next_ns;
   }
 }
 

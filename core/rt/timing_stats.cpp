@@ -14,6 +14,10 @@ void TimingStats::reset(int64_t period_ns) noexcept {
   period_ns_.store(period_ns, std::memory_order_relaxed);
   cycles_.store(0, std::memory_order_relaxed);
   overruns_.store(0, std::memory_order_relaxed);
+  missed_.store(0, std::memory_order_relaxed);
+  streak_.store(0, std::memory_order_relaxed);
+  longest_streak_.store(0, std::memory_order_relaxed);
+  longest_gap_.store(0, std::memory_order_relaxed);
   reset_maxima();
   for (auto& b : hist_) b.store(0, std::memory_order_relaxed);
 }
@@ -44,10 +48,27 @@ void TimingStats::record_exec(int64_t exec_ns) noexcept {
   store_max(exec_max_, exec_ns);
 }
 
+void TimingStats::record_cycle_end(const CycleEnd& end) noexcept {
+  if (!end.overran) {
+    streak_.store(0, std::memory_order_relaxed);
+    return;
+  }
+  overruns_.fetch_add(1, std::memory_order_relaxed);
+  missed_.fetch_add(static_cast<uint64_t>(end.missed), std::memory_order_relaxed);
+  const uint32_t streak = streak_.load(std::memory_order_relaxed) + 1;
+  streak_.store(streak, std::memory_order_relaxed);
+  if (streak > longest_streak_.load(std::memory_order_relaxed)) longest_streak_.store(streak, std::memory_order_relaxed);
+  store_max(longest_gap_, end.missed);
+}
+
 TimingSnapshot TimingStats::snapshot() const noexcept {
   TimingSnapshot s;
   s.cycles = cycles_.load(std::memory_order_relaxed);
   s.overruns = overruns_.load(std::memory_order_relaxed);
+  s.missed_cycles = missed_.load(std::memory_order_relaxed);
+  s.overrun_streak = streak_.load(std::memory_order_relaxed);
+  s.longest_streak = longest_streak_.load(std::memory_order_relaxed);
+  s.longest_gap = longest_gap_.load(std::memory_order_relaxed);
   s.period_ns = period_ns_.load(std::memory_order_relaxed);
   const int64_t lmin = latency_min_.load(std::memory_order_relaxed);
   s.latency_min_ns = lmin == std::numeric_limits<int64_t>::max() ? 0 : lmin;

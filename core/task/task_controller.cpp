@@ -1438,6 +1438,23 @@ void TaskController::update(int64_t now_ns) {
   view_.position = waiting_synch_ ? view_.position : ms_.traj.position;
 
   check_safety(now_ns);
+  // Motion paused itself because the servo thread was late (OVERRUN_ACTION
+  // = HOLD): a running program or MDI is paused as if the operator had
+  // paused it, so that `resume` continues it; with nothing running there
+  // is nothing to hold, and motion is resumed at once.
+  if (ms_.overrun_holds != overrun_holds_seen_) {
+    overrun_holds_seen_ = ms_.overrun_holds;
+    const bool running = interp_state_ != ipc::InterpState::Idle || running_mdi_;
+    if (running && !paused_) {
+      paused_ = true;
+      if (interp_state_ != ipc::InterpState::Idle) interp_state_ = ipc::InterpState::Paused;
+      post(MessageKind::Text, "paused: the servo thread is late ([EMCMOT]OVERRUN_ACTION = HOLD); resume when ready");
+    } else if (!running) {
+      motion::MotionCommand r;
+      r.type = Cmd::Resume;
+      send(r);
+    }
+  }
 
   // Program.
   if (interp_state_ != ipc::InterpState::Idle) {

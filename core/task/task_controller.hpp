@@ -180,6 +180,7 @@ class TaskController : public ipc::ControllerService {
   } fault_report_;
   // The drive panel as last contributed to the status (drive names, fault texts).
   std::array<ipc::DriveStatus, kMaxJoints + 1> drives_{};
+  uint32_t overrun_holds_seen_ = 0;  // motion's OVERRUN_ACTION = HOLD pauses already adopted
 };
 
 }  // namespace cnc::task

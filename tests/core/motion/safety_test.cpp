@@ -1,7 +1,12 @@
-// Faults stop motion and say which joint and why; the servo path does not
-// allocate in any mode.
+// Faults stop motion and say which joint and why; a late servo thread is
+// acted on as OVERRUN_ACTION says; the servo path does not allocate in any
+// mode.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
+#include "core/ini/ini_file.hpp"
+#include "core/motion/config.hpp"
 #include "tests/core/motion/machine.hpp"
 #include "tests/support/testing.hpp"
 
@@ -135,4 +140,150 @@ TEST(MotionRealtime, ServoPathAllocatesNothingInAnyMode) {
   EXPECT_EQ(check.allocations(), 0u);
   EXPECT_TRUE(m.status().traj.probe_tripped) << "every mode really ran";
   EXPECT_GT(m.cycles, 5000u);
+}
+
+namespace {
+// A machine in coordinated mode moving X along a long line at 20 mm/s.
+void start_long_move(Machine& m) {
+  m.enable_home_coord();
+  ASSERT_TRUE(m.line(150, 0, 0, 20).accepted);
+  m.step(300);
+  ASSERT_GT(m.status().traj.current_vel, 1.0);
+}
+// The servo thread is late (as the HAL thread tells motion through CycleInfo).
+void servo_late(Machine& m, bool late, uint32_t streak = 3, int64_t missed = 1) {
+  m.mc().in().servo_late = late;
+  m.mc().in().overrun_streak = late ? streak : 0;
+  m.mc().in().missed_cycles = late ? missed : 0;
+}
+}  // namespace
+
+TEST(MotionOverrun, WarnLeavesMotionRunning) {
+  Machine m;  // OVERRUN_ACTION defaults to WARN
+  start_long_move(m);
+  servo_late(m, true);
+  m.step(200);
+  EXPECT_FALSE(m.status().traj.paused);
+  EXPECT_FALSE(m.status().overrun_hold);
+  EXPECT_TRUE(m.status().traj.enabled);
+  EXPECT_GT(m.status().traj.current_vel, 1.0);
+  EXPECT_EQ(m.all_errors(), "");
+}
+
+TEST(MotionOverrun, HoldBrakesCoordinatedMotionAndHoldsUntilResume) {
+  motion::MotionConfig c = cnc::testing::basic_config();
+  c.overrun_action = motion::OverrunAction::Hold;
+  Machine m(c);
+  start_long_move(m);
+  servo_late(m, true);
+  m.step();
+  EXPECT_TRUE(m.status().overrun_hold);
+  EXPECT_EQ(m.status().overrun_holds, 1u);
+  EXPECT_TRUE(m.status().traj.paused);
+  ASSERT_TRUE(m.run_until([&] { return m.status().traj.current_vel == 0; }, 2000)) << "brakes to a stop";
+  servo_late(m, false);  // the thread is on time again: the hold stays until the operator resumes
+  m.step(100);
+  const double held_at = m.status().traj.position[0];
+  m.step(100);
+  EXPECT_EQ(m.status().traj.position[0], held_at);
+  EXPECT_TRUE(m.status().overrun_hold);
+  EXPECT_TRUE(m.status().traj.enabled);
+  m.accept(Cmd::Resume);
+  EXPECT_FALSE(m.status().overrun_hold);
+  m.step(300);
+  EXPECT_GT(m.status().traj.position[0], held_at);
+  EXPECT_EQ(m.all_errors(), "");
+}
+
+TEST(MotionOverrun, HoldIsTakenOncePerLateSpellAndAgainOnTheNext) {
+  motion::MotionConfig c = cnc::testing::basic_config();
+  c.overrun_action = motion::OverrunAction::Hold;
+  Machine m(c);
+  start_long_move(m);
+  servo_late(m, true);
+  m.step();
+  m.accept(Cmd::Resume);  // the operator resumes while the thread is still late
+  m.step(50);
+  EXPECT_FALSE(m.status().traj.paused) << "no second hold within one late spell";
+  EXPECT_EQ(m.status().overrun_holds, 1u);
+  servo_late(m, false);
+  m.step();
+  servo_late(m, true, 1, 2000);  // a gap: a new late spell
+  m.step();
+  EXPECT_TRUE(m.status().traj.paused);
+  EXPECT_EQ(m.status().overrun_holds, 2u);
+}
+
+TEST(MotionOverrun, HoldLeavesJogsAlone) {
+  motion::MotionConfig c = cnc::testing::basic_config();
+  c.overrun_action = motion::OverrunAction::Hold;
+  Machine m(c);
+  m.accept(Cmd::Enable);
+  m.accept(Cmd::JogCont, 0, 20);
+  m.step(100);
+  servo_late(m, true);
+  m.step(100);
+  EXPECT_FALSE(m.status().overrun_hold);
+  EXPECT_GT(std::fabs(m.status().joints[0].velocity), 1.0);
+}
+
+TEST(MotionOverrun, StopDisablesMotionWithTheReason) {
+  motion::MotionConfig c = cnc::testing::basic_config();
+  c.overrun_action = motion::OverrunAction::Stop;
+  Machine m(c);
+  start_long_move(m);
+  servo_late(m, true, 1, 2000);
+  m.step();
+  EXPECT_FALSE(m.status().traj.enabled);
+  EXPECT_TRUE(m.status().faulted);
+  EXPECT_FALSE(m.joint(0).amp_enable);
+  const std::string e = m.all_errors();
+  EXPECT_NE(e.find("the servo thread is late: 1 consecutive overruns, 2000 periods missed just now (OVERRUN_ACTION = "
+                   "STOP): motion disabled"),
+            std::string::npos)
+      << e;
+  m.step(10);
+  EXPECT_EQ(m.all_errors(), "") << "said once";
+}
+
+TEST(MotionOverrun, OverrunKeysAreReadAndABadActionNamesFileLineAndTheChoices) {
+  const auto ini = ini::IniFile::parse("[EMCMOT]\nOVERRUN_STREAK = 5\nOVERRUN_ACTION = hold\n", "m.ini");
+  const motion::MotionConfig c = motion::load_motion_config(ini, 3);
+  EXPECT_EQ(c.overrun_streak, 5);
+  EXPECT_EQ(c.overrun_action, motion::OverrunAction::Hold);
+  const motion::MotionConfig d = motion::load_motion_config(ini::IniFile::parse("", "e.ini"), 3);
+  EXPECT_EQ(d.overrun_streak, 3);
+  EXPECT_EQ(d.overrun_action, motion::OverrunAction::Warn);
+  try {
+    motion::load_motion_config(ini::IniFile::parse("[EMCMOT]\n\nOVERRUN_ACTION = PANIC\n", "bad.ini"), 3);
+    FAIL() << "accepted PANIC";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.ini:3"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("expected WARN, HOLD or STOP"), std::string::npos) << e.what();
+  }
+  try {
+    motion::load_motion_config(ini::IniFile::parse("[EMCMOT]\nOVERRUN_STREAK = 0\n", "zero.ini"), 3);
+    FAIL() << "accepted 0";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("zero.ini:2"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("OVERRUN_STREAK"), std::string::npos) << e.what();
+  }
+}
+
+TEST(MotionOverrun, HoldAndStopAllocateNothing) {
+  if (!cnc::testing::AllocationCounter::available()) GTEST_SKIP() << "allocation counter off in sanitizer builds";
+  for (const auto action : {motion::OverrunAction::Hold, motion::OverrunAction::Stop}) {
+    motion::MotionConfig c = cnc::testing::basic_config();
+    c.overrun_action = action;
+    Machine m(c);
+    start_long_move(m);
+    cnc::testing::ScopedAllocationCheck check;
+    for (int i = 0; i < 50; ++i) {
+      servo_late(m, i % 5 != 0, 3, i);
+      m.step(5);
+    }
+    EXPECT_EQ(check.allocations(), 0u) << motion::to_string(action);
+    if (action == motion::OverrunAction::Stop) EXPECT_FALSE(m.status().traj.enabled) << "the stop really happened";
+    else EXPECT_GT(m.status().overrun_holds, 0u) << "the hold really happened";
+  }
 }

@@ -171,6 +171,9 @@ class TaskMachine {
     return out;
   }
   hal::Hal& hal() { return hal_; }
+  // What the servo thread's periodic task tells each cycle (tests set the
+  // overrun figures, as after a stall).
+  rt::CycleInfo& cycle_info() { return info_; }
   task::TaskController& task() { return *task_; }
   io::IoController& io() { return *io_; }
   motion::MotionComponent& motion() { return *motion_; }

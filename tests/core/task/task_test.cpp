@@ -423,3 +423,81 @@ TEST(TaskProgram, AfterAnAbortAProgramMovesOnlyTheAxesItNames) {
   run_program(m, "G0 X120\nM2\n");
   expect_at(m, 120, y, -20);
 }
+
+namespace {
+// One servo cycle is told that the thread is late (as after a stall or a
+// streak of overruns), then the thread is on time again.
+void servo_thread_late(TaskMachine& m, uint32_t streak, int64_t missed) {
+  m.cycle_info().overrun_streak = streak;
+  m.cycle_info().missed_cycles = missed;
+  m.step();
+  m.cycle_info().overrun_streak = 0;
+  m.cycle_info().missed_cycles = 0;
+}
+}  // namespace
+
+TEST(TaskOverrun, HoldPausesTheProgramAndResumeFinishesIt) {
+  TaskMachine m({{"EMCMOT", "OVERRUN_ACTION", "HOLD"}});
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("p.ngc", "G0 X0 Y0 Z0\nG1 X200 F3000\nG1 Y150\nM2\n"), "open");
+  m.ok(m.send(CommandType::TaskPlanRun, 0), "run");
+  ASSERT_TRUE(m.run_until([&] { return m.status().task.current_line == 2 && m.status().motion.position[0] > 50; }));
+  servo_thread_late(m, 3, 1);
+  m.step(500);
+  EXPECT_TRUE(m.status().task.paused);
+  EXPECT_EQ(m.task().interp_state(), InterpState::Paused);
+  const double x = m.status().motion.position[0];
+  m.step(200);
+  EXPECT_EQ(m.status().motion.position[0], x) << "held until the operator resumes";
+  m.errors();
+  EXPECT_NE(m.log.find("paused: the servo thread is late ([EMCMOT]OVERRUN_ACTION = HOLD); resume when ready"),
+            std::string::npos)
+      << m.log;
+  m.ok(m.send(CommandType::TaskPlanResume), "resume");
+  m.step(50);
+  EXPECT_FALSE(m.status().task.paused) << "the resume is not taken back by the hold it ended";
+  ASSERT_TRUE(m.run_until([&] { return !m.program_running(); }, 400000));
+  EXPECT_NEAR(m.status().motion.position[1], 150, 1e-9);
+}
+
+TEST(TaskOverrun, StopTurnsTheMachineOffWithTheReason) {
+  TaskMachine m({{"EMCMOT", "OVERRUN_ACTION", "STOP"}});
+  m.power_up_and_home();
+  ASSERT_EQ(m.task().state(), TaskState::On);
+  servo_thread_late(m, 1, 2000);
+  m.step(5);
+  EXPECT_EQ(m.task().state(), TaskState::Off);
+  EXPECT_NE(m.errors().find("the servo thread is late: 1 consecutive overruns, 2000 periods missed just now "
+                            "(OVERRUN_ACTION = STOP): motion disabled"),
+            std::string::npos);
+}
+
+TEST(TaskOverrun, WarnLeavesTheMachineOnAndTheProgramRunning) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("p.ngc", "G0 X0 Y0 Z0\nG1 X200 F3000\nM2\n"), "open");
+  m.ok(m.send(CommandType::TaskPlanRun, 0), "run");
+  ASSERT_TRUE(m.run_until([&] { return m.status().task.current_line == 2 && m.status().motion.position[0] > 50; }));
+  servo_thread_late(m, 1, 2000);
+  m.step(50);
+  EXPECT_EQ(m.task().state(), TaskState::On);
+  EXPECT_FALSE(m.status().task.paused);
+  ASSERT_TRUE(m.run_until([&] { return !m.program_running(); }, 400000));
+  EXPECT_EQ(m.errors(), "");
+}
+
+TEST(TaskOverrun, HoldWithNothingRunningLeavesTheNextMdiFree) {
+  TaskMachine m({{"EMCMOT", "OVERRUN_ACTION", "HOLD"}});
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  m.ok(m.mdi("G0 X10 Y10 Z0"), "first move");
+  ASSERT_TRUE(m.run_until([&] { return m.status().motion.inpos && m.status().task.interp_state == InterpState::Idle; }));
+  servo_thread_late(m, 3, 1);
+  m.step(5);
+  EXPECT_FALSE(m.status().task.paused);
+  m.ok(m.mdi("G0 X20"), "second move");
+  ASSERT_TRUE(m.run_until([&] { return m.status().motion.inpos && m.status().motion.position[0] == 20; }, 20000))
+      << "motion was resumed: the move ran";
+}

@@ -1,0 +1,61 @@
+// What `cnc status` prints, as text and as JSON.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+#include <memory>
+
+#include "core/cli/status_format.hpp"
+
+using namespace cnc;
+
+namespace {
+std::unique_ptr<ipc::Status> status_with_a_late_thread() {
+  auto s = std::make_unique<ipc::Status>();
+  ipc::ThreadStatus& t = s->threads[0];
+  t.name.assign("servo-thread");
+  t.period_ns = 1'000'000;
+  t.cycles = 60'000;
+  t.overruns = 14;
+  t.missed_cycles = 2015;
+  t.overrun_streak = 2;
+  t.longest_streak = 5;
+  t.longest_gap = 2001;
+  t.late_wakes = 3;
+  t.overrun_function.assign("motion-controller");
+  t.overrun_function_count = 11;
+  t.overrun_function_max_ns = 1'420'000;
+  return s;
+}
+}  // namespace
+
+TEST(StatusFormat, ThreadOverrunsStreaksGapsAndTheFunctionToBlameAreShown) {
+  const auto s = status_with_a_late_thread();
+  const std::string text = cli::format_status(*s);
+  EXPECT_NE(text.find("servo-thread   period 1000000 ns, 60000 cycles, 14 overruns"), std::string::npos) << text;
+  EXPECT_NE(text.find("overruns: streak 2 now, longest 5; 2015 periods missed, longest gap 2001; 3 blamed on late "
+                      "wake-ups, 11 on motion-controller (max 1420.0 us)"),
+            std::string::npos)
+      << text;
+}
+
+TEST(StatusFormat, ThreadWithoutOverrunsHasNoOverrunLine) {
+  auto s = std::make_unique<ipc::Status>();
+  s->threads[0].name.assign("servo-thread");
+  s->threads[0].period_ns = 1'000'000;
+  EXPECT_EQ(cli::format_status(*s).find("overruns:"), std::string::npos);
+}
+
+TEST(StatusFormat, JsonCarriesEveryOverrunFigure) {
+  const auto s = status_with_a_late_thread();
+  const auto j = nlohmann::json::parse(cli::status_json(*s));
+  const auto& t = j["threads"][0];
+  EXPECT_EQ(t["overruns"], 14);
+  EXPECT_EQ(t["missed_cycles"], 2015);
+  EXPECT_EQ(t["overrun_streak"], 2);
+  EXPECT_EQ(t["longest_streak"], 5);
+  EXPECT_EQ(t["longest_gap"], 2001);
+  EXPECT_EQ(t["late_wakes"], 3);
+  EXPECT_EQ(t["overrun_function"], "motion-controller");
+  EXPECT_EQ(t["overrun_function_count"], 11);
+  EXPECT_EQ(t["overrun_function_max_ns"], 1'420'000);
+}
