@@ -725,6 +725,26 @@ TEST(Cia402Drive, WhenTheServoCycleStopsTheDrivesStopWithinTheirHeartbeatTimeout
   // cycle, then the quick-stop ramp (20 mm/s at 2000 mm/s^2: 10 ms).
   EXPECT_LE(stopped - stopped_cycle, (60 + 20 + 10 + 10) * 1'000'000);
   EXPECT_EQ(rig.sim().error_code(), err::kHeartbeat);
+  EXPECT_EQ(rig.host().at(0).node().counters().heartbeats_lost, 1u);
+  EXPECT_EQ(rig.master().node_status(1).emcy_code, err::kHeartbeat) << "EMCY 0x8130 reached the master";
+}
+
+// The reaction is the drive's 0x6007: here a quick stop instead of a fault.
+TEST(Cia402Drive, AStoppedServoCycleQuickStopsADriveConfiguredSo) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) {
+    ini.set("CIA402_SIM_NODE_1", "SYNC_TIMEOUT_MS", "10000");
+    ini.set("CIA402_DRIVE_0", "ABORT_CONNECTION_OPTION", "3");
+  });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  double p = rig.fb().pos_fb;
+  rig.cycles(300, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });
+  rig.mute_bus(true);
+  rig.run_for(150'000'000);
+  EXPECT_EQ(rig.sim().state(), State::SwitchOnDisabled);
+  EXPECT_EQ(rig.sim().plant().motor_velocity(), 0.0);
+  EXPECT_EQ(rig.host().at(0).node().counters().heartbeats_lost, 1u);
+  EXPECT_EQ(rig.master().node_status(1).emcy_code, err::kHeartbeat);
 }
 
 // The field failure in simulated time: the acyclic thread starved
