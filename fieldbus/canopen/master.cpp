@@ -813,7 +813,9 @@ void Master::service_rt_sdo() {
 
 // ------------------------------------------------------------ cyclic side
 
-bool Master::is_cyclic_running() const noexcept { return cyclic_enabled_.load(std::memory_order_acquire); }
+bool Master::is_cyclic_running() const noexcept {
+  return cyclic_enabled_.load(std::memory_order_acquire) && !sync_stalled_.load(std::memory_order_acquire);
+}
 
 void Master::cyclic_read(int64_t now_ns) noexcept {
   (void)now_ns;
@@ -848,7 +850,38 @@ void Master::cyclic_read(int64_t now_ns) noexcept {
   cyclic_.rx_overruns = static_cast<uint32_t>(cyclic_port_->stats().rx_overruns);
   if (!cyclic_enabled_.load(std::memory_order_acquire) || serial == 0) {
     cyclic_.inputs_fresh = false;
+    cyclic_.reads_without_sync = 0;
+    sync_stalled_.store(false, std::memory_order_release);
+    last_read_serial_ = serial;
+    last_read_cycle_ = cycle_;
     return;
+  }
+  // No SYNC since the previous read: write() did not run (its function
+  // removed, canopen.N.enable FALSE) or the SYNC was refused. The inputs
+  // are then stale and the nodes get no set-points; a few such cycles in a
+  // row make the cycle "not running" for the drives' link health.
+  const bool no_sync = serial == last_read_serial_;
+  const bool write_ran = cycle_ != last_read_cycle_;  // else the SYNC was refused (bus-off, down: reported as such)
+  last_read_serial_ = serial;
+  last_read_cycle_ = cycle_;
+  if (no_sync) {
+    if (++cyclic_.reads_without_sync == kSyncStallReads) {
+      sync_stalled_.store(true, std::memory_order_release);
+      if (messages_ && !write_ran) {
+        sync_stall_reported_ = true;
+        messages_->postf(MessageKind::Error, config_.name,
+                         "no SYNC sent for %u cycles (%s.write not running or %s.enable FALSE): "
+                         "the nodes get no set-points",
+                         kSyncStallReads, config_.name.c_str(), config_.name.c_str());
+      }
+    }
+  } else {
+    if (sync_stall_reported_ && messages_) {
+      messages_->postf(MessageKind::Text, config_.name, "SYNC sent again after %u cycles without", cyclic_.reads_without_sync);
+    }
+    sync_stall_reported_ = false;
+    cyclic_.reads_without_sync = 0;
+    sync_stalled_.store(false, std::memory_order_release);
   }
   // Every synchronous TPDO should have answered the last SYNC (type n: one
   // in n SYNCs).
@@ -887,7 +920,7 @@ void Master::cyclic_read(int64_t now_ns) noexcept {
     oldest = std::min(oldest, sampled);
     n.inputs_serial = std::min(n.inputs_serial, sampled);
   }
-  cyclic_.inputs_fresh = fresh;
+  cyclic_.inputs_fresh = fresh && !no_sync;
   cyclic_.inputs_sync_serial = oldest;
 }
 
@@ -1041,6 +1074,7 @@ NodeStatus Master::node_status(uint8_t node) const noexcept {
 bool Master::is_ready() const noexcept {
   if (boot_state() != BootState::Succeeded) return false;
   if (interface_down_.load(std::memory_order_relaxed)) return false;
+  if (sync_stalled_.load(std::memory_order_relaxed)) return false;
   if (bus_state_.load(std::memory_order_relaxed) == static_cast<int>(can::BusState::BusOff)) return false;
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
     if (!nodes_[i]->cfg.mandatory) continue;

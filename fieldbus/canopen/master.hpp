@@ -60,6 +60,7 @@ struct CyclicStatus {
   uint64_t inputs_sync_serial = 0; // SYNC at which the oldest current input was sampled
   uint32_t send_errors = 0;        // RPDO/SYNC/heartbeat frames the transport refused
   bool interface_down = false;     // the last send found the interface down (SendStatus::Down)
+  uint32_t reads_without_sync = 0; // consecutive cycles in which no SYNC went out (write not running)
   uint32_t pdo_missed = 0;
   uint32_t pdo_length_errors = 0;
   uint32_t rx_overruns = 0;
@@ -126,7 +127,11 @@ class Master {
   void cyclic_write(int64_t now_ns) noexcept;
   // false: write() sends nothing (no SYNC, no RPDO); the boot enables it.
   void set_cyclic_enabled(bool on) noexcept { cyclic_enabled_.store(on, std::memory_order_release); }
+  // Booted, and the write side sends SYNCs: false once kSyncStallReads
+  // reads in a row found no SYNC sent since the previous one (canopen.N.write
+  // removed or disabled): the nodes then get no set-points.
   bool is_cyclic_running() const noexcept;
+  static constexpr uint32_t kSyncStallReads = 3;
   const CyclicStatus& cyclic_status() const noexcept { return cyclic_; }
   // True once cyclic_write() has run: the heartbeat is the cycle's from then on.
   bool heartbeat_in_cycle() const noexcept { return heartbeat_in_cycle_.load(std::memory_order_acquire); }
@@ -228,6 +233,10 @@ class Master {
   std::atomic<bool> heartbeat_in_cycle_{false};  // set by the first cyclic_write, never cleared
   int64_t next_cyclic_heartbeat_ns_ = 0;
   std::atomic<bool> interface_down_{false};
+  uint64_t last_read_serial_ = 0;
+  uint64_t last_read_cycle_ = 0;  // cycle_ (write_process_data calls) at the previous read
+  std::atomic<bool> sync_stalled_{false};
+  bool sync_stall_reported_ = false;
 
   std::array<RtSdoSlot, kMaxRtSdo> rt_sdo_{};
 };

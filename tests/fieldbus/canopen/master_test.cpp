@@ -383,6 +383,44 @@ TEST_F(MasterTest, TheHeartbeatStopsWithTheServoCycle) {
   EXPECT_EQ(get_le<uint16_t>(&e[0].data[0]), 0x8130);
 }
 
+// `halcmd delf canopen.0.write servo-thread` while canopen.0.read runs on:
+// no SYNC goes out, so the inputs read are stale. They are marked so, the
+// cycle counts as not running (the drives' link health), and it is said.
+TEST_F(MasterTest, ReadsWithoutAWriteMarkTheInputsStaleAndSaySo) {
+  EchoDevice a(sim, 3);
+  bool write = true;
+  master = std::make_unique<Master>(config({csp_node(3, "x-axis")}), sim.port("master-cyclic"), sim.port("master-acyclic"),
+                                    &messages);
+  sim.actors.push_back([&](int64_t now) {
+    master->poll(now);
+    if (now % 1'000'000 == 0) {
+      master->cyclic_read(now);
+      if (write) master->cyclic_write(now);
+    }
+  });
+  ASSERT_EQ(boot(), BootState::Succeeded) << master->boot_error();
+  sim.run_for(20'000'000);
+  EXPECT_TRUE(master->cyclic_status().inputs_fresh);
+  EXPECT_TRUE(master->is_cyclic_running());
+  EXPECT_TRUE(errors().empty());
+  write = false;
+  sim.run_for(1'000'000);  // this read still finds the SYNC of the last write
+  sim.run_for(1'000'000);
+  EXPECT_FALSE(master->cyclic_status().inputs_fresh) << "no SYNC since the last read";
+  sim.run_for(2'000'000);
+  EXPECT_FALSE(master->is_cyclic_running());
+  EXPECT_FALSE(master->is_ready());
+  EXPECT_EQ(errors(), std::vector<std::string>{"no SYNC sent for 3 cycles (canopen.0.write not running or canopen.0.enable "
+                                               "FALSE): the nodes get no set-points"});
+  write = true;
+  sim.run_for(3'000'000);
+  EXPECT_TRUE(master->is_cyclic_running());
+  EXPECT_TRUE(master->cyclic_status().inputs_fresh);
+  errors();
+  ASSERT_FALSE(texts.empty());
+  EXPECT_EQ(texts.back(), "SYNC sent again after 4 cycles without");  // the first read after it still finds none
+}
+
 // Before the servo thread runs (the boot in on_ready), the acyclic thread
 // sends the heartbeat, pre-operational; the first cycle takes it over
 // without a gap.
