@@ -473,6 +473,7 @@ void DriveModel::connection_lost(uint16_t code) noexcept {
       return;
     case kAbortFault:
       if (state_ == State::Fault || state_ == State::FaultReactionActive || state_ == State::NotReadyToSwitchOn) return;
+      if (fault_at_ns_ >= 0) return;  // one already pending: the first cause is the reason
       // As real drives do: a warning first, the fault reaction a cycle later.
       warning_ = true;
       pending_fault_ = code;

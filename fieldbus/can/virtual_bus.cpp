@@ -477,10 +477,15 @@ bool VirtualPort::wait(int64_t timeout_ns) noexcept {
   bool ready = false;
   for (;;) {
     const uint32_t seen = bus.signal_.load(std::memory_order_acquire);
-    if (!bus.options().manual_clock) {
-      bus.lock();
+    // Real time: run the engine unless another port runs it right now.
+    // Never spin for the lock here: a realtime waiter spinning on a core
+    // where a normal-priority holder was preempted would keep it (and the
+    // whole bus) from running for as long as the scheduler allows.
+    bool ran = bus.options().manual_clock;
+    if (!ran && bus.try_lock()) {
       bus.run_until(bus.now_ns());
       bus.unlock();
+      ran = true;
     }
     if (rx_.size_approx() > 0) {
       ready = true;
@@ -490,7 +495,10 @@ bool VirtualPort::wait(int64_t timeout_ns) noexcept {
     if (now >= deadline) break;
     int64_t until = deadline;
     if (!bus.options().manual_clock) until = std::min(until, bus.next_event_ns());
-    futex_wait(&bus.signal_, seen, std::max<int64_t>(until - now, 1000));
+    // The holder of the engine signals when it delivers; meanwhile sleep
+    // rather than poll, so that it gets the CPU (next_event_ns is stale
+    // while it has not finished).
+    futex_wait(&bus.signal_, seen, std::max<int64_t>(until - now, ran ? 1000 : 100'000));
   }
   bus.waiters_.fetch_sub(1, std::memory_order_acq_rel);
   return ready;

@@ -197,8 +197,15 @@ void Master::init() {
   if (cyclic_filters.empty()) cyclic_filters.push_back(can::Filter::exact(0x7FF));  // nothing to receive
   cyclic_port_->set_filters(cyclic_filters);
   cyclic_port_->set_error_reports(true);
+  // EMCY 0x081-0x0FF without the SYNC (0x080): the acyclic thread runs at
+  // normal priority; while load delays it, its receive queue must hold
+  // seconds of heartbeats, not fill up with a thousand SYNCs per second
+  // (an overrun there would lose heartbeats and fault healthy nodes).
   const can::Filter acyclic_filters[] = {
-      can::Filter::range_mask(0x080, 0x780),  // EMCY (SYNC ignored)
+      can::Filter::range_mask(0x081, 0x7FF), can::Filter::range_mask(0x082, 0x7FE),
+      can::Filter::range_mask(0x084, 0x7FC), can::Filter::range_mask(0x088, 0x7F8),
+      can::Filter::range_mask(0x090, 0x7F0), can::Filter::range_mask(0x0A0, 0x7E0),
+      can::Filter::range_mask(0x0C0, 0x7C0),  // EMCY
       can::Filter::range_mask(0x580, 0x780),  // SDO responses
       can::Filter::range_mask(0x700, 0x780),  // heartbeat, boot-up
   };
@@ -358,8 +365,11 @@ void Master::poll(int64_t now_ns) {
   for (const auto& n : nodes_) {
     if (n->rebooting && !booting_) continue_reboot(*n, now_ns);
   }
-  // Heartbeat producer.
-  if (config_.master_heartbeat_ms > 0 && now_ns >= next_heartbeat_ns_) {
+  // Heartbeat producer, until the servo thread's cycle takes it over (for
+  // good: were this thread to take it back, a stopped servo thread would go
+  // unnoticed by the devices).
+  if (config_.master_heartbeat_ms > 0 && !heartbeat_in_cycle_.load(std::memory_order_acquire) &&
+      now_ns >= next_heartbeat_ns_) {
     const uint8_t state = boot_state() == BootState::Succeeded ? 0x05 : 0x7F;
     acyclic_port_->send(can::Frame::make(cob::heartbeat(config_.master_node_id), {state}));
     next_heartbeat_ns_ = now_ns + int64_t{config_.master_heartbeat_ms} * 1'000'000;
@@ -803,7 +813,9 @@ void Master::service_rt_sdo() {
 
 // ------------------------------------------------------------ cyclic side
 
-bool Master::is_cyclic_running() const noexcept { return cyclic_enabled_.load(std::memory_order_acquire); }
+bool Master::is_cyclic_running() const noexcept {
+  return cyclic_enabled_.load(std::memory_order_acquire) && !sync_stalled_.load(std::memory_order_acquire);
+}
 
 void Master::cyclic_read(int64_t now_ns) noexcept {
   (void)now_ns;
@@ -838,7 +850,38 @@ void Master::cyclic_read(int64_t now_ns) noexcept {
   cyclic_.rx_overruns = static_cast<uint32_t>(cyclic_port_->stats().rx_overruns);
   if (!cyclic_enabled_.load(std::memory_order_acquire) || serial == 0) {
     cyclic_.inputs_fresh = false;
+    cyclic_.reads_without_sync = 0;
+    sync_stalled_.store(false, std::memory_order_release);
+    last_read_serial_ = serial;
+    last_read_cycle_ = cycle_;
     return;
+  }
+  // No SYNC since the previous read: write() did not run (its function
+  // removed, canopen.N.enable FALSE) or the SYNC was refused. The inputs
+  // are then stale and the nodes get no set-points; a few such cycles in a
+  // row make the cycle "not running" for the drives' link health.
+  const bool no_sync = serial == last_read_serial_;
+  const bool write_ran = cycle_ != last_read_cycle_;  // else the SYNC was refused (bus-off, down: reported as such)
+  last_read_serial_ = serial;
+  last_read_cycle_ = cycle_;
+  if (no_sync) {
+    if (++cyclic_.reads_without_sync == kSyncStallReads) {
+      sync_stalled_.store(true, std::memory_order_release);
+      if (messages_ && !write_ran) {
+        sync_stall_reported_ = true;
+        messages_->postf(MessageKind::Error, config_.name,
+                         "no SYNC sent for %u cycles (%s.write not running or %s.enable FALSE): "
+                         "the nodes get no set-points",
+                         kSyncStallReads, config_.name.c_str(), config_.name.c_str());
+      }
+    }
+  } else {
+    if (sync_stall_reported_ && messages_) {
+      messages_->postf(MessageKind::Text, config_.name, "SYNC sent again after %u cycles without", cyclic_.reads_without_sync);
+    }
+    sync_stall_reported_ = false;
+    cyclic_.reads_without_sync = 0;
+    sync_stalled_.store(false, std::memory_order_release);
   }
   // Every synchronous TPDO should have answered the last SYNC (type n: one
   // in n SYNCs).
@@ -877,17 +920,22 @@ void Master::cyclic_read(int64_t now_ns) noexcept {
     oldest = std::min(oldest, sampled);
     n.inputs_serial = std::min(n.inputs_serial, sampled);
   }
-  cyclic_.inputs_fresh = fresh;
+  cyclic_.inputs_fresh = fresh && !no_sync;
   cyclic_.inputs_sync_serial = oldest;
 }
 
 void Master::cyclic_write(int64_t now_ns) noexcept {
-  (void)now_ns;
-  if (!cyclic_enabled_.load(std::memory_order_acquire)) return;
+  if (cyclic_enabled_.load(std::memory_order_acquire)) write_process_data();
+  // While a (re)boot keeps the process data off, the heartbeat still goes:
+  // the cycle is alive.
+  produce_heartbeat(now_ns);
+}
+
+void Master::write_process_data() noexcept {
   ++cycle_;
   for (const RpdoRt& r : rpdos_) {
     if (!nodes_[r.node]->in_cycle.load(std::memory_order_relaxed)) continue;
-    if (cyclic_port_->send(can::Frame::make(r.cob, r.image.data(), r.bytes)) != can::SendStatus::Ok) ++cyclic_.send_errors;
+    cyclic_send(can::Frame::make(r.cob, r.image.data(), r.bytes));
   }
   can::Frame sync;
   sync.id = config_.sync_cob_id & 0x7FF;
@@ -896,12 +944,51 @@ void Master::cyclic_write(int64_t now_ns) noexcept {
     sync.len = 1;
     sync.data[0] = cyclic_.sync_counter;
   }
-  if (cyclic_port_->send(sync) != can::SendStatus::Ok) {
-    ++cyclic_.send_errors;
-    return;  // no SYNC on the bus: no TPDO is due
-  }
+  if (!cyclic_send(sync)) return;  // no SYNC on the bus: no TPDO is due
   ++cyclic_.sync_serial;
   sync_serial_.store(cyclic_.sync_serial, std::memory_order_relaxed);
+}
+
+// The master's heartbeat from the servo thread: one 1-byte frame per
+// period (a non-blocking send, no allocation), after the SYNC so that it
+// never delays it. The first call takes the producer over from the acyclic
+// thread and sends at once, so the devices see no gap at the hand-over.
+void Master::produce_heartbeat(int64_t now_ns) noexcept {
+  if (config_.master_heartbeat_ms == 0) return;
+  const int64_t period = int64_t{config_.master_heartbeat_ms} * 1'000'000;
+  if (!heartbeat_in_cycle_.load(std::memory_order_relaxed)) {
+    heartbeat_in_cycle_.store(true, std::memory_order_release);
+    next_cyclic_heartbeat_ns_ = now_ns;
+  }
+  if (now_ns < next_cyclic_heartbeat_ns_) return;
+  const uint8_t state = boot_state() == BootState::Succeeded ? 0x05 : 0x7F;
+  cyclic_send(can::Frame::make(cob::heartbeat(config_.master_node_id), {state}));
+  // Keep the phase; after a stall start afresh instead of sending a burst.
+  next_cyclic_heartbeat_ns_ += period;
+  if (next_cyclic_heartbeat_ns_ <= now_ns) next_cyclic_heartbeat_ns_ = now_ns + period;
+}
+
+// Sends one frame of the cycle; counts a refusal and reports the interface
+// going down (and coming back) once, in the servo thread (the message
+// queue neither allocates nor blocks).
+bool Master::cyclic_send(const can::Frame& f) noexcept {
+  const can::SendStatus st = cyclic_port_->send(f);
+  const bool down = st == can::SendStatus::Down;
+  if (down != cyclic_.interface_down) {
+    cyclic_.interface_down = down;
+    interface_down_.store(down, std::memory_order_relaxed);
+    if (messages_) {
+      if (down) {
+        messages_->postf(MessageKind::Error, config_.name, "CAN interface %s is down: no SYNC, PDO or heartbeat can be sent",
+                         cyclic_port_->name().c_str());
+      } else {
+        messages_->postf(MessageKind::Text, config_.name, "CAN interface %s is up again", cyclic_port_->name().c_str());
+      }
+    }
+  }
+  if (st == can::SendStatus::Ok) return true;
+  ++cyclic_.send_errors;
+  return false;
 }
 
 PdoSlot Master::output(uint8_t node, uint16_t index, uint8_t sub) const noexcept {
@@ -986,6 +1073,8 @@ NodeStatus Master::node_status(uint8_t node) const noexcept {
 
 bool Master::is_ready() const noexcept {
   if (boot_state() != BootState::Succeeded) return false;
+  if (interface_down_.load(std::memory_order_relaxed)) return false;
+  if (sync_stalled_.load(std::memory_order_relaxed)) return false;
   if (bus_state_.load(std::memory_order_relaxed) == static_cast<int>(can::BusState::BusOff)) return false;
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
     if (!nodes_[i]->cfg.mandatory) continue;
@@ -997,6 +1086,7 @@ bool Master::is_ready() const noexcept {
 
 bool Master::has_fault() const noexcept {
   if (boot_state() == BootState::Failed) return true;
+  if (interface_down_.load(std::memory_order_relaxed)) return true;
   if (bus_state_.load(std::memory_order_relaxed) == static_cast<int>(can::BusState::BusOff)) return true;
   for (const auto& n : nodes_) {
     if (n->cfg.mandatory && n->fault.load(std::memory_order_relaxed)) return true;

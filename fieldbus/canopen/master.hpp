@@ -58,7 +58,9 @@ struct CyclicStatus {
   uint8_t sync_counter = 0;        // counter byte of the last SYNC (0 without counter)
   bool inputs_fresh = false;       // every synchronous TPDO answered the last SYNC
   uint64_t inputs_sync_serial = 0; // SYNC at which the oldest current input was sampled
-  uint32_t send_errors = 0;        // RPDO/SYNC frames the transport refused
+  uint32_t send_errors = 0;        // RPDO/SYNC/heartbeat frames the transport refused
+  bool interface_down = false;     // the last send found the interface down (SendStatus::Down)
+  uint32_t reads_without_sync = 0; // consecutive cycles in which no SYNC went out (write not running)
   uint32_t pdo_missed = 0;
   uint32_t pdo_length_errors = 0;
   uint32_t rx_overruns = 0;
@@ -125,8 +127,14 @@ class Master {
   void cyclic_write(int64_t now_ns) noexcept;
   // false: write() sends nothing (no SYNC, no RPDO); the boot enables it.
   void set_cyclic_enabled(bool on) noexcept { cyclic_enabled_.store(on, std::memory_order_release); }
+  // Booted, and the write side sends SYNCs: false once kSyncStallReads
+  // reads in a row found no SYNC sent since the previous one (canopen.N.write
+  // removed or disabled): the nodes then get no set-points.
   bool is_cyclic_running() const noexcept;
+  static constexpr uint32_t kSyncStallReads = 3;
   const CyclicStatus& cyclic_status() const noexcept { return cyclic_; }
+  // True once cyclic_write() has run: the heartbeat is the cycle's from then on.
+  bool heartbeat_in_cycle() const noexcept { return heartbeat_in_cycle_.load(std::memory_order_acquire); }
   static constexpr int transport_delay_cycles() noexcept { return 1; }
 
   // Process data of a node, found once (non-realtime) and used each cycle.
@@ -152,7 +160,7 @@ class Master {
   // simulated bus faster than real time waits for it).
   int64_t bus_now_ns() const noexcept { return acyclic_port_->now_ns(); }
   int64_t last_poll_ns() const noexcept { return last_poll_seen_ns_.load(std::memory_order_acquire); }
-  bool has_fault() const noexcept;  // a mandatory node faulted or the bus is off
+  bool has_fault() const noexcept;  // a mandatory node faulted, the bus is off or the interface down
 
  private:
   struct NodeRt;
@@ -183,6 +191,9 @@ class Master {
   NodeRt* find(uint8_t node) const noexcept;
   void message(bool error, const std::string& source, const std::string& text);
   void set_fault(NodeRt& n, const std::string& why);
+  void write_process_data() noexcept;
+  void produce_heartbeat(int64_t now_ns) noexcept;
+  bool cyclic_send(const can::Frame& f) noexcept;
 
   BusConfig config_;
   MessageQueue* messages_;
@@ -219,6 +230,13 @@ class Master {
   can::BusStateTracker bus_tracker_;
   std::atomic<uint64_t> sync_serial_{0};
   std::atomic<int> bus_state_{0};
+  std::atomic<bool> heartbeat_in_cycle_{false};  // set by the first cyclic_write, never cleared
+  int64_t next_cyclic_heartbeat_ns_ = 0;
+  std::atomic<bool> interface_down_{false};
+  uint64_t last_read_serial_ = 0;
+  uint64_t last_read_cycle_ = 0;  // cycle_ (write_process_data calls) at the previous read
+  std::atomic<bool> sync_stalled_{false};
+  bool sync_stall_reported_ = false;
 
   std::array<RtSdoSlot, kMaxRtSdo> rt_sdo_{};
 };

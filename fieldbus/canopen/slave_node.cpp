@@ -377,6 +377,10 @@ void SlaveNode::on_frame(const can::Frame& f, int64_t now_ns) noexcept {
 heartbeat:
   if (f.len >= 1) {
     const uint8_t node = static_cast<uint8_t>(id - cob::kHeartbeatBase);
+    // A heartbeat that comes after the consumer time has run out does not
+    // undo the timeout: the consumer trips first (frames a late pass of
+    // the device's loop reads carry their reception times).
+    check_consumers(now_ns);
     for (auto& c : consumers_) {
       if (c.node == node && c.time_ms != 0) {
         c.last_ns = now_ns;
@@ -518,16 +522,7 @@ void SlaveNode::poll(int64_t now_ns) noexcept {
     next_heartbeat_ns_ += static_cast<int64_t>(heartbeat_ms_) * 1'000'000;
     if (next_heartbeat_ns_ <= now_ns) next_heartbeat_ns_ = now_ns + static_cast<int64_t>(heartbeat_ms_) * 1'000'000;
   }
-  // heartbeat consumer: monitoring starts with the first heartbeat received
-  for (auto& c : consumers_) {
-    if (c.time_ms == 0 || c.last_ns < 0 || c.lost) continue;
-    if (now_ns - c.last_ns > static_cast<int64_t>(c.time_ms) * 1'000'000) {
-      c.lost = true;
-      ++counters_.heartbeats_lost;
-      emcy(0x8130, kErrRegCommunication);
-      if (on_heartbeat_lost) on_heartbeat_lost(c.node);
-    }
-  }
+  check_consumers(now_ns);
   // pending EMCY after the inhibit time
   if (emcy_queued_ > 0 &&
       (last_emcy_ns_ < 0 || now_ns - last_emcy_ns_ >= static_cast<int64_t>(emcy_inhibit_100us_) * 100'000)) {
@@ -556,6 +551,22 @@ void SlaveNode::poll(int64_t now_ns) noexcept {
     if ((timer || p.triggered) && !inhibited) {
       pack(p);
       send_tpdo(p, now_ns);
+    }
+  }
+}
+
+// Heartbeat consumer (CiA 301 7.2.8.3.2.2): monitoring starts with the
+// first heartbeat received; when none follows within the consumer time,
+// EMCY 0x8130 and the application's reaction (on_heartbeat_lost), once,
+// until a heartbeat is heard again.
+void SlaveNode::check_consumers(int64_t now_ns) noexcept {
+  for (auto& c : consumers_) {
+    if (c.time_ms == 0 || c.last_ns < 0 || c.lost) continue;
+    if (now_ns - c.last_ns > static_cast<int64_t>(c.time_ms) * 1'000'000) {
+      c.lost = true;
+      ++counters_.heartbeats_lost;
+      emcy(0x8130, kErrRegCommunication);
+      if (on_heartbeat_lost) on_heartbeat_lost(c.node);
     }
   }
 }

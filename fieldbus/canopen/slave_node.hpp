@@ -147,6 +147,7 @@ class SlaveNode {
   void apply(const Pdo& p) noexcept;
   bool send_tpdo(Pdo& p, int64_t now_ns) noexcept;
   void send_emcy_now(const Emcy& e, int64_t now_ns) noexcept;
+  void check_consumers(int64_t now_ns) noexcept;
 
   ObjectDictionary& od_;
   can::Transport& transport_;

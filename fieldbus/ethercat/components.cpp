@@ -1,7 +1,10 @@
 #include "fieldbus/ethercat/components.hpp"
 
+#include <atomic>
+#include <chrono>
 #include <cstdio>
 #include <memory>
+#include <thread>
 
 #include "cia402/canopen_link.hpp"
 #include "core/hal/component.hpp"
@@ -161,12 +164,26 @@ class SimComponent : public hal::Component {
     segment_ = std::make_shared<sim::Segment>();
     segment_->add_drives(static_cast<unsigned>(drives));
     sim::register_segment(name_, segment_);
+    // The slaves' own time: watchdogs expire and drives coast while no
+    // frame arrives at all (the master stopped), as on real hardware.
+    clock_ = std::thread([this] {
+      while (!stop_.load(std::memory_order_acquire)) {
+        segment_->poll();
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+    });
   }
-  ~SimComponent() override { sim::unregister_segment(name_); }
+  ~SimComponent() override {
+    stop_.store(true, std::memory_order_release);
+    clock_.join();
+    sim::unregister_segment(name_);
+  }
 
  private:
   std::string name_;
   std::shared_ptr<sim::Segment> segment_;
+  std::atomic<bool> stop_{false};
+  std::thread clock_;
 };
 
 std::unique_ptr<cia402::DriveLink> find_link(hal::Hal& hal, const std::string& bus) {

@@ -50,6 +50,18 @@ BusSettings load_bus_settings(const ini::IniFile& ini, const std::string& sectio
   c.state_timeout_ms = ini.get_int(section, "STATE_TIMEOUT_MS", 3000, {10, 600'000});
   c.mailbox_timeout_ms = ini.get_int(section, "MAILBOX_TIMEOUT_MS", 1000, {10, 600'000});
   b.thread = ini.get_string(section, "THREAD", "servo-thread");
+  // The slaves' process-data watchdog: outputs that stop arriving for this
+  // long take a slave to SAFEOP (0x001B) and its drive to its 0x6007
+  // reaction. At least two cycles, so that one late frame never trips it.
+  auto watchdog_key = [&](const std::string& s, uint32_t fallback) {
+    const auto ms = static_cast<uint32_t>(ini.get_int(s, "WATCHDOG_MS", fallback, {0, 6000}));
+    if (ms > 0 && int64_t{ms} * 1'000'000 < 2 * c.cycle_ns) {
+      ini.fail(ini.find_entry(s, "WATCHDOG_MS"), std::to_string(ms) + " ms is shorter than two cycles (" +
+                                                     std::to_string(2 * c.cycle_ns / 1000) + " us); 0 switches it off");
+    }
+    return ms;
+  };
+  c.watchdog_ms = watchdog_key(section, 100);
 
   std::set<unsigned> positions;
   for (const ini::Entry* e : ini.find_all_entries(section, "SLAVE")) {
@@ -78,7 +90,7 @@ BusSettings load_bus_settings(const ini::IniFile& ini, const std::string& sectio
     sc.tx_pdo_index = static_cast<uint16_t>(ini.get_int(s, "TXPDO_INDEX", 0x1A00, {0x1A00, 0x1BFF}));
     sc.sync0 = ini.get_bool(s, "SYNC0", true);
     sc.complete_access = ini.get_bool(s, "COMPLETE_ACCESS", false);
-    sc.watchdog_ms = static_cast<uint32_t>(ini.get_int(s, "WATCHDOG_MS", 100, {0, 6000}));
+    sc.watchdog_ms = watchdog_key(s, c.watchdog_ms);
     if (const ini::Entry* e = ini.find_entry(s, "ESI")) sc.esi = ini.resolve_path(e->value).string();
     for (const ini::Entry* e : ini.find_all_entries(s, "SDO")) {
       std::string error;

@@ -414,6 +414,12 @@ void Master::configure_process_data(SlaveInfo& s) {
     if (m.type == 4) s.sm3_start = m.start, c3 = m.control ? m.control : c3;
   }
   const auto out_bytes = static_cast<uint16_t>((s.out_bits + 7) / 8), in_bytes = static_cast<uint16_t>((s.in_bits + 7) / 8);
+  // The process-data watchdog: SM2's watchdog trigger bit follows the
+  // configuration, whatever the SII/ESI control byte says (a device
+  // description without it would leave the slave unwatched).
+  const SlaveConfig* c = cfg_.slave(s.position);
+  const uint32_t watchdog_ms = c ? c->watchdog_ms : cfg_.watchdog_ms;
+  c2 = static_cast<uint8_t>(watchdog_ms > 0 ? (c2 | sm::kWatchdogTrigger) : (c2 & ~sm::kWatchdogTrigger));
   uint8_t sms[16] = {};
   SmEntry{s.sm2_start, out_bytes, c2, 0, static_cast<uint8_t>(out_bytes ? 1 : 0), 0}.encode(sms);
   SmEntry{s.sm3_start, in_bytes, c3, 0, static_cast<uint8_t>(in_bytes ? 1 : 0), 0}.encode(sms + 8);
@@ -438,12 +444,26 @@ void Master::configure_process_data(SlaveInfo& s) {
     e.encode(f + 16);
   }
   must_write(s, reg::kFmmu0, f, 32, "FMMU0/FMMU1");
-  const SlaveConfig* c = cfg_.slave(s.position);
-  uint8_t wd[2];
-  put16(wd, 2498);  // 100 us units
-  must_write(s, reg::kWatchdogDivider, wd, 2, "watchdog divider");
-  put16(wd, static_cast<uint16_t>(std::min<uint32_t>((c ? c->watchdog_ms : 100) * 10, 0xFFFF)));
-  must_write(s, reg::kWatchdogPd, wd, 2, "process-data watchdog");
+  // Divider for 100 us units, then the time (0 switches it off), each read
+  // back: a slave that kept other values would be watched differently
+  // from what the INI says.
+  const auto time = static_cast<uint16_t>(std::min<uint32_t>(watchdog_ms * 10, 0xFFFF));
+  const struct {
+    uint16_t reg, value;
+    const char* what;
+  } writes[] = {{reg::kWatchdogDivider, kWatchdogDivider100us, "watchdog divider"},
+                {reg::kWatchdogPd, time, "process-data watchdog time"}};
+  for (const auto& w : writes) {
+    uint8_t wd[2];
+    put16(wd, w.value);
+    must_write(s, w.reg, wd, 2, w.what);
+    uint8_t back[2] = {};
+    if (fprd(s, w.reg, back, 2) != 1) fail_slave(s, fmt("reading back %s (register 0x%04X) got no answer", w.what, w.reg));
+    if (get16(back) != w.value) {
+      fail_slave(s, fmt("%s (register 0x%04X) reads %u after %u was written (WATCHDOG_MS = %u)", w.what, w.reg,
+                        get16(back), w.value, watchdog_ms));
+    }
+  }
 }
 
 ProcessSlot Master::output(unsigned position, uint16_t index, uint8_t sub) const noexcept {

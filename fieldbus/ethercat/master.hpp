@@ -59,7 +59,7 @@ struct SlaveConfig {
   uint16_t rx_pdo_index = 0x1600, tx_pdo_index = 0x1A00;
   std::vector<StartupSdo> sdos;
   bool sync0 = true;        // DC SYNC0 when the bus uses DC
-  uint32_t watchdog_ms = 100;
+  uint32_t watchdog_ms = 100;  // process-data (SM2) watchdog; 0: off (see MasterConfig::watchdog_ms)
   std::string esi;          // ESI XML file: PDO defaults and AssignActivate from it
   bool complete_access = false;  // PDO assignment and mapping in one transfer each (when the SII allows it)
 };
@@ -70,6 +70,7 @@ struct MasterConfig {
   int64_t cycle_ns = 1'000'000;
   std::vector<SlaveConfig> slaves;      // empty: every slave found, SII defaults
   unsigned miss_limit = 3;              // consecutive bad cycles that stop the bus; 0 = never
+  uint32_t watchdog_ms = 100;           // SM watchdog of slaves without a SlaveConfig; 0: off
   bool dc = true;
   bool dc_lock = true;                  // servo thread follows the reference clock
   int64_t sync0_shift_ns = -1;          // SYNC0 this far into the DC cycle; -1: half a cycle

@@ -154,7 +154,13 @@ inline constexpr uint8_t kMailboxIn = 0x22;
 inline constexpr uint8_t kOutputs = 0x64;     // buffered, written by master, watchdog trigger
 inline constexpr uint8_t kInputs = 0x20;
 inline constexpr uint8_t kStatusFull = 0x08;
+inline constexpr uint8_t kWatchdogTrigger = 0x40;  // control bit 6: writes retrigger the process-data watchdog
 }  // namespace sm
+// Watchdog divider 2498: (2498 + 2) x 40 ns = 100 us per unit of 0x0420.
+inline constexpr uint16_t kWatchdogDivider100us = 2498;
+inline constexpr int64_t watchdog_ns(uint16_t divider, uint16_t time) noexcept {
+  return (int64_t{divider} + 2) * 40 * time;
+}
 
 // One FMMU entry (0x0600 + 16 n).
 struct FmmuEntry {

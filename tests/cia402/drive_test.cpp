@@ -668,8 +668,10 @@ TEST(Cia402Drive, AStoppedMotionWatchdogStopsTheBusAndTheDrivesStopByThemselves)
   EXPECT_FALSE(rig.group().watchdog_ok());
   EXPECT_TRUE(rig.has_message("motion watchdog stopped for 3 cycles"));
   rig.cycles(100);
-  // The last controlword sent was a quick stop; the bus is silent since.
-  EXPECT_EQ(rig.sim().state(), State::SwitchOnDisabled);
+  // The last controlword sent was a quick stop; the bus is silent since,
+  // the master's heartbeat included, so the drive's consumer faults it too.
+  EXPECT_EQ(rig.sim().state(), State::Fault);
+  EXPECT_EQ(rig.sim().error_code(), err::kHeartbeat);
   EXPECT_EQ(rig.sim().plant().motor_velocity(), 0.0);
   EXPECT_TRUE(rig.fb().amp_fault);
 }
@@ -715,6 +717,73 @@ TEST(Cia402Drive, WhenTheMasterDiesTheDrivesStopWithinTheirHeartbeatTimeout) {
   bool warned = false;
   for (uint16_t w : words) warned = warned || (decode_state(w) == State::OperationEnabled && (w & sw::kWarning));
   EXPECT_TRUE(warned);  // OE + warning before the fault, as real drives
+}
+
+// The servo thread stops (or `halcmd delf canopen.0.write`) while the
+// master's acyclic thread runs on: the heartbeat stops with the cycle, so
+// the drive's 0x1016 consumer stops it. (The heartbeat used to come from
+// the acyclic thread: the drive then never noticed.)
+TEST(Cia402Drive, WhenTheServoCycleStopsTheDrivesStopWithinTheirHeartbeatTimeout) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) {
+    ini.set("CIA402_SIM_NODE_1", "SYNC_TIMEOUT_MS", "10000");  // only the heartbeat watches the master
+  });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  double p = rig.fb().pos_fb;
+  rig.cycles(300, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });  // 20 mm/s
+  rig.mute_bus(true);  // no cyclic_write any more; poll() goes on
+  const int64_t stopped_cycle = rig.now();
+  int64_t stopped = -1;
+  while (rig.now() - stopped_cycle < 500'000'000) {
+    rig.step();
+    if (stopped < 0 && rig.sim().state() == State::Fault && rig.sim().plant().motor_velocity() == 0.0) stopped = rig.now();
+  }
+  ASSERT_GE(stopped, 0) << "the drive is still " << to_string(rig.sim().state());
+  // 0x1016: 60 ms after the last heartbeat (every 20 ms), the warning
+  // cycle, then the quick-stop ramp (20 mm/s at 2000 mm/s^2: 10 ms).
+  EXPECT_LE(stopped - stopped_cycle, (60 + 20 + 10 + 10) * 1'000'000);
+  EXPECT_EQ(rig.sim().error_code(), err::kHeartbeat);
+  EXPECT_EQ(rig.host().at(0).node().counters().heartbeats_lost, 1u);
+  EXPECT_EQ(rig.master().node_status(1).emcy_code, err::kHeartbeat) << "EMCY 0x8130 reached the master";
+}
+
+// The reaction is the drive's 0x6007: here a quick stop instead of a fault.
+TEST(Cia402Drive, AStoppedServoCycleQuickStopsADriveConfiguredSo) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) {
+    ini.set("CIA402_SIM_NODE_1", "SYNC_TIMEOUT_MS", "10000");
+    ini.set("CIA402_DRIVE_0", "ABORT_CONNECTION_OPTION", "3");
+  });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  double p = rig.fb().pos_fb;
+  rig.cycles(300, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });
+  rig.mute_bus(true);
+  rig.run_for(150'000'000);
+  EXPECT_EQ(rig.sim().state(), State::SwitchOnDisabled);
+  EXPECT_EQ(rig.sim().plant().motor_velocity(), 0.0);
+  EXPECT_EQ(rig.host().at(0).node().counters().heartbeats_lost, 1u);
+  EXPECT_EQ(rig.master().node_status(1).emcy_code, err::kHeartbeat);
+}
+
+// The field failure in simulated time: the acyclic thread starved
+// for 2 s (normal priority under host load) while the servo thread runs.
+// The heartbeat is the cycle's, so the drive never misses the master.
+TEST(Cia402Drive, AStarvedAcyclicThreadNeverTripsTheDrivesHeartbeatConsumer) {
+  Rig rig(one_axis_ini());
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  double p = rig.fb().pos_fb;
+  rig.cycles(100, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });
+  rig.stall_acyclic(true);
+  rig.cycles(2000, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });
+  EXPECT_EQ(rig.host().at(0).node().counters().heartbeats_lost, 0u);
+  EXPECT_EQ(rig.sim().state(), State::OperationEnabled);
+  EXPECT_TRUE(rig.fb().enabled);
+  rig.stall_acyclic(false);
+  rig.cycles(50, [&](Rig& r) { r.cmd().pos_cmd = (p += 0.02); });
+  EXPECT_TRUE(rig.fb().enabled);
+  EXPECT_FALSE(rig.fb().amp_fault);
+  for (const auto& l : rig.drain_messages()) EXPECT_NE(l.rfind("error", 0), 0u) << l;
 }
 
 TEST(Cia402Drive, ServoFunctionsNeverAllocate) {

@@ -141,7 +141,7 @@ class Rig {
       stalled_since_ = -1;
     }
     if (after_step) after_step(*this);
-    if (!master_dead_) master_->poll(now());
+    if (!master_dead_ && !acyclic_stalled_) master_->poll(now());
   }
   void run_for(int64_t ns) {
     const int64_t end = now() + ns;
@@ -193,6 +193,9 @@ class Rig {
   void mute_bus(bool on) { bus_muted_ = on; }
   // The whole master dies: no cycle, no heartbeat, no SDO.
   void kill_master() { master_dead_ = true; }
+  // The master's acyclic thread gets no CPU (normal priority under load)
+  // while the servo thread runs on.
+  void stall_acyclic(bool on) { acyclic_stalled_ = on; }
 
   // Every message posted so far, as text lines "source: text".
   std::vector<std::string> drain_messages() {
@@ -292,6 +295,7 @@ class Rig {
   uint64_t cycles_ = 0;
   bool bus_muted_ = false;
   bool master_dead_ = false;
+  bool acyclic_stalled_ = false;
   int64_t stalled_since_ = -1;
 };
 

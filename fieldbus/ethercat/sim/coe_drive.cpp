@@ -126,7 +126,7 @@ EscConfig CoeDrive::esc_config() const {
   s.coe_details = 0x2F;  // SDO, SDO info, PDO assign, PDO config, complete access
   s.fmmus = {1, 2, 3};
   s.sms = {{kMailboxOut, kMailboxSize, 0x26, 1, 1}, {kMailboxIn, kMailboxSize, 0x22, 1, 2},
-           {kOutputs, 0, 0x64, 1, 3}, {kInputs, 0, 0x20, 1, 4}};
+           {kOutputs, 0, cfg_.sm2_control, 1, 3}, {kInputs, 0, 0x20, 1, 4}};
   for (const bool out : {true, false}) {
     SiiPdo p;
     p.index = out ? 0x1600 : 0x1A00;

@@ -24,6 +24,7 @@ struct CoeDriveConfig {
   cia402::sim::DriveSimConfig drive;
   double drift_ppm = 0;
   int64_t clock_at_power_on_ns = 0;
+  uint8_t sm2_control = 0x64;  // SII SyncManager category, outputs (0x24: a description without the watchdog bit)
 };
 
 class CoeDrive final : public SlaveApplication {

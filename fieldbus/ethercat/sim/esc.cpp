@@ -43,7 +43,7 @@ Esc::Esc(EscConfig config, SlaveApplication* app, int64_t now_ns) : cfg_(std::mo
   m[reg::kPortDescriptor] = 0x0F;      // ports 0 and 1: MII
   put16(m + reg::kFeatures, cfg_.dc ? 0x000C : 0x0000);
   if (cfg_.sii.size() >= 10) put16(m + reg::kStationAlias, get16(cfg_.sii.data() + 8));
-  put16(m + reg::kWatchdogDivider, 2498);  // 100 us
+  put16(m + reg::kWatchdogDivider, kWatchdogDivider100us);  // 100 us
   put16(m + reg::kWatchdogPd, 1000);       // 100 ms
   put16(m + reg::kWatchdogStatus, 1);
   put16(m + reg::kSiiControl, sii::kRead8);
@@ -284,9 +284,7 @@ void Esc::after_write(uint16_t addr, uint16_t len, int64_t t_fwd, int64_t t_ret,
 }
 
 int64_t Esc::watchdog_ns() const noexcept {
-  const int64_t div = get16(mem_.data() + reg::kWatchdogDivider);
-  const int64_t pd = get16(mem_.data() + reg::kWatchdogPd);
-  return (div + 2) * 40 * pd;
+  return ethercat::watchdog_ns(get16(mem_.data() + reg::kWatchdogDivider), get16(mem_.data() + reg::kWatchdogPd));
 }
 
 void Esc::run_sync0(int64_t now_ns) noexcept {
@@ -303,14 +301,18 @@ void Esc::run_sync0(int64_t now_ns) noexcept {
 
 void Esc::poll(int64_t now_ns) noexcept {
   run_sync0(now_ns);
-  if (state_ == AlState::Op && outputs_valid_ && (sm(2).control & 0x40) && watchdog_ns() > 0 &&
+  // The process-data watchdog (SM2 with its watchdog trigger bit, time
+  // from 0x0400/0x0420, 0 = off): outputs that stop arriving expire it.
+  // The application reacts first (its safe state, with the watchdog as the
+  // reason), then the slave drops to SAFEOP with 0x001B.
+  if (state_ == AlState::Op && outputs_valid_ && (sm(2).control & sm::kWatchdogTrigger) && watchdog_ns() > 0 &&
       now_ns - last_outputs_ns_ > watchdog_ns()) {
     ++wd_expired_;
     outputs_valid_ = false;
     put16(mem_.data() + reg::kWatchdogStatus, 0);
     put16(mem_.data() + reg::kWatchdogCounter, static_cast<uint16_t>(get16(mem_.data() + reg::kWatchdogCounter) + 1));
-    set_error(AlState::SafeOp, al::kSmWatchdog, now_ns);
     app_->on_watchdog(now_ns);
+    set_error(AlState::SafeOp, al::kSmWatchdog, now_ns);
   }
   app_->poll(now_ns);
 }

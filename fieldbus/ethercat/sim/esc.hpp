@@ -83,6 +83,10 @@ class Esc {
   bool sync0_active() const noexcept { return (mem_[reg::kDcActivation] & 0x03) == 0x03; }
   uint32_t sync0_cycle_ns() const noexcept { return get32(mem_.data() + reg::kDcSync0Cycle); }
   bool outputs_valid() const noexcept { return outputs_valid_; }
+  // The process-data watchdog as the master configured it: its time
+  // (0x0400/0x0420) and whether SM2 triggers it (control bit 6).
+  int64_t watchdog_time_ns() const noexcept { return watchdog_ns(); }
+  bool watchdog_enabled() const noexcept { return (sm(2).control & sm::kWatchdogTrigger) && watchdog_ns() > 0; }
 
   // Mailbox towards the master (SM1), queued while SM1 is full (up to 8
   // messages of 256 bytes; more are dropped and counted). No allocation.

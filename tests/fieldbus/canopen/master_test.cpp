@@ -53,7 +53,7 @@ class MasterTest : public ::testing::Test {
     master = std::make_unique<Master>(std::move(c), sim.port("master-cyclic"), sim.port("master-acyclic"), &messages);
     sim.actors.push_back([this](int64_t now) {
       if (poll_in_steps) master->poll(now);
-      if (now % 1'000'000 == 0) {
+      if (cycle_running && now % 1'000'000 == 0) {
         master->cyclic_read(now);
         if (servo) servo(now);
         master->cyclic_write(now);
@@ -82,6 +82,7 @@ class MasterTest : public ::testing::Test {
   std::unique_ptr<Master> master;
   std::function<void(int64_t)> servo;
   bool poll_in_steps = true;  // false: the master's own acyclic thread polls
+  bool cycle_running = true;  // false: the servo thread stopped
   uint64_t cycles = 0;
   std::vector<std::string> texts;
 };
@@ -321,6 +322,178 @@ TEST_F(MasterTest, HeartbeatLossIsDetectedWithinItsTimeout) {
   const auto e = errors();
   ASSERT_FALSE(e.empty());
   EXPECT_EQ(e.back(), "node 3 (x-axis): heartbeat lost: nothing heard for 50 ms (power, cable, termination or bus-off?)");
+}
+
+// ---------------------------------------------------------------- the master's heartbeat
+
+namespace {
+// Intervals between the master's heartbeats (0x77F) in the log, ns.
+std::vector<int64_t> heartbeat_gaps(const Sim& sim) {
+  std::vector<int64_t> gaps;
+  const auto hb = sim.frames_with_id(0x77F);
+  for (std::size_t i = 1; i < hb.size(); ++i) gaps.push_back(hb[i].timestamp_ns - hb[i - 1].timestamp_ns);
+  return gaps;
+}
+NodeConfig watched_node(uint8_t id, const std::string& name) {
+  NodeConfig n = csp_node(id, name);
+  n.master_heartbeat_timeout_ms = 150;  // the node's 0x1016:1 watches the master
+  return n;
+}
+}  // namespace
+
+// The issue: the heartbeat came from the normal-priority acyclic thread; a
+// host that starved it made every drive fault (0x8130) while the servo
+// thread ran. Here that thread stops for a second and the heartbeat goes on.
+TEST_F(MasterTest, AStalledAcyclicThreadDoesNotStopTheHeartbeat) {
+  EchoDevice a(sim, 3);
+  make_master(config({watched_node(3, "x-axis")}));
+  ASSERT_EQ(boot(), BootState::Succeeded) << master->boot_error();
+  EXPECT_EQ(a.od.get<uint32_t>({0x1016, 1}), (127u << 16) | 150u);
+  sim.run_for(200'000'000);
+  EXPECT_TRUE(master->heartbeat_in_cycle());
+  sim.log.clear();
+  poll_in_steps = false;  // the acyclic thread gets no CPU for 1 s
+  sim.run_for(1'000'000'000);
+  const auto hb = sim.frames_with_id(0x77F);
+  ASSERT_GE(hb.size(), 9u);
+  for (const auto& f : hb) EXPECT_EQ(bytes_of(f), (std::vector<uint8_t>{0x05}));
+  for (int64_t gap : heartbeat_gaps(sim)) EXPECT_LE(gap, 100'000'000 + sim.step_ns) << "every 100 ms";
+  EXPECT_EQ(a.node->counters().heartbeats_lost, 0u) << "the node never missed the master";
+}
+
+// ... and when the servo thread stops (or `delf` removes canopen.0.write, or
+// canopen.0.enable goes FALSE), the heartbeat stops with it although the
+// acyclic thread runs on: the nodes' consumers trip within their time.
+TEST_F(MasterTest, TheHeartbeatStopsWithTheServoCycle) {
+  EchoDevice a(sim, 3);
+  make_master(config({watched_node(3, "x-axis")}));
+  ASSERT_EQ(boot(), BootState::Succeeded) << master->boot_error();
+  sim.run_for(200'000'000);
+  std::vector<int64_t> lost_at;
+  a.node->on_heartbeat_lost = [&](uint8_t) { lost_at.push_back(sim.now()); };
+  sim.log.clear();
+  cycle_running = false;
+  const int64_t stopped = sim.now();
+  sim.run_for(500'000'000);
+  EXPECT_TRUE(sim.frames_with_id(0x77F).empty()) << "the acyclic thread took the heartbeat back";
+  ASSERT_EQ(lost_at.size(), 1u);
+  EXPECT_LE(lost_at[0] - stopped, 150'000'000 + 2 * sim.step_ns) << "within the consumer time of 0x1016:1";
+  const auto e = sim.frames_with_id(0x083);
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_EQ(get_le<uint16_t>(&e[0].data[0]), 0x8130);
+}
+
+// `halcmd delf canopen.0.write servo-thread` while canopen.0.read runs on:
+// no SYNC goes out, so the inputs read are stale. They are marked so, the
+// cycle counts as not running (the drives' link health), and it is said.
+TEST_F(MasterTest, ReadsWithoutAWriteMarkTheInputsStaleAndSaySo) {
+  EchoDevice a(sim, 3);
+  bool write = true;
+  master = std::make_unique<Master>(config({csp_node(3, "x-axis")}), sim.port("master-cyclic"), sim.port("master-acyclic"),
+                                    &messages);
+  sim.actors.push_back([&](int64_t now) {
+    master->poll(now);
+    if (now % 1'000'000 == 0) {
+      master->cyclic_read(now);
+      if (write) master->cyclic_write(now);
+    }
+  });
+  ASSERT_EQ(boot(), BootState::Succeeded) << master->boot_error();
+  sim.run_for(20'000'000);
+  EXPECT_TRUE(master->cyclic_status().inputs_fresh);
+  EXPECT_TRUE(master->is_cyclic_running());
+  EXPECT_TRUE(errors().empty());
+  write = false;
+  sim.run_for(1'000'000);  // this read still finds the SYNC of the last write
+  sim.run_for(1'000'000);
+  EXPECT_FALSE(master->cyclic_status().inputs_fresh) << "no SYNC since the last read";
+  sim.run_for(2'000'000);
+  EXPECT_FALSE(master->is_cyclic_running());
+  EXPECT_FALSE(master->is_ready());
+  EXPECT_EQ(errors(), std::vector<std::string>{"no SYNC sent for 3 cycles (canopen.0.write not running or canopen.0.enable "
+                                               "FALSE): the nodes get no set-points"});
+  write = true;
+  sim.run_for(3'000'000);
+  EXPECT_TRUE(master->is_cyclic_running());
+  EXPECT_TRUE(master->cyclic_status().inputs_fresh);
+  errors();
+  ASSERT_FALSE(texts.empty());
+  EXPECT_EQ(texts.back(), "SYNC sent again after 4 cycles without");  // the first read after it still finds none
+}
+
+// Before the servo thread runs (the boot in on_ready), the acyclic thread
+// sends the heartbeat, pre-operational; the first cycle takes it over
+// without a gap.
+TEST_F(MasterTest, TheFirstCycleTakesTheHeartbeatOverWithoutAGap) {
+  EchoDevice a(sim, 3);
+  cycle_running = false;
+  make_master(config({watched_node(3, "x-axis")}));
+  ASSERT_EQ(boot(), BootState::Succeeded) << master->boot_error();
+  EXPECT_FALSE(master->heartbeat_in_cycle());
+  auto hb = sim.frames_with_id(0x77F);
+  ASSERT_GE(hb.size(), 1u);
+  EXPECT_EQ(hb.front().data[0], 0x7F);
+  sim.run_for(250'000'000);
+  cycle_running = true;
+  sim.run_for(500'000'000);
+  EXPECT_TRUE(master->heartbeat_in_cycle());
+  for (int64_t gap : heartbeat_gaps(sim)) EXPECT_LE(gap, 100'000'000 + 2'000'000);
+  EXPECT_EQ(sim.frames_with_id(0x77F).back().data[0], 0x05);
+  EXPECT_EQ(a.node->counters().heartbeats_lost, 0u);
+}
+
+namespace {
+// A transport whose interface can be taken down (SocketCAN: ENETDOWN).
+class DownableTransport final : public can::Transport {
+ public:
+  explicit DownableTransport(std::unique_ptr<can::Transport> inner) : inner_(std::move(inner)) {}
+  const std::string& name() const noexcept override { return name_; }
+  can::SendStatus send(const can::Frame& f) noexcept override { return down ? can::SendStatus::Down : inner_->send(f); }
+  bool receive(can::Frame& out) noexcept override { return !down && inner_->receive(out); }
+  bool wait(int64_t timeout_ns) noexcept override { return inner_->wait(timeout_ns); }
+  void set_filters(std::span<const can::Filter> filters) override { inner_->set_filters(filters); }
+  void set_error_reports(bool on) override { inner_->set_error_reports(on); }
+  can::BusState state() const noexcept override { return inner_->state(); }
+  can::TransportStats stats() const noexcept override { return inner_->stats(); }
+  int64_t now_ns() const noexcept override { return inner_->now_ns(); }
+  bool down = false;
+
+ private:
+  std::unique_ptr<can::Transport> inner_;
+  std::string name_ = "can7";
+};
+}  // namespace
+
+TEST_F(MasterTest, AnInterfaceTakenDownIsReportedAsSuch) {
+  EchoDevice a(sim, 3);
+  auto port = std::make_unique<DownableTransport>(sim.port("master-cyclic"));
+  DownableTransport* cyclic = port.get();
+  master = std::make_unique<Master>(config({csp_node(3, "x-axis")}), std::move(port), sim.port("master-acyclic"), &messages);
+  sim.actors.push_back([this](int64_t now) {
+    master->poll(now);
+    if (now % 1'000'000 == 0) {
+      master->cyclic_read(now);
+      master->cyclic_write(now);
+    }
+  });
+  ASSERT_EQ(boot(), BootState::Succeeded) << master->boot_error();
+  sim.run_for(10'000'000);
+  EXPECT_TRUE(errors().empty());
+  cyclic->down = true;
+  sim.run_for(5'000'000);
+  EXPECT_TRUE(master->cyclic_status().interface_down);
+  EXPECT_GE(master->cyclic_status().send_errors, 5u);
+  EXPECT_TRUE(master->has_fault());
+  EXPECT_FALSE(master->is_ready());
+  // Named first, before what follows from it (the node's TPDOs missing).
+  const auto e = errors();
+  ASSERT_FALSE(e.empty());
+  EXPECT_EQ(e.front(), "CAN interface can7 is down: no SYNC, PDO or heartbeat can be sent");
+  cyclic->down = false;
+  sim.run_for(5'000'000);
+  EXPECT_FALSE(master->cyclic_status().interface_down);
+  errors();
+  EXPECT_NE(std::find(texts.begin(), texts.end(), "CAN interface can7 is up again"), texts.end());
 }
 
 // The acyclic thread (heartbeat consumer, SDO timeouts) keeps the bus's

@@ -326,6 +326,25 @@ TEST_F(SlaveTest, HeartbeatConsumerDetectsALostMaster) {
   EXPECT_EQ(get_le<uint16_t>(&e[0].data[0]), 0x8130);
 }
 
+// A device whose loop runs late reads a heartbeat with its reception
+// time after the consumer time ran out: that is a loss, not a rescue.
+TEST_F(SlaveTest, AHeartbeatHeardAfterTheConsumerTimeStillTripsIt) {
+  start();
+  ASSERT_EQ(write_u32({0x1016, 1}, (0x7Fu << 16) | 50), 0u);
+  std::vector<uint8_t> lost;
+  node->on_heartbeat_lost = [&](uint8_t n) { lost.push_back(n); };
+  const can::Frame hb = can::Frame::make(0x77F, {0x05});
+  const int64_t t0 = sim.now();
+  node->on_frame(hb, t0);
+  node->on_frame(hb, t0 + 40'000'000);
+  EXPECT_TRUE(lost.empty());
+  node->on_frame(hb, t0 + 40'000'000 + 51'000'000);  // no poll in between
+  EXPECT_EQ(lost, (std::vector<uint8_t>{0x7F}));
+  EXPECT_EQ(node->counters().heartbeats_lost, 1u);
+  node->poll(t0 + 40'000'000 + 60'000'000);
+  EXPECT_EQ(lost.size(), 1u) << "heard again: monitoring goes on, no second trip";
+}
+
 TEST_F(SlaveTest, EmcyInhibitTimeHistoryAndReset) {
   start();
   ASSERT_EQ(write_u16({0x1015, 0}, 100), 0u);  // 10 ms

@@ -20,9 +20,9 @@
 namespace cnc::ethercat::test {
 
 struct Bus {
-  explicit Bus(unsigned drives, MasterConfig cfg = {}, bool start = true) {
+  explicit Bus(unsigned drives, MasterConfig cfg = {}, bool start = true, const sim::CoeDriveConfig& drive = {}) {
     segment = std::make_shared<sim::Segment>([this] { return time.load(); });
-    segment->add_drives(drives);
+    segment->add_drives(drives, drive);
     name = cnc::testing::unique_name("ecat");
     cfg.interface = "sim:" + name;
     master = std::make_unique<Master>(cfg, &messages, sim::open_sim_link(segment, name), sim::open_sim_link(segment, name));

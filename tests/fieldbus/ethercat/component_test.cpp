@@ -147,6 +147,17 @@ TEST(EthercatConfig, ErrorsNameFileLineAndKey) {
               HasSubstr("machine.ini:5"));
   EXPECT_THAT(fails("[ETHERCAT]\nINTERFACE = raw:eth0\nSLAVE = 1\n[ETHERCAT_SLAVE_1]\nSDO = 0x6060:0:s8\n"),
               HasSubstr("machine.ini:5"));
+  EXPECT_THAT(fails("[ETHERCAT]\nINTERFACE = raw:eth0\nSLAVE = 1\n[ETHERCAT_SLAVE_1]\nWATCHDOG_MS = 1\n"),
+              HasSubstr("machine.ini:5: [ETHERCAT_SLAVE_1]WATCHDOG_MS: 1 ms is shorter than two cycles (2000 us)"));
+  EXPECT_THAT(fails("[ETHERCAT]\nINTERFACE = raw:eth0\nWATCHDOG_MS = 7000\n"), HasSubstr("machine.ini:3"));
+  const auto wd = ethercat::load_bus_settings(
+      ini::IniFile::parse("[ETHERCAT]\nINTERFACE = raw:eth0\nWATCHDOG_MS = 50\nSLAVE = 1 2\n"
+                          "[ETHERCAT_SLAVE_1]\nNAME = x\n[ETHERCAT_SLAVE_2]\nWATCHDOG_MS = 0\n",
+                          "machine.ini"),
+      "ETHERCAT", "ethercat.0");
+  EXPECT_EQ(wd.master.watchdog_ms, 50u);
+  EXPECT_EQ(wd.master.slaves[0].watchdog_ms, 50u) << "the bus's value is the slaves' default";
+  EXPECT_EQ(wd.master.slaves[1].watchdog_ms, 0u);
   const auto ok = ethercat::load_bus_settings(
       ini::IniFile::parse("[EMCMOT]\nSERVO_PERIOD = 250000\n[ETHERCAT]\nINTERFACE = raw:eth0\nSLAVE = 2\n"
                           "[ETHERCAT_SLAVE_2]\nNAME = z\nSDO = 0x6060:0:s8 8\nTXPDO = 0x6041:0:u16\n",

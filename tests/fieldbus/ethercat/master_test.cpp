@@ -202,6 +202,119 @@ TEST(EthercatMaster, ProcessDataWatchdogDropsSlaveToSafeOp) {
               HasSubstr("slave 1 (drive-1) is in SAFEOP with AL status code 0x001B sync manager watchdog"));
 }
 
+// ---------------------------------------------------------------- SM watchdog
+
+namespace {
+MasterConfig watchdogs(std::initializer_list<uint32_t> ms) {
+  MasterConfig cfg;
+  unsigned p = 0;
+  for (uint32_t m : ms) {
+    SlaveConfig s;
+    s.position = ++p;
+    s.watchdog_ms = m;
+    cfg.slaves.push_back(s);
+  }
+  return cfg;
+}
+}  // namespace
+
+TEST(EthercatMaster, TheSmWatchdogIsConfiguredAsTheIniSays) {
+  Bus bus(3, watchdogs({100, 20, 0}));
+  EXPECT_TRUE(bus.segment->slave(0).watchdog_enabled());
+  EXPECT_EQ(bus.segment->slave(0).watchdog_time_ns(), 100'000'000);
+  EXPECT_TRUE(bus.segment->slave(1).watchdog_enabled());
+  EXPECT_EQ(bus.segment->slave(1).watchdog_time_ns(), 20'000'000);
+  EXPECT_FALSE(bus.segment->slave(2).watchdog_enabled()) << "WATCHDOG_MS = 0 switches it off";
+  EXPECT_FALSE(bus.segment->slave(2).sm(2).control & sm::kWatchdogTrigger);
+}
+
+// A device description whose output SM lacks the watchdog trigger bit
+// (control 0x24) would leave the slave unwatched: the master sets it.
+TEST(EthercatMaster, TheWatchdogIsOnEvenWhenTheSiiLeavesItsBitOff) {
+  sim::CoeDriveConfig d;
+  d.sm2_control = 0x24;
+  Bus bus(2, {}, true, d);
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(bus.segment->slave(i).sm(2).control, 0x64) << "slave " << i + 1;
+    EXPECT_TRUE(bus.segment->slave(i).watchdog_enabled());
+    EXPECT_EQ(bus.segment->slave(i).watchdog_time_ns(), 100'000'000) << "the default";
+  }
+  ASSERT_TRUE(bus.reach_op()) << bus.drain_messages();
+  bus.time.fetch_add(150'000'000);  // the servo thread stalls
+  bus.segment->poll();
+  EXPECT_EQ(bus.segment->slave(0).state(), AlState::SafeOp);
+  EXPECT_EQ(bus.segment->slave(0).al_status_code(), al::kSmWatchdog);
+}
+
+// The master stops (servo thread stopped, `delf ethercat.0.write`,
+// ethercat.0.enable FALSE): no frame arrives any more. Each drive stops by
+// itself within its configured watchdog time plus its fault reaction.
+TEST(EthercatMaster, WhenFramesStopTheDrivesStopWithinTheirWatchdogTime) {
+  Bus bus(2, watchdogs({20, 50}));
+  auto link = make_cia402_link(*bus.master);
+  cia402::GroupConfig gc;
+  gc.name = "cia402.0";
+  gc.bus = bus.master->name();
+  for (int i = 0; i < 2; ++i) {
+    cia402::DriveEntry e;
+    e.number = i;
+    e.config.name = "axis-" + std::to_string(i);
+    e.config.source = "cia402.0.drive.0" + std::to_string(i);
+    e.config.address = i + 1;
+    e.config.scaling.counts_per_unit = 1000;
+    gc.drives.push_back(e);
+  }
+  cia402::DriveGroup group(gc, *link, &bus.messages);
+  ASSERT_TRUE(bus.reach_op()) << bus.drain_messages();
+  std::thread cfg([&] { group.configure(); });
+  bus.run_until([] { return false; }, 300);
+  cfg.join();
+  double cmd = 0;
+  auto app = [&] {
+    const int64_t t = bus.time.load();
+    group.read(t);
+    for (std::size_t i = 0; i < group.size(); ++i) {
+      group.command(i).enable = true;
+      group.command(i).pos_cmd = cmd;
+    }
+    group.write(t);
+  };
+  ASSERT_TRUE(bus.run_until([&] { return group.feedback(0).enabled && group.feedback(1).enabled; }, 5000, app))
+      << bus.drain_messages();
+  for (int c = 0; c < 200; ++c) {
+    cmd += 0.02;  // 20 mm/s
+    bus.cycle(app);
+  }
+  bus.master->stop();  // nothing is sent any more, not even mailbox polls
+  const int64_t last_frame = bus.time.load() - bus.master->config().cycle_ns;
+  auto drive = [&](std::size_t i) { return bus.segment->drive(i)->model().state(); };
+  auto advance_to = [&](int64_t since_last_frame) {
+    while (bus.time.load() < last_frame + since_last_frame) {
+      bus.time.fetch_add(100'000);
+      bus.segment->poll();
+    }
+  };
+  advance_to(19'000'000);
+  EXPECT_EQ(bus.segment->slave(0).state(), AlState::Op) << "not before its 20 ms";
+  EXPECT_EQ(drive(0), cia402::State::OperationEnabled);
+  advance_to(20'200'000);
+  EXPECT_EQ(bus.segment->slave(0).state(), AlState::SafeOp);
+  EXPECT_EQ(bus.segment->slave(0).al_status_code(), al::kSmWatchdog);
+  EXPECT_EQ(bus.segment->slave(1).state(), AlState::Op) << "its watchdog is 50 ms";
+  advance_to(49'000'000);
+  EXPECT_EQ(bus.segment->slave(1).state(), AlState::Op);
+  EXPECT_EQ(drive(1), cia402::State::OperationEnabled);
+  advance_to(50'200'000);
+  EXPECT_EQ(bus.segment->slave(1).state(), AlState::SafeOp);
+  advance_to(200'000'000);
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(drive(i), cia402::State::Fault) << "drive " << i + 1;
+    EXPECT_EQ(bus.segment->drive(i)->model().error_code(), cia402::err::kRpdoTimeout) << "the watchdog is the reason";
+    EXPECT_EQ(bus.segment->drive(i)->model().plant().motor_velocity(), 0.0);
+    EXPECT_EQ(bus.segment->slave(i).watchdog_expiries(), 1u);
+  }
+}
+
 TEST(EthercatMaster, SlaveRefusingSafeOpStopsStartUp) {
   Bus bus(3, {}, false);
   bus.segment->slave(1).refuse_state(AlState::SafeOp, al::kSyncError);

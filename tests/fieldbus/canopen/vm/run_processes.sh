@@ -49,6 +49,18 @@ rc=$?
 echo "$out"
 check "missing node stops the start-up" sh -c "[ $rc -ne 0 ] && echo '$out' | grep -q 'start-up stopped: node 9 (z-axis): not found: no boot-up message within 500 ms'"
 
+# The interface taken down under the running master: reported as such.
+"$tool" boot "$here/vcan.ini" --run-s 3 > /tmp/master-down.txt 2>&1 &
+pm=$!
+sleep 1.5
+ip link set vcan0 down
+sleep 0.3
+ip link set vcan0 up
+wait "$pm"
+cat /tmp/master-down.txt
+check "interface down reported by the master" grep -q "CAN interface socketcan:vcan0 is down: no SYNC, PDO or heartbeat can be sent" /tmp/master-down.txt
+check "interface up again reported" grep -q "CAN interface socketcan:vcan0 is up again" /tmp/master-down.txt
+
 kill "$p5" "$p6"
 wait "$p5" "$p6"
 cat /tmp/node5.txt /tmp/node6.txt
