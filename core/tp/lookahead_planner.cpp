@@ -297,10 +297,15 @@ void LookaheadPlanner::run_cycle(const CycleInputs& in, CycleOutputs& out) noexc
   if (exec_->take_abort_done(epoch)) {
     aborted_ = accepted_ - exec_->inputs_completed();
     epoch_ = epoch;
+    // The next move starts where the abort stopped the machine, not at the
+    // end of the moves it dropped (that was a jump of the command).
+    end_pose_ = out.position;
     if (threading_ == PlannerThreading::Inline) {
       builder_->reset(epoch);
+      builder_->set_position(end_pose_);
     } else {
       reset_pending_ = true;
+      position_pending_ = true;
     }
   }
   if (reset_pending_) {

@@ -527,6 +527,55 @@ TEST(TpControls, AbortStopsWithinLimitsAndEmptiesTheQueue) {
   EXPECT_NEAR(out.position[0], 0, 1e-12);
 }
 
+// After an abort the next move starts where the machine stopped, without
+// the caller telling the planner (motion never did): the command never
+// jumps to the end of the moves the abort dropped. (It jumped: a program
+// run after an abort mid-move faulted on a 120 mm following error.)
+TEST(TpControls, AfterAnAbortTheNextMoveStartsWhereTheMachineStopped) {
+  for (const PlannerThreading threading : {PlannerThreading::Inline, PlannerThreading::OwnThread}) {
+    SCOPED_TRACE(threading == PlannerThreading::Inline ? "inline" : "threaded");
+    const PlannerConfig cfg = profile("mill-f");
+    auto planner = make_planner(cfg, threading);
+    planner->set_position(pose(0, 120, 0));
+    ASSERT_EQ(planner->add_line(pose(0, 20, 0), feed_params(20, 0.01)), Result::Ok);
+    planner->flush();
+    CycleInputs in;
+    CycleOutputs out;
+    for (int c = 0; c < 200000 && out.position[1] > 100; ++c) {
+      planner->run_cycle(in, out);
+      if (threading == PlannerThreading::OwnThread) std::this_thread::yield();  // the builder's thread plans
+    }
+    ASSERT_LE(out.position[1], 100);
+    planner->abort();
+    for (int c = 0; c < 5000 && !planner->is_done(); ++c) planner->run_cycle(in, out);
+    ASSERT_TRUE(planner->is_done());
+    const Pose stopped = out.position;
+    ASSERT_GT(stopped[1], 20.5);
+    // The task asks for X only: Y and Z stay where they stopped.
+    Pose target = stopped;
+    target[0] = 50;
+    for (int c = 0; c < 100 && planner->add_line(target, feed_params(100, 0.01)) == Result::QueueFull; ++c) {
+      planner->run_cycle(in, out);  // a threaded builder takes the reset first
+    }
+    planner->flush();
+    double worst_step = 0;  // per-axis step as a share of its velocity limit
+    Pose prev = out.position;
+    for (int c = 0; c < 20000 && !(planner->is_done() && out.position[0] == 50); ++c) {
+      planner->run_cycle(in, out);
+      for (std::size_t a = 0; a < 3; ++a) {
+        const double share = std::fabs(out.position[a] - prev[a]) / (cfg.axes[a].max_velocity * cfg.cycle_time_s);
+        worst_step = std::max(worst_step, share);
+      }
+      prev = out.position;
+      if (threading == PlannerThreading::OwnThread) std::this_thread::yield();
+    }
+    EXPECT_NEAR(out.position[0], 50, 1e-9);
+    EXPECT_NEAR(out.position[1], stopped[1], 1e-9) << "Y must stay where the abort stopped it";
+    EXPECT_NEAR(out.position[2], stopped[2], 1e-9);
+    EXPECT_LE(worst_step, 1 + 1e-9) << "the command jumped";
+  }
+}
+
 TEST(TpControls, ProbeStopsOnTheInputAndRecordsWhereItTripped) {
   const PlannerConfig cfg = profile("lc");
   auto planner = make_planner(cfg, PlannerThreading::Inline);
