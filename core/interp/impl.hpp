@@ -149,7 +149,11 @@ struct Interpreter::State {
   // ---------------- params.cpp
   void init_parameters();
   void load_parameter_file();
+  // Writes the persistent parameters atomically when they differ from what
+  // the file holds; throws FileError when the file cannot be written.
   void save_parameter_file() const;
+  std::string parameter_text() const;
+  mutable std::string saved_parameters_;  // what the parameter file holds
   double get_param(int index) const;
   void set_param(int index, double value, bool check_readonly);
   double get_named(const std::string& name) const;

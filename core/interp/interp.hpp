@@ -155,7 +155,9 @@ class Interpreter {
   // EndOfFile.
   Status run_to_end();
 
-  // Writes the persistent parameters to the parameter file (atomically).
+  // Writes the persistent parameters to the parameter file (atomically)
+  // when they changed since it was read or last written; throws FileError
+  // (core/util/atomic_file.hpp) when it cannot be written.
   void save_parameters() const;
 
   // Line number (1-based) of the block last read; 0 for MDI.

@@ -41,6 +41,15 @@ void Interpreter::State::load_parameter_file() {
   if (config.parameter_file.empty()) return;
   const std::string file = config.parameter_file.string();
   std::error_code ec;
+  const auto dir = config.parameter_file.has_parent_path() ? config.parameter_file.parent_path()
+                                                            : std::filesystem::path(".");
+  if (!std::filesystem::is_directory(dir, ec)) {
+    throw InterpError("the folder of the parameter file does not exist (" + dir.string() +
+                          "): the parameters could never be saved",
+                      file, 0, "");
+  }
+  // Temporary files of a save that a kill interrupted.
+  cnc::remove_stale_temporaries(config.parameter_file);
   if (!std::filesystem::exists(config.parameter_file, ec)) return;  // starts from zeros; created on save
   // A regular file only (a FIFO would block, /dev/zero never end), read
   // line by line with the interpreter's line length limit.
@@ -70,10 +79,10 @@ void Interpreter::State::load_parameter_file() {
     params[static_cast<std::size_t>(*index)] = *value;
     persistent[static_cast<std::size_t>(*index)] = true;
   }
+  saved_parameters_ = parameter_text();
 }
 
-void Interpreter::State::save_parameter_file() const {
-  if (config.parameter_file.empty()) return;
+std::string Interpreter::State::parameter_text() const {
   std::string out;
   char buf[64];
   for (int i = 1; i < kMaxParameters; ++i) {
@@ -81,7 +90,15 @@ void Interpreter::State::save_parameter_file() const {
     std::snprintf(buf, sizeof buf, "%d\t%.6f\n", i, params[static_cast<std::size_t>(i)]);
     out += buf;
   }
+  return out;
+}
+
+void Interpreter::State::save_parameter_file() const {
+  if (config.parameter_file.empty()) return;
+  std::string out = parameter_text();
+  if (out == saved_parameters_) return;  // nothing changed: no write, no fsync
   cnc::write_file_atomically(config.parameter_file, out);
+  saved_parameters_ = std::move(out);
 }
 
 double Interpreter::State::get_param(int index) const {

@@ -155,9 +155,8 @@ TaskController::TaskController(const ini::IniFile& ini, hal::Hal& hal, motion::M
 }
 
 TaskController::~TaskController() {
-  try {
-    if (interp_) interp_->save_parameters();
-  } catch (...) {
+  if (interp_) {
+    if (const std::string unsaved = save_parameters(); !unsaved.empty()) std::fprintf(stderr, "cncd: %s\n", unsaved.c_str());
   }
   if (user_m_pid_ > 0) {
     ::kill(user_m_pid_, SIGTERM);
@@ -408,7 +407,7 @@ bool TaskController::handle_command(const ipc::Command& cmd, ipc::CommandReporte
       try {
         interp_->execute(line);
         items_.clear();  // offsets only: nothing for motion
-        interp_->save_parameters();
+        why = save_parameters();
       } catch (const interp::InterpError& e) {
         why = e.message();
       }
@@ -726,7 +725,7 @@ std::string TaskController::program_run(const ipc::Command& c) {
     if (interp_config_.block_delete != block_delete_) {
       // The interpreter takes block delete from its configuration: start a
       // fresh one (parameters go through the parameter file).
-      interp_->save_parameters();
+      if (const std::string unsaved = save_parameters(); !unsaved.empty()) return unsaved;
       interp_config_.block_delete = block_delete_;
       interp_ = std::make_unique<interp::Interpreter>(*canon_, interp_config_);
       interp_->init();
@@ -1102,8 +1101,8 @@ void TaskController::program_finished() {
   exec_state_ = ipc::ExecState::Done;
   program_ended_ = false;
   paused_ = stepping_ = false;
+  save_parameters();
   try {
-    interp_->save_parameters();
     interp_->reset();
     interp_->open(file_);
   } catch (const std::exception& e) {
@@ -1474,13 +1473,14 @@ void TaskController::update(int64_t now_ns) {
         running_mdi_ = false;
         bool more = false;  // a macro's later lines belong to the same command
         for (const auto& q : mdi_queue_) more = more || q.first.serial == mdi_current_.serial;
-        if (reporter_ && mdi_current_.serial && !more) reporter_->report(mdi_current_, CommandState::Done);
+        // "done" follows the durable write of what the line changed (G10,
+        // G92, #5xxx): an acknowledged offset is never lost.
+        const std::string unsaved = save_parameters();
+        if (reporter_ && mdi_current_.serial && !more) {
+          reporter_->report(mdi_current_, unsaved.empty() ? CommandState::Done : CommandState::Rejected, unsaved);
+        }
         mdi_current_ = ipc::Command{};
         mdi_text_.clear();
-        try {
-          interp_->save_parameters();
-        } catch (const std::exception&) {
-        }
       }
     }
   }
@@ -1492,6 +1492,19 @@ void TaskController::update(int64_t now_ns) {
     else ++i;
   }
   if (program_started_ns_ && interp_state_ != ipc::InterpState::Idle) program_elapsed_ns_ = now_ns - program_started_ns_;
+}
+
+std::string TaskController::save_parameters() {
+  try {
+    interp_->save_parameters();
+    return {};
+  } catch (const std::exception& e) {
+    const std::string why = std::string("the parameter file could not be written, so work offsets and other "
+                                        "persistent parameters changed since are lost at a restart: ") +
+                            e.what();
+    post(MessageKind::Error, why);
+    return why;
+  }
 }
 
 // Motion has already acted on an E-stop or a fault in the servo thread; the

@@ -111,6 +111,9 @@ class TaskController : public ipc::ControllerService {
   struct PreviewJob;
   bool preview_step(const ipc::Command& c, PreviewJob& job);  // true once `c` is answered
   void post(MessageKind kind, const std::string& text);
+  // Writes the parameter file if it changed; empty, or the reason it could
+  // not be written (also posted as an error).
+  std::string save_parameters();
   bool machine_homed() const;
   double read_input(int index, bool digital) const;
 

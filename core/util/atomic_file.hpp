@@ -28,6 +28,11 @@ class FileError : public std::runtime_error {
 // the path and the failing step.
 void write_file_atomically(const std::filesystem::path& path, std::string_view content);
 
+// Removes the temporary files write_file_atomically left beside `path` when
+// the process was killed between creating and renaming them (".<name>.XXXXXX",
+// owned by this user, not modified for `min_age_s`). Returns how many.
+int remove_stale_temporaries(const std::filesystem::path& path, int min_age_s = 10);
+
 // Why a file of this mode is not a regular file ("is a directory, not a
 // regular file", ...), or nullptr when it is one.
 const char* not_regular_reason(unsigned mode) noexcept;

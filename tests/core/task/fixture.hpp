@@ -170,6 +170,7 @@ class TaskMachine {
     }
     return out;
   }
+  static std::string read_text(const std::filesystem::path& p) { return read(p); }
   hal::Hal& hal() { return hal_; }
   // What the servo thread's periodic task tells each cycle (tests set the
   // overrun figures, as after a stall).

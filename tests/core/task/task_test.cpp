@@ -1,6 +1,8 @@
 // The task controller: machine states, modes, MDI, program control, run
 // from line, against the simulated mill in-process.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include "tests/core/task/fixture.hpp"
 
@@ -500,4 +502,68 @@ TEST(TaskOverrun, HoldWithNothingRunningLeavesTheNextMdiFree) {
   m.ok(m.mdi("G0 X20"), "second move");
   ASSERT_TRUE(m.run_until([&] { return m.status().motion.inpos && m.status().motion.position[0] == 20; }, 20000))
       << "motion was resumed: the move ran";
+}
+
+// Nothing acknowledged is lost: an MDI line that changes a persistent
+// parameter (G10 L2) is answered "done" only after the parameter file holds
+// it; when the file cannot be written the line is rejected with the reason
+// and the error is posted (it used to answer done and post nothing).
+TEST(TaskParameters, DoneFollowsTheDurableWriteOfTheParameterFile) {
+  cnc::testing::TempDir vars;
+  const auto file = vars / "sim.var";
+  TaskMachine m({{"RS274NGC", "PARAMETER_FILE", file.string()}});
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  m.ok(m.mdi("G10 L2 P1 X33"), "G10 L2");
+  // No step after the answer: the file already holds the offset.
+  const std::string text = TaskMachine::read_text(file);
+  EXPECT_NE(text.find("5221\t33.000000"), std::string::npos) << text;
+  // A line that changes nothing persistent does not rewrite the file.
+  struct stat before {}, after {};
+  ASSERT_EQ(::stat(file.c_str(), &before), 0);
+  m.ok(m.mdi("G0 X10"), "move");
+  ASSERT_EQ(::stat(file.c_str(), &after), 0);
+  EXPECT_EQ(before.st_ino, after.st_ino) << "rewritten although nothing persistent changed";
+}
+
+TEST(TaskParameters, AParameterFileThatCannotBeWrittenRejectsTheLineAndSaysWhy) {
+  cnc::testing::TempDir vars;
+  const auto folder = vars / "config";
+  std::filesystem::create_directories(folder);
+  TaskMachine m({{"RS274NGC", "PARAMETER_FILE", (folder / "sim.var").string()}});
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  std::filesystem::remove_all(folder);  // as a full or read-only disk: the write fails
+  const auto r = m.mdi("G10 L2 P1 X33");
+  EXPECT_EQ(r.first, CommandState::Rejected);
+  EXPECT_NE(r.second.find("the parameter file could not be written"), std::string::npos) << r.second;
+  EXPECT_NE(m.errors().find("are lost at a restart"), std::string::npos);
+  // The work-offset command of the screen says so too.
+  cnc::ipc::Command c;
+  c.type = CommandType::SetWorkOffset;
+  c.i[0] = 1;
+  c.d[0] = 44;
+  const auto w = m.send(c);
+  EXPECT_EQ(w.first, CommandState::Rejected);
+  EXPECT_NE(w.second.find("could not be written"), std::string::npos) << w.second;
+}
+
+TEST(TaskParameters, TemporaryFilesOfAnInterruptedSaveAreRemovedAtStartAndAMissingFolderIsAnError) {
+  cnc::testing::TempDir vars;
+  const auto stale = vars.write(".sim.var.Ab12Cd", "5221\t1\n");
+  const auto fresh = vars.write(".sim.var.Zz99Yy", "5221\t2\n");  // perhaps being written right now
+  const timespec old_times[2] = {{1'000'000'000, 0}, {1'000'000'000, 0}};
+  ASSERT_EQ(::utimensat(AT_FDCWD, stale.c_str(), old_times, 0), 0);
+  {
+    TaskMachine m({{"RS274NGC", "PARAMETER_FILE", (vars / "sim.var").string()}});
+  }
+  EXPECT_FALSE(std::filesystem::exists(stale));
+  EXPECT_TRUE(std::filesystem::exists(fresh));
+  try {
+    TaskMachine m({{"RS274NGC", "PARAMETER_FILE", (vars / "missing" / "sim.var").string()}});
+    FAIL() << "a parameter file in a missing folder was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("the folder of the parameter file does not exist"), std::string::npos)
+        << e.what();
+  }
 }
