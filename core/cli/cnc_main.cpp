@@ -102,6 +102,46 @@ int send(const Context& c, const Command& cmd) {
   return 3;
 }
 
+// Homing takes seconds: while the command runs, say which joints are
+// homing and which are done, one line per change.
+int send_home(const Context& c, const Command& cmd) {
+  ipc::Client client(c.instance);
+  const uint32_t serial = client.send(cmd);
+  const int64_t deadline = monotonic_ns() + static_cast<int64_t>(c.timeout_s * 1e9);
+  std::string last;
+  for (;;) {
+    const ipc::CommandResult r = client.wait(serial, std::chrono::milliseconds(200));
+    if (r.state == ipc::CommandState::Done) {
+      std::printf("homed\n");
+      return 0;
+    }
+    if (r.state == ipc::CommandState::Rejected) {
+      std::fprintf(stderr, "cnc: %s rejected: %s\n", ipc::to_string(cmd.type), r.reason.c_str());
+      return 1;
+    }
+    const ipc::Status s = client.status();
+    std::string homing, homed;
+    for (int j = 0; j < kMaxJoints; ++j) {
+      const ipc::JointStatus& js = s.joints[static_cast<std::size_t>(j)];
+      if (!js.active) continue;
+      if (js.homing) homing += " " + std::to_string(j);
+      else if (js.homed) homed += " " + std::to_string(j);
+    }
+    const std::string line = "homing: joint" + (homing.empty() ? std::string("s -") : homing) +
+                             (homed.empty() ? "" : "; homed:" + homed);
+    if (line != last) {
+      std::printf("%s\n", line.c_str());
+      std::fflush(stdout);
+      last = line;
+    }
+    if (monotonic_ns() > deadline || !client.controller_alive()) {
+      std::fprintf(stderr, "cnc: %s still %s after %.0f s\n", ipc::to_string(cmd.type), ipc::to_string(r.state),
+                   c.timeout_s);
+      return 3;
+    }
+  }
+}
+
 Command cmd_of(CommandType t) { return ipc::make_command(t); }
 
 Command with_i(CommandType t, int a, int b = 0) {
@@ -260,12 +300,22 @@ int cmd_messages(const Context& c) {
 int cmd_wait_ready(const Context& c) {
   const int64_t deadline = monotonic_ns() + static_cast<int64_t>(c.timeout_s * 1e9);
   std::string last;
+  int32_t starting_pid = 0;  // a controller seen starting up
   while (monotonic_ns() < deadline) {
     try {
       ipc::Client client(c.instance);
       if (client.controller_ready()) return 0;
+      starting_pid = client.owner_pid();
     } catch (const std::exception& e) {
       last = e.what();
+      if (starting_pid > 0) {
+        // It was starting and is gone: waiting longer cannot help.
+        std::fprintf(stderr,
+                     "cnc: the controller (pid %d) stopped during start-up, before it was ready: its error is in "
+                     "its own output (standard error or log)\n",
+                     starting_pid);
+        return 1;
+      }
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
@@ -393,7 +443,7 @@ std::map<std::string, Entry> commands() {
                        }};
   m["home"] = {"home JOINT|all", "home a joint or all joints", [](Context& c) {
                  need_args(c, 1, "home JOINT|all");
-                 return send(c, with_i(CommandType::JointHome, joint_or_all(c.args[0])));
+                 return send_home(c, with_i(CommandType::JointHome, joint_or_all(c.args[0])));
                }};
   m["unhome"] = {"unhome JOINT|all", "forget a joint's home", [](Context& c) {
                    need_args(c, 1, "unhome JOINT|all");

@@ -285,6 +285,17 @@ void Hal::add_function(const std::string& function, const std::string& thread, i
   if (std::find(list.begin(), list.end(), f) != list.end()) {
     throw HalError("function " + function + " is already in thread " + thread);
   }
+  // A function keeps state between its calls (a motion controller, a bus
+  // master): two threads calling it would race. As LinuxCNC: one thread.
+  if (f->users > 0) {
+    std::string other;
+    for (const auto& [name, th] : threads_) {
+      const auto fl = th->functions();
+      if (std::find(fl.begin(), fl.end(), f) != fl.end()) other = name;
+    }
+    throw HalError("function " + function + " is already in thread " + other +
+                   "; a function runs in one thread only (delf it there first)");
+  }
   if (list.size() >= Thread::kMaxFunctions) throw HalError("thread " + thread + " is full");
   // LinuxCNC positions: 1 is first, -1 (default) last, -2 next to last...
   std::size_t at = list.size();

@@ -66,6 +66,8 @@ Client::Client(const std::string& instance) : instance_(instance) {
   messages_cursor_ = seg_->messages.head();
 }
 
+int32_t Client::owner_pid() const { return seg_->header.owner_pid.load(std::memory_order_acquire); }
+
 Client::~Client() {
   if (seg_) {
     if (channel_ >= 0) {

@@ -31,6 +31,8 @@ class Client {
   // The controller process still exists (not just its segment).
   bool controller_alive() const;
   bool controller_ready() const;
+  // The controller's process id (from the segment's header).
+  int32_t owner_pid() const;
   // A consistent copy of the status block.
   Status status() const;
 

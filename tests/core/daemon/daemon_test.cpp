@@ -363,3 +363,17 @@ TEST(Security, AnotherUsersLockIsNamedWhenItCannotBeRemoved) {
   EXPECT_NE(r.text.find("it is a file of root (uid 0), not of this user; only that user or root can remove it"),
             std::string::npos) << r.text;
 }
+
+// `cnc wait-ready` says at once that a controller it saw starting died
+// before it was ready, instead of waiting its whole timeout.
+TEST(Daemon, WaitReadySaysWhenTheControllerDiesDuringStartup) {
+  cnc::testing::TempDir dir;
+  const auto slow = dir.write("slow.sh", "#!/bin/sh\nsleep 1.5\n");
+  std::filesystem::permissions(slow, std::filesystem::perms::owner_all);
+  Daemon d(dir, "loadrt threads name1=servo-thread period1=1000000\nloadusr -w slow.sh\nnet x nosuch.pin\n");
+  const auto r = run(bin("cnc") + " -i " + d.instance() + " --timeout 30 wait-ready");
+  EXPECT_EQ(r.code, 1);
+  // Not "not ready after 30 s": it saw the controller go.
+  EXPECT_NE(r.text.find("stopped during start-up, before it was ready"), std::string::npos) << r.text;
+  EXPECT_EQ(d.wait_exit(), 1);
+}

@@ -100,3 +100,26 @@ TEST(HalThread, AddfWhileRunningIsSafe) {
   EXPECT_GT(std::stoul(hal.get_value("counter.out")), 10u);
   EXPECT_EQ(hal.thread_views()[0].functions.size(), 1u);
 }
+
+// A function keeps state between calls: two threads must never call it.
+TEST(HalThread, AFunctionRunsInOneThreadOnly) {
+  Hal hal;
+  ComponentRegistry reg;
+  register_core_components(reg);
+  CommandInterpreter interp(hal, reg, nullptr, nullptr);
+  hal.add_component(std::make_unique<Counter>(hal));
+  interp.run_text(
+      "loadrt threads name1=servo-thread period1=1000000 name2=slow-thread period2=10000000\n"
+      "addf counter.update servo-thread\n",
+      "t.hal");
+  try {
+    interp.execute("addf counter.update slow-thread");
+    FAIL() << "a function was added to a second thread";
+  } catch (const HalError& e) {
+    EXPECT_STREQ(e.what(),
+                 "function counter.update is already in thread servo-thread; a function runs in one thread only "
+                 "(delf it there first)");
+  }
+  interp.execute("delf counter.update servo-thread");
+  interp.execute("addf counter.update slow-thread");  // moved: fine
+}
