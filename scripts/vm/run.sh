@@ -117,8 +117,12 @@ for m in $(cat /modules/order); do
   insmod "/modules/$m" || echo "CNC-VM-ERROR insmod $m failed"
 done
 job=""
+keep=""
 for w in $(cat /proc/cmdline); do
-  case "$w" in cnc.job=*) job="${w#cnc.job=}" ;; esac
+  case "$w" in
+    cnc.job=*) job="${w#cnc.job=}" ;;
+    cnc.keep=*) keep="${w#cnc.keep=}" ;;
+  esac
 done
 ip link set lo up
 for i in 0 1; do ip link add dev vcan$i type vcan && ip link set vcan$i up; done
@@ -126,7 +130,17 @@ if mount -t 9p -o trans=virtio,version=9p2000.L,ro,msize=262144,cache=loose host
   mount -t proc proc /host/proc
   mount -t sysfs sys /host/sys
   mount -o bind /dev /host/dev
+  # The guest writes to a fresh /tmp; a checkout that lies under the host's
+  # /tmp (cnc.keep) stays visible through a bind mount of the original.
+  if [ -n "$keep" ]; then
+    mkdir -p /hosttmp
+    mount -o bind /host/tmp /hosttmp
+  fi
   mount -t tmpfs tmpfs /host/tmp
+  if [ -n "$keep" ]; then
+    mkdir -p "/host$keep"
+    mount -o bind "/hosttmp${keep#/tmp}" "/host$keep" || echo "CNC-VM-ERROR cannot keep $keep visible"
+  fi
   mount -t tmpfs tmpfs /host/run 2>/dev/null
   mount -t tmpfs tmpfs /host/dev/shm 2>/dev/null
   echo
@@ -179,13 +193,28 @@ job="$jobdir/job.sh"
 } > "$job"
 chmod 0644 "$job"
 
+# A checkout under /tmp: the guest's fresh /tmp must not hide it (the
+# top folder under /tmp that holds the build and the working directory).
+keep=""
+for d in "$PWD" "$vmdir"; do
+  case "$d" in
+    /tmp/?*) top="${d#/tmp/}"; top="/tmp/${top%%/*}"
+             if [ -n "$keep" ] && [ "$keep" != "$top" ]; then
+               echo "vm/run.sh: the build ($vmdir) and the working directory ($PWD) lie in different folders under /tmp" >&2
+               exit 2
+             fi
+             keep="$top" ;;
+  esac
+done
+case "$keep" in *[[:space:]]*) echo "vm/run.sh: a checkout under /tmp must not have blanks in its path ($keep)" >&2; exit 2 ;; esac
+
 out="$jobdir/console.txt"
 set +e
 timeout --kill-after=5 "$timeout_s" qemu-system-x86_64 -accel tcg -cpu max -smp 2 -m 768 \
   -nodefaults -vga none -nographic -no-reboot -nic none -monitor none -serial stdio \
   -kernel "$kernel" -initrd "$initrd" \
   -virtfs local,path=/,mount_tag=host,security_model=none,readonly=on,multidevs=remap \
-  -append "console=ttyS0 quiet loglevel=1 panic=-1 mitigations=off cnc.job=$job" </dev/null > "$out" 2>&1
+  -append "console=ttyS0 quiet loglevel=1 panic=-1 mitigations=off cnc.job=$job${keep:+ cnc.keep=$keep}" </dev/null > "$out" 2>&1
 qrc=$?
 set -e
 tr -d '\r' < "$out" > "$out.clean"
