@@ -5,6 +5,15 @@
 #include "core/tooltable/tool_table.hpp"
 
 namespace cnc::interp {
+namespace {
+
+std::string describe(const InterpError& e, const Rs274Options& o) {
+  if (o.rs274_error_format || e.file().empty()) return e.message() + "\n" + e.block_text();
+  return e.file() + (e.line() > 0 ? ":" + std::to_string(e.line()) : std::string()) + ": " + e.message() + "\n" +
+         e.block_text();
+}
+
+}  // namespace
 
 bool run_rs274(const Rs274Options& o, std::FILE* out, std::string& error, std::FILE* err_out) {
   cnc::ini::IniFile ini;
@@ -37,7 +46,7 @@ bool run_rs274(const Rs274Options& o, std::FILE* out, std::string& error, std::F
     } catch (const InterpError& e) {
       // rs274 stops at once when the program cannot be opened
       canon.flush();
-      error = e.message() + "\n" + e.block_text();
+      error = describe(e, o);
       if (err_out != nullptr) std::fprintf(err_out, "%s\n", error.c_str());
       return false;
     }
@@ -45,7 +54,7 @@ bool run_rs274(const Rs274Options& o, std::FILE* out, std::string& error, std::F
     interp.run_to_end();
   } catch (const InterpError& e) {
     canon.flush();
-    error = e.message() + "\n" + e.block_text();
+    error = describe(e, o);
     if (err_out != nullptr) std::fprintf(err_out, "%s\n", error.c_str());
     ok = false;
   }

@@ -20,11 +20,14 @@ struct Rs274Options {
   bool random_toolchanger = false;
   Units machine_units = Units::Inch;  // rs274's saicanon works in inches
   std::string axes = "XYZABC";         // rs274's saicanon axes
+  // Errors as LinuxCNC's rs274 prints them (message, then the block) when
+  // true; otherwise "file:line: message", then the block.
+  bool rs274_error_format = true;
 };
 
 // Writes the canonical calls to `out` (may be null). On an interpreter
 // error returns false and sets `error` to "message\nline text" as rs274
-// prints it, and writes that text to `err_out` when not null (before the
+// prints it (or "file:line: message\nline text"), and writes that text to `err_out` when not null (before the
 // closing calls, as rs274 does). Throws for unreadable tool table / INI.
 bool run_rs274(const Rs274Options& options, std::FILE* out, std::string& error, std::FILE* err_out = nullptr);
 

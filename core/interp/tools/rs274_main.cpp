@@ -1,7 +1,9 @@
 // cnc-rs274: interprets an RS274/NGC program against a tool table and a
 // parameter file and prints the canonical calls in the format of LinuxCNC's
 // stand-alone `rs274 -g`, so that both outputs compare line by line.
-// Errors go to stderr as LinuxCNC prints them: the message, then the line.
+// Errors go to stderr as "file:line: message", then the block; run under the
+// name `rs274` (LinuxCNC's regression tests put it on PATH so), exactly as
+// LinuxCNC prints them: the message, then the block.
 #include <cstdio>
 #include <cstring>
 #include <string>
@@ -30,6 +32,8 @@ void usage() {
 int main(int argc, char** argv) {
   using namespace cnc::interp;
   Rs274Options o;
+  const char* slash = std::strrchr(argv[0], '/');
+  o.rs274_error_format = std::strcmp(slash ? slash + 1 : argv[0], "rs274") == 0;
   bool quiet = false;
   int opt;
   while ((opt = getopt(argc, argv, "t:v:i:bgrm:a:qn:p:sT")) != -1) {

@@ -128,3 +128,27 @@ TEST(InterpGolden, ParameterFileMatchesLinuxCncRs274) {
 }
 
 TEST(InterpGolden, DeliberateDifferencesAreStable) { check_dir("own", data_dir() / "own", {}); }
+
+// cnc-rs274 names the file and line of an error (of the program, or of the
+// parameter file); as `rs274` it prints exactly what LinuxCNC's does.
+TEST(InterpTool, ErrorsNameTheFileAndLineUnlessInRs274Format) {
+  cnc::testing::TempDir dir;
+  Rs274Options o;
+  o.program = dir.write("bad.ngc", "G0 X1\nG1 X2 Y\n");
+  o.rs274_error_format = false;
+  std::string error;
+  EXPECT_FALSE(cnc::interp::run_rs274(o, nullptr, error));
+  EXPECT_EQ(error, o.program.string() + ":2: No characters found in reading real value\nG1 X2 Y");
+  o.rs274_error_format = true;
+  EXPECT_FALSE(cnc::interp::run_rs274(o, nullptr, error));
+  EXPECT_EQ(error, "No characters found in reading real value\nG1 X2 Y");
+  o.rs274_error_format = false;
+  o.program = dir.write("ok.ngc", "G0 X1\n");
+  o.parameter_file = dir.write("bad.var", "5221 1\n5220 abc\n");
+  try {
+    cnc::interp::run_rs274(o, nullptr, error);
+    EXPECT_EQ(error.substr(0, o.parameter_file.string().size() + 3), o.parameter_file.string() + ":2:") << error;
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "thrown: " << e.what();
+  }
+}
