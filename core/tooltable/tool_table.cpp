@@ -139,8 +139,8 @@ ToolTable ToolTable::load(const std::filesystem::path& path, ChangerKind kind) {
   std::string text;
   try {
     text = read_file(path);
-  } catch (const std::exception& e) {
-    throw ConfigError(path.string(), 0, std::string("cannot read tool table: ") + e.what());
+  } catch (const FileError& e) {
+    throw ConfigError(path.string(), 0, "cannot read tool table: " + e.reason());
   }
   return parse(text, path.string(), kind);
 }
