@@ -340,8 +340,43 @@ void MotionComponent::contribute_status(ipc::Status& st) {
   }
 }
 
-void MotionComponent::command_handler(const rt::CycleInfo&) noexcept {
+namespace {
+// Commands that stop or hold: safe to carry out however late they come.
+bool is_safe_late(Cmd t) noexcept {
+  return t == Cmd::Abort || t == Cmd::Disable || t == Cmd::Pause || t == Cmd::JogStop || t == Cmd::DisableAmplifier;
+}
+}  // namespace
+
+void MotionComponent::command_handler(const rt::CycleInfo& info) noexcept {
   if (!controller_) return;
+  // After the servo thread stood still (halcmd stop, delf, a stalled host)
+  // the commands queued meanwhile are stale: the task has gone to E-stop and
+  // the operator has moved on. Those that would start or enable something
+  // are answered "dropped", never carried out late.
+  const bool resumed = handler_ran_ns_ != 0 && info.now_ns - handler_ran_ns_ > kStaleCommandGapNs;
+  if (resumed) {
+    const int64_t gap_ms = (info.now_ns - handler_ran_ns_) / 1'000'000;
+    while (const MotionCommand* cmd = commands_.front()) {
+      if (results_.size() >= kQueueDepth) break;
+      MotionResult r;
+      r.serial = cmd->serial;
+      r.type = cmd->type;
+      if (is_safe_late(cmd->type)) {
+        controller_->handle(*cmd, r);
+      } else {
+        r.accepted = false;
+        char text[160];
+        std::snprintf(text, sizeof text,
+                      "dropped: the servo thread did not run for %lld ms after this command was sent, and nothing "
+                      "starts late",
+                      static_cast<long long>(gap_ms));
+        r.reason.assign(text);
+      }
+      commands_.pop_front();
+      results_.push(r);
+    }
+  }
+  handler_ran_ns_ = info.now_ns;
   // ESTOP_RESET judges the chain as it is now, not as the last cycle read it
   // (the task closes it and asks for the reset within one task cycle).
   controller_->in().estop_chain_closed = !estop_chain_.valid() || estop_chain_.get();

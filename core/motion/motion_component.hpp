@@ -81,6 +81,10 @@ class MotionComponent : public hal::Component, public ipc::ControllerService {
   PlannerFactory planner_factory_;
   std::unique_ptr<tp::TrajectoryPlanner> planner_;
   std::unique_ptr<MotionController> controller_;
+  // A gap this long between two runs of the command handler makes the
+  // commands queued before it stale (see command_handler).
+  static constexpr int64_t kStaleCommandGapNs = 250'000'000;
+  int64_t handler_ran_ns_ = 0;
   SpscRing<MotionCommand, kQueueDepth> commands_;
   SpscRing<MotionResult, kQueueDepth> results_;
   SeqLock<MotionStatus> status_;

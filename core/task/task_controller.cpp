@@ -189,7 +189,14 @@ void TaskController::answer_after(const ipc::Command& cmd, uint64_t serial, std:
                                 reporter_->report(cmd, CommandState::Rejected, "the motion command queue is full");
                                 return true;
                               }
-                              if (!motion_answered(serial)) return false;
+                              if (!motion_answered(serial)) {
+                                // Motion stands still: no answer is coming
+                                // (its queue drops what it held when it runs again).
+                                if (!motion_.servo_stalled()) return false;
+                                reporter_->report(cmd, CommandState::Rejected,
+                                                  "motion is not running: " + motion_.stall_reason());
+                                return true;
+                              }
                               const motion::MotionResult* r = motion_result(serial);
                               if (r && !r->accepted) {
                                 reporter_->report(cmd, CommandState::Rejected, r->reason.view());

@@ -195,3 +195,64 @@ TEST(TaskFaults, AFaultWithoutADriveExplanationIsSaidAfterAShortWait) {
       2'000'000));
   EXPECT_NE(m.log.find("joint 1 amplifier fault (joint.1.amp-fault-in)"), std::string::npos) << m.log;
 }
+
+// A command sent while motion stands still (halcmd stop, delf) is answered
+// at once instead of leaving the client waiting, and when motion runs again
+// it is dropped, not carried out late (a jog sent while the threads were
+// stopped used to run when they started).
+TEST(TaskEstop, CommandsSentWhileMotionStandsStillAreRefusedAndNeverRunLate) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kManual), "manual");
+  m.cycle_info().now_ns = 1'000'000'000;
+  m.step(5);
+  m.hal().remove_function("motion-command-handler", "servo-thread");
+  m.hal().remove_function("motion-controller", "servo-thread");
+  const double x0 = m.status().joints[0].pos_cmd;
+  cnc::ipc::Command jog;
+  jog.type = CommandType::JogIncr;
+  jog.i[0] = 0;
+  jog.i[1] = 1;
+  jog.d[0] = 20;
+  jog.d[1] = -10;
+  const auto r = m.send(jog, 2'000'000);
+  EXPECT_EQ(r.first, CommandState::Rejected);
+  EXPECT_NE(r.second.find("motion is not running"), std::string::npos) << r.second;
+  // Motion runs again two seconds later: what was queued is stale.
+  m.cycle_info().now_ns += 2'000'000'000;
+  m.hal().add_function("motion-command-handler", "servo-thread", 4);
+  m.hal().add_function("motion-controller", "servo-thread", 5);
+  m.step(2000);
+  EXPECT_NEAR(m.status().joints[0].pos_cmd, x0, 1e-9) << "the jog ran late";
+}
+
+// The servo thread's gap alone (simulated time: the task has not even
+// noticed a stall yet) makes a queued jog stale.
+TEST(TaskEstop, AJogQueuedBeforeAServoGapIsDroppedWhenTheThreadRunsAgain) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kManual), "manual");
+  m.cycle_info().now_ns = 1'000'000'000;
+  m.step(5);
+  m.hal().remove_function("motion-command-handler", "servo-thread");
+  m.hal().remove_function("motion-controller", "servo-thread");
+  const double x0 = m.status().joints[0].pos_cmd;
+  cnc::ipc::Command jog;
+  jog.type = CommandType::JogIncr;
+  jog.serial = 9999;
+  jog.i[0] = 0;
+  jog.i[1] = 1;
+  jog.d[0] = 20;
+  jog.d[1] = -10;
+  ASSERT_TRUE(m.task().handle_command(jog, m.reporter));
+  m.task_cycle();  // the jog waits in motion's queue
+  m.cycle_info().now_ns += 2'000'000'000;
+  m.hal().add_function("motion-command-handler", "servo-thread", 4);
+  m.hal().add_function("motion-controller", "servo-thread", 5);
+  m.step(2000);
+  ASSERT_TRUE(m.reporter.last.count(9999));
+  EXPECT_EQ(m.reporter.last[9999].first, CommandState::Rejected);
+  EXPECT_NE(m.reporter.last[9999].second.find("dropped: the servo thread did not run for 2000 ms"), std::string::npos)
+      << m.reporter.last[9999].second;
+  EXPECT_NEAR(m.status().joints[0].pos_cmd, x0, 1e-9) << "the jog ran late";
+}
