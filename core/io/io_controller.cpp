@@ -1,6 +1,7 @@
 #include "core/io/io_controller.hpp"
 
 #include "core/ini/ini_file.hpp"
+#include "core/util/atomic_file.hpp"
 #include "core/util/messages.hpp"
 #include "core/util/time.hpp"
 
@@ -23,6 +24,8 @@ IoConfig IoConfig::from_ini(const ini::IniFile& ini) {
 IoController::IoController(hal::Hal& hal, IoConfig config, MessageQueue* messages)
     : hal::Component(hal, "iocontrol"), config_(std::move(config)), messages_(messages), table_(config_.kind) {
   if (!config_.tool_table.empty()) {
+    // Temporary files of a save that a kill interrupted.
+    remove_stale_temporaries(config_.tool_table);
     if (std::filesystem::exists(config_.tool_table)) {
       table_ = tooltable::ToolTable::load(config_.tool_table, config_.kind);
     } else {

@@ -1,8 +1,10 @@
 // The I/O controller's tool changer: both kinds through the HAL handshake,
 // timeouts, abort during a change, and a tool table that survives a crash
 // in the middle of a save.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -123,4 +125,20 @@ TEST(ToolTable, AKilledSaveLeavesTheOldOrTheNewTable) {
     const auto n = loaded.tools().size();
     EXPECT_TRUE(n == 3 || n == 800) << "round " << round << ": " << n << " tools (seed 4242)";
   }
+}
+
+// A save killed between writing its temporary file and renaming it leaves
+// the temporary behind; the I/O controller removes it at start.
+TEST(ToolTable, TemporaryFilesOfAKilledSaveAreRemovedAtStart) {
+  cnc::testing::TempDir dir;
+  const auto table = dir.write("tool.tbl", "T1 P1 Z10 ;one\n");
+  const auto stale = dir.write(".tool.tbl.Qw3rTy", "T1 P1 Z10 ;half\n");
+  const timespec old_times[2] = {{1'000'000'000, 0}, {1'000'000'000, 0}};
+  ASSERT_EQ(::utimensat(AT_FDCWD, stale.c_str(), old_times, 0), 0);
+  cnc::hal::Hal hal;
+  cnc::io::IoConfig cfg;
+  cfg.tool_table = table;
+  cnc::io::IoController io(hal, cfg, nullptr);
+  EXPECT_FALSE(std::filesystem::exists(stale));
+  EXPECT_TRUE(std::filesystem::exists(table));
 }
