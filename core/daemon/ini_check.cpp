@@ -24,6 +24,11 @@ constexpr const char* kScreenSections[] = {"DISPLAY", "FILTER", "MDI_COMMAND_LIS
 // (docs/hmi.md); LinuxCNC runs them from its screen as well.
 constexpr IgnoredKey kScreenKeys[] = {{"HAL", "POSTGUI_HALFILE"}, {"HAL", "POSTGUI_HALCMD"}};
 
+// Keys of the controller read only when they are used, possibly after
+// start-up (a `loadusr` typed into halcmd): the record cannot show them
+// read, so they are never reported.
+constexpr IgnoredKey kRunTimeKeys[] = {{"HAL", "LOADUSR_PATH"}};
+
 bool is_digits(std::string_view s) {
   return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
 }
@@ -155,7 +160,7 @@ std::vector<IniIssue> find_unread_keys(const ini::IniFile& ini) {
     const std::string& s = e->section;
     if (is_screen_section(s)) continue;
     const std::string family = section_family(s);
-    if (listed(kScreenKeys, family, e->key)) continue;
+    if (listed(kScreenKeys, family, e->key) || listed(kRunTimeKeys, family, e->key)) continue;
     const std::string name = ini::key_name(s, e->key);
     if (listed(ignored_linuxcnc_keys(), family, e->key)) {
       out.push_back(issue(IniIssue::Kind::Ignored, *e, name + ": a LinuxCNC key this controller does not use"));

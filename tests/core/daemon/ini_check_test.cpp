@@ -108,6 +108,11 @@ TEST(IniCheck, TheScreensSectionsAndKeysAreLeftToTheScreen) {
   EXPECT_TRUE(issues.empty()) << ::testing::PrintToString(texts(issues));
 }
 
+TEST(IniCheck, KeysReadOnlyWhenUsedAreNotReported) {
+  const auto issues = check(std::string(kHead) + "[HAL]\nLOADUSR_PATH = bin\n", 0);
+  EXPECT_TRUE(issues.empty()) << ::testing::PrintToString(texts(issues));
+}
+
 TEST(IniCheck, LinuxCncKeysIgnoredHereAreInformationNotMistakes) {
   const auto issues = check("[EMC]\nVERSION = 1.1\nMACHINE = m\n[TRAJ]\nARC_BLEND_ENABLE = 1\n[HALUI]\nMDI_COMMAND = G0\n", 0);
   EXPECT_EQ(texts(issues), (std::vector<std::string>{
