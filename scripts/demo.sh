@@ -30,7 +30,7 @@ step "$bin/cnc" home all
 step "$bin/cnc" mode auto
 step "$bin/cnc" open "$run/nc_files/demo.ngc"
 step "$bin/cnc" run
-step "$bin/cnc" --timeout 600 wait-program
+step "$bin/cnc" wait-program
 step "$bin/cnc" status
 step "$bin/cnc" messages
 step "$bin/cnc" shutdown

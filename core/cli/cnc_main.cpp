@@ -34,6 +34,7 @@ namespace {
 struct Context {
   std::string instance;
   double timeout_s = 30;
+  bool timeout_given = false;  // --timeout on the command line
   std::vector<std::string> args;  // after the command name
 };
 
@@ -355,7 +356,9 @@ int cmd_wait_program(const Context& c) {
                   s.motion.position[2]);
       return s.task.errors_since_start == 0 ? 0 : 1;
     }
-    if (c.timeout_s > 0 && static_cast<double>(now - start) * 1e-9 > c.timeout_s) {
+    // A program takes as long as it takes: only an explicit --timeout ends
+    // the wait (the 30 s default is for commands).
+    if (c.timeout_given && static_cast<double>(now - start) * 1e-9 > c.timeout_s) {
       std::fprintf(stderr, "cnc: the program is still running after %.0f s\n", c.timeout_s);
       return 3;
     }
@@ -375,7 +378,8 @@ std::map<std::string, Entry> commands() {
   m["watch"] = {"watch [--interval S] [--count N] [--json]", "print the status repeatedly", cmd_watch};
   m["messages"] = {"messages [--follow] [--all]", "print the error/message channel", cmd_messages};
   m["wait-ready"] = {"wait-ready", "wait until the controller is up (see --timeout)", cmd_wait_ready};
-  m["wait-program"] = {"wait-program", "follow the running program to its end, then print a summary (see --timeout)",
+  m["wait-program"] = {"wait-program",
+                       "follow the running program to its end, then print a summary (no time limit unless --timeout)",
                        cmd_wait_program};
   m["ping"] = {"ping", "check that the controller answers commands",
                [](Context& c) { return send(c, cmd_of(CommandType::Ping)); }};
@@ -538,7 +542,9 @@ std::map<std::string, Entry> commands() {
 
 void help(const std::map<std::string, Entry>& m) {
   std::printf("usage: cnc [-i INSTANCE] [--timeout S] COMMAND [ARGS...]\n\n"
-              "The instance defaults to $CNC_INSTANCE or \"default\". Commands:\n");
+              "The instance defaults to $CNC_INSTANCE or \"default\". --timeout: how long a\n"
+              "command may take (default 30 s); wait-program waits without a limit unless given.\n"
+              "Commands:\n");
   for (const auto& [name, e] : m) std::printf("  %-42s %s\n", e.usage, e.help);
 }
 
@@ -553,6 +559,7 @@ int main(int argc, char** argv) {
     if ((a == "-i" || a == "--instance") && i + 1 < argc) c.instance = argv[++i];
     else if (a == "--timeout" && i + 1 < argc) {
       c.timeout_s = number(argv[++i], "timeout", 1e6);
+      c.timeout_given = true;
       if (c.timeout_s <= 0) fail_usage("--timeout must be more than 0 s");
     }
     else break;

@@ -8,6 +8,7 @@
 #include <ctime>
 #include <thread>
 
+#include "core/daemon/ini_check.hpp"
 #include "core/ipc/command_check.hpp"
 #include "core/rt/periodic_task.hpp"
 #include "core/util/error.hpp"
@@ -42,10 +43,18 @@ void log_line(const char* kind, const std::string& source, const std::string& te
 Controller::Controller(const Options& options) : options_(options), status_(std::make_unique<ipc::Status>()) {
   started_ns_ = realtime_ns();
   ini_ = ini::IniFile::load(options.ini_file);
+  check_section_names(ini_);
+  // Every lookup from here to the end of start-up is recorded: the keys
+  // nobody asked for are reported then (check_ini_keys).
+  ini_.record_reads(true);
   if (ini_.find_all_entries("HAL", "HALFILE").empty() && ini_.find_all_entries("HAL", "HALCMD").empty()) {
     throw ConfigError(ini_.path().string(), 0,
                       "no [HAL]HALFILE or [HAL]HALCMD: nothing to run (is this a machine's INI file?)");
   }
+  // Everything the daemon itself uses is read here, at start-up, so that
+  // the key check (check_ini_keys) sees it read.
+  if (const auto file = ini_.find("HAL", "SHUTDOWN")) shutdown_hal_ = ini_.resolve_path(*file);
+  machine_ = ini_.get_string("EMC", "MACHINE", "");
   const double cycle_s = ini_.get_double("TASK", "CYCLE_TIME", 0.001, {0.0001, 1.0});
   cycle_ns_ = static_cast<int64_t>(cycle_s * 1e9);
   try {
@@ -54,7 +63,8 @@ Controller::Controller(const Options& options) : options_(options), status_(std:
     const ini::Entry* entry = ini_.find_all_entries("EMC", "OPERATOR_GROUP").front();
     throw ConfigError(entry->file, entry->line, std::string("[EMC]OPERATOR_GROUP: ") + e.what());
   }
-  server_ = std::make_unique<ipc::Server>(options.instance, access_);
+  // A check touches no instance: it runs beside a live controller.
+  if (!options.check_only) server_ = std::make_unique<ipc::Server>(options.instance, access_);
 
   const rt::RealtimeCapabilities& caps = rt::prepare_process();
   if (!caps.note.empty()) {
@@ -118,10 +128,19 @@ Controller::Controller(const Options& options) : options_(options), status_(std:
                    [](const ipc::ControllerService* a, const ipc::ControllerService* b) {
                      return a->service_order() < b->service_order();
                    });
+  try {
+    check_ini_keys();
+  } catch (...) {
+    hal_.stop_threads();
+    interp_->stop_user_programs();
+    throw;
+  }
+  if (options.check_only) return;
   wire_estop();
   admin_ = std::make_unique<ipc::AdminServer>(
       options.instance, [this](const std::string& line) { return admin_request(line); }, access_);
   hal_.start_threads();
+  threads_started_ = true;
   publish_status();
   server_->set_ready(true);
   log_line("info", "cncd",
@@ -130,6 +149,49 @@ Controller::Controller(const Options& options) : options_(options), status_(std:
 }
 
 Controller::~Controller() { shutdown(); }
+
+void Controller::check_ini_keys() {
+  const std::string mode = to_upper(ini_.get_string("EMC", "UNKNOWN_KEYS", "WARN"));
+  if (mode != "WARN" && mode != "ERROR") {
+    ini_.fail(ini_.find_entry("EMC", "UNKNOWN_KEYS"), "expected WARN or ERROR, got \"" + mode + "\"");
+  }
+  const bool strict = options_.strict || mode == "ERROR";
+  const std::vector<IniIssue> issues = find_unread_keys(ini_);
+  // Later lookups (halcmd's [SECTION]KEY from the admin thread, the task
+  // at run time) are not recorded: the records are not synchronised.
+  ini_.record_reads(false);
+  std::vector<const IniIssue*> mistakes;
+  std::string ignored;
+  int ignored_count = 0;
+  for (const IniIssue& i : issues) {
+    if (i.is_mistake()) {
+      mistakes.push_back(&i);
+      continue;
+    }
+    // LinuxCNC keys without effect here: one line of information.
+    if (++ignored_count <= 6) ignored += (ignored.empty() ? "" : ", ") + i.text.substr(0, i.text.find(':'));
+  }
+  if (ignored_count > 6) ignored += " and " + std::to_string(ignored_count - 6) + " more";
+  if (!ignored.empty()) {
+    const std::string text = "LinuxCNC keys this controller does not use (docs/configuration.md): " + ignored;
+    messages_.post(MessageKind::Text, "ini", text);
+  }
+  // Warnings go to the message channel (and from there to the log); errors
+  // to the log at once, since the start-up ends here.
+  for (const IniIssue* i : mistakes) {
+    if (strict) log_line("error", "ini", i->where_and_what());
+    else messages_.post(MessageKind::Text, "ini", i->where_and_what());
+  }
+  if (strict && !mistakes.empty()) {
+    const IniIssue& first = *mistakes.front();
+    throw ConfigError(first.file, first.line,
+                      first.text + (mistakes.size() > 1 ? " (and " + std::to_string(mistakes.size() - 1) +
+                                                              " more, listed above)"
+                                                        : std::string()) +
+                          "; unknown and unused keys are errors with " +
+                          (options_.strict ? "cncd --strict" : "[EMC]UNKNOWN_KEYS = ERROR"));
+  }
+}
 
 // E-stop is acted on in the servo thread for every configuration, without a
 // HAL file: motion reads the segment's E-stop requests and the E-stop chain
@@ -235,7 +297,7 @@ void Controller::drain_messages() {
   }
   Message m;
   while (messages_.pop(m)) {
-    server_->post(m);
+    if (server_) server_->post(m);
     log_line(to_string(m.kind), m.source.c_str(), m.text.c_str());
   }
 }
@@ -250,7 +312,7 @@ void Controller::publish_status() {
   s.health.realtime_memory_locked = caps.memory_locked;
   s.health.realtime_note.assign(caps.note);
   s.health.ini_file.assign(ini_.path().string());
-  s.health.machine.assign(ini_.get_string("EMC", "MACHINE", ""));
+  s.health.machine.assign(machine_);
   s.health.messages_dropped = messages_.dropped();
   s.health.task_cycle_ns = cycle_ns_;
   s.health.shutting_down = stop_requested_.load();
@@ -338,13 +400,14 @@ void Controller::shutdown() {
   if (shut_down_) return;
   shut_down_ = true;
   stop_requested_.store(true);
-  server_->set_ready(false);
+  if (server_) server_->set_ready(false);
   // Services first (the task ends a running program and goes to E-stop,
   // saying why), then outputs to a safe state while the servo thread runs.
   for (ipc::ControllerService* s : services_) s->on_controller_shutdown();
   for (hal::Component* c : hal_.components()) c->on_shutdown();
   const int64_t deadline = monotonic_ns() + 2'000'000'000;
-  for (;;) {
+  // After a check (threads never started) there are no outputs to wait for.
+  while (threads_started_) {
     cycle();
     bool safe = true;
     for (const ipc::ControllerService* s : services_) safe = safe && s->is_safe_to_stop();
@@ -355,9 +418,9 @@ void Controller::shutdown() {
     }
     std::this_thread::sleep_for(std::chrono::nanoseconds(cycle_ns_));
   }
-  if (const auto file = ini_.find("HAL", "SHUTDOWN")) {
+  if (!shutdown_hal_.empty() && threads_started_) {
     try {
-      interp_->run_file(ini_.resolve_path(*file));
+      interp_->run_file(shutdown_hal_);
     } catch (const std::exception& e) {
       log_line("error", "hal", std::string("[HAL]SHUTDOWN: ") + e.what());
     }
@@ -369,7 +432,7 @@ void Controller::shutdown() {
   services_.clear();
   task_.reset();
   hal_.clear();
-  log_line("info", "cncd", "stopped");
+  if (threads_started_) log_line("info", "cncd", "stopped");
   server_.reset();  // removes the segment: clients now see "not running"
 }
 

@@ -23,6 +23,11 @@ struct Options {
   std::filesystem::path ini_file;
   std::string instance = "default";
   bool verbose = false;
+  // Unknown and unused INI keys stop the start-up (as [EMC]UNKNOWN_KEYS = ERROR).
+  bool strict = false;
+  // Load and check everything (INI, HAL files, components, the INI key
+  // check), then stop: no instance segment, no threads started.
+  bool check_only = false;
 };
 
 class Controller : private ipc::CommandReporter {
@@ -48,6 +53,8 @@ class Controller : private ipc::CommandReporter {
   // `cnc inject "task ..."` on a simulated machine; false: not ours.
   bool inject(const ipc::Command& cmd);
   void wire_estop();
+  // Reports the INI keys nobody read (ini_check.hpp); throws in strict mode.
+  void check_ini_keys();
   void publish_status();
   void drain_messages();
   void shutdown();
@@ -67,6 +74,9 @@ class Controller : private ipc::CommandReporter {
   std::unique_ptr<ipc::Status> status_;  // large: kept off the stack
   std::atomic<bool> stop_requested_{false};
   bool shut_down_ = false;
+  bool threads_started_ = false;
+  std::filesystem::path shutdown_hal_;  // [HAL]SHUTDOWN, read at start-up
+  std::string machine_;                 // [EMC]MACHINE, for the status
   int64_t cycle_ns_ = 1'000'000;
   int64_t started_ns_ = 0;
   uint64_t heartbeat_ = 0;

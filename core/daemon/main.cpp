@@ -9,10 +9,15 @@
 namespace {
 void usage() {
   std::fprintf(stderr,
-               "usage: cncd [--instance NAME] [--verbose] MACHINE.ini\n"
+               "usage: cncd [--instance NAME] [--verbose] [--strict] [--check] MACHINE.ini\n"
                "  Runs the controller for the machine the INI file describes until SIGINT,\n"
                "  SIGTERM or `cnc shutdown`. The instance (default: $CNC_INSTANCE or\n"
-               "  \"default\") names the shared segment clients connect to.\n");
+               "  \"default\") names the shared segment clients connect to.\n"
+               "  --strict  unknown and unused INI keys stop the start-up (default: reported\n"
+               "            as messages; also [EMC]UNKNOWN_KEYS = ERROR)\n"
+               "  --check   load the INI and HAL files, create every component, check the\n"
+               "            INI keys, then stop: nothing runs, no instance is used; exit 0\n"
+               "            when the configuration loads\n");
 }
 }  // namespace
 
@@ -25,12 +30,19 @@ int main(int argc, char** argv) {
       opt.instance = argv[++i];
     } else if (a == "--verbose" || a == "-v") {
       opt.verbose = true;
+    } else if (a == "--strict") {
+      opt.strict = true;
+    } else if (a == "--check") {
+      opt.check_only = true;
     } else if (a == "--help" || a == "-h") {
       usage();
       return 0;
     } else if (!a.empty() && a[0] == '-') {
       std::fprintf(stderr, "cncd: unknown option %s\n", a.c_str());
       usage();
+      return 2;
+    } else if (!opt.ini_file.empty()) {
+      std::fprintf(stderr, "cncd: one INI file, got %s and %s\n", opt.ini_file.c_str(), a.c_str());
       return 2;
     } else {
       opt.ini_file = a;
@@ -41,6 +53,11 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
+    if (opt.check_only) {
+      { cnc::daemon::Controller controller(opt); }  // its messages are printed as it stops
+      std::fprintf(stderr, "cncd: %s loads\n", opt.ini_file.c_str());
+      return 0;
+    }
     cnc::daemon::Controller controller(opt);
     controller.run(true);
   } catch (const std::exception& e) {

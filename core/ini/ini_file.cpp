@@ -76,6 +76,23 @@ std::string unescape(std::string_view v) {
   return out;
 }
 
+// Where a comment after the value starts, or npos. LinuxCNC keeps such a
+// comment in the value, so `KEY = 5 # mm` would silently be "5 # mm" (a
+// number that does not parse, a file name that does not exist, a name with
+// a comment in it); it is refused instead. A comment is a blank followed by
+// `;`, or by `#` and then a blank, a letter or the end; G-code parameters
+// (`X #1`, `#<_x>`, `#[...]`) stay values.
+std::size_t trailing_comment_at(std::string_view v) {
+  for (std::size_t i = 1; i < v.size(); ++i) {
+    if (v[i - 1] != ' ' && v[i - 1] != '\t') continue;
+    if (v[i] == ';') return i;
+    if (v[i] != '#') continue;
+    const char next = i + 1 < v.size() ? v[i + 1] : ' ';
+    if (next == ' ' || next == '\t' || is_name_char(next, true)) return i;
+  }
+  return std::string_view::npos;
+}
+
 }  // namespace
 
 std::string key_name(std::string_view section, std::string_view key) {
@@ -140,10 +157,17 @@ void IniFile::parse_into(std::string_view text, const std::string& filename, int
         throw ConfigError(filename, line_no, "section name \"" + std::string(name) +
                                                  "\": expected letters, digits and '_', not starting with a digit");
       }
-      if (!trim(line.substr(close + 1)).empty()) throw ConfigError(filename, line_no, "text after section header");
+      if (const std::string_view rest = trim(line.substr(close + 1)); !rest.empty()) {
+        throw ConfigError(filename, line_no,
+                          rest.front() == '#' || rest.front() == ';'
+                              ? "a comment after the section header [" + std::string(name) +
+                                    "]: put the comment on a line of its own"
+                              : "text after section header");
+      }
       section = std::string(name);
       if (std::find(section_order_.begin(), section_order_.end(), section) == section_order_.end()) {
         section_order_.push_back(section);
+        section_headers_.push_back(Entry{section, "", "", filename, line_no});
       }
       continue;
     }
@@ -166,6 +190,12 @@ void IniFile::parse_into(std::string_view text, const std::string& filename, int
       value = std::string(trim(value)) + " " + std::string(trim(next));
       value = std::string(trim(value));
     }
+    if (const std::size_t at = trailing_comment_at(value); at != std::string_view::npos) {
+      throw ConfigError(filename, line_no,
+                        key_name(section, key) + ": \"" + value + "\" has a comment after the value (\"" +
+                            value.substr(at) + "\"), which LinuxCNC keeps as part of the value: put the comment on a "
+                            "line of its own (\\x23 writes a '#' that belongs to the value)");
+    }
     entries_.push_back(Entry{section, key, unescape(value), filename, line_no});
   }
 }
@@ -185,9 +215,23 @@ std::filesystem::path IniFile::resolve_path(std::string_view value) const {
   return p.lexically_normal();
 }
 
+void IniFile::note(std::string_view section, std::string_view key) const {
+  if (recording_) asked_.emplace(std::string(section), std::string(key));
+}
+
+void IniFile::mark(const Entry& e) const {
+  if (!recording_) return;
+  if (read_.size() < entries_.size()) read_.resize(entries_.size(), false);
+  read_[static_cast<std::size_t>(&e - entries_.data())] = true;
+}
+
 const Entry* IniFile::find_entry(std::string_view section, std::string_view key) const {
+  note(section, key);
   for (const Entry& e : entries_) {
-    if (e.section == section && e.key == key) return &e;
+    if (e.section == section && e.key == key) {
+      mark(e);
+      return &e;
+    }
   }
   return nullptr;
 }
@@ -199,9 +243,13 @@ std::optional<std::string> IniFile::find(std::string_view section, std::string_v
 }
 
 std::vector<const Entry*> IniFile::find_all_entries(std::string_view section, std::string_view key) const {
+  note(section, key);
   std::vector<const Entry*> out;
   for (const Entry& e : entries_) {
-    if (e.section == section && e.key == key) out.push_back(&e);
+    if (e.section == section && e.key == key) {
+      mark(e);
+      out.push_back(&e);
+    }
   }
   return out;
 }
@@ -218,12 +266,96 @@ bool IniFile::has_section(std::string_view section) const {
 
 std::vector<std::string> IniFile::sections() const { return section_order_; }
 
+const Entry* IniFile::section_header(std::string_view section) const {
+  for (const Entry& h : section_headers_) {
+    if (h.section == section) return &h;
+  }
+  return nullptr;
+}
+
 std::vector<const Entry*> IniFile::section_entries(std::string_view section) const {
+  // The caller takes every entry of the section: all count as read.
+  note(section, "");
   std::vector<const Entry*> out;
   for (const Entry& e : entries_) {
-    if (e.section == section) out.push_back(&e);
+    if (e.section == section) {
+      mark(e);
+      out.push_back(&e);
+    }
   }
   return out;
+}
+
+std::vector<const Entry*> IniFile::unread_entries() const {
+  std::vector<const Entry*> out;
+  for (std::size_t i = 0; i < entries_.size(); ++i) {
+    if (i >= read_.size() || !read_[i]) out.push_back(&entries_[i]);
+  }
+  return out;
+}
+
+std::vector<std::string> IniFile::keys_asked(std::string_view section) const {
+  std::vector<std::string> out;
+  for (const auto& [s, k] : asked_) {
+    if (s == section && !k.empty()) out.push_back(k);
+  }
+  return out;
+}
+
+bool IniFile::section_asked(std::string_view section) const {
+  for (const auto& [s, k] : asked_) {
+    if (s == section) return true;
+  }
+  return false;
+}
+
+std::vector<std::string> IniFile::sections_asked() const {
+  std::vector<std::string> out;
+  for (const auto& [s, k] : asked_) {
+    if (out.empty() || out.back() != s) out.push_back(s);
+  }
+  return out;
+}
+
+std::size_t name_distance(std::string_view a, std::string_view b) {
+  const auto lower = [](char c) { return (c >= 'A' && c <= 'Z') ? static_cast<char>(c - 'A' + 'a') : c; };
+  const std::size_t n = a.size(), m = b.size();
+  // d[i][j]: distance between the first i characters of a and j of b.
+  std::vector<std::vector<std::size_t>> d(n + 1, std::vector<std::size_t>(m + 1, 0));
+  for (std::size_t i = 0; i <= n; ++i) d[i][0] = i;
+  for (std::size_t j = 0; j <= m; ++j) d[0][j] = j;
+  for (std::size_t i = 1; i <= n; ++i) {
+    for (std::size_t j = 1; j <= m; ++j) {
+      const std::size_t cost = lower(a[i - 1]) == lower(b[j - 1]) ? 0 : 1;
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost});
+      if (i > 1 && j > 1 && lower(a[i - 1]) == lower(b[j - 2]) && lower(a[i - 2]) == lower(b[j - 1])) {
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+      }
+    }
+  }
+  return d[n][m];
+}
+
+std::optional<std::string> nearest_name(std::string_view name, const std::vector<std::string>& candidates) {
+  const std::size_t limit = name.size() <= 4 ? 1 : name.size() <= 8 ? 2 : 3;
+  std::optional<std::string> best;
+  std::size_t best_distance = limit + 1;
+  for (const std::string& c : candidates) {
+    const std::size_t d = name_distance(name, c);
+    if (d < best_distance) {
+      best_distance = d;
+      best = c;
+    }
+  }
+  if (best) return best;
+  const std::string upper_name = to_upper(name);
+  for (const std::string& c : candidates) {
+    const std::string upper_c = to_upper(c);
+    const bool related = upper_name.size() >= 5 && upper_c.size() >= 5 &&
+                         (upper_c.find(upper_name) != std::string::npos || upper_name.find(upper_c) != std::string::npos);
+    if (related && (!best || c.size() < best->size())) best = c;
+  }
+  return best;
 }
 
 void IniFile::fail(const Entry* at, const std::string& what) const {

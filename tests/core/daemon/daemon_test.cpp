@@ -282,6 +282,86 @@ TEST(Daemon, AnIniWithNothingToRunIsRefused) {
   EXPECT_NE(r.text.find("/dev/zero: cannot read HAL file: is a character device, not a regular file"), std::string::npos) << r.text;
 }
 
+// A misspelt key is reported with file, line and the key nearest in spelling
+// that the controller reads, on the message channel; the controller runs.
+TEST(Daemon, UnknownIniKeysAreReportedOnTheMessageChannelWithTheNearestKey) {
+  cnc::testing::TempDir dir;
+  Daemon d(dir, kBasicHal, "[TASK]\nCYCLE_TYME = 0.002\n[traj_notes]\nX = 1\n");
+  ASSERT_TRUE(d.wait_ready()) << d.log();
+  const auto listed = run(d.cnc("messages"));
+  EXPECT_NE(listed.text.find("m.ini:10: [TASK]CYCLE_TYME: unknown key, ignored; did you mean [TASK]CYCLE_TIME?"),
+            std::string::npos)
+      << listed.text;
+  EXPECT_EQ(listed.text.find("traj_notes"), std::string::npos) << "a section of the user's own is left alone";
+}
+
+namespace {
+// The Daemon fixture's INI with `extra` appended, and cncd run on it to the end.
+Output run_cncd(const cnc::testing::TempDir& dir, const std::string& options, const std::string& extra,
+                const std::string& instance) {
+  dir.write("m.hal", kBasicHal);
+  const auto ini = dir.write("m.ini", "[EMC]\nMACHINE = test mill\n[EMCMOT]\nSERVO_PERIOD = 1000000\n[TASK]\n"
+                                      "CYCLE_TIME = 0.002\n[HAL]\nHALFILE = m.hal\n" + extra);
+  return run(bin("cncd") + " --instance " + instance + " " + options + " " + ini.string());
+}
+}  // namespace
+
+TEST(Daemon, StrictRefusesToStartWithAnUnknownKey) {
+  cnc::testing::TempDir dir;
+  const std::string instance = cnc::testing::unique_name("s");
+  const auto r = run_cncd(dir, "--strict", "[TASK]\nCYCLE_TYME = 0.002\n[JOINT_0]\nTYPE = LINEAR\n", instance);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.text.find("cncd: " + (dir / "m.ini").string() +
+                        ":10: [TASK]CYCLE_TYME: unknown key, ignored; did you mean [TASK]CYCLE_TIME? (and 1 more, "
+                        "listed above); unknown and unused keys are errors with cncd --strict"),
+            std::string::npos)
+      << r.text;
+  EXPECT_NE(r.text.find("m.ini:11: [JOINT_0]: no loaded component reads this section"), std::string::npos) << r.text;
+  EXPECT_FALSE(std::filesystem::exists("/dev/shm/cnc-" + instance));
+}
+
+TEST(Daemon, UnknownKeysErrorInTheIniRefusesToStart) {
+  cnc::testing::TempDir dir;
+  const auto r = run_cncd(dir, "", "[EMC]\nUNKNOWN_KEYS = ERROR\n[HAL]\nHALFILES = x.hal\n", cnc::testing::unique_name("s"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.text.find("m.ini:12: [HAL]HALFILES: unknown key, ignored; did you mean [HAL]HALFILE?; unknown and "
+                        "unused keys are errors with [EMC]UNKNOWN_KEYS = ERROR"),
+            std::string::npos)
+      << r.text;
+  const auto bad = run_cncd(dir, "", "[EMC]\nUNKNOWN_KEYS = MAYBE\n", cnc::testing::unique_name("s"));
+  EXPECT_EQ(bad.code, 1);
+  EXPECT_NE(bad.text.find("m.ini:10: [EMC]UNKNOWN_KEYS: expected WARN or ERROR, got \"MAYBE\""), std::string::npos)
+      << bad.text;
+}
+
+TEST(Daemon, ALowerCaseControllerSectionIsRefusedWithTheRightName) {
+  cnc::testing::TempDir dir;
+  const auto r = run_cncd(dir, "", "[traj]\nMAX_LINEAR_VELOCITY = 10\n", cnc::testing::unique_name("s"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.text.find("m.ini:9: [traj]: section names are case-sensitive; this controller (as LinuxCNC) reads "
+                        "[TRAJ]"),
+            std::string::npos)
+      << r.text;
+}
+
+// --check loads everything and stops: no instance is used, so it runs beside
+// a live controller of the same instance; a bad file fails it.
+TEST(Daemon, CheckLoadsTheConfigurationWithoutRunningIt) {
+  cnc::testing::TempDir dir;
+  Daemon live(dir, kBasicHal);
+  ASSERT_TRUE(live.wait_ready()) << live.log();
+  auto r = run(bin("cncd") + " --check --instance " + live.instance() + " " + (dir / "m.ini").string());
+  EXPECT_EQ(r.code, 0) << r.text;
+  EXPECT_NE(r.text.find("cncd: " + (dir / "m.ini").string() + " loads"), std::string::npos) << r.text;
+  EXPECT_EQ(run(live.cnc("ping")).code, 0) << "the live controller is unharmed";
+  cnc::testing::TempDir other;
+  const std::string instance = cnc::testing::unique_name("c");
+  r = run_cncd(other, "--check", "[HAL]\nHALCMD = net x nosuch.pin\n", instance);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.text.find("m.ini:10: [HAL]HALCMD: "), std::string::npos) << r.text;
+  EXPECT_FALSE(std::filesystem::exists("/dev/shm/cnc-" + instance));
+}
+
 // The local security model (docs/security.md): only the controller's user
 // (and root) may command it; another user's files where the lock belongs
 // neither redirect nor block the controller. These run only as root, which

@@ -33,9 +33,78 @@ TEST(IniFile, RepeatedKeysKeepOrderAndFirstWinsForScalars) {
   EXPECT_EQ(ini.find("HAL", "HALFILE"), "a.hal");
 }
 
-TEST(IniFile, CommentMarkInsideValueIsPartOfIt) {
-  const auto ini = IniFile::parse("[X]\nA = 5 ; not a comment\n", "t.ini");
-  EXPECT_EQ(ini.find("X", "A"), "5 ; not a comment");
+// LinuxCNC keeps a trailing comment in the value; here it is refused, never
+// silently part of a number, a file name or a drive name.
+TEST(IniFile, ACommentAfterAValueIsRefusedNamingFileAndLine) {
+  EXPECT_EQ(error_of([] { IniFile::parse("[CANOPEN]\nNODE = 1\nBITRATE = 1000000   # every device\n", "t.ini"); }),
+            "t.ini:3: [CANOPEN]BITRATE: \"1000000   # every device\" has a comment after the value (\"# every "
+            "device\"), which LinuxCNC keeps as part of the value: put the comment on a line of its own (\\x23 "
+            "writes a '#' that belongs to the value)");
+  EXPECT_NE(error_of([] { IniFile::parse("[X]\nA = 5 ; not a value\n", "t.ini"); }).find("t.ini:2: [X]A: "),
+            std::string::npos);
+  EXPECT_NE(error_of([] { IniFile::parse("[X]\nA = drives/x.eds\t#vendor\n", "t.ini"); }).find("t.ini:2: [X]A: "),
+            std::string::npos);
+  EXPECT_NE(error_of([] { IniFile::parse("[X]\nA = 5 #\n", "t.ini"); }).find("t.ini:2: [X]A: "), std::string::npos);
+}
+
+TEST(IniFile, GcodeParametersAndMarksWithoutABlankStayInTheValue) {
+  const auto ini = IniFile::parse(
+      "[X]\nA = G0 X #1 Y #<_y> Z #[1 + 2]\nB = G0 Z0;G0 X1\nC = a#b\nD = 5 \\x23 five\n", "t.ini");
+  EXPECT_EQ(ini.find("X", "A"), "G0 X #1 Y #<_y> Z #[1 + 2]");
+  EXPECT_EQ(ini.find("X", "B"), "G0 Z0;G0 X1");
+  EXPECT_EQ(ini.find("X", "C"), "a#b");
+  EXPECT_EQ(ini.find("X", "D"), "5 # five");
+}
+
+TEST(IniFile, ACommentAfterASectionHeaderIsRefusedWithTheReason) {
+  EXPECT_EQ(error_of([] { IniFile::parse("[JOINT_1]   # Y, left motor\nA = 1\n", "t.ini"); }),
+            "t.ini:1: a comment after the section header [JOINT_1]: put the comment on a line of its own");
+  EXPECT_EQ(error_of([] { IniFile::parse("[A] b\n", "t.ini"); }), "t.ini:1: text after section header");
+}
+
+TEST(IniFile, NothingIsRecordedUnlessAsked) {
+  const auto ini = IniFile::parse("[X]\nA = 1\n", "t.ini");
+  EXPECT_EQ(ini.get_int("X", "A", 0), 1);
+  EXPECT_EQ(ini.unread_entries().size(), 1u) << "recording is off by default";
+  EXPECT_FALSE(ini.section_asked("X"));
+}
+
+TEST(IniFile, LookupsAreRecordedWhileRecordingIsOn) {
+  auto ini = IniFile::parse("[X]\nA = 1\nB = 2\nL = a\nL = b\n[Y]\nC = 3\n[Z]\nD = 4\n", "t.ini");
+  ini.record_reads(true);
+  EXPECT_EQ(ini.get_int("X", "A", 0), 1);
+  EXPECT_EQ(ini.get_int("X", "MISSING", 7), 7);
+  EXPECT_EQ(ini.find_all("X", "L").size(), 2u);
+  EXPECT_EQ(ini.section_entries("Y").size(), 1u);
+  ini.record_reads(false);
+  EXPECT_EQ(ini.get_int("Z", "D", 0), 4) << "not recorded any more";
+  std::vector<std::string> unread;
+  for (const auto* e : ini.unread_entries()) unread.push_back(e->section + "." + e->key);
+  EXPECT_EQ(unread, (std::vector<std::string>{"X.B", "Z.D"}));
+  EXPECT_EQ(ini.keys_asked("X"), (std::vector<std::string>{"A", "L", "MISSING"}));
+  EXPECT_TRUE(ini.section_asked("Y"));
+  EXPECT_FALSE(ini.section_asked("Z"));
+}
+
+TEST(IniFile, SectionHeadersAreLocated) {
+  const auto ini = IniFile::parse("# x\n[A]\nK = 1\n\n[B]\n[A]\nL = 2\n", "t.ini");
+  ASSERT_NE(ini.section_header("B"), nullptr);
+  EXPECT_EQ(ini.section_header("A")->line, 2);
+  EXPECT_EQ(ini.section_header("B")->line, 5);
+  EXPECT_EQ(ini.section_header("C"), nullptr);
+}
+
+TEST(IniFile, NearestNameFindsTyposSwapsAndCase) {
+  const std::vector<std::string> keys = {"MAX_VELOCITY", "MAX_ACCELERATION", "MIN_LIMIT", "MAX_LIMIT", "HOME_OFFSET",
+                                         "TYPE"};
+  EXPECT_EQ(cnc::ini::nearest_name("MAX_VELOCTY", keys), "MAX_VELOCITY");
+  EXPECT_EQ(cnc::ini::nearest_name("MAX_VLEOCITY", keys), "MAX_VELOCITY");
+  EXPECT_EQ(cnc::ini::nearest_name("max_velocity", keys), "MAX_VELOCITY");
+  EXPECT_EQ(cnc::ini::nearest_name("TYP", keys), "TYPE");
+  EXPECT_EQ(cnc::ini::nearest_name("ACCELERATION", keys), "MAX_ACCELERATION") << "contained in a known key";
+  EXPECT_EQ(cnc::ini::nearest_name("REVERSE", keys), std::nullopt);
+  EXPECT_EQ(cnc::ini::name_distance("ab", "ba"), 1u);
+  EXPECT_EQ(cnc::ini::name_distance("", "abc"), 3u);
 }
 
 TEST(IniFile, ContinuationAndEscapes) {
