@@ -25,7 +25,7 @@ struct MachineView {
   int tool_in_spindle = 0;
   // Path limits in force as motion publishes them (its status), read when a
   // move is built: the cap of every move, and the speed of rapids.
-  double max_linear_velocity = 1e99;     // units/s
+  double max_linear_velocity = 1e99;     // units/s ([TRAJ]'s, else the fastest axis's)
   double max_linear_acceleration = 1e99;  // units/s^2
   double rapid_velocity = 1;              // max_linear_velocity, or the fastest axis without one
 };

@@ -177,6 +177,7 @@ void TaskController::view_limits(MachineView& view) const {
     }
   }
   view.rapid_velocity = rapid > 0 ? rapid : 1;
+  if (!(view.max_linear_velocity < 1e98)) view.max_linear_velocity = view.rapid_velocity;
 }
 
 void TaskController::report_spindle_limits() {
@@ -1482,8 +1483,10 @@ void TaskController::update(int64_t now_ns) {
   while (motion_.poll_result(r)) {
     last_answered_ = r.serial;
     if (!r.accepted) {
-      // A segment refused while a program runs is a program error.
-      if ((r.type == Cmd::SetLine || r.type == Cmd::SetCircle || r.type == Cmd::Probe || r.type == Cmd::SetDwell) &&
+      // A segment or a spindle command (M4 on a spindle that may not turn
+      // in reverse) refused while a program runs is a program error.
+      if ((r.type == Cmd::SetLine || r.type == Cmd::SetCircle || r.type == Cmd::Probe || r.type == Cmd::SetDwell ||
+           r.type == Cmd::SetSpindle) &&
           (interp_state_ != ipc::InterpState::Idle || running_mdi_)) {
         program_error(std::string(r.reason.view()));
       }

@@ -144,3 +144,18 @@ TEST(TaskLimits, ServoPeriodThatDiffersFromTheThreadStopsStartUp) {
     EXPECT_NE(w.find("slow-thread with a period of 2000000 ns"), std::string::npos) << w;
   }
 }
+
+TEST(TaskLimits, ReverseSpindleInAProgramWhereReverseIsForbiddenStopsTheProgram) {
+  TaskMachine m({}, "", "", "[SPINDLE_0]\nMAX_FORWARD_VELOCITY = 10000\nMAX_REVERSE_VELOCITY = 0\n");
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, 2), "auto mode");
+  m.ok(m.open("rev.ngc", "S1000 M4\nG1 X10 F600\nM2\n"), "open");
+  ipc::Command run;
+  run.type = CommandType::TaskPlanRun;
+  m.send(run);
+  ASSERT_TRUE(m.run_until([&] { return !m.program_running(); }, 20000));
+  const std::string e = m.errors();
+  EXPECT_NE(e.find("spindle 0 may not turn in reverse ([SPINDLE_0]MAX_REVERSE_VELOCITY is 0)"), std::string::npos) << e;
+  // The move (270 mm at 10 mm/s) would take 27 s: the program ended long before.
+  EXPECT_GT(m.status().motion.position[0], 11) << "the program did not cut with the spindle stopped";
+}
