@@ -76,12 +76,16 @@ bool Drive::Probe::update(bool want, uint16_t status) noexcept {
 
 Drive::Drive(DriveConfig config, DriveLink& link, MessageQueue* messages)
     : config_(std::move(config)), link_(link), slots_(DriveSlots::find(link, config_.address)), messages_(messages) {
-  period_s_ = static_cast<double>(link.cycle_ns() > 0 ? link.cycle_ns() : kMs) * 1e-9;
+  update_period();
   probe1_.bits = tp::kEnable | tp::kRising;  // source: probe input 1
   probe1_.shift = 0;
   probe2_.bits = static_cast<uint16_t>((tp::kEnable | tp::kSourceZeroPulse | tp::kRising) << tp::kProbe2Shift);
   probe2_.shift = tp::kProbe2Shift;
   if (!slots_.probe_status || !slots_.probe1_rising) config_.probe = false;
+}
+
+void Drive::update_period() noexcept {
+  period_s_ = static_cast<double>(link_.cycle_ns() > 0 ? link_.cycle_ns() : kMs) * 1e-9;
 }
 
 void Drive::check_mapping() const {

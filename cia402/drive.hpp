@@ -128,6 +128,9 @@ class Drive {
   // Throws std::runtime_error naming the drive and what is missing
   // (statusword, controlword, position actual for CSP...).
   void check_mapping() const;
+  // Takes the bus cycle again (it is known for sure once the bus's thread
+  // is, at start-up): the period velocities are differentiated over.
+  void update_period() noexcept;
 
   // Servo thread.
   void read(int64_t now_ns, const DriveCommand& cmd, DriveFeedback& fb) noexcept;

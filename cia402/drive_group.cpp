@@ -114,6 +114,7 @@ DriveGroup::DriveGroup(GroupConfig config, DriveLink& link, MessageQueue* messag
 
 void DriveGroup::configure() {
   for (auto& dp : drives_) {
+    dp->update_period();
     const DriveConfig& d = dp->config();
     const Scaling& s = d.scaling;
     auto fail = [&](Object o, const std::string& why) {

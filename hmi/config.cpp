@@ -351,7 +351,9 @@ HmiConfig HmiConfig::from_ini(const ini::IniFile& ini) {
 
   c.default_spindle_speed = get_number(ini, "DISPLAY", "DEFAULT_SPINDLE_0_SPEED", get_number(ini, "DISPLAY", "DEFAULT_SPINDLE_SPEED", 500, w), w);
   c.spindle_increment = get_number(ini, "SPINDLE_0", "INCREMENT", get_number(ini, "DISPLAY", "SPINDLE_INCREMENT", 100, w), w);
-  c.max_spindle_speed = get_number(ini, "SPINDLE_0", "MAX_FORWARD_VELOCITY", get_number(ini, "DISPLAY", "MAX_SPINDLE_0_SPEED", 0, w), w);
+  // [SPINDLE_0]MAX_FORWARD_VELOCITY is motion's: the screen shows the speed
+  // motion sends (the status's speed_out), limits applied.
+  c.max_spindle_speed = get_number(ini, "DISPLAY", "MAX_SPINDLE_0_SPEED", 0, w);
 
   c.position_feedback_actual = iequals(trim(ini.get_string("DISPLAY", "POSITION_FEEDBACK", "COMMANDED")), "ACTUAL");
   c.position_offset_machine = iequals(trim(ini.get_string("DISPLAY", "POSITION_OFFSET", "RELATIVE")), "MACHINE");

@@ -584,7 +584,14 @@ void MainWindow::start_preview(const QString& path) {
   in.start_machine = screen_.status.motion.position;
   in.tool_in_spindle = screen_.status.io.tool_in_spindle;
   in.block_delete = screen_.status.task.block_delete;
-  for (const auto& a : config_.axes) in.limits.push_back(AxisLimit{a.index, a.min_limit, a.max_limit});
+  // The soft limits in force are motion's (published in the status, run-time
+  // changes included); the INI's only until the controller answers.
+  for (const auto& a : config_.axes) {
+    const ipc::AxisStatus& st = screen_.status.axes[a.index];
+    const bool published = connected_ && st.min_position_limit < st.max_position_limit;
+    in.limits.push_back(AxisLimit{a.index, published ? st.min_position_limit : a.min_limit,
+                                  published ? st.max_position_limit : a.max_limit});
+  }
   preview_cancel_ = std::make_shared<std::atomic<bool>>(false);
   const unsigned generation = ++preview_generation_;
   preview_running_ = true;

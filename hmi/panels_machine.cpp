@@ -761,6 +761,16 @@ double OverridePanel::status_value(int which) const {
 
 void OverridePanel::refresh() {
   if (!s_.connected) return;
+  // The path limit in force is motion's (the INI's, as changed at run time
+  // with `cnc set traj.max-velocity`): it bounds the max-velocity slider.
+  const double path_max = s_.status.motion.max_linear_velocity;
+  if (path_max > 0 && path_max < 1e98) {
+    const int top = std::max(1, static_cast<int>(std::lround(path_max * 60)));
+    if (ov_[3].slider->maximum() != top) {
+      const QSignalBlocker block(ov_[3].slider);
+      ov_[3].slider->setMaximum(top);
+    }
+  }
   for (int i = 0; i < 4; ++i) {
     Ov& o = ov_[static_cast<std::size_t>(i)];
     o.slider->setEnabled(true);
@@ -780,7 +790,8 @@ void OverridePanel::refresh() {
                                .arg(s_.number(st.task.active_settings[1], 0),
                                     s_.number(st.task.active_settings[1] * st.motion.feed_scale, 0), u,
                                     s_.number(st.motion.current_vel * 60, 0), s_.number(st.task.active_settings[2], 0),
-                                    s_.number(st.task.active_settings[2] * sp.override_scale, 0), dir,
+                                    // what motion sends: command x override within the spindle's limits
+                                    s_.number(sp.enabled ? std::fabs(sp.speed_out) : st.task.active_settings[2] * sp.override_scale, 0), dir,
                                     s_.number(sp.speed_feedback, 0)));
 }
 

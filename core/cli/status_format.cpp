@@ -31,6 +31,10 @@ std::string axes_line(const char* label, const Pose& p, uint32_t mask) {
 
 nlohmann::json pose_json(const Pose& p) { return nlohmann::json(p.v); }
 
+// A limit for a person: "none" when unlimited (1e99).
+std::string limit(double v) { return v < 1e98 ? fmt("%g", v) : std::string("none"); }
+std::string lower_limit(double v) { return v > -1e98 ? fmt("%g", v) : std::string("none"); }
+
 }  // namespace
 
 std::string format_status(const ipc::Status& s, const ipc::Liveness* live) {
@@ -100,6 +104,32 @@ std::string format_status(const ipc::Status& s, const ipc::Liveness* live) {
       o << fmt("  %5d  %-5s  %-7s  %-5s %11.4f  %11.4f  %10.5f   %s\n", j,
                js.homed ? "yes" : js.homing ? "..." : "no", js.enabled ? "yes" : "no", js.fault ? "YES" : "no",
                js.pos_cmd, js.pos_fb, js.ferror_current, lim.c_str());
+    }
+    // The limits in force: the INI's, as changed at run time (cnc set).
+    o << fmt("  limits in force (units, /s, /s^2, /s^3)\n    path       velocity %s  acceleration %s  jerk %s\n",
+             limit(s.motion.max_linear_velocity).c_str(), limit(s.motion.max_linear_acceleration).c_str(),
+             limit(s.motion.max_linear_jerk).c_str());
+    for (int a = 0; a < kNumAxes; ++a) {
+      if (!(s.motion.axis_mask & (1U << a))) continue;
+      const ipc::AxisStatus& ax = s.axes[a];
+      o << fmt("    axis %c     %s..%s  velocity %s  acceleration %s  jerk %s  (moves use %g, %g)\n", kAxisLetters[a],
+               lower_limit(ax.min_position_limit).c_str(),
+               limit(ax.max_position_limit).c_str(), limit(ax.max_velocity).c_str(), limit(ax.max_acceleration).c_str(),
+               limit(ax.max_jerk).c_str(), ax.velocity_limit, ax.acceleration_limit);
+    }
+    for (int j = 0; j < s.motion.joints && j < kMaxJoints; ++j) {
+      const ipc::JointStatus& js = s.joints[j];
+      o << fmt("    joint %-4d %s..%s  velocity %s  acceleration %s  jerk %s  f-error %g..%g  (jogs use %g)\n", j,
+               lower_limit(js.min_position_limit).c_str(),
+               limit(js.max_position_limit).c_str(), limit(js.max_velocity).c_str(), limit(js.max_acceleration).c_str(),
+               limit(js.max_jerk).c_str(), js.min_ferror, js.ferror, js.velocity_limit);
+    }
+    for (int i = 0; i < s.motion.spindles && i < ipc::kMaxSpindles; ++i) {
+      const ipc::SpindleStatus& sp = s.spindles[i];
+      o << fmt("    spindle %d  forward %g..%s rpm, reverse %s; commanded %g rpm x %.0f%%, out %g rpm%s\n", i,
+               sp.min_forward, limit(sp.max_forward).c_str(),
+               sp.max_reverse <= 0 ? "not allowed" : fmt("%g..%s rpm", sp.min_reverse, limit(sp.max_reverse).c_str()).c_str(),
+               sp.speed, sp.override_scale * 100, sp.speed_out, sp.speed_limited ? " (held at a limit)" : "");
     }
   }
   bool any_drive = false;
@@ -195,6 +225,9 @@ std::string status_json(const ipc::Status& s, int indent, const ipc::Liveness* l
                  {"feed_scale", s.motion.feed_scale},
                  {"rapid_scale", s.motion.rapid_scale},
                  {"max_velocity", s.motion.max_velocity},
+                 {"max_linear_velocity", s.motion.max_linear_velocity},
+                 {"max_linear_acceleration", s.motion.max_linear_acceleration},
+                 {"max_linear_jerk", s.motion.max_linear_jerk},
                  {"probe_tripped", s.motion.probe_tripped},
                  {"probed_position", pose_json(s.motion.probed_position)},
                  {"watchdog_enabled", s.motion.watchdog_enabled},
@@ -228,9 +261,32 @@ std::string status_json(const ipc::Status& s, int indent, const ipc::Liveness* l
                       {"max_hard_limit", js.max_hard_limit},
                       {"min_soft_limit", js.min_soft_limit},
                       {"max_soft_limit", js.max_soft_limit},
-                      {"axis", js.axis}});
+                      {"axis", js.axis},
+                      {"min_position_limit", js.min_position_limit},
+                      {"max_position_limit", js.max_position_limit},
+                      {"max_velocity", js.max_velocity},
+                      {"max_acceleration", js.max_acceleration},
+                      {"max_jerk", js.max_jerk},
+                      {"velocity_limit", js.velocity_limit},
+                      {"ferror", js.ferror},
+                      {"min_ferror", js.min_ferror}});
   }
   j["joints"] = joints;
+  json axes = json::array();
+  for (int a = 0; a < kNumAxes; ++a) {
+    if (!(s.motion.axis_mask & (1U << a))) continue;
+    const ipc::AxisStatus& ax = s.axes[a];
+    axes.push_back({{"axis", std::string(1, kAxisLetters[a])},
+                    {"min_position_limit", ax.min_position_limit},
+                    {"max_position_limit", ax.max_position_limit},
+                    {"max_velocity", ax.max_velocity},
+                    {"max_acceleration", ax.max_acceleration},
+                    {"max_jerk", ax.max_jerk},
+                    {"velocity_limit", ax.velocity_limit},
+                    {"acceleration_limit", ax.acceleration_limit},
+                    {"velocity", ax.velocity}});
+  }
+  j["axes"] = axes;
   j["io"] = {{"tool_in_spindle", s.io.tool_in_spindle},
              {"pocket_prepped", s.io.pocket_prepped},
              {"flood", s.io.flood},
@@ -242,7 +298,9 @@ std::string status_json(const ipc::Status& s, int indent, const ipc::Liveness* l
     const ipc::SpindleStatus& sp = s.spindles[i];
     spindles.push_back({{"speed", sp.speed}, {"direction", sp.direction}, {"enabled", sp.enabled},
                         {"override", sp.override_scale}, {"at_speed", sp.at_speed}, {"brake", sp.brake},
-                        {"amp_fault", sp.amp_fault}});
+                        {"amp_fault", sp.amp_fault}, {"speed_out", sp.speed_out}, {"speed_limited", sp.speed_limited},
+                        {"max_forward", sp.max_forward}, {"min_forward", sp.min_forward},
+                        {"max_reverse", sp.max_reverse}, {"min_reverse", sp.min_reverse}});
   }
   j["spindles"] = spindles;
   json threads = json::array();

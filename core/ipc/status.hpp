@@ -125,7 +125,11 @@ struct TrajStatus {
   double distance_to_go = 0;
   double feed_scale = 1;
   double rapid_scale = 1;
-  double max_velocity = 0;
+  double max_velocity = 0;       // the max-velocity override (MAX_VELOCITY command)
+  // Path limits in force ([TRAJ]MAX_LINEAR_*, as changed at run time; 1e99: none).
+  double max_linear_velocity = 0;
+  double max_linear_acceleration = 0;
+  double max_linear_jerk = 0;
   double linear_units = 1;       // machine units per mm
   double angular_units = 1;      // per degree
   double cycle_time_s = 0.001;
@@ -164,6 +168,14 @@ struct JointStatus {
   double ferror_limit = 0;
   double min_position_limit = 0;
   double max_position_limit = 0;
+  // Limits in force ([JOINT_n], as changed at run time), and the velocity
+  // jogs and homing use (less the share kept for compensation).
+  double max_velocity = 0;
+  double max_acceleration = 0;
+  double max_jerk = 0;
+  double velocity_limit = 0;
+  double ferror = 0;             // FERROR: following-error limit at full speed
+  double min_ferror = 0;         // MIN_FERROR: at rest
   double backlash = 0;
   double home_offset = 0;
   double compensation = 0;       // backlash + screw correction applied now
@@ -173,12 +185,25 @@ struct AxisStatus {
   double min_position_limit = 0;
   double max_position_limit = 0;
   double velocity = 0;
+  // Limits in force ([AXIS_L], as changed at run time) ...
   double max_velocity = 0;
   double max_acceleration = 0;
+  double max_jerk = 0;
+  // ... and what coordinated moves and axis jogs use: these and the limits
+  // of every joint that moves this axis alone.
+  double velocity_limit = 0;
+  double acceleration_limit = 0;
 };
 
 struct SpindleStatus {
   double speed = 0;              // commanded rpm
+  double speed_out = 0;          // rpm sent to the spindle: command x override within the limits below
+  bool speed_limited = false;    // command x override is outside the limits: speed_out is the limit
+  // [SPINDLE_n] limits in force, rpm (reverse ones as magnitudes; 1e99: none).
+  double max_forward = 0;
+  double min_forward = 0;
+  double max_reverse = 0;
+  double min_reverse = 0;
   double speed_feedback = 0;
   double override_scale = 1;
   int32_t direction = 0;         // -1, 0, 1

@@ -71,6 +71,22 @@ void load_axis(const ini::IniFile& ini, int a, AxisConfig& ax) {
   ax.max_jerk = ini.get_double(s, "MAX_JERK", 50 * ax.max_acceleration, {1e-9, 1e15});
 }
 
+void load_spindle(const ini::IniFile& ini, int n, SpindleConfig& sp) {
+  const std::string s = "SPINDLE_" + std::to_string(n);
+  sp.max_forward = ini.get_double(s, "MAX_FORWARD_VELOCITY", 1e99, {0, 1e99});
+  sp.min_forward = ini.get_double(s, "MIN_FORWARD_VELOCITY", 0, {0, 1e99});
+  sp.max_reverse = ini.get_double(s, "MAX_REVERSE_VELOCITY", sp.max_forward, {0, 1e99});
+  sp.min_reverse = ini.get_double(s, "MIN_REVERSE_VELOCITY", sp.min_forward, {0, 1e99});
+  if (sp.min_forward > sp.max_forward) {
+    ini.fail(ini.find_entry(s, "MIN_FORWARD_VELOCITY"), "must not exceed MAX_FORWARD_VELOCITY");
+  }
+  // MAX_REVERSE_VELOCITY = 0 forbids reverse: the minimum does not matter then.
+  if (sp.max_reverse > 0 && sp.min_reverse > sp.max_reverse) {
+    const ini::Entry* e = ini.find_entry(s, "MIN_REVERSE_VELOCITY");
+    ini.fail(e ? e : ini.find_entry(s, "MAX_REVERSE_VELOCITY"), "MIN_REVERSE_VELOCITY must not exceed MAX_REVERSE_VELOCITY");
+  }
+}
+
 }  // namespace
 
 const char* to_string(OverrunAction a) noexcept {
@@ -89,6 +105,9 @@ MotionConfig load_motion_config(const ini::IniFile& ini, int num_joints) {
   }
   c.num_joints = num_joints;
   c.servo_period_s = static_cast<double>(ini.get_int("EMCMOT", "SERVO_PERIOD", 1'000'000, {10'000, 1e9})) * 1e-9;
+  if (const ini::Entry* e = ini.find_entry("EMCMOT", "SERVO_PERIOD")) {
+    c.servo_period_key = e->file + ":" + std::to_string(e->line) + ": [EMCMOT]SERVO_PERIOD";
+  }
   c.comm_timeout_s = ini.get_double("EMCMOT", "COMM_TIMEOUT", 1.0, {0.001, 3600});
   c.max_linear_velocity = ini.get_double("TRAJ", "MAX_LINEAR_VELOCITY", ini.get_double("TRAJ", "MAX_VELOCITY", 1e99), {1e-9, 1e99});
   c.max_linear_acceleration = ini.get_double("TRAJ", "MAX_LINEAR_ACCELERATION", ini.get_double("TRAJ", "MAX_ACCELERATION", 1e99), {1e-9, 1e99});
@@ -118,6 +137,7 @@ MotionConfig load_motion_config(const ini::IniFile& ini, int num_joints) {
   else ini.fail(ini.find_entry("EMCMOT", "OVERRUN_ACTION"), "expected WARN, HOLD or STOP, got \"" + action + "\"");
   for (int j = 0; j < num_joints; ++j) load_joint(ini, j, c.joints[static_cast<std::size_t>(j)]);
   for (int a = 0; a < kNumAxes; ++a) load_axis(ini, a, c.axes[static_cast<std::size_t>(a)]);
+  for (int s = 0; s < kMaxSpindles; ++s) load_spindle(ini, s, c.spindle[static_cast<std::size_t>(s)]);
   return c;
 }
 

@@ -1,13 +1,16 @@
 // The motion controller's configuration: [KINS], [TRAJ], [EMCMOT],
-// [JOINT_n] and [AXIS_L] of the INI file, with LinuxCNC's keys and
-// defaults, validated on load (errors name file, line and key). Plain data:
-// the servo thread keeps its own copy and changes it only through the
-// table-driven SET_xxx command (params.hpp).
+// [JOINT_n], [AXIS_L] and [SPINDLE_n] of the INI file, with LinuxCNC's keys
+// and defaults, validated on load (errors name file, line and key). Motion
+// owns these machine parameters (docs/architecture.md, "Parameters"): they
+// are read here once, the servo thread keeps the copy in force and changes
+// it only through the table-driven SET_xxx command (params.hpp), and the
+// status block publishes it. Plain data.
 #pragma once
 
 #include <array>
 #include <string>
 
+#include "core/motion/io.hpp"
 #include "core/util/pose.hpp"
 
 namespace cnc::ini {
@@ -63,11 +66,28 @@ struct AxisConfig {
   double max_velocity = 1, max_acceleration = 1, max_jerk = 50;
 };
 
+// [SPINDLE_n] speed limits in rpm (LinuxCNC's keys and defaults). The
+// speed sent to the spindle (command x override) is clamped into them: a
+// non-zero speed below the minimum is raised to it, one above the maximum
+// lowered to it; reverse limits are magnitudes, and a maximum reverse
+// speed of 0 forbids reverse.
+struct SpindleConfig {
+  double max_forward = 1e99;  // MAX_FORWARD_VELOCITY
+  double min_forward = 0;     // MIN_FORWARD_VELOCITY
+  double max_reverse = 1e99;  // MAX_REVERSE_VELOCITY (default: MAX_FORWARD_VELOCITY)
+  double min_reverse = 0;     // MIN_REVERSE_VELOCITY (default: MIN_FORWARD_VELOCITY)
+};
+
 struct MotionConfig {
   int num_joints = 3;
   std::array<JointConfig, kMaxJoints> joints{};
   std::array<AxisConfig, kNumAxes> axes{};
-  double servo_period_s = 0.001;      // [EMCMOT]SERVO_PERIOD (ns in the INI)
+  std::array<SpindleConfig, kMaxSpindles> spindle{};
+  // The servo period: [EMCMOT]SERVO_PERIOD (ns in the INI) until motmod's
+  // on_ready, then the period of the HAL thread that runs
+  // motion-controller (a SERVO_PERIOD that differs from it is refused).
+  double servo_period_s = 0.001;
+  std::string servo_period_key;       // "file:line: [EMCMOT]SERVO_PERIOD" when given, else empty
   double comm_timeout_s = 1.0;        // [EMCMOT]COMM_TIMEOUT
   double max_linear_velocity = 1e99;  // [TRAJ]MAX_LINEAR_VELOCITY
   double max_linear_acceleration = 1e99;

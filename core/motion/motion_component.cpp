@@ -43,23 +43,6 @@ struct MotionComponent::MotionPins {
   FloatPin tool_offset[kNumAxes];
 };
 
-tp::PlannerConfig planner_config(const MotionConfig& c, uint32_t axis_mask) {
-  tp::PlannerConfig p;
-  p.cycle_time_s = c.servo_period_s;
-  p.max_linear_velocity = c.max_linear_velocity;
-  p.max_linear_acceleration = c.max_linear_acceleration;
-  p.max_linear_jerk = c.max_linear_jerk;
-  p.axis_mask = axis_mask;
-  p.lookahead_segments = c.lookahead_segments;
-  p.blend_span_segments = c.blend_span_segments;
-  p.max_blend_half_width = c.max_blend_half_width;
-  for (int a = 0; a < kNumAxes; ++a) {
-    const AxisConfig& ax = c.axes[static_cast<std::size_t>(a)];
-    p.axes[static_cast<std::size_t>(a)] = tp::AxisLimits{ax.max_velocity, ax.max_acceleration, ax.max_jerk};
-  }
-  return p;
-}
-
 MotionComponent::MotionComponent(hal::ComponentContext& ctx, const hal::LoadArgs& args, PlannerFactory factory)
     : hal::Component(ctx.hal, "motmod"), ctx_(ctx), planner_factory_(std::move(factory)) {
   args.allow_only({"servo_period_nsec", "base_period_nsec", "traj_period_nsec", "num_joints", "num_dio", "num_aio",
@@ -79,6 +62,11 @@ MotionComponent::MotionComponent(hal::ComponentContext& ctx, const hal::LoadArgs
   }
   const int64_t servo = args.get_int("servo_period_nsec", 0, 0, 1'000'000'000);
   if (servo != 0) {
+    const int64_t ini_ns = std::llround(config_.servo_period_s * 1e9);
+    if (!config_.servo_period_key.empty() && ini_ns != servo) {
+      throw hal::HalError("motmod: servo_period_nsec=" + std::to_string(servo) + " differs from " +
+                          config_.servo_period_key + " = " + std::to_string(ini_ns) + " ns: give one period");
+    }
     config_.servo_period_s = static_cast<double>(servo) * 1e-9;
     const int64_t traj = args.get_int("traj_period_nsec", servo, servo, servo);
     (void)traj;
@@ -249,6 +237,21 @@ void MotionComponent::on_ready() {
                           kAxisLetters[a] + "] section");
     }
     if (mask & (1U << a)) ax.present = true;
+  }
+  // The servo period is the period of the thread that runs
+  // motion-controller (the planners integrate over it); a configured
+  // [EMCMOT]SERVO_PERIOD must be that period.
+  for (const hal::ThreadView& t : hal().thread_views()) {
+    for (const std::string& f : t.functions) {
+      if (f != "motion-controller") continue;
+      const int64_t configured = std::llround(config_.servo_period_s * 1e9);
+      if (!config_.servo_period_key.empty() && configured != t.period_ns) {
+        throw hal::HalError(config_.servo_period_key + " = " + std::to_string(configured) + " ns, but motion-controller runs in " +
+                            t.name + " with a period of " + std::to_string(t.period_ns) +
+                            " ns: make them equal (or leave SERVO_PERIOD out)");
+      }
+      config_.servo_period_s = static_cast<double>(t.period_ns) * 1e-9;
+    }
   }
   planner_ = planner_factory_(planner_config(config_, mask));
   controller_ = std::make_unique<MotionController>(config_, *kins, *planner_, ctx_.messages);

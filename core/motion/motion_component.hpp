@@ -23,9 +23,6 @@ namespace cnc::motion {
 // Makes the coordinated-mode planner (core/tp's, or a test planner).
 using PlannerFactory = std::function<std::unique_ptr<tp::TrajectoryPlanner>(const tp::PlannerConfig&)>;
 
-// The planner configuration a motion configuration implies.
-tp::PlannerConfig planner_config(const MotionConfig& config, uint32_t axis_mask);
-
 class MotionComponent : public hal::Component, public ipc::ControllerService {
  public:
   static constexpr std::size_t kQueueDepth = 1024;
@@ -41,6 +38,9 @@ class MotionComponent : public hal::Component, public ipc::ControllerService {
   uint64_t submit(MotionCommand cmd);
   bool poll_result(MotionResult& out) { return results_.pop(out); }
   MotionStatus status() const { return status_.read(); }
+  // The configuration as loaded (the INI's, with the servo period of the
+  // thread that runs motion-controller): the machine's limits. What is in
+  // force now, run-time changes included, is in status().
   const MotionConfig& config() const noexcept { return config_; }
   bool ready() const noexcept { return controller_ != nullptr; }
   int free_queue_slots() const noexcept { return static_cast<int>(kQueueDepth - commands_.size()); }

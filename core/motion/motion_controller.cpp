@@ -29,6 +29,32 @@ bool usable_forward(const kin::Kinematics& k) noexcept { return k.type() != kin:
 
 }  // namespace
 
+tp::PlannerConfig planner_config(const MotionConfig& c, uint32_t axis_mask) {
+  tp::PlannerConfig p;
+  p.cycle_time_s = c.servo_period_s;
+  p.max_linear_velocity = c.max_linear_velocity;
+  p.max_linear_acceleration = c.max_linear_acceleration;
+  p.max_linear_jerk = c.max_linear_jerk;
+  p.axis_mask = axis_mask;
+  p.lookahead_segments = c.lookahead_segments;
+  p.blend_span_segments = c.blend_span_segments;
+  p.max_blend_half_width = c.max_blend_half_width;
+  for (int a = 0; a < kNumAxes; ++a) {
+    const AxisConfig& ax = c.axes[static_cast<std::size_t>(a)];
+    p.axes[static_cast<std::size_t>(a)] = tp::AxisLimits{ax.max_velocity, ax.max_acceleration, ax.max_jerk};
+  }
+  return p;
+}
+
+double limit_spindle_speed(double rpm, const SpindleConfig& l) noexcept {
+  if (rpm > 0) return std::clamp(rpm, std::min(l.min_forward, l.max_forward), l.max_forward);
+  if (rpm < 0) {
+    if (l.max_reverse <= 0) return 0;  // reverse forbidden
+    return -std::clamp(-rpm, std::min(l.min_reverse, l.max_reverse), l.max_reverse);
+  }
+  return 0;
+}
+
 const char* to_string(HomeState s) noexcept {
   switch (s) {
     case HomeState::Idle: return "idle";
@@ -52,7 +78,7 @@ const char* to_string(HomeState s) noexcept {
 
 MotionController::MotionController(const MotionConfig& config, kin::Kinematics& kinematics,
                                    tp::TrajectoryPlanner& planner, MessageQueue* messages)
-    : cfg_(config), kins_(kinematics), tp_(planner), messages_(messages) {
+    : cfg_(config), ini_cfg_(config), kins_(kinematics), tp_(planner), messages_(messages) {
   dt_ = cfg_.servo_period_s;
   for (int j = 0; j < kMaxJoints; ++j) joints_[static_cast<std::size_t>(j)].active = j < cfg_.num_joints;
   double q[kMaxJoints] = {};
@@ -63,6 +89,69 @@ MotionController::MotionController(const MotionConfig& config, kin::Kinematics& 
     const HomingConfig& h = cfg_.joints[static_cast<std::size_t>(j)].homing;
     if (h.has_sequence) max_sequence_ = std::max(max_sequence_, std::abs(h.sequence));
   }
+  apply_limits();
+}
+
+void MotionController::set_compensation(int joint, JointCompensation* comp) noexcept {
+  comp_[static_cast<std::size_t>(joint)] = comp;
+  apply_limits();  // the joint's share kept for the correction (COMP_RESERVE)
+}
+
+bool MotionController::at_rest() const noexcept {
+  if (!in_position() || !tp_.is_done()) return false;
+  for (int j = 0; j < cfg_.num_joints; ++j) {
+    const Joint& jt = joints_[static_cast<std::size_t>(j)];
+    if (jt.home_state != HomeState::Idle || !jt.free.done()) return false;
+  }
+  for (const FreePlanner& p : axis_free_) {
+    if (!p.done()) return false;
+  }
+  return true;
+}
+
+void MotionController::apply_limits() noexcept {
+  for (int a = 0; a < kNumAxes; ++a) {
+    const AxisConfig& ax = cfg_.axes[static_cast<std::size_t>(a)];
+    FreeLimits l{ax.max_velocity, ax.max_acceleration, ax.max_jerk};
+    // A joint that moves this axis alone (trivkins, each side of a gantry)
+    // limits it too; joints coupled by the kinematics cannot be mapped.
+    for (int j = 0; j < cfg_.num_joints; ++j) {
+      if (kins_.joint_axis(j) != a) continue;
+      const FreeLimits jl = joint_limits(j, 1e300);
+      l.max_velocity = std::min(l.max_velocity, jl.max_velocity);
+      l.max_acceleration = std::min(l.max_acceleration, jl.max_acceleration);
+      l.max_jerk = std::min(l.max_jerk, jl.max_jerk);
+    }
+    axis_lim_[static_cast<std::size_t>(a)] = l;
+  }
+  tp::PlannerConfig p = planner_config(cfg_, kins_.axis_mask());
+  for (int a = 0; a < kNumAxes; ++a) {
+    const FreeLimits& l = axis_lim_[static_cast<std::size_t>(a)];
+    p.axes[static_cast<std::size_t>(a)] = tp::AxisLimits{l.max_velocity, l.max_acceleration, l.max_jerk};
+  }
+  tp_.set_config(p);
+}
+
+const char* MotionController::cmd_set_parameter(const MotionCommand& c) noexcept {
+  std::size_t n = 0;
+  const ParamSpec* table = param_table(n);
+  if (c.param >= n) return reason("no parameter number %u", c.param);
+  const ParamSpec& p = table[c.param];
+  if (p.while_stopped_only && !at_rest()) {
+    return reason("%s cannot change while the machine moves (jogs, homing and queued moves keep the limits they were "
+                  "planned with): stop it first",
+                  p.name);
+  }
+  double ini_value = std::nan("");
+  if (const char* r = set_param(cfg_, ini_cfg_, c.param, c.joint, c.value[0], &ini_value)) {
+    if (std::isnan(ini_value)) return reason("%s: %s", p.name, r);
+    char key[48];
+    param_ini_name(c.param, c.joint, key, sizeof key);
+    return reason("%s: %g is %s %s = %g, the machine's limit (run-time changes may only be stricter)", p.name,
+                  c.value[0], p.bound == IniBound::AtMost ? "above" : "below", key, ini_value);
+  }
+  apply_limits();
+  return nullptr;
 }
 
 // Reasons that carry numbers are formatted into a member buffer: the servo
@@ -234,7 +323,8 @@ bool MotionController::handle(const MotionCommand& c, MotionResult& result) noex
           const AxisConfig& ax = cfg_.axes[static_cast<std::size_t>(a)];
           const double v = c.end[a];
           if (!ax.present) continue;
-          FreeLimits l{std::min(std::fabs(v) * feed_scale_, ax.max_velocity), ax.max_acceleration, ax.max_jerk};
+          FreeLimits l = axis_lim_[static_cast<std::size_t>(a)];
+          l.max_velocity = std::min(std::fabs(v) * feed_scale_, l.max_velocity);
           if (v == 0) {
             p.stop();
           } else {
@@ -247,18 +337,9 @@ bool MotionController::handle(const MotionCommand& c, MotionResult& result) noex
     case Cmd::ClearProbeFlag:
       probe_tripped_ = false;
       break;
-    case Cmd::SetParameter: {
-      std::size_t n = 0;
-      const ParamSpec* table = param_table(n);
-      if (c.param >= n) {
-        why = reason("no parameter number %u", c.param);
-      } else if (table[c.param].while_stopped_only && !in_position()) {
-        why = reason("%s can only be changed while the machine is stopped", table[c.param].name);
-      } else if (const char* r = set_param(cfg_, c.param, c.joint, c.value[0])) {
-        why = reason("%s: %s", table[c.param].name, r);
-      }
+    case Cmd::SetParameter:
+      why = cmd_set_parameter(c);
       break;
-    }
     case Cmd::SetDigitalOut:
     case Cmd::SetAnalogOut: {
       const bool digital = c.type == Cmd::SetDigitalOut;
@@ -282,7 +363,10 @@ bool MotionController::handle(const MotionCommand& c, MotionResult& result) noex
         break;
       }
       Spindle& s = spindles_[static_cast<std::size_t>(c.joint)];
-      if (c.type == Cmd::SetSpindle) {
+      if (c.type == Cmd::SetSpindle && c.value[0] < 0 && c.value[1] != 0 &&
+          cfg_.spindle[static_cast<std::size_t>(c.joint)].max_reverse <= 0) {
+        why = reason("spindle %d may not turn in reverse ([SPINDLE_%d]MAX_REVERSE_VELOCITY is 0)", c.joint, c.joint);
+      } else if (c.type == Cmd::SetSpindle) {
         s.speed = c.value[0];
         s.on = c.value[1] != 0 && c.value[0] != 0;
         if (s.on) s.brake = false;
@@ -321,6 +405,7 @@ bool MotionController::handle(const MotionCommand& c, MotionResult& result) noex
         tp_.reset(carte_cmd_);
         for (int a = 0; a < kNumAxes; ++a) axis_free_[static_cast<std::size_t>(a)].reset(carte_cmd_[a]);
       }
+      if (!why) apply_limits();  // which joints move an axis alone may have changed
       break;
     case Cmd::SetToolOffset:
       tool_offset_ = c.end;
@@ -656,7 +741,9 @@ const char* MotionController::cmd_jog_axis(const MotionCommand& c) noexcept {
     return reason("axis %c is at its minimum limit %g: jogging further in - is refused", kAxisLetters[a], ax.min_limit);
   }
   target = std::clamp(target, ax.min_limit, ax.max_limit);
-  p.set_target(target, FreeLimits{std::min(vel * feed_scale_, ax.max_velocity), ax.max_acceleration, ax.max_jerk});
+  FreeLimits l = axis_lim_[static_cast<std::size_t>(a)];
+  l.max_velocity = std::min(vel * feed_scale_, l.max_velocity);
+  p.set_target(target, l);
   return nullptr;
 }
 
@@ -1153,7 +1240,9 @@ void MotionController::compute_outputs(double dt) noexcept {
   for (int s = 0; s < cfg_.spindles; ++s) {
     const Spindle& sp = spindles_[static_cast<std::size_t>(s)];
     SpindleOutputs& so = out_.spindles[static_cast<std::size_t>(s)];
-    const double cmd = sp.on && enabled_ ? sp.speed * sp.override_scale : 0;
+    // Command x override, kept within the spindle's limits whatever both say.
+    const double cmd = limit_spindle_speed(sp.on && enabled_ ? sp.speed * sp.override_scale : 0,
+                                           cfg_.spindle[static_cast<std::size_t>(s)]);
     so.speed_out = cmd;
     so.speed_out_abs = std::fabs(cmd);
     so.speed_out_rps = cmd / 60;
@@ -1228,6 +1317,9 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
   t.feed_scale = feed_scale_;
   t.rapid_scale = rapid_scale_;
   t.max_velocity = max_velocity_;
+  t.max_linear_velocity = cfg_.max_linear_velocity;
+  t.max_linear_acceleration = cfg_.max_linear_acceleration;
+  t.max_linear_jerk = cfg_.max_linear_jerk;
   t.linear_units = cfg_.linear_units_per_mm;
   t.angular_units = cfg_.angular_units_per_degree;
   t.cycle_time_s = dt_;
@@ -1263,6 +1355,12 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
     js.ferror_limit = jt.ferror_limit;
     js.min_position_limit = c.min_limit;
     js.max_position_limit = c.max_limit;
+    js.max_velocity = c.max_velocity;
+    js.max_acceleration = c.max_acceleration;
+    js.max_jerk = c.max_jerk;
+    js.velocity_limit = joint_limits(j, 1e300).max_velocity;
+    js.ferror = c.ferror;
+    js.min_ferror = c.min_ferror;
     js.backlash = c.backlash;
     js.home_offset = c.homing.offset;
     js.compensation = jt.backlash_filt + jt.screw_comp;
@@ -1273,6 +1371,9 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
     s.axes[a].max_position_limit = ax.max_limit;
     s.axes[a].max_velocity = ax.max_velocity;
     s.axes[a].max_acceleration = ax.max_acceleration;
+    s.axes[a].max_jerk = ax.max_jerk;
+    s.axes[a].velocity_limit = axis_lim_[static_cast<std::size_t>(a)].max_velocity;
+    s.axes[a].acceleration_limit = axis_lim_[static_cast<std::size_t>(a)].max_acceleration;
     s.axes[a].velocity = axis_free_[static_cast<std::size_t>(a)].velocity();
   }
   for (int i = 0; i < ipc::kMaxSpindles; ++i) {
@@ -1280,6 +1381,14 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
     ipc::SpindleStatus& ss = s.spindles[i];
     ss.speed = sp.speed;
     ss.override_scale = sp.override_scale;
+    const SpindleConfig& lim = cfg_.spindle[static_cast<std::size_t>(i)];
+    ss.speed_out = out_.spindles[static_cast<std::size_t>(i)].speed_out;
+    const double requested = sp.on && enabled_ ? sp.speed * sp.override_scale : 0;
+    ss.speed_limited = std::fabs(requested - ss.speed_out) > 1e-9 * std::max(1.0, std::fabs(requested));
+    ss.max_forward = lim.max_forward;
+    ss.min_forward = lim.min_forward;
+    ss.max_reverse = lim.max_reverse;
+    ss.min_reverse = lim.min_reverse;
     ss.direction = sp.on ? (sp.speed > 0 ? 1 : -1) : 0;
     ss.enabled = sp.on && enabled_;
     ss.brake = out_.spindles[static_cast<std::size_t>(i)].brake;

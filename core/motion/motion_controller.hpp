@@ -41,14 +41,25 @@ enum class HomeState : uint8_t {
 };
 const char* to_string(HomeState s) noexcept;
 
+// The planner configuration a motion configuration implies, with the
+// [AXIS_L] limits alone (the motion controller narrows them by the joints',
+// MotionController::apply_limits).
+tp::PlannerConfig planner_config(const MotionConfig& config, uint32_t axis_mask);
+
+// The speed sent to a spindle for a commanded `rpm` (command x override),
+// kept within its [SPINDLE_n] limits (LinuxCNC's clamp): 0 stays 0.
+double limit_spindle_speed(double rpm, const SpindleConfig& limits) noexcept;
+
 class MotionController {
  public:
-  // Non-realtime construction. `messages` may be null (tests).
+  // Non-realtime construction. `config` is also the machine's limits:
+  // run-time changes (SET_xxx) may only be stricter than it. `messages`
+  // may be null (tests).
   MotionController(const MotionConfig& config, kin::Kinematics& kinematics, tp::TrajectoryPlanner& planner,
                    MessageQueue* messages);
 
   // Screw compensation for a joint (before the servo thread starts).
-  void set_compensation(int joint, JointCompensation* comp) noexcept { comp_[static_cast<std::size_t>(joint)] = comp; }
+  void set_compensation(int joint, JointCompensation* comp) noexcept;
 
   // --- servo thread ---
   // Handles one command. Returns false when it cannot be taken now (the
@@ -60,7 +71,10 @@ class MotionController {
 
   MotionInputs& in() noexcept { return in_; }
   const MotionOutputs& out() const noexcept { return out_; }
+  // The parameters in force (the INI's, as changed at run time).
   const MotionConfig& config() const noexcept { return cfg_; }
+  // What an axis moves under in coordinated and teleop motion.
+  const FreeLimits& axis_limits(int axis) const noexcept { return axis_lim_[static_cast<std::size_t>(axis)]; }
   ipc::MotionMode mode() const noexcept { return mode_; }
   bool enabled() const noexcept { return enabled_; }
   bool estop_latched() const noexcept { return estop_latched_; }
@@ -139,6 +153,14 @@ class MotionController {
   void compute_outputs(double dt) noexcept;
   void update_backlash(int j, double dt) noexcept;
   FreeLimits joint_limits(int j, double vel) const noexcept;
+  // Nothing moves and nothing is queued: limits may change.
+  bool at_rest() const noexcept;
+  // After a change of the parameters in force (or of the kinematics, or
+  // of the compensation attached): recomputes each axis's limits (its own
+  // and those of every joint that moves it alone) and gives the planner
+  // its new configuration, for the moves queued from now on.
+  void apply_limits() noexcept;
+  const char* cmd_set_parameter(const MotionCommand& c) noexcept;
   // Disables motion after a fault of a joint's or a spindle's amplifier
   // (-1: neither), says why on the error channel and keeps the reason for
   // the status.
@@ -159,6 +181,8 @@ class MotionController {
   double search_span(int j) const noexcept;
 
   MotionConfig cfg_;
+  const MotionConfig ini_cfg_;        // as loaded: the machine's limits
+  std::array<FreeLimits, kNumAxes> axis_lim_{};
   kin::Kinematics& kins_;
   tp::TrajectoryPlanner& tp_;
   MessageQueue* messages_;

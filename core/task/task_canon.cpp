@@ -109,10 +109,10 @@ tp::SegmentParams TaskCanon::segment(tp::MotionType type, int line, double lengt
   s.term = term_;
   s.tolerance = tolerance_;
   s.naive_cam_tolerance = naive_tolerance_ * length_factor();
-  s.max_velocity = cfg_.max_linear_velocity;
-  s.max_acceleration = cfg_.max_linear_acceleration;
+  s.max_velocity = machine_.max_linear_velocity;
+  s.max_acceleration = machine_.max_linear_acceleration;
   if (type == tp::MotionType::Traverse) {
-    s.feed = cfg_.max_linear_velocity;
+    s.feed = machine_.rapid_velocity;
     return s;
   }
   const double f = length_factor();

@@ -23,12 +23,15 @@ struct MachineView {
   double input_value = 0;
   const tooltable::ToolTable* tools = nullptr;
   int tool_in_spindle = 0;
+  // Path limits in force as motion publishes them (its status), read when a
+  // move is built: the cap of every move, and the speed of rapids.
+  double max_linear_velocity = 1e99;     // units/s ([TRAJ]'s, else the fastest axis's)
+  double max_linear_acceleration = 1e99;  // units/s^2
+  double rapid_velocity = 1;              // max_linear_velocity, or the fastest axis without one
 };
 
 struct CanonConfig {
   double machine_units_per_mm = 1;     // [TRAJ]LINEAR_UNITS
-  double max_linear_velocity = 1e99;   // rapids, units/s
-  double max_linear_acceleration = 1e99;
   uint32_t axis_mask = 0x7;
   bool has_tool_change_position = false;
   Pose tool_change_position;           // [EMCIO]TOOL_CHANGE_POSITION (machine)

@@ -23,7 +23,6 @@ using motion::Cmd;
 
 TaskConfig TaskConfig::from_ini(const ini::IniFile& ini) {
   TaskConfig c;
-  c.no_force_homing = ini.get_bool("TRAJ", "NO_FORCE_HOMING", false);
   for (int i = 0; i < 64; ++i) {
     const auto v = ini.find("MDI_COMMAND_LIST", "MDI_COMMAND_MACRO" + std::to_string(i));
     if (!v) break;
@@ -44,17 +43,7 @@ namespace {
 CanonConfig canon_config(const ini::IniFile& ini, const motion::MotionConfig& m, uint32_t axis_mask) {
   CanonConfig c;
   c.machine_units_per_mm = m.linear_units_per_mm;
-  c.max_linear_velocity = m.max_linear_velocity;
-  c.max_linear_acceleration = m.max_linear_acceleration;
   c.axis_mask = axis_mask;
-  // The fastest an axis may go bounds rapids when [TRAJ] gives no maximum.
-  if (c.max_linear_velocity > 1e98) {
-    double v = 0;
-    for (const auto& ax : m.axes) {
-      if (ax.present) v = std::max(v, ax.max_velocity);
-    }
-    c.max_linear_velocity = v > 0 ? v : 1;
-  }
   if (const auto pos = ini.find("EMCIO", "TOOL_CHANGE_POSITION")) {
     const auto words = split_blanks(*pos);
     c.has_tool_change_position = true;
@@ -66,6 +55,13 @@ CanonConfig canon_config(const ini::IniFile& ini, const motion::MotionConfig& m,
   }
   c.tool_change_quill_up = ini.get_bool("EMCIO", "TOOL_CHANGE_QUILL_UP", false);
   return c;
+}
+
+// A figure for a message: six significant digits ("55000", not "55000.00000000001").
+std::string figure(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
 }
 
 // "process 1234 (cnc)": who asked, for the message channel.
@@ -134,10 +130,12 @@ TaskController::TaskController(const ini::IniFile& ini, hal::Hal& hal, motion::M
                                io::IoController& io, MessageQueue& messages)
     : ini_(ini), hal_(hal), motion_(motion), io_(io), messages_(messages), cfg_(TaskConfig::from_ini(ini)) {
   ms_ = motion_.status();
+  canon_cfg_ = canon_config(ini, motion_.config(), ms_.traj.axis_mask);
   view_.tools = &io_.table();
   view_.tool_in_spindle = io_.tool_in_spindle();
   view_.position = ms_.traj.position;
-  canon_ = std::make_unique<TaskCanon>(canon_config(ini, motion_.config(), ms_.traj.axis_mask), items_, view_);
+  view_limits(view_);
+  canon_ = std::make_unique<TaskCanon>(canon_cfg_, items_, view_);
   canon_->on_print = [this](std::string_view t) { post(MessageKind::Text, std::string(t)); };
   interp_config_ = interp::Config::from_ini(ini);
   interp_config_.axis_mask = ms_.traj.axis_mask;
@@ -165,6 +163,65 @@ TaskController::~TaskController() {
 }
 
 void TaskController::post(MessageKind kind, const std::string& text) { messages_.post(kind, "task", text); }
+
+void TaskController::view_limits(MachineView& view) const {
+  view.max_linear_velocity = ms_.traj.max_linear_velocity;
+  view.max_linear_acceleration = ms_.traj.max_linear_acceleration;
+  // The fastest an axis may go bounds rapids when [TRAJ] gives no maximum.
+  double rapid = ms_.traj.max_linear_velocity;
+  if (!(rapid < 1e98)) {
+    rapid = 0;
+    for (int a = 0; a < kNumAxes; ++a) {
+      if (ms_.traj.axis_mask & (1u << a)) rapid = std::max(rapid, ms_.axes[a].velocity_limit);
+    }
+  }
+  view.rapid_velocity = rapid > 0 ? rapid : 1;
+  if (!(view.max_linear_velocity < 1e98)) view.max_linear_velocity = view.rapid_velocity;
+}
+
+void TaskController::report_spindle_limits() {
+  for (int s = 0; s < ms_.traj.spindles && s < ipc::kMaxSpindles; ++s) {
+    const ipc::SpindleStatus& sp = ms_.spindles[s];
+    bool& said = spindle_limited_[static_cast<std::size_t>(s)];
+    if (!sp.speed_limited || !sp.enabled) {
+      said = false;
+      continue;
+    }
+    if (said) continue;
+    said = true;
+    const double asked = sp.speed * sp.override_scale;
+    const bool reverse = asked < 0;
+    const double out = std::fabs(sp.speed_out), want = std::fabs(asked);
+    const std::string key = "[SPINDLE_" + std::to_string(s) + "]" +
+                            (want > out ? (reverse ? "MAX_REVERSE_VELOCITY" : "MAX_FORWARD_VELOCITY")
+                                        : (reverse ? "MIN_REVERSE_VELOCITY" : "MIN_FORWARD_VELOCITY"));
+    post(MessageKind::Text, "spindle " + std::to_string(s) + ": " + figure(want) + " rpm (" +
+                                figure(std::fabs(sp.speed)) + " rpm x " + figure(sp.override_scale * 100) +
+                                " %) is " + (want > out ? "above " : "below ") + key + " " +
+                                figure(want > out ? (reverse ? sp.max_reverse : sp.max_forward)
+                                                         : (reverse ? sp.min_reverse : sp.min_forward)) +
+                                " rpm: the spindle is commanded " + figure(out) + " rpm" +
+                                (reverse ? " in reverse" : ""));
+  }
+}
+
+void TaskController::report_jog_limit(const motion::MotionCommand& m) {
+  const double asked = std::fabs(m.value[0]) * ms_.traj.feed_scale;
+  double limit = 0;
+  std::string what;
+  if (m.axis_mode) {
+    if (m.joint < 0 || m.joint >= kNumAxes) return;
+    limit = ms_.axes[m.joint].velocity_limit;
+    what = std::string("axis ") + kAxisLetters[m.joint];
+  } else {
+    if (m.joint < 0 || m.joint >= std::min(ms_.traj.joints, kMaxJoints)) return;
+    limit = ms_.joints[m.joint].velocity_limit;
+    what = "joint " + std::to_string(m.joint);
+  }
+  if (limit <= 0 || asked <= limit * (1 + 1e-9)) return;
+  post(MessageKind::Text, "jog of " + what + " at " + figure(asked) + " units/s: limited to " +
+                              figure(limit) + " units/s, the limit in force");
+}
 
 uint64_t TaskController::send(motion::MotionCommand c) {
   const uint64_t serial = motion_.submit(c);
@@ -538,7 +595,7 @@ std::string TaskController::set_mode(const ipc::Command& c) {
     return {};
   }
   if (state_ != ipc::TaskState::On) return std::string("the machine is not on (state ") + ipc::to_string(state_) + ")";
-  if (!machine_homed() && !cfg_.no_force_homing) {
+  if (!machine_homed() && !motion_.config().no_force_homing) {
     return std::string("home all joints before ") + ipc::to_string(target) + " (or set [TRAJ]NO_FORCE_HOMING = 1)";
   }
   motion::MotionCommand m;
@@ -583,6 +640,7 @@ std::string TaskController::jog(const ipc::Command& c) {
   }
   if (m.type != Cmd::JogStop) {
     ensure_motion_mode(m.axis_mode ? ipc::MotionMode::Teleop : ipc::MotionMode::Free);
+    report_jog_limit(m);
   } else if (m.axis_mode != (ms_.traj.mode == ipc::MotionMode::Teleop)) {
     // A stop for the other kind of jog: stop whatever moves.
     m.axis_mode = ms_.traj.mode == ipc::MotionMode::Teleop;
@@ -725,7 +783,7 @@ std::string TaskController::program_run(const ipc::Command& c) {
   if (state_ != ipc::TaskState::On) return std::string("the machine is not on (state ") + ipc::to_string(state_) + ")";
   if (interp_state_ != ipc::InterpState::Idle) return "a program is already running";
   if (file_.empty()) return "no program is open";
-  if (!machine_homed() && !cfg_.no_force_homing) return "home all joints before running a program";
+  if (!machine_homed() && !motion_.config().no_force_homing) return "home all joints before running a program";
   if (!motion_idle()) return "the machine is still moving";
   items_.clear();
   try {
@@ -866,9 +924,9 @@ void TaskController::finish_reconstruction() {
     it.motion.type = Cmd::SetLine;
     it.motion.end = p;
     it.motion.segment.type = &p == &target ? tp::MotionType::Feed : tp::MotionType::Traverse;
-    it.motion.segment.feed = motion_.config().max_linear_velocity < 1e98 ? motion_.config().max_linear_velocity / 4 : 10;
-    it.motion.segment.max_velocity = motion_.config().max_linear_velocity;
-    it.motion.segment.max_acceleration = motion_.config().max_linear_acceleration;
+    it.motion.segment.feed = ms_.traj.max_linear_velocity < 1e98 ? ms_.traj.max_linear_velocity / 4 : 10;
+    it.motion.segment.max_velocity = ms_.traj.max_linear_velocity;
+    it.motion.segment.max_acceleration = ms_.traj.max_linear_acceleration;
     it.motion.segment.term = tp::TermCond::ExactStop;
     it.motion.segment.id = id++;
     it.motion.segment.line = line;
@@ -900,7 +958,7 @@ std::string TaskController::run_from_line_preview(const ipc::Command& c) {
   auto job = std::make_shared<PreviewJob>();
   job->line = line;
   job->view = view_;
-  job->canon = std::make_unique<TaskCanon>(canon_config(ini_, motion_.config(), ms_.traj.axis_mask), job->items, job->view);
+  job->canon = std::make_unique<TaskCanon>(canon_cfg_, job->items, job->view);
   job->canon->set_end_position(ms_.traj.position);
   job->interp = std::make_unique<interp::Interpreter>(*job->canon, interp_config_);
   try {
@@ -1431,8 +1489,10 @@ void TaskController::update(int64_t now_ns) {
   while (motion_.poll_result(r)) {
     last_answered_ = r.serial;
     if (!r.accepted) {
-      // A segment refused while a program runs is a program error.
-      if ((r.type == Cmd::SetLine || r.type == Cmd::SetCircle || r.type == Cmd::Probe || r.type == Cmd::SetDwell) &&
+      // A segment or a spindle command (M4 on a spindle that may not turn
+      // in reverse) refused while a program runs is a program error.
+      if ((r.type == Cmd::SetLine || r.type == Cmd::SetCircle || r.type == Cmd::Probe || r.type == Cmd::SetDwell ||
+           r.type == Cmd::SetSpindle) &&
           (interp_state_ != ipc::InterpState::Idle || running_mdi_)) {
         program_error(std::string(r.reason.view()));
       }
@@ -1442,6 +1502,8 @@ void TaskController::update(int64_t now_ns) {
   while (results_.size() > 4096) results_.erase(results_.begin());
   ms_ = motion_.status();
   view_.position = waiting_synch_ ? view_.position : ms_.traj.position;
+  view_limits(view_);
+  report_spindle_limits();
 
   check_safety(now_ns);
   // Motion paused itself because the servo thread was late (OVERRUN_ACTION

@@ -24,7 +24,6 @@
 namespace cnc::task {
 
 struct TaskConfig {
-  bool no_force_homing = false;          // [TRAJ]NO_FORCE_HOMING
   std::vector<std::string> mdi_macros;   // [MDI_COMMAND_LIST]MDI_COMMAND_MACROn
   int max_queued_mdi = 16;
   std::size_t readahead_items = 2000;    // execution-list depth the interpreter may run ahead
@@ -114,6 +113,13 @@ class TaskController : public ipc::ControllerService {
   // Writes the parameter file if it changed; empty, or the reason it could
   // not be written (also posted as an error).
   std::string save_parameters();
+  // The path limits motion has in force, into a canon's view of the machine.
+  void view_limits(MachineView& view) const;
+  // Says on the message channel when a spindle's speed is held at one of
+  // its limits (once each time it starts to be).
+  void report_spindle_limits();
+  // Says when a jog asks for more than the limit in force (motion clamps it).
+  void report_jog_limit(const motion::MotionCommand& m);
   bool machine_homed() const;
   double read_input(int index, bool digital) const;
 
@@ -123,6 +129,7 @@ class TaskController : public ipc::ControllerService {
   io::IoController& io_;
   MessageQueue& messages_;
   TaskConfig cfg_;
+  CanonConfig canon_cfg_;  // [TRAJ]LINEAR_UNITS, [EMCIO]TOOL_CHANGE_*: read once
   ipc::CommandReporter* reporter_ = nullptr;
 
   ipc::TaskState state_ = ipc::TaskState::Estop;
@@ -183,6 +190,7 @@ class TaskController : public ipc::ControllerService {
   } fault_report_;
   // The drive panel as last contributed to the status (drive names, fault texts).
   std::array<ipc::DriveStatus, kMaxJoints + 1> drives_{};
+  std::array<bool, ipc::kMaxSpindles> spindle_limited_{};  // last reported: held at a limit
   uint32_t overrun_holds_seen_ = 0;  // motion's OVERRUN_ACTION = HOLD pauses already adopted
 };
 

@@ -115,14 +115,18 @@ std::string object_pin_name(const std::string& node_prefix, const PdoMapEntry& e
 
 class CanopenComponent : public hal::Component {
  public:
-  CanopenComponent(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(ctx.hal, "canopen") {
+  CanopenComponent(hal::ComponentContext& ctx, const hal::LoadArgs& args)
+      : Component(ctx.hal, "canopen"), messages_(ctx.messages) {
     args.allow_only({"buses"});
     if (!ctx.ini) throw hal::HalError("canopen: needs the INI file (its [CANOPEN] sections describe the bus)");
     const auto sections = split(args.get_string("buses", "CANOPEN"), ',', true);
     if (sections.empty()) throw hal::HalError("canopen: buses= is empty");
+    // Until on_ready says which thread runs each bus: the servo thread's period.
+    const hal::Thread* servo = ctx.hal.find_thread("servo-thread");
     for (std::size_t i = 0; i < sections.size(); ++i) {
       const std::string name = "canopen." + std::to_string(i);
-      BusConfig cfg = load_bus_config(*ctx.ini, std::string(trim(sections[i])), name);
+      BusConfig cfg = load_bus_config(*ctx.ini, std::string(trim(sections[i])), name,
+                                      servo ? servo->period_ns() : 1'000'000);
       auto bus = std::make_unique<Bus>();
       bus->master = std::make_unique<Master>(std::move(cfg), ctx.messages);
       make_pins(*bus, name);
@@ -135,6 +139,37 @@ class CanopenComponent : public hal::Component {
   }
 
   void on_ready() override {
+    // The SYNC period is the period of the thread that runs the bus's write
+    // function (it sends SYNC every cycle): known now that addf placed it.
+    const std::vector<hal::ThreadView> threads = hal().thread_views();
+    for (auto& b : buses_) {
+      const std::string write = b->master->name() + ".write";
+      const hal::ThreadView* runner = nullptr;
+      for (const hal::ThreadView& t : threads) {
+        for (const std::string& f : t.functions) {
+          if (f == write) runner = &t;
+        }
+      }
+      const BusConfig& c = b->master->config();
+      if (!runner) {
+        if (messages_) {
+          messages_->post(MessageKind::Text, b->master->name(),
+                          write + " runs in no HAL thread: the bus sends no SYNC and no PDO");
+        }
+      } else if (runner->period_ns != c.cycle_ns) {
+        if (!c.cycle_key.empty()) {
+          throw hal::HalError(c.cycle_key + " = " + std::to_string(c.cycle_ns / 1000) + " us, but " + write + " runs in " +
+                              runner->name + " with a period of " + std::to_string(runner->period_ns / 1000) +
+                              " us: SYNC is sent every cycle of that thread; make them equal (or leave SYNC_PERIOD_US out)");
+        }
+        try {
+          b->master->set_cycle_ns(runner->period_ns);
+        } catch (const std::exception& e) {
+          throw hal::HalError(e.what());
+        }
+        b->planned_load.set(c.load().worst_case());
+      }
+    }
     for (auto& b : buses_) {
       b->master->start_thread();
       b->master->boot();  // throws with node, object and reason
@@ -212,6 +247,7 @@ class CanopenComponent : public hal::Component {
   }
 
   std::vector<std::unique_ptr<Bus>> buses_;
+  MessageQueue* messages_ = nullptr;
 };
 
 }  // namespace

@@ -349,7 +349,8 @@ bool is_pdo_object(uint16_t index) { return index >= 0x1400 && index <= 0x1BFF; 
 
 }  // namespace
 
-BusConfig load_bus_config(const ini::IniFile& ini, const std::string& section, const std::string& name) {
+BusConfig load_bus_config(const ini::IniFile& ini, const std::string& section, const std::string& name,
+                          int64_t thread_period_ns) {
   BusConfig c;
   c.name = name;
   c.origin = "[" + section + "]";
@@ -362,8 +363,11 @@ BusConfig load_bus_config(const ini::IniFile& ini, const std::string& section, c
   const int64_t overflow = ini.get_int(section, "SYNC_COUNTER_OVERFLOW", 0, {0, 240});
   if (overflow == 1) ini.fail(ini.find_entry(section, "SYNC_COUNTER_OVERFLOW"), "expected 0 (no counter) or 2..240");
   c.sync_overflow = static_cast<uint8_t>(overflow);
-  const int64_t servo_ns = ini.get_int("EMCMOT", "SERVO_PERIOD", 1'000'000, {10'000, 1e9});
-  c.cycle_ns = ini.get_int(section, "SYNC_PERIOD_US", servo_ns / 1000, {100, 1e6}) * 1000;
+  c.cycle_ns = thread_period_ns;
+  if (const ini::Entry* e = ini.find_entry(section, "SYNC_PERIOD_US")) {
+    c.cycle_ns = ini.get_int(section, "SYNC_PERIOD_US", 1000, {100, 1e6}) * 1000;
+    c.cycle_key = e->file + ":" + std::to_string(e->line) + ": [" + section + "]SYNC_PERIOD_US";
+  }
   c.sdo_timeout_ns = ini.get_int(section, "SDO_TIMEOUT_MS", 500, {10, 60'000}) * 1'000'000;
   c.boot_timeout_ns = ini.get_int(section, "BOOT_TIMEOUT_MS", 5000, {10, 600'000}) * 1'000'000;
   c.reset_nodes = ini.get_bool(section, "RESET_NODES", true);

@@ -63,7 +63,10 @@ struct BusConfig {
   uint16_t master_heartbeat_ms = 100;      // 0: the master sends no heartbeat
   uint32_t sync_cob_id = cob::kSync;
   uint8_t sync_overflow = 0;               // 0x1019: 0 = SYNC without counter, 2..240
-  int64_t cycle_ns = 1'000'000;            // SYNC period
+  // SYNC period: the period of the HAL thread that runs <name>.write (the
+  // component checks it once addf placed the function, in on_ready).
+  int64_t cycle_ns = 1'000'000;
+  std::string cycle_key;                   // "file:line: [CANOPEN]SYNC_PERIOD_US" when the INI gives the period
   int64_t sdo_timeout_ns = 500'000'000;
   int64_t boot_timeout_ns = 5'000'000'000;
   bool reset_nodes = true;                 // NMT reset communication before the boot
@@ -86,8 +89,10 @@ struct BusConfig {
 
 // Reads bus `section` ([CANOPEN] by default) and its node sections
 // ([<section>_NODE_<id>]); `name` becomes the HAL prefix. The SYNC period
-// defaults to [EMCMOT]SERVO_PERIOD. Throws ConfigError (file:line: key).
-BusConfig load_bus_config(const ini::IniFile& ini, const std::string& section, const std::string& name);
+// is SYNC_PERIOD_US when given, else `thread_period_ns` (the period of the
+// thread expected to run the bus). Throws ConfigError (file:line: key).
+BusConfig load_bus_config(const ini::IniFile& ini, const std::string& section, const std::string& name,
+                          int64_t thread_period_ns = 1'000'000);
 
 // "0x6040:0:u16" / "0x60400010" / "pad8" into a mapping entry and its pin
 // kind; the type may be omitted when `eds` knows the object. Empty optional

@@ -323,6 +323,13 @@ void Master::nmt(NmtCommand command, uint8_t node) {
   post([this, command, node](int64_t) { send_nmt(command, node); });
 }
 
+void Master::set_cycle_ns(int64_t ns) {
+  BusConfig c = config_;
+  c.cycle_ns = ns;
+  c.validate();
+  config_.cycle_ns = ns;
+}
+
 void Master::start_thread() {
   if (thread_.joinable()) return;
   stop_.store(false);

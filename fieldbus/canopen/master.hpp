@@ -91,6 +91,9 @@ class Master {
 
   const BusConfig& config() const noexcept { return config_; }
   const std::string& name() const noexcept { return config_.name; }
+  // The SYNC period, once the thread that runs the bus is known (before the
+  // boot); re-checks the plan (bus load). Throws std::runtime_error.
+  void set_cycle_ns(int64_t ns);
 
   // ---- acyclic side ----
   void start_thread();

@@ -28,6 +28,7 @@ struct SlavePins {
 struct Bus {
   std::unique_ptr<Master> master;
   std::string thread_name;
+  std::string cycle_key;  // where the INI gives CYCLE_US, empty: the thread's period
   hal::Thread* thread = nullptr;
   hal::BitPin enable, ready, fault, dc_locked, restart;
   bool last_restart = false;
@@ -82,9 +83,14 @@ class EthercatComponent : public hal::Component {
     if (sections.empty()) throw hal::HalError("ethercat: buses= is empty");
     for (std::size_t i = 0; i < sections.size(); ++i) {
       const std::string name = "ethercat." + std::to_string(i);
-      BusSettings s = load_bus_settings(*ctx.ini, std::string(trim(sections[i])), name);
+      // Until on_ready says which thread runs the bus: its THREAD's period.
+      BusSettings s = load_bus_settings(*ctx.ini, std::string(trim(sections[i])), name, [&](const std::string& t) {
+        const hal::Thread* th = ctx.hal.find_thread(t);
+        return th ? th->period_ns() : int64_t{0};
+      });
       auto bus = std::make_unique<Bus>();
       bus->thread_name = s.thread;
+      bus->cycle_key = s.cycle_key;
       bus->master = std::make_unique<Master>(std::move(s.master), ctx.messages);
       // Scan now, so that drives loaded after the bus find their process data.
       try {
@@ -105,6 +111,28 @@ class EthercatComponent : public hal::Component {
   }
 
   void on_ready() override {
+    // The bus cycle is the period of the thread that runs the bus's write
+    // function (one frame per cycle): known now that addf placed it.
+    const std::vector<hal::ThreadView> threads = hal().thread_views();
+    for (auto& b : buses_) {
+      const std::string write = b->master->name() + ".write";
+      for (const hal::ThreadView& t : threads) {
+        bool runs = false;
+        for (const std::string& f : t.functions) runs = runs || f == write;
+        const int64_t cycle = b->master->config().cycle_ns;
+        if (!runs || t.period_ns == cycle) continue;
+        if (!b->cycle_key.empty()) {
+          throw hal::HalError(b->cycle_key + " = " + std::to_string(cycle / 1000) + " us, but " + write + " runs in " +
+                              t.name + " with a period of " + std::to_string(t.period_ns / 1000) +
+                              " us: one frame goes out each cycle of that thread; make them equal (or leave CYCLE_US out)");
+        }
+        try {
+          b->master->set_cycle_ns(t.period_ns);
+        } catch (const std::exception& e) {
+          throw hal::HalError(e.what());
+        }
+      }
+    }
     for (auto& b : buses_) {
       b->master->start_up();  // throws with slave, object and reason
       b->master->start_worker();

@@ -30,7 +30,8 @@ std::vector<PdoEntryConfig> pdo_entries(const ini::IniFile& ini, const ini::Entr
 
 }  // namespace
 
-BusSettings load_bus_settings(const ini::IniFile& ini, const std::string& section, const std::string& name) {
+BusSettings load_bus_settings(const ini::IniFile& ini, const std::string& section, const std::string& name,
+                              const std::function<int64_t(const std::string&)>& thread_period) {
   if (!ini.has_section(section)) ini.fail(nullptr, "no [" + section + "] section (the EtherCAT bus for " + name + ")");
   BusSettings b;
   MasterConfig& c = b.master;
@@ -39,8 +40,13 @@ BusSettings load_bus_settings(const ini::IniFile& ini, const std::string& sectio
   if (c.interface.rfind("raw:", 0) != 0 && c.interface.rfind("sim:", 0) != 0) {
     ini.fail(ini.find_entry(section, "INTERFACE"), "\"" + c.interface + "\": expected raw:<interface> or sim:<segment>");
   }
-  const int64_t servo_ns = ini.get_int("EMCMOT", "SERVO_PERIOD", 1'000'000, {10'000, 1e9});
-  c.cycle_ns = ini.get_int(section, "CYCLE_US", servo_ns / 1000, {100, 100'000}) * 1000;
+  b.thread = ini.get_string(section, "THREAD", "servo-thread");
+  const int64_t thread_ns = thread_period ? thread_period(b.thread) : 0;
+  c.cycle_ns = thread_ns > 0 ? thread_ns : 1'000'000;
+  if (const ini::Entry* e = ini.find_entry(section, "CYCLE_US")) {
+    c.cycle_ns = ini.get_int(section, "CYCLE_US", 1000, {100, 100'000}) * 1000;
+    b.cycle_key = e->file + ":" + std::to_string(e->line) + ": [" + section + "]CYCLE_US";
+  }
   c.miss_limit = static_cast<unsigned>(ini.get_int(section, "MISS_LIMIT", 3, {0, 100000}));
   c.dc = ini.get_bool(section, "DC", true);
   c.dc_lock = ini.get_bool(section, "DC_LOCK", true);
@@ -49,7 +55,6 @@ BusSettings load_bus_settings(const ini::IniFile& ini, const std::string& sectio
   if (c.sync0_shift_ns >= c.cycle_ns) ini.fail(ini.find_entry(section, "SYNC0_SHIFT_US"), "must be shorter than the cycle");
   c.state_timeout_ms = ini.get_int(section, "STATE_TIMEOUT_MS", 3000, {10, 600'000});
   c.mailbox_timeout_ms = ini.get_int(section, "MAILBOX_TIMEOUT_MS", 1000, {10, 600'000});
-  b.thread = ini.get_string(section, "THREAD", "servo-thread");
   // The slaves' process-data watchdog: outputs that stop arriving for this
   // long take a slave to SAFEOP (0x001B) and its drive to its 0x6007
   // reaction. At least two cycles, so that one late frame never trips it.

@@ -5,6 +5,8 @@
 // Errors name the file, the line and the key (ConfigError).
 #pragma once
 
+#include <cstdint>
+#include <functional>
 #include <string>
 
 #include "fieldbus/ethercat/master.hpp"
@@ -18,8 +20,13 @@ namespace cnc::ethercat {
 struct BusSettings {
   MasterConfig master;
   std::string thread = "servo-thread";  // whose wake-up the DC lock steers
+  std::string cycle_key;                // "file:line: [ETHERCAT]CYCLE_US" when the INI gives the cycle
 };
 
-BusSettings load_bus_settings(const ini::IniFile& ini, const std::string& section, const std::string& name);
+// The bus cycle is CYCLE_US when given, else the period `thread_period`
+// gives for the bus's THREAD (the thread expected to run its functions;
+// the component checks that in on_ready), else 1 ms.
+BusSettings load_bus_settings(const ini::IniFile& ini, const std::string& section, const std::string& name,
+                              const std::function<int64_t(const std::string&)>& thread_period = nullptr);
 
 }  // namespace cnc::ethercat

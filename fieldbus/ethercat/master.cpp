@@ -612,6 +612,19 @@ void Master::to_preop() {
   for (SlaveInfo& s : slaves_) request_state(s, AlState::PreOp);
 }
 
+void Master::set_cycle_ns(int64_t ns) {
+  auto fail = [&](const std::string& what) {
+    throw std::runtime_error(cfg_.name + ": with a cycle of " + std::to_string(ns / 1000) + " us " + what);
+  };
+  if (cfg_.sync0_shift_ns >= ns) fail("SYNC0_SHIFT_US must be shorter than the cycle");
+  auto watchdog_ok = [&](uint32_t ms) { return ms == 0 || int64_t{ms} * 1'000'000 >= 2 * ns; };
+  if (!watchdog_ok(cfg_.watchdog_ms)) fail("WATCHDOG_MS must be at least two cycles (or 0: off)");
+  for (const SlaveConfig& s : cfg_.slaves) {
+    if (!watchdog_ok(s.watchdog_ms)) fail("slave " + std::to_string(s.position) + "'s WATCHDOG_MS must be at least two cycles");
+  }
+  cfg_.cycle_ns = ns;
+}
+
 void Master::start_up() {
   if (!planned_) plan();
   for (SlaveInfo& s : slaves_) configure_mailbox(s);

@@ -185,6 +185,10 @@ class Master {
 
   const std::string& name() const noexcept { return cfg_.name; }
   const MasterConfig& config() const noexcept { return cfg_; }
+  // The bus cycle, once the thread that runs the bus is known (before
+  // start_up); re-checks what depends on it (SYNC0 shift, watchdogs).
+  // Throws std::runtime_error.
+  void set_cycle_ns(int64_t ns);
 
   // --- start-up (non-realtime) ---
   // Scan only: count, station addresses, SII; compares with the

@@ -113,7 +113,10 @@ class Rig {
       host_->add(n, bus_->open_port("sim-" + std::to_string(n.node_id)));
     }
     host_->power_on(now());
-    canopen::BusConfig bc = canopen::load_bus_config(ini_, "CANOPEN", "canopen.0");
+    // The rig's cycles stand for the HAL thread that runs the bus: its
+    // period is the test INI's [EMCMOT]SERVO_PERIOD.
+    canopen::BusConfig bc =
+        canopen::load_bus_config(ini_, "CANOPEN", "canopen.0", ini_.get_int("EMCMOT", "SERVO_PERIOD", 1'000'000));
     cycle_ns_ = bc.cycle_ns;
     master_ = std::make_unique<canopen::Master>(std::move(bc), bus_->open_port("cyclic"), bus_->open_port("acyclic"),
                                                 &messages);

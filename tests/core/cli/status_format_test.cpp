@@ -59,3 +59,49 @@ TEST(StatusFormat, JsonCarriesEveryOverrunFigure) {
   EXPECT_EQ(t["overrun_function_count"], 11);
   EXPECT_EQ(t["overrun_function_max_ns"], 1'420'000);
 }
+
+TEST(StatusFormat, LimitsInForceAreShownAsTextAndJson) {
+  auto s = std::make_unique<ipc::Status>();
+  s->motion.joints = 1;
+  s->motion.spindles = 1;
+  s->motion.axis_mask = 1;
+  s->motion.max_linear_velocity = 5;
+  s->motion.max_linear_acceleration = 1000;
+  s->motion.max_linear_jerk = 1e99;
+  ipc::AxisStatus& x = s->axes[0];
+  x.min_position_limit = -1;
+  x.max_position_limit = 300;
+  x.max_velocity = 10;
+  x.max_acceleration = 1000;
+  x.max_jerk = 50000;
+  x.velocity_limit = 10;
+  x.acceleration_limit = 1000;
+  ipc::JointStatus& j = s->joints[0];
+  j.min_position_limit = -1e99;
+  j.max_position_limit = 1e99;
+  j.max_velocity = 105;
+  j.velocity_limit = 105;
+  ipc::SpindleStatus& sp = s->spindles[0];
+  sp.max_forward = 10000;
+  sp.max_reverse = 0;
+  sp.speed = 50000;
+  sp.override_scale = 1.1;
+  sp.speed_out = 10000;
+  sp.speed_limited = true;
+  const std::string text = cli::format_status(*s);
+  EXPECT_NE(text.find("path       velocity 5  acceleration 1000  jerk none"), std::string::npos) << text;
+  EXPECT_NE(text.find("axis X     -1..300  velocity 10  acceleration 1000  jerk 50000  (moves use 10, 1000)"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("joint 0    none..none  velocity 105"), std::string::npos) << text;
+  EXPECT_NE(text.find("spindle 0  forward 0..10000 rpm, reverse not allowed; commanded 50000 rpm x 110%, out 10000 rpm "
+                      "(held at a limit)"),
+            std::string::npos)
+      << text;
+  const auto js = nlohmann::json::parse(cli::status_json(*s));
+  EXPECT_EQ(js["motion"]["max_linear_velocity"], 5);
+  EXPECT_EQ(js["axes"][0]["max_velocity"], 10);
+  EXPECT_EQ(js["joints"][0]["max_velocity"], 105);
+  EXPECT_EQ(js["spindles"][0]["speed_out"], 10000);
+  EXPECT_EQ(js["spindles"][0]["speed_limited"], true);
+}

@@ -429,7 +429,9 @@ TEST(MotionParameters, OneTableSetsJointAxisAndTrajectoryParameters) {
   m.step(5);
   c.param = *motion::find_param("joint.max-limit");
   c.value[0] = 150;
-  EXPECT_STREQ(m.send(c).reason.c_str(), "joint.max-limit can only be changed while the machine is stopped");
+  EXPECT_STREQ(m.send(c).reason.c_str(),
+               "joint.max-limit cannot change while the machine moves (jogs, homing and queued moves keep the limits "
+               "they were planned with): stop it first");
   EXPECT_FALSE(motion::find_param("joint.colour"));
 }
 

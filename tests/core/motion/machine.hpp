@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -64,12 +66,16 @@ inline motion::MotionConfig basic_config(int joints = 3) {
 
 class Machine {
  public:
-  explicit Machine(motion::MotionConfig cfg = basic_config(), const char* coordinates = "XYZ")
+  // Makes the coordinated planner (default: the exact-stop SimplePlanner).
+  using PlannerMaker = std::function<std::unique_ptr<tp::TrajectoryPlanner>(const tp::PlannerConfig&)>;
+
+  explicit Machine(motion::MotionConfig cfg = basic_config(), const char* coordinates = "XYZ",
+                   const PlannerMaker& make_planner = nullptr)
       : cfg_(cfg),
         kins_(kin::JointMap::parse(coordinates, "test", true), kin::KinematicsType::Identity),
-        tp_(tp::PlannerConfig{cfg.servo_period_s, 1000, {}, cfg.max_linear_velocity, cfg.max_linear_acceleration,
-                              cfg.max_linear_jerk, 0x7}),
-        mc_(cfg_, kins_, tp_, &messages_) {
+        tp_(make_planner ? make_planner(motion::planner_config(cfg, 0x7))
+                         : std::make_unique<SimplePlanner>(motion::planner_config(cfg, 0x7))),
+        mc_(cfg_, kins_, *tp_, &messages_) {
     sims.resize(static_cast<std::size_t>(cfg.num_joints));
   }
 
@@ -191,7 +197,7 @@ class Machine {
  private:
   motion::MotionConfig cfg_;
   kin::TrivKins kins_;
-  SimplePlanner tp_;
+  std::unique_ptr<tp::TrajectoryPlanner> tp_;
   MessageQueue messages_;
   motion::MotionController mc_;
   uint64_t serial_ = 0;

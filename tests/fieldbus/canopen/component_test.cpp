@@ -159,3 +159,59 @@ TEST(CanopenComponent, NeedsAnIniAndKnownArguments) {
   EXPECT_THROW(with_ini.execute("loadrt canopen speed=1"), hal::HalError);
   EXPECT_THROW(with_ini.execute("loadrt canopen buses=NOPE"), std::exception);
 }
+
+// The SYNC period is the period of the thread that runs the bus (SYNC goes
+// out every cycle of it): a configured period that differs is refused at
+// start-up naming both, before anything is sent.
+TEST(CanopenComponent, SyncPeriodThatDiffersFromItsThreadStopsStartUp) {
+  const std::string bus = cnc::testing::unique_name("syncmismatch");
+  const auto ini = ini::IniFile::parse("[CANOPEN]\nINTERFACE = virtual:" + bus +
+                                           "\nSYNC_PERIOD_US = 2000\nNODE = 3\n[CANOPEN_NODE_3]\nNAME = x\n",
+                                       "machine.ini");
+  hal::Hal hal;
+  hal::ComponentRegistry registry;
+  hal::register_core_components(registry);
+  register_components(registry);
+  hal::CommandInterpreter halcmd(hal, registry, &ini, nullptr);
+  halcmd.run_text(
+      "loadrt threads name1=servo-thread period1=1000000\n"
+      "loadrt canopen\n"
+      "addf canopen.0.read servo-thread\n"
+      "addf canopen.0.write servo-thread\n",
+      "test.hal");
+  try {
+    for (hal::Component* c : hal.components()) c->on_ready();
+    FAIL() << "started with SYNC every 1 ms planned as 2 ms";
+  } catch (const std::exception& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "machine.ini:3: [CANOPEN]SYNC_PERIOD_US = 2000 us, but canopen.0.write runs in servo-thread with a "
+              "period of 1000 us: SYNC is sent every cycle of that thread; make them equal (or leave SYNC_PERIOD_US "
+              "out)");
+  }
+  hal.clear();
+}
+
+TEST(CanopenComponent, SyncPeriodComesFromTheThreadThatRunsTheBus) {
+  const std::string bus = cnc::testing::unique_name("syncthread");
+  Device device(bus, 3);
+  const auto ini = ini::IniFile::parse("[EMCMOT]\nSERVO_PERIOD = 1000000\n[CANOPEN]\nINTERFACE = virtual:" + bus +
+                                           "\nPDO_MISS_LIMIT = 0\nNODE = 3\n[CANOPEN_NODE_3]\nNAME = x\n"
+                                           "HEARTBEAT_TIMEOUT_MS = 5000\n",
+                                       "machine.ini");
+  hal::Hal hal;
+  hal::ComponentRegistry registry;
+  hal::register_core_components(registry);
+  register_components(registry);
+  hal::CommandInterpreter halcmd(hal, registry, &ini, nullptr);
+  halcmd.run_text(
+      "loadrt threads name1=servo-thread period1=1000000 name2=bus-thread period2=4000000\n"
+      "loadrt canopen\n"
+      "addf canopen.0.read bus-thread\n"
+      "addf canopen.0.write bus-thread\n",
+      "test.hal");
+  for (hal::Component* c : hal.components()) c->on_ready();
+  Master* m = find_master(hal, "canopen.0");
+  ASSERT_NE(m, nullptr);
+  EXPECT_EQ(m->config().cycle_ns, 4'000'000) << "neither [EMCMOT]SERVO_PERIOD nor the servo thread's";
+  hal.clear();
+}

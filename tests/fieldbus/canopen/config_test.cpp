@@ -52,10 +52,11 @@ EXPORT_PINS = YES
 
 TEST(CanopenConfig, LoadsTheBusAndItsNodes) {
   const auto ini = ini::IniFile::parse(kTwoAxes, "machine.ini");
-  const BusConfig c = load_bus_config(ini, "CANOPEN", "canopen.0");
+  const BusConfig c = load_bus_config(ini, "CANOPEN", "canopen.0", 2'000'000);
   EXPECT_EQ(c.interface, "socketcan:can0");
   EXPECT_EQ(c.bitrate, 500000u);
-  EXPECT_EQ(c.cycle_ns, 2'000'000) << "from [EMCMOT]SERVO_PERIOD";
+  EXPECT_EQ(c.cycle_ns, 2'000'000) << "the thread's period, not [EMCMOT]SERVO_PERIOD";
+  EXPECT_TRUE(c.cycle_key.empty());
   EXPECT_EQ(c.sync_overflow, 16);
   EXPECT_EQ(c.master_node_id, 100);
   ASSERT_EQ(c.nodes.size(), 2u);

@@ -162,12 +162,38 @@ TEST(EthercatConfig, ErrorsNameFileLineAndKey) {
       ini::IniFile::parse("[EMCMOT]\nSERVO_PERIOD = 250000\n[ETHERCAT]\nINTERFACE = raw:eth0\nSLAVE = 2\n"
                           "[ETHERCAT_SLAVE_2]\nNAME = z\nSDO = 0x6060:0:s8 8\nTXPDO = 0x6041:0:u16\n",
                           "machine.ini"),
-      "ETHERCAT", "ethercat.0");
-  EXPECT_EQ(ok.master.cycle_ns, 250'000);
+      "ETHERCAT", "ethercat.0", [](const std::string& thread) { return thread == "servo-thread" ? 250'000 : 0; });
+  EXPECT_EQ(ok.master.cycle_ns, 250'000) << "the period of the bus's thread, not [EMCMOT]SERVO_PERIOD";
   ASSERT_EQ(ok.master.slaves.size(), 1u);
   EXPECT_EQ(ok.master.slaves[0].sdos[0].origin, "machine.ini:8");
   EXPECT_EQ(ok.master.slaves[0].sdos[0].data, (std::vector<uint8_t>{8}));
   ASSERT_TRUE(ok.master.slaves[0].tx_pdo);
   EXPECT_EQ((*ok.master.slaves[0].tx_pdo)[0].bits, 16);
   EXPECT_FALSE(ok.master.slaves[0].rx_pdo);
+}
+
+TEST(EthercatComponent, CycleThatDiffersFromItsThreadStopsStartUp) {
+  const std::string seg = cnc::testing::unique_name("ecatcycle");
+  const auto ini = ini::IniFile::parse("[ETHERCAT]\nINTERFACE = sim:" + seg + "\nCYCLE_US = 2000\nSLAVE = 1\n",
+                                       "machine.ini");
+  hal::Hal hal;
+  hal::ComponentRegistry registry;
+  hal::register_core_components(registry);
+  ethercat::register_components(registry);
+  hal::CommandInterpreter halcmd(hal, registry, &ini, nullptr);
+  halcmd.run_text(
+      "loadrt threads name1=servo-thread period1=1000000\n"
+      "loadrt ethercat_sim name=" + seg + " drives=1\n"
+      "loadrt ethercat\n"
+      "addf ethercat.0.read servo-thread\n"
+      "addf ethercat.0.write servo-thread\n",
+      "test.hal");
+  try {
+    for (hal::Component* c : hal.components()) c->on_ready();
+    FAIL() << "started with a frame every 1 ms planned as 2 ms";
+  } catch (const std::exception& e) {
+    EXPECT_THAT(e.what(), HasSubstr("machine.ini:3: [ETHERCAT]CYCLE_US = 2000 us, but ethercat.0.write runs in "
+                                    "servo-thread with a period of 1000 us"));
+  }
+  hal.clear();
 }
