@@ -68,7 +68,11 @@ void Thread::account_overruns(rt::CycleInfo& info) noexcept {
     begin_late_spell(OverrunEvent::Kind::Gap, info.missed_cycles, info.now_ns);
   } else if (!late_ && info.overrun_streak >= limit) {
     begin_late_spell(OverrunEvent::Kind::Streak, streak_missed_, info.now_ns);
+  } else if (late_ && info.missed_cycles >= static_cast<int64_t>(limit) &&
+             info.missed_cycles >= 2 * spell_worst_gap_) {
+    report_gap_in_spell(info.missed_cycles, info.now_ns);
   }
+  if (late_ && info.missed_cycles > spell_worst_gap_) spell_worst_gap_ = info.missed_cycles;
   // Spells counted but not reported are summed up once the quiet time is over.
   if (unreported_spells_ > 0 && info.now_ns - last_report_ns_ >= kReportQuietNs) {
     OverrunEvent e = event(OverrunEvent::Kind::Summary, unreported_worst_);
@@ -85,6 +89,7 @@ void Thread::account_overruns(rt::CycleInfo& info) noexcept {
 
 void Thread::begin_late_spell(OverrunEvent::Kind kind, int64_t missed, int64_t now_ns) noexcept {
   late_ = true;
+  spell_worst_gap_ = 0;
   const bool quiet = reported_any_ && now_ns - last_report_ns_ < kReportQuietNs;
   spell_reported_ = !quiet || missed >= 2 * last_report_missed_;
   if (!spell_reported_) {
@@ -94,6 +99,23 @@ void Thread::begin_late_spell(OverrunEvent::Kind kind, int64_t missed, int64_t n
   }
   push(event(kind, missed));
   spell_reported_streak_ = streak_;
+  reported_any_ = true;
+  last_report_ns_ = now_ns;
+  last_report_missed_ = missed;
+}
+
+// Within the quiet time only a gap twice as bad as the last report is said
+// (as for a new spell). A spell that was only counted becomes a reported
+// one; a reported one still says when it ends.
+void Thread::report_gap_in_spell(int64_t missed, int64_t now_ns) noexcept {
+  const bool quiet = reported_any_ && now_ns - last_report_ns_ < kReportQuietNs;
+  if (quiet && missed < 2 * last_report_missed_) return;
+  push(event(OverrunEvent::Kind::Gap, missed));
+  if (!spell_reported_) {
+    if (unreported_spells_ > 0) --unreported_spells_;
+    spell_reported_ = true;
+    spell_reported_streak_ = streak_;
+  }
   reported_any_ = true;
   last_report_ns_ = now_ns;
   last_report_missed_ = missed;

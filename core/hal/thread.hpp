@@ -109,6 +109,9 @@ class Thread {
   void blame_previous_cycle() noexcept;
   void begin_late_spell(OverrunEvent::Kind kind, int64_t missed, int64_t now_ns) noexcept;
   void end_late_spell() noexcept;
+  // A stall inside a late spell (the process stopped while a streak went
+  // on): said as a gap of its own.
+  void report_gap_in_spell(int64_t missed, int64_t now_ns) noexcept;
   void push(const OverrunEvent& e) noexcept;
   OverrunEvent event(OverrunEvent::Kind kind, int64_t missed) const noexcept;
 
@@ -144,6 +147,7 @@ class Thread {
   // when and how big the last report was, spells counted since.
   bool spell_reported_ = false;
   uint32_t spell_reported_streak_ = 0;
+  int64_t spell_worst_gap_ = 0;  // the most periods one cycle of the spell missed at once
   bool reported_any_ = false;
   int64_t last_report_ns_ = 0;
   int64_t last_report_missed_ = 0;

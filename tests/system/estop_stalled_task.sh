@@ -179,6 +179,11 @@ t1="$(now)"
 t_drive="$(wait_drive_disabled "$t1")" || fail "X drive still enabled right after motion-controller was removed"
 wait_task_state ESTOP
 t_task="$(elapsed "$t0" "$(now)")"
+# The message follows the state change within a task cycle or two.
+for _ in $(seq 40); do
+  cnc messages | grep -q "E-stop: motion-controller is in no HAL thread any more" && break
+  sleep 0.05
+done
 cnc messages | grep -q "E-stop: motion-controller is in no HAL thread any more" || fail "no E-stop naming motion-controller"
 status="$(cnc status)"
 if echo "$status" | grep -q "moving"; then fail "the status still says moving: $status"; fi

@@ -227,6 +227,54 @@ TEST_F(HalThreadOverruns, SpellTwiceAsBadIsReportedWithinTheQuietTime) {
   EXPECT_EQ(ev[1].missed_cycles, 2000);
 }
 
+TEST_F(HalThreadOverruns, StallDuringALateSpellIsReportedAsAGap) {
+  // A loaded host: a streak of overruns is going on (reported) when the
+  // process is stopped for 2 s. The stall is a new event, not more of the
+  // streak, and must be said at once.
+  workers->set_cost(1, 1'200'000);
+  cycle();
+  for (uint32_t n = 1; n <= 4; ++n) {
+    told_overrun(n, 1);
+    cycle();
+  }
+  cycle(2'000'000'000);
+  told_overrun(5, 2000);
+  cycle();
+  workers->set_cost(1, 10'000);
+  told_on_time();
+  cycle();
+  const auto ev = events();
+  ASSERT_EQ(ev.size(), 3u);
+  EXPECT_EQ(ev[0].kind, OverrunEvent::Kind::Streak);
+  EXPECT_EQ(ev[1].kind, OverrunEvent::Kind::Gap);
+  EXPECT_EQ(ev[1].missed_cycles, 2000);
+  EXPECT_EQ(ev[1].function, nullptr) << "blamed on the late wake-up";
+  EXPECT_EQ(ev[2].kind, OverrunEvent::Kind::Ended);
+  EXPECT_EQ(ev[2].missed_cycles, 2004);
+}
+
+TEST_F(HalThreadOverruns, StallDuringAnUnreportedLateSpellIsReportedAsAGap) {
+  // The first spell is reported; a second within the quiet time is only
+  // counted; a stall during that one is still said at once.
+  cycle(3'500'000);
+  told_overrun(1, 3);
+  cycle();
+  told_on_time();
+  cycle();
+  ASSERT_EQ(events().size(), 1u);
+  cycle(3'500'000);
+  told_overrun(1, 3);
+  cycle();
+  EXPECT_TRUE(events().empty()) << "a second spell as bad within the quiet time is counted, not said";
+  cycle(2'000'000'000);
+  told_overrun(2, 2000);
+  cycle();
+  const auto ev = events();
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_EQ(ev[0].kind, OverrunEvent::Kind::Gap);
+  EXPECT_EQ(ev[0].missed_cycles, 2000);
+}
+
 TEST_F(HalThreadOverruns, FunctionsSeeTheThreadLateFromTheLimitUntilACycleIsOnTime) {
   workers->set_cost(0, 1'200'000);
   cycle();
