@@ -1,0 +1,216 @@
+// The EtherCAT master, worker thread: requests from the servo thread, the
+// way to OP, fault reports, emergencies and restarts.
+#include "fieldbus/ethercat/master_internal.hpp"
+
+#include <time.h>
+
+#include <algorithm>
+#include <cstdarg>
+#include <cinttypes>
+#include <cstdio>
+#include <cstring>
+#include <future>
+
+#include "core/util/messages.hpp"
+#include "fieldbus/canopen/emcy.hpp"
+#include "fieldbus/canopen/sdo_abort.hpp"
+#ifdef CNC_ETHERCAT_ESI
+#include "fieldbus/ethercat/esi.hpp"
+#endif
+
+namespace cnc::ethercat {
+
+using namespace master_detail;
+
+// ---------------------------------------------------------------- worker
+
+void Master::start_worker() {
+  if (worker_.joinable()) return;
+  stop_.store(false);
+  worker_ = std::thread([this] { worker_loop(); });
+}
+
+void Master::worker_rt_requests() {
+  for (RtRequest& r : rt_) {
+    if (r.state.load(std::memory_order_acquire) != 1) continue;
+    SlaveInfo* s = find(r.position);
+    SdoResult res;
+    if (!s) res.abort_code = canopen::abort_code::kNoObject;
+    else if (r.write) res = do_download(*s, r.index, r.sub, le(r.value, r.size ? r.size : 4));
+    else res = do_upload(*s, r.index, r.sub);
+    r.abort_code = res.ok ? 0 : (res.abort_code ? res.abort_code : canopen::abort_code::kTimeout);
+    r.result = 0;
+    for (std::size_t i = 0; i < res.data.size() && i < 4; ++i) r.result |= uint32_t{res.data[i]} << (8 * i);
+    r.state.store(2, std::memory_order_release);
+  }
+}
+
+void Master::worker_go_op() {
+  try {
+    for (SlaveInfo& s : slaves_) request_state(s, AlState::Op);
+  } catch (const StartupError& e) {
+    {
+      std::lock_guard lock(fault_mutex_);
+      fault_text_ = e.what();
+    }
+    phase_.store(BusPhase::Fault, std::memory_order_release);
+    fault_reported_ = true;
+    post(true, e.what());
+    return;
+  }
+  counters_.consecutive_bad.store(0);
+  BusPhase expected = BusPhase::SafeOp;
+  if (phase_.compare_exchange_strong(expected, BusPhase::Op)) {
+    post(false, fmt("%zu slave%s in OP, cycle %lld us", slaves_.size(), slaves_.size() == 1 ? "" : "s",
+                    static_cast<long long>(cfg_.cycle_ns / 1000)));
+  }
+}
+
+void Master::worker_report_fault() {
+  fault_reported_ = true;
+  const bool al = al_changed_.load();
+  std::string text = "safe stop: ";
+  if (al) {
+    text += "a slave left OP";
+  } else {
+    std::string last = fault_lost_.load() ? std::string("last frame lost")
+                                          : fmt("last working counter %u, expected %u", fault_wkc_.load(), expected_wkc_);
+    if (fault_lost_.load() && bad_wkc_.load() >= 0) {
+      last += fmt(", last wrong working counter %d, expected %u", bad_wkc_.load(), expected_wkc_);
+    }
+    text += fmt("%u consecutive cycles without valid process data (%s; frames lost %llu, "
+                "late %llu, working-counter errors %llu)",
+                fault_bad_.load(), last.c_str(),
+                static_cast<unsigned long long>(counters_.frames_lost.load()),
+                static_cast<unsigned long long>(counters_.frames_late.load()),
+                static_cast<unsigned long long>(counters_.wkc_errors.load()));
+  }
+  uint8_t b[2] = {};
+  const auto count = transact(Command::BRD, 0, b, 2);
+  if (!count) {
+    text += "; no frame comes back at all (cable to the first slave, interface down?)";
+  } else if (*count < slaves_.size()) {
+    text += fmt("; only %u of %zu slaves answer: link lost after %s (cable break or power?)", *count, slaves_.size(),
+                *count == 0 ? "the master" : slave_label(*count).c_str());
+  }
+  for (SlaveInfo& s : slaves_) {
+    if (!count || s.position > *count) break;  // unreachable: do not wait for each of them
+    uint8_t st[6] = {};
+    if (fprd(s, reg::kAlStatus, st, 6) != 1) continue;
+    state_[s.position - 1].al_state.store(st[0] & 0x0F);
+    state_[s.position - 1].al_code.store(get16(st + 4));
+    if ((st[0] & 0x0F) != static_cast<uint8_t>(AlState::Op) || (st[0] & kAlErrorFlag)) {
+      text += fmt("; %s is in %s%s", slave_label(s.position).c_str(), al_state_name(st[0]),
+                  (st[0] & kAlErrorFlag) ? "" : "");
+      if (st[0] & kAlErrorFlag) {
+        text += fmt(" with AL status code 0x%04X %s", get16(st + 4), al_status_text(get16(st + 4)));
+      }
+    }
+  }
+  {
+    std::lock_guard lock(fault_mutex_);
+    fault_text_ = cfg_.name + ": " + text;
+  }
+  post(true, text);
+}
+
+void Master::worker_poll_emergencies() {
+  for (SlaveInfo& s : slaves_) {
+    if (!s.sii.has_coe()) continue;
+    uint8_t st[1] = {};
+    if (fprd(s, reg::kSm0 + 8 + 5, st, 1) != 1 || !(st[0] & sm::kStatusFull)) continue;
+    std::vector<uint8_t> in;
+    std::string error;
+    if (!mailbox_read(s, in, 0, error)) continue;
+    const MailboxHeader h = MailboxHeader::decode(in.data());
+    if (h.type == MailboxType::CoE && h.length >= 10 &&
+        coe_service(get16(in.data() + kMailboxHeader)) == CoeService::Emergency) {
+      handle_emergency(s, in.data() + kMailboxHeader + 2);
+    }
+  }
+}
+
+void Master::worker_restart() {
+  // The servo thread stops touching the frame and the image first.
+  phase_.store(BusPhase::Down, std::memory_order_release);
+  std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  const std::vector<SlaveInfo> before = slaves_;
+  const std::size_t out = outputs_.size(), in = inputs_.size();
+  try {
+    scanned_ = planned_ = false;
+    scan();  // refuses another slave count
+    // The drives hold slots into the image: the bus must come back as it was.
+    for (std::size_t i = 0; i < slaves_.size(); ++i) {
+      if (slaves_[i].sii.vendor_id != before[i].sii.vendor_id || slaves_[i].sii.product_code != before[i].sii.product_code ||
+          slaves_[i].sii.serial != before[i].sii.serial) {
+        fail_slave(slaves_[i], "restart: another device than before at this position");
+      }
+    }
+    plan();
+    if (outputs_.size() != out || inputs_.size() != in) fail("restart: the process image changed");
+    outstanding_ = false;
+    held_size_ = 0;
+    lock_.reset();
+    al_changed_.store(false);
+    counters_.consecutive_bad.store(0);
+    start_up();  // ends in SAFEOP; OP follows once the cycle is good
+    fault_reported_ = false;
+    {
+      std::lock_guard lock(fault_mutex_);
+      fault_text_.clear();
+    }
+    post(false, "restarted after the fault: every slave found again");
+  } catch (const std::exception& e) {
+    for (std::size_t i = 0; i < slaves_.size() && i < before.size(); ++i) slaves_[i] = before[i];
+    scanned_ = planned_ = true;
+    {
+      std::lock_guard lock(fault_mutex_);
+      fault_text_ = e.what();
+    }
+    fault_reported_ = true;
+    phase_.store(BusPhase::Fault, std::memory_order_release);
+    post(true, e.what());
+  }
+}
+
+void Master::worker_loop() {
+  worker_id_ = std::this_thread::get_id();
+  int64_t next_emcy = 0;
+  bool op_tried = false;
+  while (!stop_.load()) {
+    for (;;) {
+      std::function<void()> job;
+      {
+        std::lock_guard lock(jobs_mutex_);
+        if (jobs_.empty()) break;
+        job = std::move(jobs_.front());
+        jobs_.pop_front();
+      }
+      job();
+    }
+    worker_rt_requests();
+    // Every reply reaches both sockets on a raw link: drop the cyclic ones
+    // this socket collected, so that its buffer never fills.
+    drain(*acyclic_link_);
+    const BusPhase ph = phase();
+    if (restart_requested_.exchange(false)) {
+      worker_restart();
+      op_tried = false;
+      continue;
+    }
+    if (ph == BusPhase::SafeOp && !op_tried && good_cycles_.load() >= cfg_.op_after_good_cycles) {
+      op_tried = true;
+      worker_go_op();
+    }
+    if (phase() == BusPhase::Fault && !fault_reported_) worker_report_fault();
+    const int64_t now = monotonic_ns();
+    if (now >= next_emcy && (ph == BusPhase::SafeOp || ph == BusPhase::Op)) {
+      next_emcy = now + 20'000'000;
+      worker_poll_emergencies();
+    }
+    std::unique_lock lock(jobs_mutex_);
+    jobs_cv_.wait_for(lock, std::chrono::milliseconds(1), [this] { return !jobs_.empty() || stop_.load(); });
+  }
+}
+
+}  // namespace cnc::ethercat
