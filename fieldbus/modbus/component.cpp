@@ -10,6 +10,7 @@
 #include "core/util/error.hpp"
 #include "core/util/messages.hpp"
 #include "core/util/strings.hpp"
+#include "core/util/time.hpp"
 #include "fieldbus/modbus/link.hpp"
 
 namespace cnc::modbus {
@@ -236,6 +237,12 @@ class ModbusComponent : public hal::Component, public ipc::ControllerService {
         if (!v.port->feedback.try_read(fb, 1'000'000)) continue;
         FixedString<96> text;
         v.port->fault_text.try_read(text, 1'000'000);
+        // The link thread may be starved rather than failing: the age says so.
+        const int64_t age = monotonic_ns() - fb.ok_ns;
+        if (text.view().empty() && (fb.ok_ns == 0 || age > v.port->config.stale_ns)) {
+          text.format("no complete exchange for %.2f s (STALE_MS %lld)", fb.ok_ns == 0 ? 0.0 : static_cast<double>(age) * 1e-9,
+                      static_cast<long long>(v.port->config.stale_ns / 1'000'000));
+        }
         ipc::DriveStatus& d = status.drives[slot];
         d.present = true;
         d.joint = -1;

@@ -47,9 +47,9 @@ inline std::string link_ini(const modbus_sim::Server& server, bool tcp, const st
   std::string s = "[MODBUS]\n";
   if (tcp) s += "TRANSPORT = TCP\nHOST = 127.0.0.1\nPORT = " + std::to_string(server.port()) + "\n";
   else s += "TRANSPORT = RTU\nDEVICE = " + server.pty_path() + "\nBAUD = 115200\n";
-  s += "TIMEOUT_MS = 50\nRETRY_MIN_MS = 20\nRETRY_MAX_MS = 200\nVFD = 1\n[MODBUS_VFD_1]\nNAME = spindle\n";
+  s += "TIMEOUT_MS = 200\nRETRY_MIN_MS = 20\nRETRY_MAX_MS = 200\nVFD = 1\n[MODBUS_VFD_1]\nNAME = spindle\n";
   s += profile == "generic" ? std::string(kGenericDeltaKeys) : "PROFILE = " + profile + "\n";
-  s += "POLL_MS = 5\nSTALE_MS = 200\n" + extra_vfd_keys;
+  s += "POLL_MS = 5\nSTALE_MS = 1000\n" + extra_vfd_keys;
   return s;
 }
 
