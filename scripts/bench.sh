@@ -17,7 +17,7 @@ bin="$root/build/bin"
 pin=()
 if [ "$(nproc)" -ge 2 ] && command -v taskset >/dev/null; then pin=(taskset -c 1); fi
 
-names=(rt motion tp interp kinematics canopen comp cia402 ethercat)
+names=(rt motion tp interp kinematics canopen comp cia402 ethercat modbus)
 run_one() {
   case "$1" in
     rt)         "${pin[@]}" "$bin/bench_rt_jitter" 10 1000000 ;;
@@ -30,6 +30,7 @@ run_one() {
     comp)       "$bin/comp_bench" ;;
     cia402)     "$bin/cia402_bench" ;;
     ethercat)   "$bin/ethercat_bench" ;;
+    modbus)     "$bin/modbus_bench" 4 ;;
     *) echo "unknown benchmark '$1' (known: ${names[*]})" >&2; return 2 ;;
   esac
 }
@@ -39,6 +40,7 @@ binary_of() {
     interp) echo interp_bench ;; kinematics) echo kinematics_bench ;;
     canopen) echo canopen_bus_load ;; comp) echo comp_bench ;;
     cia402) echo cia402_bench ;; ethercat) echo ethercat_bench ;;
+    modbus) echo modbus_bench ;;
   esac
 }
 

@@ -20,6 +20,9 @@
 #ifdef CNC_HAVE_ETHERCAT
 #include "fieldbus/ethercat/components.hpp"
 #endif
+#ifdef CNC_HAVE_MODBUS
+#include "fieldbus/modbus/component.hpp"
+#endif
 #ifdef CNC_HAVE_CIA402
 #include "cia402/components.hpp"
 #endif
@@ -53,6 +56,9 @@ void register_all_components(hal::ComponentRegistry& registry) {
 #endif
 #ifdef CNC_HAVE_ETHERCAT
   ethercat::register_components(registry);
+#endif
+#ifdef CNC_HAVE_MODBUS
+  modbus::register_components(registry);
 #endif
 #ifdef CNC_HAVE_CIA402
   cia402::register_components(registry);

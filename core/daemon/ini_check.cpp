@@ -15,7 +15,8 @@ namespace {
 constexpr const char* kControllerFamilies[] = {
     "EMC",    "TASK",         "RS274NGC", "EMCMOT",       "HAL",       "TRAJ",           "KINS",
     "EMCIO",  "AXIS",         "JOINT",    "SPINDLE",      "CANOPEN",   "CANOPEN_NODE",   "CIA402",
-    "CIA402_DRIVE", "CIA402_SIM", "CIA402_SIM_NODE", "ETHERCAT", "ETHERCAT_SLAVE",
+    "CIA402_DRIVE", "CIA402_SIM", "CIA402_SIM_NODE", "ETHERCAT", "ETHERCAT_SLAVE", "MODBUS", "MODBUS_VFD",
+    "MODBUS_IO",
 };
 
 constexpr const char* kScreenSections[] = {"DISPLAY", "FILTER", "MDI_COMMAND_LIST"};

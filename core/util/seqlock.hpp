@@ -59,6 +59,20 @@ class SeqLock {
     return false;
   }
 
+  // Reader for the servo thread: one attempt, never waits. Returns false
+  // (and leaves `out` alone) when the writer is in the middle of a write;
+  // the caller keeps its previous copy and tries again next cycle.
+  bool try_read_once(T& out) const noexcept {
+    uint64_t buf[kWords];
+    const uint64_t s1 = seq_.load(std::memory_order_acquire);
+    if (s1 & 1U) return false;
+    for (std::size_t i = 0; i < kWords; ++i) buf[i] = words_[i].load(std::memory_order_relaxed);
+    std::atomic_thread_fence(std::memory_order_acquire);
+    if (seq_.load(std::memory_order_relaxed) != s1) return false;
+    std::memcpy(&out, buf, sizeof(T));
+    return true;
+  }
+
   T read() const noexcept {
     T out{};
     try_read(out);

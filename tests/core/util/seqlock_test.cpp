@@ -58,3 +58,31 @@ TEST(SeqLock, GenerationCountsWrites) {
   EXPECT_EQ(lock.generation(), 2u);
   EXPECT_EQ(lock.read(), 6);
 }
+
+// The servo thread's read: one attempt, never a torn block, and false (the
+// caller's copy untouched) while a write is in progress.
+TEST(SeqLock, TryReadOnceNeverWaitsAndNeverTears) {
+  cnc::SeqLock<Block> lock;
+  std::atomic<bool> stop{false};
+  std::thread writer([&] {
+    Block b{};
+    for (uint64_t i = 1; !stop.load(); ++i) {
+      for (auto& w : b.values) w = i;
+      lock.write(b);
+    }
+  });
+  uint64_t got = 0, missed = 0;
+  Block out{};
+  for (int i = 0; i < 200000; ++i) {
+    if (lock.try_read_once(out)) {
+      ++got;
+      for (auto w : out.values) ASSERT_EQ(w, out.values[0]);
+    } else {
+      ++missed;
+    }
+  }
+  stop.store(true);
+  writer.join();
+  EXPECT_GT(got, 0u);
+  EXPECT_EQ(got + missed, 200000u);
+}
