@@ -74,11 +74,14 @@ std::string num(double v) { return format_double(v); }
 
 CompTable parse_comp_table(std::string_view text, CompFileType type, const std::string& file_name,
                            const CompParseOptions& options) {
+  const std::string expected =
+      "three numbers 'nominal " +
+      std::string(type == CompFileType::Positions ? "forward-position reverse-position" : "forward-trim reverse-trim") +
+      "' (COMP_FILE_TYPE " + std::to_string(static_cast<int>(type)) + ")";
   CompTable t;
   int line_no = 0, last_entry_line = 0, end_line = 0;
-  std::string end_text;
   std::size_t pos = 0;
-  while (pos <= text.size()) {
+  while (pos < text.size()) {
     std::size_t eol = text.find('\n', pos);
     if (eol == std::string_view::npos) eol = text.size();
     std::string_view line = text.substr(pos, eol - pos);
@@ -87,31 +90,32 @@ CompTable parse_comp_table(std::string_view text, CompFileType type, const std::
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
     const std::string_view body = trim(strip_comment(line));
     if (body.empty()) {
-      if (eol == text.size()) break;
+      // A comment or blank line: LinuxCNC's loader stops at it, so it ends
+      // the table, and before the first entry it would leave the joint
+      // without one.
+      if (t.empty()) {
+        throw ConfigError(file_name, line_no,
+                          "the table must start on the first line: LinuxCNC stops reading a COMP_FILE at the first "
+                          "line that is not three numbers, so this " +
+                              std::string(trim(line).empty() ? "blank line" : "comment") +
+                              " would leave the joint without compensation there; put notes after the table");
+      }
+      if (end_line == 0) end_line = line_no;
       continue;
     }
     double v[3];
     if (!parse_triplet(body, v)) {
-      if (t.empty()) {
-        throw ConfigError(file_name, line_no,
-                          "expected three numbers 'nominal " +
-                              std::string(type == CompFileType::Positions ? "forward-position reverse-position"
-                                                                          : "forward-trim reverse-trim") +
-                              "' (COMP_FILE_TYPE " + std::to_string(static_cast<int>(type)) + "), found " +
-                              quote(line));
-      }
-      if (end_line == 0) {
-        end_line = line_no;
-        end_text = quote(line);
-      }
-      if (eol == text.size()) break;
-      continue;
+      throw ConfigError(file_name, line_no,
+                        "expected " + expected + ", found " + quote(line) +
+                            (t.empty() ? std::string()
+                                       : "; a line that is not an entry ends the table where LinuxCNC stops reading, "
+                                         "so notes after the table must be comments ('#')"));
     }
     if (end_line != 0) {
       throw ConfigError(file_name, line_no,
-                        "an entry after the end of the table: line " + std::to_string(end_line) + " (" + end_text +
-                            ") is not three numbers, and LinuxCNC stops reading there; remove that line or make it a "
-                            "comment ('#')");
+                        "an entry after the end of the table: line " + std::to_string(end_line) +
+                            " is a comment or blank, and LinuxCNC stops reading there; remove that line or move the "
+                            "notes after the table");
     }
     const double nominal = v[0];
     const double fwd = type == CompFileType::Positions ? nominal - v[1] : v[1];
@@ -122,7 +126,7 @@ CompTable parse_comp_table(std::string_view text, CompFileType type, const std::
                             ", line " + std::to_string(last_entry_line) + "): entries must be in ascending order");
     }
     for (const double trim_value : {fwd, rev}) {
-      if (std::fabs(trim_value) > options.max_abs_trim) {
+      if (!(std::fabs(trim_value) <= options.max_abs_trim)) {
         throw ConfigError(
             file_name, line_no,
             "correction " + num(trim_value) + " at nominal " + num(nominal) + " is larger than " +
@@ -135,9 +139,8 @@ CompTable parse_comp_table(std::string_view text, CompFileType type, const std::
     t.forward.push_back(fwd);
     t.reverse.push_back(rev);
     last_entry_line = line_no;
-    if (eol == text.size()) break;
   }
-  if (t.empty()) throw ConfigError(file_name, 0, "no entries (expected lines of three numbers 'nominal a b')");
+  if (t.empty()) throw ConfigError(file_name, 0, "no entries (expected lines of " + expected + ")");
   return t;
 }
 

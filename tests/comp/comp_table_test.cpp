@@ -61,18 +61,46 @@ TEST(CompTable, HasNoTwoHundredFiftySixEntryLimit) {
   EXPECT_NEAR(t.forward_at(150.0075), 1e-6 * 10000.5, 1e-9);
 }
 
-TEST(CompTable, CommentsBlankLinesAndNotesAfterTheTableAreRead) {
+TEST(CompTable, EntriesMayCarryACommentAndNotesFollowTheTable) {
   const std::string text =
-      "# X axis, measured 2024\n"
-      "\n"
       "0 0 0   ; start\r\n"
-      "100 0.001 -0.001\n"
+      "100 0.001 -0.001 # end\n"
       "\n"
-      "Measured with a laser; values in mm.\n"  // LinuxCNC stops reading here: fine after the table
-      "Operator: someone\n";
+      "# Measured with a laser; values in mm.\n"  // LinuxCNC stops reading at the blank line
+      "; Operator: someone\n";
   const CompTable t = parse_comp_table(text, CompFileType::Trims, "notes");
   ASSERT_EQ(t.size(), 2u);
   EXPECT_DOUBLE_EQ(t.reverse[1], -0.001);
+}
+
+// LinuxCNC 2.9's loader (usrmotLoadComp) stops at the first line that is
+// not three numbers: a comment or blank line before the table would leave
+// the joint without compensation there, and a comment inside it would cut
+// it short. Such files are refused, so that a file accepted here gives the
+// same table in LinuxCNC.
+TEST(CompTable, ACommentOrBlankLineBeforeTheTableIsRefusedAsLinuxCncWouldReadNothing) {
+  EXPECT_NE(error_of("# X axis, measured 2024\n0 0 0\n100 0.001 -0.001\n")
+                .find("x.comp:1: the table must start on the first line: LinuxCNC stops reading a COMP_FILE at the "
+                      "first line that is not three numbers, so this comment would leave the joint without "
+                      "compensation there"),
+            std::string::npos);
+  EXPECT_NE(error_of("\n0 0 0\n").find("x.comp:1: the table must start on the first line"), std::string::npos);
+  EXPECT_NE(error_of("0 0 0\n# half way\n100 0.001 -0.001\n")
+                .find("x.comp:3: an entry after the end of the table: line 2 is a comment or blank"),
+            std::string::npos);
+}
+
+TEST(CompTable, ABadLineAfterTheFirstEntryIsAnErrorNotAShorterTable) {
+  // A typo in the last line, or a run of lines that are not entries, used
+  // to end the table there without a word.
+  EXPECT_NE(error_of("0 0 0\n10 0.001 0.002\n20 0.001 0,002\n")
+                .find("x.comp:3: expected three numbers 'nominal forward-trim reverse-trim' (COMP_FILE_TYPE 1), "
+                      "found '20 0.001 0,002'; a line that is not an entry ends the table"),
+            std::string::npos);
+  EXPECT_NE(error_of("0 0 0\n10 0.001 0.002\n20,0.001,0.002\n30,0.001,0.002\n").find("x.comp:3: expected three"),
+            std::string::npos);
+  EXPECT_NE(error_of("0 0 0\n\nOperator: someone\n").find("x.comp:3: expected three"), std::string::npos)
+      << "notes after the table are comments";
 }
 
 TEST(CompTable, ErrorsNameTheFileAndTheLine) {
@@ -82,12 +110,14 @@ TEST(CompTable, ErrorsNameTheFileAndTheLine) {
   EXPECT_NE(error_of("X 0 0 0\n").find("x.comp:1: expected three numbers 'nominal forward-trim reverse-trim'"),
             std::string::npos);
   EXPECT_NE(error_of("0 0 0 0\n").find("x.comp:1: expected three numbers"), std::string::npos) << "four numbers";
-  EXPECT_NE(error_of("0 0 0\nend\n20 0 0\n")
-                .find("x.comp:3: an entry after the end of the table: line 2 ('end') is not three numbers"),
-            std::string::npos);
-  EXPECT_EQ(error_of("# nothing\n\n"), "x.comp: no entries (expected lines of three numbers 'nominal a b')");
-  EXPECT_EQ(error_of(""), "x.comp: no entries (expected lines of three numbers 'nominal a b')");
+  EXPECT_NE(error_of("0 0 0\nend\n20 0 0\n").find("x.comp:2: expected three numbers"), std::string::npos);
+  EXPECT_EQ(error_of(""),
+            "x.comp: no entries (expected lines of three numbers 'nominal forward-trim reverse-trim' (COMP_FILE_TYPE 1))");
   EXPECT_NE(error_of("0 0 nan\n").find("x.comp:1:"), std::string::npos) << "NaN is not a number here";
+  EXPECT_NE(error_of("0 0 0\n1 1e308 0\n").find("x.comp:2: correction"), std::string::npos);
+  EXPECT_NE(error_of("1e308 -1e308 1e308\n", CompFileType::Positions).find("x.comp:1: correction"),
+            std::string::npos)
+      << "an infinite trim from a type 0 conversion";
   // A type 1 file read as type 0 gives trims as large as the positions.
   EXPECT_NE(error_of("0 0.001 -0.001\n100 0.002 0.000\n", CompFileType::Positions)
                 .find("x.comp:2: correction 99.998 at nominal 100 is larger than 1 machine units; is COMP_FILE_TYPE right?"),
