@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
 
 #include "core/util/atomic_file.hpp"
 #include "core/util/error.hpp"
@@ -156,12 +159,27 @@ CompTable load_comp_file(const std::filesystem::path& path, CompFileType type, c
 
 std::string format_comp_table(const CompTable& table, CompFileType type, const std::vector<std::string>& notes) {
   std::string out;
-  char buf[128];
+  // Room for any double in %f (309 digits before the point): a large
+  // nominal must not cut the line short.
+  char buf[1100];
+  // Nominals in micrometres (%.6f), unless a neighbour would then read as
+  // the same or a smaller number (two nominals closer than 1e-6, -1e-7
+  // next to 0): those two get every digit they need.
+  std::vector<std::string> rounded(table.size());
+  std::vector<double> rounded_value(table.size());
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    std::snprintf(buf, sizeof buf, "%.6f", table.nominal[i]);
+    rounded[i] = buf;
+    rounded_value[i] = std::strtod(buf, nullptr);
+  }
   for (std::size_t i = 0; i < table.size(); ++i) {
     const double x = table.nominal[i];
     const double a = type == CompFileType::Positions ? x - table.forward[i] : table.forward[i];
     const double b = type == CompFileType::Positions ? x - table.reverse[i] : table.reverse[i];
-    std::snprintf(buf, sizeof buf, "%.6f %.9f %.9f\n", x, a, b);
+    const bool exact = (i > 0 && !(rounded_value[i] > rounded_value[i - 1])) ||
+                       (i + 1 < table.size() && !(rounded_value[i + 1] > rounded_value[i]));
+    const std::string nominal = exact ? format_double(x) : rounded[i];
+    std::snprintf(buf, sizeof buf, "%s %.9f %.9f\n", nominal.c_str(), a, b);
     out += buf;
   }
   for (const std::string& n : notes) out += "# " + n + "\n";

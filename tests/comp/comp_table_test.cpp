@@ -156,3 +156,40 @@ TEST(CompTable, WrittenFilesReadBackInBothTypes) {
   EXPECT_NEAR(t.max_abs_trim(), 0.005, 1e-3);
   EXPECT_GT(t.max_abs_slope(), 0);
 }
+
+// Found by fuzzing (tests/comp/fuzz/corpus/comp_table/large-nominal-cut-line):
+// a 128-byte line buffer cut a large nominal's line short, and the file
+// written did not read back.
+TEST(CompTable, WrittenLinesAreNeverCutShort) {
+  CompTable t;
+  t.nominal = {0, 1e308};
+  t.forward = {0.001, 0.001};
+  t.reverse = {-0.5, -0.5};
+  const CompTable back = parse_comp_table(format_comp_table(t, CompFileType::Trims), CompFileType::Trims, "big");
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_DOUBLE_EQ(back.nominal[1], 1e308);
+  EXPECT_DOUBLE_EQ(back.reverse[1], -0.5);
+}
+
+// Found by fuzzing (corpus/comp_table/nominals-closer-than-written): two
+// nominals less than 1e-6 apart were both written 0.000000, and the file
+// did not read back.
+TEST(CompTable, NominalsCloserThanAMicrometreAreWrittenApart) {
+  CompTable t;
+  t.nominal = {0, 1.6e-319, 2.5e-7, 1};
+  t.forward = t.reverse = {0, 0, 0, 0};
+  const std::string text = format_comp_table(t, CompFileType::Trims);
+  const CompTable back = parse_comp_table(text, CompFileType::Trims, "close");
+  ASSERT_EQ(back.size(), 4u) << text;
+  EXPECT_EQ(back.nominal[1], 1.6e-319);
+  EXPECT_NE(text.find("\n1.000000 "), std::string::npos) << "the usual six decimals where they suffice: " << text;
+  // -1e-7 is written -0.000000, which reads as equal to the 0 after it:
+  // both get their digits.
+  t.nominal = {-1e-7, 0, 1};
+  t.forward = t.reverse = {0, 0, 0};
+  const std::string around_zero = format_comp_table(t, CompFileType::Trims);
+  const CompTable back2 = parse_comp_table(around_zero, CompFileType::Trims, "zero");
+  ASSERT_EQ(back2.size(), 3u) << around_zero;
+  EXPECT_EQ(back2.nominal[0], -1e-7);
+  EXPECT_NE(around_zero.find("\n1.000000 "), std::string::npos) << around_zero;
+}
