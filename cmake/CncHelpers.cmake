@@ -4,6 +4,11 @@
 add_library(cnc_build_flags INTERFACE)
 target_compile_options(cnc_build_flags INTERFACE
   -Wall -Wextra -Werror -Wno-missing-field-initializers)
+if(CNC_FUZZ)
+  # clang's -Wall has warnings gcc's lacks (an unused private field in the
+  # simulators); the gcc build enforces the warnings, the fuzz build hunts crashes.
+  target_compile_options(cnc_build_flags INTERFACE -Wno-unused-private-field)
+endif()
 if(CNC_SANITIZE)
   target_compile_options(cnc_build_flags INTERFACE -fsanitize=address,undefined -fno-omit-frame-pointer)
   target_link_options(cnc_build_flags INTERFACE -fsanitize=address,undefined)
@@ -51,4 +56,111 @@ function(cnc_gtest name)
   gtest_discover_tests(${name}
     DISCOVERY_MODE PRE_TEST
     PROPERTIES LABELS "${ARG_LABELS}" TIMEOUT ${ARG_TIMEOUT} ENVIRONMENT "${ARG_ENV}")
+endfunction()
+
+# cnc_fuzz_target(<name> SOURCES ... [DEPS ...] [SEEDS files-or-folders ...] [DICT file])
+# A parser's fuzz harness (a LLVMFuzzerTestOneInput in SOURCES) built as:
+#  - <name>_fuzz_replay, always: runs the seeds, the regression corpus
+#    (corpus/<name>/ next to the harness: inputs that once crashed or hung)
+#    and fixed variants of each; CTest test fuzz.<name> (labels unit, fuzz);
+#  - <name>_fuzz, with CNC_FUZZ (clang): the libFuzzer program that
+#    scripts/fuzz.sh runs (docs/fuzzing.md).
+# build/fuzz/<name>.txt lists the dictionary, corpus and seeds for the script.
+function(cnc_fuzz_target name)
+  cmake_parse_arguments(ARG "" "DICT" "SOURCES;DEPS;SEEDS" ${ARGN})
+  set(corpus ${CMAKE_CURRENT_SOURCE_DIR}/corpus/${name})
+  add_executable(${name}_fuzz_replay ${ARG_SOURCES} ${PROJECT_SOURCE_DIR}/tests/support/fuzz_replay_main.cpp)
+  target_include_directories(${name}_fuzz_replay PRIVATE ${PROJECT_SOURCE_DIR})
+  target_link_libraries(${name}_fuzz_replay PRIVATE cnc_build_flags ${ARG_DEPS})
+  set(inputs ${ARG_SEEDS})
+  if(EXISTS ${corpus})
+    list(APPEND inputs ${corpus})
+  endif()
+  add_test(NAME fuzz.${name} COMMAND ${name}_fuzz_replay ${inputs})
+  set_tests_properties(fuzz.${name} PROPERTIES LABELS "unit;fuzz" TIMEOUT 300)
+  if(CNC_FUZZ)
+    add_executable(${name}_fuzz ${ARG_SOURCES})
+    target_include_directories(${name}_fuzz PRIVATE ${PROJECT_SOURCE_DIR})
+    target_link_libraries(${name}_fuzz PRIVATE cnc_build_flags ${ARG_DEPS})
+    target_link_options(${name}_fuzz PRIVATE -fsanitize=fuzzer)
+  endif()
+  set(list "corpus ${corpus}\n")
+  if(ARG_DICT)
+    string(APPEND list "dict ${CMAKE_CURRENT_SOURCE_DIR}/${ARG_DICT}\n")
+  endif()
+  foreach(seed IN LISTS ARG_SEEDS)
+    string(APPEND list "seed ${seed}\n")
+  endforeach()
+  file(WRITE ${CMAKE_BINARY_DIR}/fuzz/${name}.txt "${list}")
+endfunction()
+
+# cnc_fuzz_seeds(<var> <glob>...): project files matching the globs (relative
+# to the source root, e.g. configs/*.ini, tests/*.ini, searched recursively
+# below that folder) as fuzz seeds.
+function(cnc_fuzz_seeds var)
+  set(found)
+  foreach(g IN LISTS ARGN)
+    get_filename_component(dir ${g} DIRECTORY)
+    get_filename_component(pattern ${g} NAME)
+    file(GLOB_RECURSE files ${PROJECT_SOURCE_DIR}/${dir}/${pattern})
+    list(APPEND found ${files})
+  endforeach()
+  list(SORT found)
+  set(${var} ${found} PARENT_SCOPE)
+endfunction()
+
+# cnc_fuzz_doc_seeds(<var> <kind>): the examples in docs/*.md and README.md
+# as fuzz seeds: each fenced block whose first line marks it as <kind> (ini:
+# a [SECTION] line; hal: a halcmd command; measurement: a CSV header with
+# deviation_um, after comment lines) is written to
+# build/fuzz/doc-seeds/<kind>/<page>-<n>; cmake runs again when a page changes.
+function(cnc_fuzz_doc_seeds var kind)
+  set(out ${CMAKE_BINARY_DIR}/fuzz/doc-seeds/${kind})
+  file(REMOVE_RECURSE ${out})
+  file(GLOB pages ${PROJECT_SOURCE_DIR}/docs/*.md)
+  list(APPEND pages ${PROJECT_SOURCE_DIR}/README.md)
+  set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS ${pages})
+  set(found)
+  foreach(page IN LISTS pages)
+    file(READ ${page} text)
+    get_filename_component(stem ${page} NAME_WE)
+    set(n 0)
+    while(TRUE)
+      # The opening fence (at the start of a line), then its info string.
+      string(FIND "${text}" "\n```" open)
+      if(open EQUAL -1)
+        break()
+      endif()
+      math(EXPR open "${open} + 4")
+      string(SUBSTRING "${text}" ${open} -1 text)
+      string(FIND "${text}" "\n" eol)
+      if(eol EQUAL -1)
+        break()
+      endif()
+      math(EXPR eol "${eol} + 1")
+      string(SUBSTRING "${text}" ${eol} -1 text)
+      string(FIND "${text}" "\n```" close)
+      if(close EQUAL -1)
+        break()
+      endif()
+      math(EXPR close "${close} + 1")
+      string(SUBSTRING "${text}" 0 ${close} block)
+      math(EXPR close "${close} + 3")
+      string(SUBSTRING "${text}" ${close} -1 text)
+      math(EXPR n "${n} + 1")
+      set(match FALSE)
+      if(kind STREQUAL "ini" AND block MATCHES "^[ \t\r\n]*\\[[A-Za-z0-9_]+\\][ \t\r]*\n")
+        set(match TRUE)
+      elseif(kind STREQUAL "hal" AND block MATCHES "^[ \t\r\n]*(loadrt|loadusr|net|setp|sets|addf|linkps|linksp|newsig|unlinkp) ")
+        set(match TRUE)
+      elseif(kind STREQUAL "measurement" AND block MATCHES "^(#[^\n]*\n)*[a-z_,]*deviation_um")
+        set(match TRUE)
+      endif()
+      if(match)
+        file(WRITE ${out}/${stem}-${n} "${block}")
+        list(APPEND found ${out}/${stem}-${n})
+      endif()
+    endwhile()
+  endforeach()
+  set(${var} ${found} PARENT_SCOPE)
 endfunction()

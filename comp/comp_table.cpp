@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
 
 #include "core/util/atomic_file.hpp"
 #include "core/util/error.hpp"
@@ -74,11 +77,14 @@ std::string num(double v) { return format_double(v); }
 
 CompTable parse_comp_table(std::string_view text, CompFileType type, const std::string& file_name,
                            const CompParseOptions& options) {
+  const std::string expected =
+      "three numbers 'nominal " +
+      std::string(type == CompFileType::Positions ? "forward-position reverse-position" : "forward-trim reverse-trim") +
+      "' (COMP_FILE_TYPE " + std::to_string(static_cast<int>(type)) + ")";
   CompTable t;
   int line_no = 0, last_entry_line = 0, end_line = 0;
-  std::string end_text;
   std::size_t pos = 0;
-  while (pos <= text.size()) {
+  while (pos < text.size()) {
     std::size_t eol = text.find('\n', pos);
     if (eol == std::string_view::npos) eol = text.size();
     std::string_view line = text.substr(pos, eol - pos);
@@ -87,31 +93,32 @@ CompTable parse_comp_table(std::string_view text, CompFileType type, const std::
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
     const std::string_view body = trim(strip_comment(line));
     if (body.empty()) {
-      if (eol == text.size()) break;
+      // A comment or blank line: LinuxCNC's loader stops at it, so it ends
+      // the table, and before the first entry it would leave the joint
+      // without one.
+      if (t.empty()) {
+        throw ConfigError(file_name, line_no,
+                          "the table must start on the first line: LinuxCNC stops reading a COMP_FILE at the first "
+                          "line that is not three numbers, so this " +
+                              std::string(trim(line).empty() ? "blank line" : "comment") +
+                              " would leave the joint without compensation there; put notes after the table");
+      }
+      if (end_line == 0) end_line = line_no;
       continue;
     }
     double v[3];
     if (!parse_triplet(body, v)) {
-      if (t.empty()) {
-        throw ConfigError(file_name, line_no,
-                          "expected three numbers 'nominal " +
-                              std::string(type == CompFileType::Positions ? "forward-position reverse-position"
-                                                                          : "forward-trim reverse-trim") +
-                              "' (COMP_FILE_TYPE " + std::to_string(static_cast<int>(type)) + "), found " +
-                              quote(line));
-      }
-      if (end_line == 0) {
-        end_line = line_no;
-        end_text = quote(line);
-      }
-      if (eol == text.size()) break;
-      continue;
+      throw ConfigError(file_name, line_no,
+                        "expected " + expected + ", found " + quote(line) +
+                            (t.empty() ? std::string()
+                                       : "; a line that is not an entry ends the table where LinuxCNC stops reading, "
+                                         "so notes after the table must be comments ('#')"));
     }
     if (end_line != 0) {
       throw ConfigError(file_name, line_no,
-                        "an entry after the end of the table: line " + std::to_string(end_line) + " (" + end_text +
-                            ") is not three numbers, and LinuxCNC stops reading there; remove that line or make it a "
-                            "comment ('#')");
+                        "an entry after the end of the table: line " + std::to_string(end_line) +
+                            " is a comment or blank, and LinuxCNC stops reading there; remove that line or move the "
+                            "notes after the table");
     }
     const double nominal = v[0];
     const double fwd = type == CompFileType::Positions ? nominal - v[1] : v[1];
@@ -122,7 +129,7 @@ CompTable parse_comp_table(std::string_view text, CompFileType type, const std::
                             ", line " + std::to_string(last_entry_line) + "): entries must be in ascending order");
     }
     for (const double trim_value : {fwd, rev}) {
-      if (std::fabs(trim_value) > options.max_abs_trim) {
+      if (!(std::fabs(trim_value) <= options.max_abs_trim)) {
         throw ConfigError(
             file_name, line_no,
             "correction " + num(trim_value) + " at nominal " + num(nominal) + " is larger than " +
@@ -135,9 +142,8 @@ CompTable parse_comp_table(std::string_view text, CompFileType type, const std::
     t.forward.push_back(fwd);
     t.reverse.push_back(rev);
     last_entry_line = line_no;
-    if (eol == text.size()) break;
   }
-  if (t.empty()) throw ConfigError(file_name, 0, "no entries (expected lines of three numbers 'nominal a b')");
+  if (t.empty()) throw ConfigError(file_name, 0, "no entries (expected lines of " + expected + ")");
   return t;
 }
 
@@ -153,12 +159,27 @@ CompTable load_comp_file(const std::filesystem::path& path, CompFileType type, c
 
 std::string format_comp_table(const CompTable& table, CompFileType type, const std::vector<std::string>& notes) {
   std::string out;
-  char buf[128];
+  // Room for any double in %f (309 digits before the point): a large
+  // nominal must not cut the line short.
+  char buf[1100];
+  // Nominals in micrometres (%.6f), unless a neighbour would then read as
+  // the same or a smaller number (two nominals closer than 1e-6, -1e-7
+  // next to 0): those two get every digit they need.
+  std::vector<std::string> rounded(table.size());
+  std::vector<double> rounded_value(table.size());
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    std::snprintf(buf, sizeof buf, "%.6f", table.nominal[i]);
+    rounded[i] = buf;
+    rounded_value[i] = std::strtod(buf, nullptr);
+  }
   for (std::size_t i = 0; i < table.size(); ++i) {
     const double x = table.nominal[i];
     const double a = type == CompFileType::Positions ? x - table.forward[i] : table.forward[i];
     const double b = type == CompFileType::Positions ? x - table.reverse[i] : table.reverse[i];
-    std::snprintf(buf, sizeof buf, "%.6f %.9f %.9f\n", x, a, b);
+    const bool exact = (i > 0 && !(rounded_value[i] > rounded_value[i - 1])) ||
+                       (i + 1 < table.size() && !(rounded_value[i + 1] > rounded_value[i]));
+    const std::string nominal = exact ? format_double(x) : rounded[i];
+    std::snprintf(buf, sizeof buf, "%s %.9f %.9f\n", nominal.c_str(), a, b);
     out += buf;
   }
   for (const std::string& n : notes) out += "# " + n + "\n";

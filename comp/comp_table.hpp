@@ -47,11 +47,15 @@ struct CompParseOptions {
 };
 
 // Parses a COMP_FILE's text. `file_name` names the file in errors
-// (ConfigError "file:line: ..."). The rules are those of docs/compensation.md:
-// one "nominal a b" triplet per line, '#' or ';' starts a comment, blank
-// lines are skipped, nominals strictly ascending, at least one entry; a
-// line that is not a triplet ends the table (as LinuxCNC's loader stops
-// there) unless another triplet follows it, which is an error.
+// (ConfigError "file:line: ..."). The rules are those of docs/compensation.md,
+// chosen so that a file accepted here gives the same table in LinuxCNC 2.9
+// (whose loader stops at the first line that is not three numbers): one
+// "nominal a b" triplet per line from the first line on, a '#' or ';'
+// comment allowed after the numbers; the first comment or blank line ends
+// the table and only comments and blank lines (notes) may follow; any
+// other line is an error; nominals strictly ascending, trims finite and
+// within max_abs_trim, at least one entry. Unlike LinuxCNC (256), the
+// number of entries is not limited.
 CompTable parse_comp_table(std::string_view text, CompFileType type, const std::string& file_name,
                            const CompParseOptions& options = {});
 CompTable load_comp_file(const std::filesystem::path& path, CompFileType type, const CompParseOptions& options = {});

@@ -23,6 +23,9 @@ struct ErrorModel {
   std::vector<double> spline;          // coefficients, micrometres
   // Backlash (the reversal B(x) = b0 + b1 (x - x_mid) / L), micrometres.
   double backlash0_um = 0, backlash1_um = 0;
+  // False when the data had no target measured in both directions: the
+  // backlash terms are 0 by assumption, not measured.
+  bool backlash_measured = true;
   // Thermal expansion.
   bool has_thermal = false;
   double thermal_ppm_per_k = 0;

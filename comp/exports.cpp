@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 
 #include "comp/tables.hpp"
 
@@ -64,6 +65,10 @@ std::string export_linuxcnc(const ErrorModel& model, const ExportOptions& o, int
       std::to_string(t.size()) + " entries, spacing " + fmt("%.4f", t.size() > 1 ? t.nominal[1] - t.nominal[0] : 0) +
           " mm; linear interpolation within " + fmt("%.3f", err) + " um of the model",
       "mean correction 0 at " + fmt("%.4f", r.ref) + " mm; BACKLASH is ignored when COMP_FILE is set"};
+  if (!model.backlash_measured) {
+    notes.push_back("backlash not measured (no target approached from both directions): forward and reverse trims "
+                    "are equal, and this table replaces BACKLASH");
+  }
   return format_comp_table(t, type == 0 ? CompFileType::Positions : CompFileType::Trims, notes);
 }
 
@@ -79,9 +84,13 @@ std::string export_siemens_lec(const ErrorModel& model, const ExportOptions& o) 
   out += "; a positive value moves the axis in the negative direction. 0 at the reference " + fmt("%.3f", r.ref) +
          " mm.\n";
   const double b_lo = model.backlash_um(r.x0), b_hi = model.backlash_um(r.x1);
-  out += "; backlash: MD32450 $MA_BACKLASH[0] = " + fmt("%.5f", model.backlash0_um / 1000) + " (mean reversal; " +
-         fmt("%.5f", b_lo / 1000) + " at " + fmt("%.1f", r.x0) + " mm, " + fmt("%.5f", b_hi / 1000) + " at " +
-         fmt("%.1f", r.x1) + " mm)\n";
+  if (model.backlash_measured) {
+    out += "; backlash: MD32450 $MA_BACKLASH[0] = " + fmt("%.5f", model.backlash0_um / 1000) + " (mean reversal; " +
+           fmt("%.5f", b_lo / 1000) + " at " + fmt("%.1f", r.x0) + " mm, " + fmt("%.5f", b_hi / 1000) + " at " +
+           fmt("%.1f", r.x1) + " mm)\n";
+  } else {
+    out += "; backlash: not measured (no target approached from both directions); MD32450 left as it is\n";
+  }
   out += "; needs MD38000 $MA_MM_ENC_COMP_MAX_POINTS[0] >= " + std::to_string(n) +
          " and MD32700 $MA_ENC_COMP_ENABLE[0] = 1\n";
   char b[128];
@@ -123,14 +132,56 @@ std::string export_heidenhain_com(const ErrorModel& model, const ExportOptions& 
   return out;
 }
 
-std::string export_fanuc_pitch(const ErrorModel& model, const ExportOptions& o) {
+std::string export_fanuc_pitch(const ErrorModel& model, const ExportOptions& o, FanucPoints* used) {
   const Range r = range_of(model, o);
-  const double interval = o.spacing_mm > 0 ? o.spacing_mm : nice_spacing(r.x1 - r.x0, 128);
-  const double unit_um = o.fanuc_unit_um * std::max(1, o.fanuc_magnification);
+  int ax = o.fanuc_axis;
+  if (ax == 0) {
+    if (o.axis == "X" || o.axis == "x") ax = 1;
+    else if (o.axis == "Y" || o.axis == "y") ax = 2;
+    else if (o.axis == "Z" || o.axis == "z") ax = 3;
+    else {
+      throw std::invalid_argument("Fanuc export: the controlled-axis number of axis " + o.axis +
+                                  " is not known; give it (cnc-comp --fanuc-axis N, and --fanuc-reference-point P "
+                                  "for a range of compensation points no other axis uses)");
+    }
+  }
+  if (ax < 1 || ax > 32) throw std::invalid_argument("Fanuc export: axis number " + std::to_string(ax) + " is not 1..32");
+  if (!(o.fanuc_unit_um > 0) || !std::isfinite(o.fanuc_unit_um)) {
+    throw std::invalid_argument("Fanuc export: the detection unit must be a positive number of micrometres");
+  }
+  if (o.fanuc_magnification < 1 || o.fanuc_magnification > 100) {
+    throw std::invalid_argument("Fanuc export: the magnification (parameter 3623) must be 1..100, not " +
+                                std::to_string(o.fanuc_magnification));
+  }
+  // At most 126 intervals by default, so that both directions' tables
+  // (128 points each at most) fit the axis's block.
+  const double interval = o.spacing_mm > 0 ? o.spacing_mm : nice_spacing(r.x1 - r.x0, 127);
+  const double unit_um = o.fanuc_unit_um * o.fanuc_magnification;
   const int below = static_cast<int>(std::ceil((r.ref - r.x0) / interval - 1e-9));
   const int above = static_cast<int>(std::ceil((r.x1 - r.ref) / interval - 1e-9));
-  const int ref_no = std::max(o.fanuc_reference_point, below);
+  const int points = below + above + 1;
+  const bool default_block = o.fanuc_reference_point < 0;
+  const int ref_no = default_block ? (ax - 1) * kFanucPointsPerAxis + below : o.fanuc_reference_point;
+  if (ref_no < below) {
+    throw std::invalid_argument("Fanuc export: reference point " + std::to_string(ref_no) + " leaves " +
+                                std::to_string(ref_no) + " point numbers below it, and the table has " +
+                                std::to_string(below) + " points below the reference: give at least " +
+                                std::to_string(below));
+  }
   const int k_min = ref_no - below, k_max = ref_no + above;
+  const int neg_base = k_max + 1;
+  const int last_used = o.fanuc_bidirectional ? neg_base + points - 1 : k_max;
+  if (default_block && last_used >= ax * kFanucPointsPerAxis) {
+    throw std::invalid_argument("Fanuc export: " + std::to_string(last_used - k_min + 1) +
+                                " compensation points do not fit axis " + std::to_string(ax) + "'s block of " +
+                                std::to_string(kFanucPointsPerAxis) + " (" + std::to_string((ax - 1) * kFanucPointsPerAxis) +
+                                ".." + std::to_string(ax * kFanucPointsPerAxis - 1) +
+                                "); give a larger spacing or the reference point (cnc-comp --fanuc-reference-point P)");
+  }
+  if (used) {
+    *used = FanucPoints{ax, ref_no, k_min, k_max, o.fanuc_bidirectional ? neg_base : -1,
+                        o.fanuc_bidirectional ? last_used : -1};
+  }
   // Absolute corrections in units, 0 at the reference approached moving +
   // (where the axis is referenced), rounded once each so that the sums of
   // the increments never drift.
@@ -139,7 +190,6 @@ std::string export_fanuc_pitch(const ErrorModel& model, const ExportOptions& o) 
     const double x = r.ref + (k - ref_no) * interval;
     return static_cast<long>(std::lround(-(model.deviation_um(x, d) - at_ref) / unit_um));
   };
-  const int ax = o.fanuc_axis;
   std::string out = "%\n";
   char b[96];
   if (o.fanuc_bidirectional) {
@@ -147,9 +197,8 @@ std::string export_fanuc_pitch(const ErrorModel& model, const ExportOptions& o) 
     out += b;
   }
   std::snprintf(b, sizeof b, "N03620A%dP%d\nN03621A%dP%d\nN03622A%dP%d\nN03623A%dP%d\nN03624A%dP%.4f\n", ax, ref_no, ax,
-                k_min, ax, k_max, ax, std::max(1, o.fanuc_magnification), ax, interval);
+                k_min, ax, k_max, ax, o.fanuc_magnification, ax, interval);
   out += b;
-  const int neg_base = k_max + 1;
   if (o.fanuc_bidirectional) {
     std::snprintf(b, sizeof b, "N03626A%dP%d\nN03627A%dP%ld\n", ax, neg_base, ax, absolute(ref_no, -1) - absolute(ref_no, 1));
     out += b;

@@ -192,6 +192,38 @@ FitResult fit_error_model(const std::vector<Measurement>& data, const FitOptions
                   travel / static_cast<double>(segments), model.x_min, model.x_max);
     res.notes.push_back(b);
   }
+  // Backlash is the difference between the two approach directions at the
+  // same target: without a target measured both ways it is not in the
+  // data (the spline would take any value the solver gave it), and its
+  // change over travel needs two such targets.
+  int reversal_targets = 0;
+  {
+    std::vector<std::pair<double, int>> xd;
+    for (const Sample& s : samples) xd.emplace_back(s.x, s.direction);
+    std::sort(xd.begin(), xd.end());
+    for (std::size_t i = 0; i < xd.size();) {
+      std::size_t k = i;
+      bool up = false, down = false;
+      for (; k < xd.size() && xd[k].first - xd[i].first <= 1e-6; ++k) (xd[k].second > 0 ? up : down) = true;
+      if (up && down) ++reversal_targets;
+      i = k;
+    }
+  }
+  const bool fit_backlash = reversal_targets > 0;
+  const bool fit_backlash_change = o.backlash_varies && reversal_targets >= 2;
+  model.backlash_measured = fit_backlash;
+  res.reversal_targets = reversal_targets;
+  if (!fit_backlash) {
+    int up = 0;
+    for (const Sample& s : samples) up += s.direction > 0;
+    res.notes.push_back(
+        "backlash not fitted: no target was approached from both directions (" + std::to_string(up) + " points moving +, " +
+        std::to_string(samples.size() - static_cast<std::size_t>(up)) +
+        " moving -); it is taken as 0, so the tables' forward and reverse trims are equal. Measure both directions "
+        "(ISO 230-2) to compensate backlash");
+  } else if (o.backlash_varies && !fit_backlash_change) {
+    res.notes.push_back("backlash change over travel not fitted: the reversal was measured at one target only");
+  }
   const bool thermal = o.thermal && all_temps && tmax - tmin >= o.min_temperature_range_k;
   model.has_thermal = thermal;
   if (o.thermal && !thermal) {
@@ -270,7 +302,10 @@ FitResult fit_error_model(const std::vector<Measurement>& data, const FitOptions
           new ceres::AutoDiffCostFunction<SecondDifference, 1, 1, 1, 1>(new SecondDifference{inv_prior}), nullptr,
           &coeff[i], &coeff[i + 1], &coeff[i + 2]);
     }
-    if (!o.backlash_varies) {
+    if (!fit_backlash) {
+      backlash[0] = backlash[1] = 0;
+      problem->SetParameterBlockConstant(backlash);
+    } else if (!fit_backlash_change) {
       backlash[1] = 0;
       problem->SetManifold(backlash, new ceres::SubsetManifold(2, {1}));
     }
@@ -383,10 +418,12 @@ FitResult fit_error_model(const std::vector<Measurement>& data, const FitOptions
     res.parameters.push_back(ParameterEstimate{name, value, std::sqrt(std::max(variance, 0.0)), unit});
   };
   const std::size_t bl = res.layout.backlash, th = res.layout.thermal, pe = res.layout.periodic;
-  add("backlash b0 (mean reversal)", backlash[0], var(bl), "um");
-  if (o.backlash_varies) add("backlash change over travel b1", backlash[1], var(bl + 1), "um");
-  add("backlash at x_min", model.backlash_um(model.x_min), var(bl) + 0.25 * var(bl + 1) - cov(bl, bl + 1), "um");
-  add("backlash at x_max", model.backlash_um(model.x_max), var(bl) + 0.25 * var(bl + 1) + cov(bl, bl + 1), "um");
+  if (fit_backlash) {
+    add("backlash b0 (mean reversal)", backlash[0], var(bl), "um");
+    if (fit_backlash_change) add("backlash change over travel b1", backlash[1], var(bl + 1), "um");
+    add("backlash at x_min", model.backlash_um(model.x_min), var(bl) + 0.25 * var(bl + 1) - cov(bl, bl + 1), "um");
+    add("backlash at x_max", model.backlash_um(model.x_max), var(bl) + 0.25 * var(bl + 1) + cov(bl, bl + 1), "um");
+  }
   if (thermal) {
     add("thermal expansion k", therm[0], var(th), "ppm/K");
     add("thermal drift at x_min", therm[1], var(th + 1), "um/K");

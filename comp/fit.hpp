@@ -49,6 +49,7 @@ struct FitResult {
   double residual_rms_um = 0;        // of the points not counted as outliers
   int outliers = 0;                  // |residual| > 5 noise
   int points = 0;
+  int reversal_targets = 0;          // targets measured in both directions (0: backlash not fitted, see notes)
   int iterations = 0;
   double initial_cost = 0, final_cost = 0;
   bool converged = false;

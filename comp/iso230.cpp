@@ -36,7 +36,12 @@ std::string where(double p) {
 
 Iso230Result evaluate_iso230(const Measurement& m, double tolerance) {
   std::vector<Group> groups;
+  double largest = 0;
   for (const MeasurementPoint& p : m.points) {
+    if (!std::isfinite(p.target) || !std::isfinite(p.deviation_um)) {
+      throw std::invalid_argument(where(p.target) + ": a deviation or target that is not a finite number");
+    }
+    largest = std::max(largest, std::fabs(p.deviation_um));
     auto it = std::find_if(groups.begin(), groups.end(),
                            [&](const Group& g) { return std::fabs(g.position - p.target) <= tolerance; });
     if (it == groups.end()) {
@@ -103,6 +108,12 @@ Iso230Result evaluate_iso230(const Measurement& m, double tolerance) {
   r.A_down = adown_max - adown_min;
   r.A = std::max(aup_max, adown_max) - std::min(aup_min, adown_min);
 
+  if (!std::isfinite(r.A) || !std::isfinite(r.R)) {
+    throw std::invalid_argument("the deviations are too large for the figures to be computed (A or R overflows)");
+  }
+  if (largest < 0.01) {
+    r.warnings.push_back("every deviation is below 0.01 um: are they in millimetres? (deviation_um is in micrometres)");
+  }
   if (r.min_runs < 5) {
     r.warnings.push_back("fewer than the 5 runs per direction of the standard test cycle (" +
                          std::to_string(r.min_runs) + ")");

@@ -1,5 +1,6 @@
 #include "comp/measurement.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -35,10 +36,17 @@ int parse_direction(std::string_view s) {
   return 0;
 }
 
+std::string short_number(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.6g", v);
+  return b;
+}
+
 }  // namespace
 
-Measurement parse_measurement(std::string_view text, const std::string& file_name) {
+Measurement parse_measurement(std::string_view text, const std::string& file_name, const MeasurementLimits& limits) {
   Measurement m;
+  std::vector<int> point_lines;  // line of each point, for the duplicate check
   int column[kColumns];
   for (int& c : column) c = -1;
   std::size_t ncols = 0;
@@ -115,24 +123,84 @@ Measurement parse_measurement(std::string_view text, const std::string& file_nam
                         "direction: expected + or - (or up/down), found '" +
                             std::string(trim(cells[static_cast<std::size_t>(column[kDirection])])) + "'");
     }
+    if (!(std::fabs(p.target) <= limits.max_abs_target)) {
+      throw ConfigError(file_name, line_no,
+                        "target: " + format_double(p.target) + " is not a position on a machine axis (more than " +
+                            format_double(limits.max_abs_target) + " machine units from 0)");
+    }
     p.deviation_um = number(kDeviation);
-    if (column[kTemperature] >= 0) p.temperature_c = number(kTemperature);
-    if (column[kTime] >= 0) p.time_s = number(kTime);
+    if (!(std::fabs(p.deviation_um) <= limits.max_abs_deviation_um)) {
+      throw ConfigError(
+          file_name, line_no,
+          "deviation_um: " + format_double(p.deviation_um) + " um (" + short_number(p.deviation_um / 1000) +
+              " mm) is larger than " + format_double(limits.max_abs_deviation_um) +
+              " um: deviations are in micrometres (position reached minus target); are these nanometres? A "
+              "compensation from them would move the axis by millimetres. If the axis really is this far off, "
+              "raise the limit (cnc-comp --max-deviation UM)");
+    }
+    if (column[kTemperature] >= 0) {
+      p.temperature_c = number(kTemperature);
+      if (!(p.temperature_c >= limits.min_temperature_c && p.temperature_c <= limits.max_temperature_c)) {
+        throw ConfigError(file_name, line_no,
+                          "temperature_c: " + format_double(p.temperature_c) + " is outside " +
+                              format_double(limits.min_temperature_c) + ".." + format_double(limits.max_temperature_c) +
+                              " degrees Celsius (kelvin or Fahrenheit?)");
+      }
+    }
+    if (column[kTime] >= 0) {
+      p.time_s = number(kTime);
+      if (!(std::fabs(p.time_s) <= limits.max_abs_time_s)) {
+        throw ConfigError(file_name, line_no,
+                          "time_s: " + format_double(p.time_s) + " s is not a time in a measurement (more than " +
+                              format_double(limits.max_abs_time_s) + " s)");
+      }
+    }
     m.points.push_back(p);
+    point_lines.push_back(line_no);
   }
   if (!have_header) throw ConfigError(file_name, 0, "no header line (target,run,direction,deviation_um...)");
   if (m.points.empty()) throw ConfigError(file_name, 0, "no measured points");
+  // Each run of a target and direction once: sorted by direction, run and
+  // target, a repeat is next to its first occurrence (targets within 1e-6
+  // are one target, as the ISO evaluation groups them).
+  std::vector<std::size_t> order(m.points.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    const MeasurementPoint &p = m.points[a], &q = m.points[b];
+    if (p.direction != q.direction) return p.direction < q.direction;
+    if (p.run != q.run) return p.run < q.run;
+    if (p.target != q.target) return p.target < q.target;
+    return point_lines[a] < point_lines[b];
+  });
+  std::size_t first = 0, again = m.points.size();  // the first repeat in file order
+  for (std::size_t k = 1; k < order.size(); ++k) {
+    const MeasurementPoint &p = m.points[order[k - 1]], &q = m.points[order[k]];
+    if (p.direction != q.direction || p.run != q.run || std::fabs(q.target - p.target) > 1e-6) continue;
+    if (order[k] < again) {
+      first = order[k - 1];
+      again = order[k];
+    }
+  }
+  if (again < m.points.size()) {
+    const MeasurementPoint& q = m.points[again];
+    throw ConfigError(file_name, point_lines[again],
+                      "run " + std::to_string(q.run) + " of target " + format_double(m.points[first].target) +
+                          " moving " + (q.direction > 0 ? "+" : "-") + " appears again (first at line " +
+                          std::to_string(point_lines[first]) +
+                          "): each run of a target and direction is one line; a repeated line would count as an "
+                          "extra run");
+  }
   return m;
 }
 
-Measurement load_measurement(const std::filesystem::path& path) {
+Measurement load_measurement(const std::filesystem::path& path, const MeasurementLimits& limits) {
   std::string text;
   try {
     text = read_file(path);
   } catch (const std::exception& e) {
     throw ConfigError(path.string(), 0, std::string("cannot read the measurement: ") + e.what());
   }
-  return parse_measurement(text, path.string());
+  return parse_measurement(text, path.string(), limits);
 }
 
 std::string format_measurement(const Measurement& m) {

@@ -36,9 +36,24 @@ struct Measurement {
   bool has_time() const noexcept;
 };
 
-// Throws ConfigError naming file and line.
-Measurement parse_measurement(std::string_view text, const std::string& file_name);
-Measurement load_measurement(const std::filesystem::path& path);
+// What a measurement file may hold. Values outside are refused as a unit
+// mistake (nanometres or millimetres for micrometres, kelvin for Celsius)
+// or a broken file, not read as numbers that a fit would turn into trims.
+struct MeasurementLimits {
+  // |deviation_um|: 1 mm, also screwcomp's default max_correction. An axis
+  // with a larger error needs mechanical work, or this raised knowingly.
+  double max_abs_deviation_um = 1000;
+  double max_abs_target = 1e6;                   // machine units
+  double min_temperature_c = -50, max_temperature_c = 150;
+  double max_abs_time_s = 1e9;
+};
+
+// Throws ConfigError naming file and line: malformed lines, values outside
+// `limits`, and a (target, direction, run) that appears twice (a copied
+// block would otherwise count as extra runs).
+Measurement parse_measurement(std::string_view text, const std::string& file_name,
+                              const MeasurementLimits& limits = {});
+Measurement load_measurement(const std::filesystem::path& path, const MeasurementLimits& limits = {});
 std::string format_measurement(const Measurement& m);
 // Numbers the runs 1, 2, ... per (target, direction) in the order of the
 // points; targets closer than `tolerance` are the same target.

@@ -76,11 +76,19 @@ void ScrewCompComponent::on_ready() {
                          "joint %d: BACKLASH %g is not applied: COMP_FILE %s gives the correction (as in LinuxCNC)", j,
                          jc.backlash, jc.comp_file.c_str());
       }
+      tell_if_longer_than_linuxcnc(j, jc.comp_file, t.size());
       jt.table.install(std::move(t));
     }
     jt.entries_pin.set(static_cast<int32_t>(jt.table.entries()));
     motion_->set_compensation(j, &jt);
   }
+}
+
+void ScrewCompComponent::tell_if_longer_than_linuxcnc(int joint, const std::string& file, std::size_t entries) {
+  if (entries <= kLinuxCncMaxEntries || !messages_) return;
+  messages_->postf(MessageKind::Text, "screwcomp",
+                   "joint %d: %s has %zu entries, all in use here; LinuxCNC 2.9 would use only the first %zu", joint,
+                   file.c_str(), entries, kLinuxCncMaxEntries);
 }
 
 std::string ScrewCompComponent::why_not_stopped() const {
@@ -148,6 +156,7 @@ void ScrewCompComponent::finish(bool taken) {
     const std::string text = "joint " + std::to_string(p.joint) + ": compensation table " + p.file + " in use (" +
                              std::to_string(p.entries) + " entries)";
     if (messages_) messages_->post(MessageKind::Text, "screwcomp", text);
+    tell_if_longer_than_linuxcnc(p.joint, p.file, p.entries);
     p.reporter->report(p.cmd, ipc::CommandState::Done, text);
   } else {
     p.reporter->report(p.cmd, ipc::CommandState::Rejected,

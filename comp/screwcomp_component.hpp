@@ -50,6 +50,10 @@ class ScrewCompComponent final : public hal::Component, public ipc::ControllerSe
   // Why the machine is not stopped now ("" when it is).
   std::string why_not_stopped() const;
   void finish(bool taken);
+  // Files longer than LinuxCNC's EMCMOT_COMP_SIZE are used whole here; the
+  // message says so, as the same file would be cut short there.
+  static constexpr std::size_t kLinuxCncMaxEntries = 256;
+  void tell_if_longer_than_linuxcnc(int joint, const std::string& file, std::size_t entries);
 
   const ini::IniFile* ini_;
   MessageQueue* messages_;

@@ -43,12 +43,14 @@ struct Usage : std::runtime_error {
 
 const char* kUsage =
     "usage: cnc-comp <command> [options]\n"
-    "  report  MEAS.csv [--out FILE.txt] [--plot FILE.png]\n"
-    "  compare BEFORE.csv AFTER.csv [--out FILE.txt] [--plot FILE.png]\n"
+    "  report  MEAS.csv [--out FILE.txt] [--plot FILE.png] [--max-deviation UM]\n"
+    "  compare BEFORE.csv AFTER.csv [--out FILE.txt] [--plot FILE.png] [--max-deviation UM]\n"
     "  fit     MEAS.csv [MORE.csv...] --out-dir DIR [--axis X] [--lead MM] [--harmonics 1|2]\n"
     "          [--knot-spacing MM] [--smoothness UM] [--loss cauchy|huber|none] [--noise UM]\n"
     "          [--no-thermal] [--constant-backlash] [--reference MM] [--range MIN:MAX]\n"
-    "          [--spacing MM | --points N] [--tolerance UM] [--type 0|1]\n"
+    "          [--spacing MM | --points N] [--tolerance UM] [--type 0|1] [--max-deviation UM]\n"
+    "          [--fanuc-axis N] [--fanuc-reference-point P] [--fanuc-unit UM] [--fanuc-magnification M]\n"
+    "          [--fanuc-unidirectional]\n"
     "  cycle   --min MM --max MM --out FILE.ngc [--axis X] [--targets N] [--runs 5] [--overshoot MM]\n"
     "          [--dwell S] [--feed MM/MIN] [--seed N] [--output N] [--lead MM --periodic-out FILE.ngc]\n"
     "          [--places N] [--leads N] [--steps-per-lead N] [--periodic-runs N]\n"
@@ -110,15 +112,26 @@ void check_known(const Args& a, const std::vector<std::string>& known) {
   }
 }
 
+// --max-deviation: measured deviations larger than this (um) are refused
+// as a unit mistake (docs/compensation.md, section 2).
+MeasurementLimits limits_of(const Args& a) {
+  MeasurementLimits l;
+  l.max_abs_deviation_um = a.number("max-deviation", l.max_abs_deviation_um);
+  if (!(l.max_abs_deviation_um > 0) || l.max_abs_deviation_um > 1e6) {
+    throw Usage("--max-deviation: micrometres, more than 0 and at most 1000000");
+  }
+  return l;
+}
+
 void write_text(const std::optional<std::string>& path, const std::string& text) {
   if (path) write_file_atomically(*path, text);
   else std::fputs(text.c_str(), stdout);
 }
 
 int cmd_report(const Args& a) {
-  check_known(a, {"out", "plot"});
+  check_known(a, {"out", "plot", "max-deviation"});
   if (a.positional.size() != 1) throw Usage("report takes one measurement file");
-  const Measurement m = load_measurement(a.positional[0]);
+  const Measurement m = load_measurement(a.positional[0], limits_of(a));
   const Iso230Result r = evaluate_iso230(m);
   write_text(a.get("out"), iso230_report(r, "Measurement " + a.positional[0] + (m.axis.empty() ? "" : ", axis " + m.axis)));
   if (const auto p = a.get("plot")) write_plot(*p, {PlotPanel{"Measured: " + a.positional[0], &m, &r}});
@@ -126,9 +139,10 @@ int cmd_report(const Args& a) {
 }
 
 int cmd_compare(const Args& a) {
-  check_known(a, {"out", "plot"});
+  check_known(a, {"out", "plot", "max-deviation"});
   if (a.positional.size() != 2) throw Usage("compare takes two measurement files: before and after");
-  const Measurement b = load_measurement(a.positional[0]), c = load_measurement(a.positional[1]);
+  const MeasurementLimits limits = limits_of(a);
+  const Measurement b = load_measurement(a.positional[0], limits), c = load_measurement(a.positional[1], limits);
   const Iso230Result rb = evaluate_iso230(b), rc = evaluate_iso230(c);
   std::string text = iso230_comparison(rb, rc, "before", "after") + "\n";
   text += iso230_report(rb, "Before: " + a.positional[0]) + "\n" + iso230_report(rc, "After: " + a.positional[1]);
@@ -149,12 +163,24 @@ Measurement predicted_after(const Measurement& m, const CompTable& t) {
 
 int cmd_fit(const Args& a) {
   check_known(a, {"out-dir", "axis", "lead", "harmonics", "knot-spacing", "smoothness", "loss", "noise", "reference",
-                  "range", "spacing", "points", "tolerance", "type"});
+                  "range", "spacing", "points", "tolerance", "type", "max-deviation", "fanuc-axis",
+                  "fanuc-reference-point", "fanuc-unit", "fanuc-magnification"});
   if (a.positional.empty()) throw Usage("fit needs at least one measurement file");
   const auto dir = a.get("out-dir");
   if (!dir) throw Usage("fit needs --out-dir DIR");
+  const MeasurementLimits limits = limits_of(a);
+  ExportOptions eo;
+  eo.fanuc_axis = a.integer("fanuc-axis", 0);
+  if (a.get("fanuc-axis") && (eo.fanuc_axis < 1 || eo.fanuc_axis > 32)) throw Usage("--fanuc-axis: 1..32");
+  eo.fanuc_reference_point = a.integer("fanuc-reference-point", -1);
+  if (a.get("fanuc-reference-point") && eo.fanuc_reference_point < 0) throw Usage("--fanuc-reference-point: 0 or more");
+  eo.fanuc_unit_um = a.number("fanuc-unit", 1);
+  if (!(eo.fanuc_unit_um > 0) || eo.fanuc_unit_um > 1000) throw Usage("--fanuc-unit: the detection unit in um, above 0");
+  eo.fanuc_magnification = a.integer("fanuc-magnification", 1);
+  if (eo.fanuc_magnification < 1 || eo.fanuc_magnification > 100) throw Usage("--fanuc-magnification: 1..100");
+  eo.fanuc_bidirectional = !a.flag("fanuc-unidirectional");
   std::vector<Measurement> data;
-  for (const std::string& f : a.positional) data.push_back(load_measurement(f));
+  for (const std::string& f : a.positional) data.push_back(load_measurement(f, limits));
   FitOptions fo;
   fo.lead_mm = a.number("lead", 0);
   fo.harmonics = a.integer("harmonics", 1);
@@ -182,6 +208,11 @@ int cmd_fit(const Args& a) {
 
   const auto t0 = std::chrono::steady_clock::now();
   const FitResult fit = fit_error_model(data, fo);
+  if (!fit.model.backlash_measured) {
+    std::fprintf(stderr,
+                 "cnc-comp: warning: no target was approached from both directions: backlash is not measured, the "
+                 "tables' forward and reverse trims are equal (and a COMP_FILE replaces BACKLASH)\n");
+  }
   const double fit_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
   TableOptions to;
@@ -200,8 +231,11 @@ int cmd_fit(const Args& a) {
           std::to_string(fit.points) + " points",
       std::to_string(table.size()) + " entries; linear interpolation within " + std::to_string(interp) +
           " um of the model; mean correction 0 at " + std::to_string(to.reference_mm) + " mm"};
+  if (!fit.model.backlash_measured) {
+    notes.push_back("backlash not measured (no target approached from both directions): forward and reverse trims "
+                    "are equal, and this table replaces BACKLASH");
+  }
   write_file_atomically(out / "comp.txt", format_comp_table(table, type == 0 ? CompFileType::Positions : CompFileType::Trims, notes));
-  ExportOptions eo;
   eo.axis = axis;
   eo.reference_mm = to.reference_mm;
   eo.x_min = fo.x_min;
@@ -209,9 +243,27 @@ int cmd_fit(const Args& a) {
   write_file_atomically(out / "linuxcnc.comp", export_linuxcnc(fit.model, eo, type));
   write_file_atomically(out / "siemens_lec.spf", export_siemens_lec(fit.model, eo));
   write_file_atomically(out / (axis + ".COM"), export_heidenhain_com(fit.model, eo));
-  write_file_atomically(out / "fanuc_pitch.txt", export_fanuc_pitch(fit.model, eo));
-
   std::string report = fit_report(fit);
+  // The Fanuc tape needs the axis's number on the control; without it the
+  // tape is not written rather than written over another axis's points.
+  std::string fanuc = "fanuc_pitch.txt";
+  try {
+    FanucPoints used;
+    write_file_atomically(out / "fanuc_pitch.txt", export_fanuc_pitch(fit.model, eo, &used));
+    char b[240];
+    std::snprintf(b, sizeof b,
+                  "  Fanuc tape: axis %d, reference point %d (3620), points %d..%d moving +%s; check that no other "
+                  "axis uses them\n",
+                  used.axis, used.reference, used.first, used.last,
+                  used.neg_first >= 0 ? (", " + std::to_string(used.neg_first) + ".." + std::to_string(used.neg_last) +
+                                         " moving -").c_str()
+                                      : "");
+    report += b;
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "cnc-comp: fanuc_pitch.txt not written: %s\n", e.what());
+    report += std::string("  fanuc_pitch.txt not written: ") + e.what() + "\n";
+    fanuc.clear();
+  }
   char b[200];
   std::snprintf(b, sizeof b, "  fit time %.1f ms\n\n", fit_ms);
   report += b;
@@ -255,8 +307,9 @@ int cmd_fit(const Args& a) {
   write_file_atomically(out / "report.txt", report);
   if (!panels.empty()) write_plot(out / "iso230.png", panels);
   std::fputs(report.c_str(), stdout);
-  std::printf("wrote %s: comp.txt (%zu entries), linuxcnc.comp, siemens_lec.spf, %s.COM, fanuc_pitch.txt, report.txt%s\n",
-              out.c_str(), table.size(), axis.c_str(), panels.empty() ? "" : ", iso230.png");
+  std::printf("wrote %s: comp.txt (%zu entries), linuxcnc.comp, siemens_lec.spf, %s.COM, %sreport.txt%s\n", out.c_str(),
+              table.size(), axis.c_str(), fanuc.empty() ? "" : (fanuc + ", ").c_str(),
+              panels.empty() ? "" : ", iso230.png");
   return 0;
 }
 
@@ -346,7 +399,7 @@ int main(int argc, char** argv) {
   }
   const std::string cmd = argv[1];
   try {
-    const Args a = parse(argc, argv, 2, {"no-thermal", "constant-backlash", "no-temperature"});
+    const Args a = parse(argc, argv, 2, {"no-thermal", "constant-backlash", "no-temperature", "fanuc-unidirectional"});
     if (cmd == "report") return cmd_report(a);
     if (cmd == "compare") return cmd_compare(a);
     if (cmd == "fit") return cmd_fit(a);

@@ -352,8 +352,14 @@ std::string CommandInterpreter::cmd_loadrt(const std::vector<std::string>& w) {
     kv.emplace_back(w[i].substr(0, eq), w[i].substr(eq + 1));
   }
   ComponentContext ctx{hal_, ini_, messages_};
-  auto comp = e->factory(ctx, LoadArgs(w[1], std::move(kv)));
-  if (comp) hal_.add_component(std::move(comp));
+  try {
+    auto comp = e->factory(ctx, LoadArgs(w[1], std::move(kv)));
+    if (comp) hal_.add_component(std::move(comp));
+  } catch (...) {
+    // What the component made before it failed must not outlive it.
+    hal_.remove_orphans();
+    throw;
+  }
   return {};
 }
 

@@ -26,6 +26,44 @@ void Hal::clear() {
   pins_.clear();
 }
 
+void Hal::remove_orphans() {
+  std::lock_guard lock(mutex_);
+  const auto orphan = [&](const Component* owner) {
+    if (!owner) return false;
+    for (const auto& c : components_) {
+      if (c.get() == owner) return false;
+    }
+    return true;
+  };
+  for (auto it = functions_.begin(); it != functions_.end();) {
+    Function* f = it->second.get();
+    if (!orphan(f->owner)) {
+      ++it;
+      continue;
+    }
+    for (const auto& [name, t] : threads_) {
+      std::vector<Function*> list = t->functions();
+      const auto end = std::remove(list.begin(), list.end(), f);
+      if (end != list.end()) {
+        list.erase(end, list.end());
+        t->set_functions(list);
+      }
+    }
+    it = functions_.erase(it);
+  }
+  for (auto it = params_.begin(); it != params_.end();) {
+    it = orphan(it->second->owner) ? params_.erase(it) : std::next(it);
+  }
+  for (auto it = pins_.begin(); it != pins_.end();) {
+    if (!orphan(it->second->owner)) {
+      ++it;
+      continue;
+    }
+    unlink_locked(it->second.get());
+    it = pins_.erase(it);
+  }
+}
+
 void Hal::check_unique(const std::string& name) const {
   if (pins_.count(name) || params_.count(name)) {
     throw HalError("a pin or parameter named \"" + name + "\" already exists");

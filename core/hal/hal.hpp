@@ -125,6 +125,11 @@ class Hal {
 
   // Destroys components (on_shutdown is the daemon's job) after threads stop.
   void clear();
+  // Removes the pins, parameters and functions whose owner is not a loaded
+  // component: those of a component that failed to load (its constructor
+  // threw half-way, or its name was taken), which would otherwise point at
+  // a destroyed object. Pins are unlinked, functions taken out of threads.
+  void remove_orphans();
 
  private:
   detail::PinObj* create_pin(Component* owner, const std::string& name, Type type, PinDir dir, uint64_t initial);

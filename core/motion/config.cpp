@@ -128,7 +128,16 @@ MotionConfig load_motion_config(const ini::IniFile& ini, int num_joints) {
   else ini.fail(ini.find_entry("TRAJ", "ANGULAR_UNITS"), "expected degree, radian or grad, got \"" + au + "\"");
   c.no_force_homing = ini.get_bool("TRAJ", "NO_FORCE_HOMING", false);
   c.spindles = static_cast<int>(ini.get_int("TRAJ", "SPINDLES", 1, {0, 8}));
+  // The backlash and screw-table correction moves only within this share of
+  // the joint limits: 0 (or a share so small that a reversal takes seconds)
+  // would leave the correction standing while the pins show it.
   c.comp_reserve = ini.get_double("EMCMOT", "COMP_RESERVE", 0.05, {0, 0.5});
+  if (c.comp_reserve < 0.01) {
+    ini.fail(ini.find_entry("EMCMOT", "COMP_RESERVE"),
+             "expected a number between 0.01 and 0.5, got \"" + ini.get_string("EMCMOT", "COMP_RESERVE", "") +
+                 "\": below 1 % the backlash and screw-table correction has no room in the joint limits to be "
+                 "applied (joints without BACKLASH or COMP_FILE reserve nothing anyway)");
+  }
   c.overrun_streak = static_cast<int>(ini.get_int("EMCMOT", "OVERRUN_STREAK", 3, {1, 1'000'000}));
   const std::string action = to_upper(ini.get_string("EMCMOT", "OVERRUN_ACTION", "WARN"));
   if (action == "WARN") c.overrun_action = OverrunAction::Warn;

@@ -253,6 +253,17 @@ void MotionComponent::on_ready() {
       config_.servo_period_s = static_cast<double>(t.period_ns) * 1e-9;
     }
   }
+  // [JOINT_n]COMP_FILE is read by the screwcomp component (comp/); without
+  // it the table would be ignored without a word.
+  if (ctx_.ini && !hal().find_component("screwcomp")) {
+    for (int j = 0; j < config_.num_joints; ++j) {
+      const std::string section = "JOINT_" + std::to_string(j);
+      if (config_.joints[static_cast<std::size_t>(j)].comp_file.empty()) continue;
+      ctx_.ini->fail(ctx_.ini->find_entry(section, "COMP_FILE"),
+                     "a compensation table needs the screwcomp component: add `loadrt screwcomp` after `loadrt "
+                     "motmod` to a HAL file (docs/compensation.md)");
+    }
+  }
   planner_ = planner_factory_(planner_config(config_, mask));
   controller_ = std::make_unique<MotionController>(config_, *kins, *planner_, ctx_.messages);
   controller_->fill_status(scratch_status_);

@@ -3,6 +3,7 @@
 // and little-endian access. Header-only, realtime-safe.
 #pragma once
 
+#include <compare>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>

@@ -61,18 +61,46 @@ TEST(CompTable, HasNoTwoHundredFiftySixEntryLimit) {
   EXPECT_NEAR(t.forward_at(150.0075), 1e-6 * 10000.5, 1e-9);
 }
 
-TEST(CompTable, CommentsBlankLinesAndNotesAfterTheTableAreRead) {
+TEST(CompTable, EntriesMayCarryACommentAndNotesFollowTheTable) {
   const std::string text =
-      "# X axis, measured 2024\n"
-      "\n"
       "0 0 0   ; start\r\n"
-      "100 0.001 -0.001\n"
+      "100 0.001 -0.001 # end\n"
       "\n"
-      "Measured with a laser; values in mm.\n"  // LinuxCNC stops reading here: fine after the table
-      "Operator: someone\n";
+      "# Measured with a laser; values in mm.\n"  // LinuxCNC stops reading at the blank line
+      "; Operator: someone\n";
   const CompTable t = parse_comp_table(text, CompFileType::Trims, "notes");
   ASSERT_EQ(t.size(), 2u);
   EXPECT_DOUBLE_EQ(t.reverse[1], -0.001);
+}
+
+// LinuxCNC 2.9's loader (usrmotLoadComp) stops at the first line that is
+// not three numbers: a comment or blank line before the table would leave
+// the joint without compensation there, and a comment inside it would cut
+// it short. Such files are refused, so that a file accepted here gives the
+// same table in LinuxCNC.
+TEST(CompTable, ACommentOrBlankLineBeforeTheTableIsRefusedAsLinuxCncWouldReadNothing) {
+  EXPECT_NE(error_of("# X axis, measured 2024\n0 0 0\n100 0.001 -0.001\n")
+                .find("x.comp:1: the table must start on the first line: LinuxCNC stops reading a COMP_FILE at the "
+                      "first line that is not three numbers, so this comment would leave the joint without "
+                      "compensation there"),
+            std::string::npos);
+  EXPECT_NE(error_of("\n0 0 0\n").find("x.comp:1: the table must start on the first line"), std::string::npos);
+  EXPECT_NE(error_of("0 0 0\n# half way\n100 0.001 -0.001\n")
+                .find("x.comp:3: an entry after the end of the table: line 2 is a comment or blank"),
+            std::string::npos);
+}
+
+TEST(CompTable, ABadLineAfterTheFirstEntryIsAnErrorNotAShorterTable) {
+  // A typo in the last line, or a run of lines that are not entries, used
+  // to end the table there without a word.
+  EXPECT_NE(error_of("0 0 0\n10 0.001 0.002\n20 0.001 0,002\n")
+                .find("x.comp:3: expected three numbers 'nominal forward-trim reverse-trim' (COMP_FILE_TYPE 1), "
+                      "found '20 0.001 0,002'; a line that is not an entry ends the table"),
+            std::string::npos);
+  EXPECT_NE(error_of("0 0 0\n10 0.001 0.002\n20,0.001,0.002\n30,0.001,0.002\n").find("x.comp:3: expected three"),
+            std::string::npos);
+  EXPECT_NE(error_of("0 0 0\n\nOperator: someone\n").find("x.comp:3: expected three"), std::string::npos)
+      << "notes after the table are comments";
 }
 
 TEST(CompTable, ErrorsNameTheFileAndTheLine) {
@@ -82,12 +110,14 @@ TEST(CompTable, ErrorsNameTheFileAndTheLine) {
   EXPECT_NE(error_of("X 0 0 0\n").find("x.comp:1: expected three numbers 'nominal forward-trim reverse-trim'"),
             std::string::npos);
   EXPECT_NE(error_of("0 0 0 0\n").find("x.comp:1: expected three numbers"), std::string::npos) << "four numbers";
-  EXPECT_NE(error_of("0 0 0\nend\n20 0 0\n")
-                .find("x.comp:3: an entry after the end of the table: line 2 ('end') is not three numbers"),
-            std::string::npos);
-  EXPECT_EQ(error_of("# nothing\n\n"), "x.comp: no entries (expected lines of three numbers 'nominal a b')");
-  EXPECT_EQ(error_of(""), "x.comp: no entries (expected lines of three numbers 'nominal a b')");
+  EXPECT_NE(error_of("0 0 0\nend\n20 0 0\n").find("x.comp:2: expected three numbers"), std::string::npos);
+  EXPECT_EQ(error_of(""),
+            "x.comp: no entries (expected lines of three numbers 'nominal forward-trim reverse-trim' (COMP_FILE_TYPE 1))");
   EXPECT_NE(error_of("0 0 nan\n").find("x.comp:1:"), std::string::npos) << "NaN is not a number here";
+  EXPECT_NE(error_of("0 0 0\n1 1e308 0\n").find("x.comp:2: correction"), std::string::npos);
+  EXPECT_NE(error_of("1e308 -1e308 1e308\n", CompFileType::Positions).find("x.comp:1: correction"),
+            std::string::npos)
+      << "an infinite trim from a type 0 conversion";
   // A type 1 file read as type 0 gives trims as large as the positions.
   EXPECT_NE(error_of("0 0.001 -0.001\n100 0.002 0.000\n", CompFileType::Positions)
                 .find("x.comp:2: correction 99.998 at nominal 100 is larger than 1 machine units; is COMP_FILE_TYPE right?"),
@@ -125,4 +155,41 @@ TEST(CompTable, WrittenFilesReadBackInBothTypes) {
   }
   EXPECT_NEAR(t.max_abs_trim(), 0.005, 1e-3);
   EXPECT_GT(t.max_abs_slope(), 0);
+}
+
+// Found by fuzzing (tests/comp/fuzz/corpus/comp_table/large-nominal-cut-line):
+// a 128-byte line buffer cut a large nominal's line short, and the file
+// written did not read back.
+TEST(CompTable, WrittenLinesAreNeverCutShort) {
+  CompTable t;
+  t.nominal = {0, 1e308};
+  t.forward = {0.001, 0.001};
+  t.reverse = {-0.5, -0.5};
+  const CompTable back = parse_comp_table(format_comp_table(t, CompFileType::Trims), CompFileType::Trims, "big");
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_DOUBLE_EQ(back.nominal[1], 1e308);
+  EXPECT_DOUBLE_EQ(back.reverse[1], -0.5);
+}
+
+// Found by fuzzing (corpus/comp_table/nominals-closer-than-written): two
+// nominals less than 1e-6 apart were both written 0.000000, and the file
+// did not read back.
+TEST(CompTable, NominalsCloserThanAMicrometreAreWrittenApart) {
+  CompTable t;
+  t.nominal = {0, 1.6e-319, 2.5e-7, 1};
+  t.forward = t.reverse = {0, 0, 0, 0};
+  const std::string text = format_comp_table(t, CompFileType::Trims);
+  const CompTable back = parse_comp_table(text, CompFileType::Trims, "close");
+  ASSERT_EQ(back.size(), 4u) << text;
+  EXPECT_EQ(back.nominal[1], 1.6e-319);
+  EXPECT_NE(text.find("\n1.000000 "), std::string::npos) << "the usual six decimals where they suffice: " << text;
+  // -1e-7 is written -0.000000, which reads as equal to the 0 after it:
+  // both get their digits.
+  t.nominal = {-1e-7, 0, 1};
+  t.forward = t.reverse = {0, 0, 0};
+  const std::string around_zero = format_comp_table(t, CompFileType::Trims);
+  const CompTable back2 = parse_comp_table(around_zero, CompFileType::Trims, "zero");
+  ASSERT_EQ(back2.size(), 3u) << around_zero;
+  EXPECT_EQ(back2.nominal[0], -1e-7);
+  EXPECT_NE(around_zero.find("\n1.000000 "), std::string::npos) << around_zero;
 }

@@ -72,10 +72,14 @@ net x-en joint.0.amp-enable-out => sim-joint.0.enable
 // A one-joint machine built from INI and HAL text, stepped cycle by cycle.
 class Rig {
  public:
-  explicit Rig(const std::string& joint_extra, const std::string& comp_file_text = "") {
+  // `emcmot_extra` goes into [EMCMOT]; `hal` replaces the HAL file.
+  explicit Rig(const std::string& joint_extra, const std::string& comp_file_text = "",
+               const std::string& emcmot_extra = "", const std::string& hal = kHal) {
     if (!comp_file_text.empty()) dir.write("x.comp", comp_file_text);
-    dir.write("m.ini", std::string(kIni) + joint_extra);
-    dir.write("m.hal", kHal);
+    std::string ini = std::string(kIni) + joint_extra;
+    ini.insert(ini.find("[KINS]"), emcmot_extra);
+    dir.write("m.ini", ini);
+    dir.write("m.hal", hal);
     ini_ = ini::IniFile::load(dir / "m.ini");
     hal::register_core_components(registry_);
     kin::register_kinematics_components(registry_);
@@ -146,9 +150,10 @@ class Rig {
   uint32_t serial_ = 0;
 };
 
-std::string startup_error(const std::string& joint_extra, const std::string& comp_text) {
+std::string startup_error(const std::string& joint_extra, const std::string& comp_text,
+                          const std::string& emcmot_extra = "", const std::string& hal = kHal) {
   try {
-    Rig r(joint_extra, comp_text);
+    Rig r(joint_extra, comp_text, emcmot_extra, hal);
   } catch (const std::exception& e) {
     return e.what();
   }
@@ -178,6 +183,56 @@ TEST(ScrewCompComponent, StartUpLoadsCompFileAndTheJointFollowsTheTable) {
 TEST(ScrewCompComponent, ABadCompFileStopsStartUpNamingFileAndLine) {
   const std::string e = startup_error("COMP_FILE = x.comp\nCOMP_FILE_TYPE = 1\n", "0 0 0\n10 0 0\n5 0 0\n");
   EXPECT_NE(e.find("x.comp:3: nominal 5 is not greater than the previous one"), std::string::npos) << e;
+}
+
+// COMP_RESERVE = 0 used to be accepted (the documented range was 0..0.5):
+// the ramp then never moved, so neither BACKLASH nor a table reached the
+// motor while joint.N.backlash-corr showed the correction.
+TEST(ScrewCompComponent, CompReserveBelowOnePercentIsRefusedAtStartUpWithFileLineAndRange) {
+  for (const char* value : {"0", "0.005"}) {
+    const std::string e = startup_error("", "", std::string("COMP_RESERVE = ") + value + "\n");
+    EXPECT_NE(e.find("m.ini:4: [EMCMOT]COMP_RESERVE: expected a number between 0.01 and 0.5, got \"" +
+                     std::string(value) + "\": below 1 % the backlash and screw-table correction has no room"),
+              std::string::npos)
+        << e;
+  }
+  EXPECT_NE(startup_error("", "", "COMP_RESERVE = 0.6\n").find("m.ini:4: [EMCMOT]COMP_RESERVE: expected a number"),
+            std::string::npos);
+  // Every accepted value applies the correction.
+  for (const char* value : {"0.01", "0.5"}) {
+    Rig r("", "", std::string("COMP_RESERVE = ") + value + "\n");
+    r.motion(motion::Cmd::Enable);
+    r.motion(motion::Cmd::Home, 0);
+    r.step(50);
+    r.motion(motion::Cmd::JogAbs, 0, 50, 10);
+    r.step(3000);
+    EXPECT_NEAR(std::stod(r.pin("joint.0.backlash-filt")), 0.01, 1e-12) << "BACKLASH/2 applied with " << value;
+  }
+}
+
+// screwcomp reads COMP_FILE; without it the table was ignored silently.
+TEST(ScrewCompComponent, CompFileWithoutTheScrewcompComponentIsRefusedAtStartUp) {
+  std::string hal = kHal;
+  hal.erase(hal.find("loadrt screwcomp\n"), std::string("loadrt screwcomp\n").size());
+  const std::string e = startup_error("COMP_FILE = x.comp\nCOMP_FILE_TYPE = 1\n", "0 0 0\n", "", hal);
+  EXPECT_NE(e.find("m.ini:21: [JOINT_0]COMP_FILE: a compensation table needs the screwcomp component: add `loadrt "
+                   "screwcomp` after `loadrt motmod`"),
+            std::string::npos)
+      << e;
+  EXPECT_EQ(startup_error("", "", "", hal), "no error") << "BACKLASH alone needs no screwcomp";
+}
+
+TEST(ScrewCompComponent, ATableLongerThanLinuxCncsIsUsedWholeAndSaysSo) {
+  std::string text;
+  for (int i = 0; i < 300; ++i) text += std::to_string(i * 0.5) + " 0.001 -0.001\n";
+  Rig r("COMP_FILE = x.comp\nCOMP_FILE_TYPE = 1\n", text);
+  EXPECT_EQ(r.pin("screwcomp.0.entries"), "300");
+  Message m;
+  std::string said;
+  while (r.messages.pop(m)) said += std::string(m.text.view()) + "\n";
+  EXPECT_NE(said.find("x.comp has 300 entries, all in use here; LinuxCNC 2.9 would use only the first 256"),
+            std::string::npos)
+      << said;
 }
 
 TEST(ScrewCompComponent, LoadReplacesATableWhileStoppedWithoutARestart) {

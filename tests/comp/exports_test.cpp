@@ -165,3 +165,107 @@ TEST(Exports, FanucIncrementsSumToTheCorrections) {
     }
   }
 }
+
+namespace {
+
+struct FanucTape {
+  std::map<int, std::map<int, double>> params;  // parameter -> axis -> value
+  std::map<int, long> data;                      // point -> increment
+};
+
+FanucTape read_fanuc(const std::string& text) {
+  FanucTape t;
+  for (const auto& l : lines(text)) {
+    std::smatch mt;
+    if (std::regex_match(l, mt, std::regex(R"(N(\d{5})A(\d+)P(-?[0-9.]+))"))) {
+      t.params[std::stoi(mt[1])][std::stoi(mt[2])] = std::stod(mt[3]);
+    } else if (std::regex_match(l, mt, std::regex(R"(N(\d{5})P(-?\d+))"))) {
+      t.data[std::stoi(mt[1]) - 10000] = std::stol(mt[2]);
+    }
+  }
+  return t;
+}
+
+}  // namespace
+
+// The tape used to name axis 1 and reference point 100 for every axis: a
+// Y tape loaded after X's overwrote X's parameters and compensation data.
+TEST(Exports, FanucTapesOfDifferentAxesUseTheirOwnAxisNumberAndPoints) {
+  const ErrorModel m = model();
+  std::map<std::string, FanucTape> tapes;
+  std::map<std::string, FanucPoints> used;
+  for (const char* axis : {"X", "Y", "Z"}) {
+    ExportOptions o;
+    o.axis = axis;
+    tapes[axis] = read_fanuc(export_fanuc_pitch(m, o, &used[axis]));
+  }
+  EXPECT_EQ(used["X"].axis, 1);
+  EXPECT_EQ(used["Y"].axis, 2);
+  EXPECT_EQ(used["Z"].axis, 3);
+  for (const auto& [axis, tape] : tapes) {
+    for (const auto& [param, by_axis] : tape.params) {
+      ASSERT_EQ(by_axis.size(), 1u) << axis << " " << param;
+      EXPECT_EQ(by_axis.begin()->first, used[axis].axis) << axis << " parameter " << param;
+    }
+    EXPECT_EQ(tape.params.at(3620).begin()->second, used[axis].reference);
+    EXPECT_EQ(tape.data.begin()->first, used[axis].first);
+    EXPECT_EQ(tape.data.rbegin()->first, used[axis].neg_last);
+  }
+  for (const char* a : {"X", "Y"}) {
+    for (const char* b : {"Y", "Z"}) {
+      if (std::string(a) == b) continue;
+      for (const auto& [point, inc] : tapes[a].data) EXPECT_EQ(tapes[b].data.count(point), 0u) << a << b << point;
+    }
+  }
+  EXPECT_GE(used["Y"].first, kFanucPointsPerAxis);
+  EXPECT_LT(used["Y"].neg_last, 2 * kFanucPointsPerAxis);
+}
+
+TEST(Exports, FanucRefusesAnUnknownAxisNumberOrAReferencePointWithoutRoom) {
+  const ErrorModel m = model();
+  ExportOptions o;
+  o.axis = "A";
+  try {
+    export_fanuc_pitch(m, o);
+    FAIL() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("controlled-axis number of axis A is not known; give it (cnc-comp --fanuc-axis N"),
+              std::string::npos)
+        << e.what();
+  }
+  o.fanuc_axis = 4;
+  FanucPoints used;
+  EXPECT_NE(export_fanuc_pitch(m, o, &used).find("N03620A4P"), std::string::npos);
+  EXPECT_EQ(used.first, 3 * kFanucPointsPerAxis);
+  o.reference_mm = 150;
+  o.fanuc_reference_point = 10;
+  EXPECT_THROW(export_fanuc_pitch(m, o), std::invalid_argument) << "points below the reference need numbers below it";
+  o.fanuc_reference_point = 600;
+  o.fanuc_magnification = 0;
+  EXPECT_THROW(export_fanuc_pitch(m, o), std::invalid_argument);
+  o.fanuc_magnification = 1;
+  o.fanuc_unit_um = 0;
+  EXPECT_THROW(export_fanuc_pitch(m, o), std::invalid_argument);
+}
+
+TEST(Exports, FanucDataAreInDetectionUnitsTimesTheMagnification) {
+  const ErrorModel m = model();
+  ExportOptions o;
+  o.reference_mm = 150;
+  o.fanuc_bidirectional = false;
+  const FanucTape unit = read_fanuc(export_fanuc_pitch(m, o));
+  o.fanuc_unit_um = 0.1;
+  o.fanuc_magnification = 2;
+  const FanucTape fine = read_fanuc(export_fanuc_pitch(m, o));
+  EXPECT_EQ(fine.params.at(3623).at(1), 2);
+  EXPECT_EQ(fine.params.count(3605), 0u) << "unidirectional";
+  long sum_unit = 0, sum_fine = 0;
+  long worst = 0;
+  for (const auto& [point, inc] : unit.data) {
+    sum_unit += inc;
+    sum_fine += fine.data.at(point);
+    worst = std::max(worst, std::labs(sum_fine - 5 * sum_unit));
+  }
+  EXPECT_LE(worst, 3) << "0.2 um per count: five times the counts of 1 um (within rounding)";
+  EXPECT_GT(std::labs(sum_fine), 0);
+}

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 #include "comp/cycle.hpp"
 #include "comp/fit.hpp"
@@ -145,4 +146,44 @@ TEST(ErrorModelFit, RefusesDataThatCannotCarryAModel) {
   EXPECT_THROW(fit_error_model({m}, FitOptions{}), std::invalid_argument);
   for (int i = 0; i < 8; ++i) m.points.push_back(m.points[0]);
   EXPECT_THROW(fit_error_model({m}, FitOptions{}), std::invalid_argument) << "one target: no travel";
+}
+
+// All points approached from one side carry no backlash: the fit used to
+// invent one (b0 -1.3 um, b1 1.9 um on synthetic data moving + only) and
+// the tables then held different forward and reverse trims.
+TEST(ErrorModelFit, OneDirectionalDataGiveNoBacklashAndSaySo) {
+  SyntheticAxis axis;
+  for (const int keep : {1, -1}) {
+    SCOPED_TRACE(keep > 0 ? "moving + only" : "moving - only");
+    std::vector<Measurement> data = measure(axis, 2);
+    for (Measurement& m : data) {
+      std::erase_if(m.points, [&](const MeasurementPoint& p) { return p.direction != keep; });
+    }
+    const FitResult f = fit_error_model(data, FitOptions{});
+    EXPECT_EQ(f.model.backlash0_um, 0);
+    EXPECT_EQ(f.model.backlash1_um, 0);
+    EXPECT_FALSE(f.model.backlash_measured);
+    EXPECT_EQ(f.reversal_targets, 0);
+    for (const double x : {0.0, 100.0, 250.0}) {
+      EXPECT_EQ(f.model.deviation_um(x, 1), f.model.deviation_um(x, -1)) << x;
+    }
+    for (const auto& p : f.parameters) EXPECT_EQ(p.name.find("backlash"), std::string::npos) << p.name;
+    bool said = false;
+    for (const auto& n : f.notes) said = said || n.find("backlash not fitted: no target was approached from both") == 0;
+    EXPECT_TRUE(said);
+  }
+}
+
+TEST(ErrorModelFit, AReversalAtOneTargetGivesAConstantBacklash) {
+  SyntheticAxis axis;
+  std::vector<Measurement> data = measure(axis, 2);
+  Measurement& iso = data[0];
+  const double kept = iso.points[0].target;
+  std::erase_if(iso.points, [&](const MeasurementPoint& p) { return p.direction < 0 && std::fabs(p.target - kept) > 1e-6; });
+  data.resize(1);
+  const FitResult f = fit_error_model(data, FitOptions{});
+  EXPECT_EQ(f.reversal_targets, 1);
+  EXPECT_TRUE(f.model.backlash_measured);
+  EXPECT_EQ(f.model.backlash1_um, 0) << "its change over travel is not in the data";
+  EXPECT_GT(f.model.backlash0_um, 4);
 }

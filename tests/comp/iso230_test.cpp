@@ -144,3 +144,17 @@ TEST(Iso230, InvariantsHoldOnRandomMeasurements) {
     }
   }
 }
+
+// +-1e300 gave A = inf and a report with rc 0 (the file reader now refuses
+// such values; the evaluation refuses them too when built in code).
+TEST(Iso230, FiguresThatOverflowAreRefusedNotReportedAsInfinite) {
+  EXPECT_THROW(evaluate_iso230(from({{0, 1, {1e300, -1e300}}, {0, -1, {0, 1}}})), std::invalid_argument);
+  EXPECT_THROW(evaluate_iso230(from({{0, 1, {std::nan(""), 1}}, {0, -1, {0, 1}}})), std::invalid_argument);
+}
+
+TEST(Iso230, DeviationsThatLookLikeMillimetresAreFlagged) {
+  const Iso230Result r = evaluate_iso230(from({{0, 1, {0.002, 0.003}}, {0, -1, {-0.001, 0.004}}}));
+  bool said = false;
+  for (const auto& w : r.warnings) said = said || w.find("are they in millimetres?") != std::string::npos;
+  EXPECT_TRUE(said);
+}

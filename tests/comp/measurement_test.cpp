@@ -94,3 +94,40 @@ TEST(MeasurementFile, RunsAreNumberedPerTargetAndDirection) {
   const std::vector<int> runs = {1, 1, 1, 1, 2, 2, 2, 2, 3};
   for (std::size_t i = 0; i < runs.size(); ++i) EXPECT_EQ(m.points[i].run, runs[i]) << "point " << i;
 }
+
+// Deviations written in nanometres (or a complog scale off by 1000) read as
+// micrometres gave millimetre trims in the fitted tables and exports.
+TEST(MeasurementFile, DeviationsLargerThanAMillimetreAreRefusedAsAUnitMistake) {
+  const std::string head = "target,run,direction,deviation_um\n0,1,+,0.5\n";
+  EXPECT_EQ(error_of(head + "25,1,+,6234.5\n"),
+            "m.csv:3: deviation_um: 6234.5 um (6.2345 mm) is larger than 1000 um: deviations are in micrometres "
+            "(position reached minus target); are these nanometres? A compensation from them would move the axis by "
+            "millimetres. If the axis really is this far off, raise the limit (cnc-comp --max-deviation UM)");
+  EXPECT_NE(error_of(head + "25,1,-,-1e300\n").find("m.csv:3: deviation_um: -1e+300 um"), std::string::npos);
+  EXPECT_EQ(error_of(head + "25,1,+,-999.9\n"), "no error");
+  MeasurementLimits wide;
+  wide.max_abs_deviation_um = 10000;
+  EXPECT_EQ(parse_measurement(head + "25,1,+,6234.5\n", "m.csv", wide).points.size(), 2u) << "raised knowingly";
+}
+
+TEST(MeasurementFile, TargetsTemperaturesAndTimesOutsideAnyMeasurementAreRefused) {
+  EXPECT_EQ(error_of("target,run,direction,deviation_um\n1e300,1,+,0.5\n"),
+            "m.csv:2: target: 1e+300 is not a position on a machine axis (more than 1000000 machine units from 0)");
+  EXPECT_EQ(error_of("target,run,direction,deviation_um,temperature_c\n0,1,+,0.5,293.4\n"),
+            "m.csv:2: temperature_c: 293.4 is outside -50..150 degrees Celsius (kelvin or Fahrenheit?)");
+  EXPECT_NE(error_of("target,run,direction,deviation_um,time_s\n0,1,+,0.5,1e300\n").find("m.csv:2: time_s:"),
+            std::string::npos);
+}
+
+// A copied block used to count as extra runs: n (and s, R, A) were wrong.
+TEST(MeasurementFile, ARepeatedRunOfATargetAndDirectionIsRefused) {
+  const std::string text =
+      "target,run,direction,deviation_um\n"
+      "0,1,+,0.5\n10,1,+,0.7\n10,1,-,0.1\n0,1,-,0.2\n"
+      "0,2,+,0.6\n10,2,+,0.8\n10,2,-,0.2\n0,2,-,0.1\n"
+      "10.0000001,1,+,0.7\n";  // line 2-5 again, in part
+  EXPECT_EQ(error_of(text),
+            "m.csv:10: run 1 of target 10 moving + appears again (first at line 3): each run of a target and "
+            "direction is one line; a repeated line would count as an extra run");
+  EXPECT_EQ(error_of(text.substr(0, text.rfind("10.0000001"))), "no error");
+}

@@ -206,3 +206,27 @@ TEST(HalFile, SourceLoopsAndSpecialFilesAreErrors) {
   // The interpreter is usable afterwards (its file stack unwound).
   EXPECT_EQ(error_of([&] { f.interp.execute("echo still here"); }), "(no error)");
 }
+
+// Found by fuzzing (tests/core/hal/fuzz/corpus/hal/failed-loadrt-left-pins):
+// a component that failed to load (its name taken, or a pin name taken
+// half-way through its constructor) left its pins in the HAL, owned by the
+// destroyed object, and `show` read freed memory.
+TEST(HalFile, AComponentThatFailsToLoadLeavesNothingBehind) {
+  Fixture f;
+  f.interp.execute("loadrt and2 names=a");
+  f.interp.execute("loadrt threads name1=servo-thread period1=1000000");
+  EXPECT_NE(error_of([&] { f.interp.execute("loadrt and2 names=b"); }).find("already loaded"), std::string::npos);
+  EXPECT_FALSE(f.hal.has_pin("b.in0"));
+  EXPECT_FALSE(f.hal.has_param("b.time"));
+  EXPECT_NE(error_of([&] { f.interp.execute("addf b servo-thread"); }), "(no error)") << "no function b either";
+  EXPECT_TRUE(f.hal.has_pin("a.in0")) << "the loaded one keeps its pins";
+  const std::string shown = f.interp.execute("show pin");
+  EXPECT_NE(shown.find("a.in0"), std::string::npos);
+  EXPECT_EQ(shown.find("b.in0"), std::string::npos);
+  f.interp.execute("loadrt or2 names=b");  // the names are free again
+  EXPECT_TRUE(f.hal.has_pin("b.in0"));
+  // A constructor that fails half-way (c's pins made, then a's taken).
+  EXPECT_NE(error_of([&] { f.interp.execute("loadrt xor2 names=c,a"); }), "(no error)");
+  EXPECT_FALSE(f.hal.has_pin("c.in0"));
+  EXPECT_FALSE(f.hal.has_param("c.time"));
+}
