@@ -280,6 +280,33 @@ void Interpreter::synch() {
   s.machine_waited();
 }
 
+void Interpreter::unwind() {
+  State& s = *s_;
+  while (s.frames.size() > 1) {
+    Frame f = std::move(s.frames.back());
+    s.frames.pop_back();
+    for (int k = 0; k < 30; ++k) s.params[static_cast<std::size_t>(k + 1)] = f.saved_args[static_cast<std::size_t>(k)];
+    while (static_cast<int>(s.files.size()) > f.file_depth) s.pop_source();
+    if (!s.files.empty()) s.jump(f.return_offset, f.return_line);
+  }
+  s.skipping = false;
+  s.skip_defining = false;
+  s.block_ready = false;
+  s.queueing.queue().clear();
+}
+
+std::vector<std::string> Interpreter::call_stack() const {
+  const State& s = *s_;
+  std::vector<std::string> out;
+  for (std::size_t k = 1; k < s.frames.size(); ++k) {
+    const Frame& f = s.frames[k];
+    const std::size_t depth = static_cast<std::size_t>(f.file_depth);
+    const std::string file = depth >= 1 && depth <= s.files.size() ? s.files[depth - 1].path : std::string("?");
+    out.push_back("o<" + f.sub_name + "> called at " + file + ":" + std::to_string(f.return_line));
+  }
+  return out;
+}
+
 bool Interpreter::is_synch_pending() const noexcept { return s_->synch_pending; }
 
 Status Interpreter::run_to_end() {

@@ -101,6 +101,9 @@ struct Config {
   // Lines one read() call reads at most before it returns Status::Yield
   // (not an INI key: it bounds the work per call, not what a program may do).
   int lines_per_read = 256;
+  // #<_task>: 1 when the interpreter runs in the task controller, 0 in a
+  // preview or the stand-alone tool (LinuxCNC's rs274 -T sets it).
+  bool task = false;
 
   // Fills the fields above from [RS274NGC], [EMCIO] and [TRAJ].
   static Config from_ini(const cnc::ini::IniFile& ini);
@@ -145,6 +148,15 @@ class Interpreter {
   // synchronising at once at synch points (start-up code, offset lines,
   // tools and tests; the task controller reads MDI stepwise instead).
   Status execute(std::string_view mdi_line);
+  // After an InterpError: leaves every subroutine call in progress and goes
+  // on at the top level after the outermost call, drops the moves cutter
+  // compensation held back and any skip in progress (LinuxCNC's
+  // unwind_call; `rs274 -n 0` goes on after an error so). The modal state
+  // and the parameters stay as they are.
+  void unwind();
+  // The subroutine calls in progress, outermost first, as "o<name> called
+  // at file:line" (for `rs274 -s`).
+  std::vector<std::string> call_stack() const;
   // Re-reads the machine state after the machine caught up.
   void synch();
   bool is_synch_pending() const noexcept;

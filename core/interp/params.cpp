@@ -220,7 +220,7 @@ bool Interpreter::State::predefined(const std::string& name, double& v) const {
     return true;
   }
   if (n == "_task") {
-    v = 0;
+    v = config.task ? 1 : 0;
     return true;
   }
   if (n == "_vmajor") {

@@ -1,0 +1,112 @@
+// Parity with LinuxCNC 2.9's interpreter where this one moved the machine
+// differently or refused programs LinuxCNC runs (issue 19). Each test runs a
+// small program as `rs274 -g` does and checks the canonical calls (the
+// values are what LinuxCNC 2.9's rs274 prints for the same program).
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <functional>
+#include <sstream>
+
+#include "core/interp/rs274_run.hpp"
+#include "tests/support/testing.hpp"
+
+namespace fs = std::filesystem;
+using cnc::interp::Rs274Options;
+
+namespace {
+
+struct Rs274Result {
+  bool ok = false;
+  std::string canon;  // calls without the running index, one a line
+  std::string err;    // what went to stderr
+};
+
+// Runs `program` (written as test.ngc in a fresh folder, with `files`
+// beside it) inside that folder; `setup` adjusts the options.
+Rs274Result run(const std::string& program, const std::function<void(Rs274Options&, const cnc::testing::TempDir&)>& setup = {},
+        const std::vector<std::pair<std::string, std::string>>& files = {}) {
+  cnc::testing::TempDir dir;
+  for (const auto& [name, text] : files) dir.write(name, text);
+  dir.write("test.ngc", program);
+  Rs274Options o;
+  o.program = "test.ngc";
+  if (setup) setup(o, dir);
+  char* buf = nullptr;
+  std::size_t size = 0;
+  std::FILE* mem = open_memstream(&buf, &size);
+  char* ebuf = nullptr;
+  std::size_t esize = 0;
+  std::FILE* emem = open_memstream(&ebuf, &esize);
+  const fs::path back = fs::current_path();
+  fs::current_path(dir.path());
+  Rs274Result r;
+  std::string error;
+  try {
+    r.ok = cnc::interp::run_rs274(o, mem, error, emem);
+  } catch (const std::exception& e) {
+    r.err = std::string("thrown: ") + e.what();
+  }
+  fs::current_path(back);
+  std::fclose(mem);
+  std::fclose(emem);
+  std::istringstream in(std::string(buf, size));
+  std::free(buf);
+  r.err += std::string(ebuf, esize);
+  std::free(ebuf);
+  std::string line;
+  while (std::getline(in, line)) {
+    // "%5ld N..... CALL": drop the index as LinuxCNC's tests do
+    const std::size_t n = line.find(" N");
+    r.canon += (n == std::string::npos ? line : line.substr(n + 1)) + "\n";
+  }
+  return r;
+}
+
+bool has(const Rs274Result& r, const std::string& text) { return r.canon.find(text) != std::string::npos; }
+
+}  // namespace
+
+// ---------------------------------------------------------------- the tool
+
+TEST(Rs274Tool, ContinueModeGoesOnAtTheTopLevelAfterTheOutermostCall) {
+  const Rs274Result r = run("o<fail> call\no<fail> call\nM2\n",
+                    [](Rs274Options& o, const cnc::testing::TempDir&) { o.on_error = 0; },
+                    {{"fail.ngc", "o<fail> sub\n(debug, pre)\n#1 = [1/0]\n(debug, post)\no<fail> endsub\nM2\n"}});
+  EXPECT_TRUE(r.ok) << r.err;
+  std::size_t count = 0;
+  for (std::size_t p = r.canon.find("MESSAGE(\" pre\")"); p != std::string::npos; p = r.canon.find("MESSAGE(\" pre\")", p + 1)) ++count;
+  EXPECT_EQ(count, 2u) << r.canon;
+  EXPECT_FALSE(has(r, "post"));
+  EXPECT_TRUE(has(r, "PROGRAM_END()"));
+}
+
+TEST(Rs274Tool, StopModeStopsAtTheFirstError) {
+  const Rs274Result r = run("#1 = [1/0]\nG0 X1\nM2\n");
+  EXPECT_FALSE(r.ok);
+  EXPECT_FALSE(has(r, "STRAIGHT_TRAVERSE"));
+  EXPECT_NE(r.err.find("Attempt to divide by zero"), std::string::npos) << r.err;
+}
+
+TEST(Rs274Tool, PrintStackNamesTheCallsInProgress) {
+  const Rs274Result r = run("o<inner> sub\n#1 = [1/0]\no<inner> endsub\no<inner> call\nM2\n",
+                    [](Rs274Options& o, const cnc::testing::TempDir&) { o.print_stack = true; });
+  EXPECT_NE(r.err.find("o<inner> called at test.ngc:4"), std::string::npos) << r.err;
+}
+
+TEST(Rs274Tool, WithAnIniFileTheRunEndsWithOneResetAsLinuxCncClosesLazily) {
+  const Rs274Result with_ini = run("G0 X1\nM2\n", [](Rs274Options& o, const cnc::testing::TempDir& d) {
+    o.ini = d.write("t.ini", "[RS274NGC]\n");
+  });
+  const Rs274Result without = run("G0 X1\nM2\n");
+  EXPECT_NE(with_ini.canon.find("PROGRAM_END()\nN..... ON_RESET()\n"), std::string::npos) << with_ini.canon;
+  EXPECT_EQ(with_ini.canon.find("ON_RESET()\nN..... ON_RESET()"), std::string::npos) << with_ini.canon;
+  EXPECT_NE(without.canon.find("PROGRAM_END()\nN..... ON_RESET()\nN..... ON_RESET()\n"), std::string::npos);
+}
+
+TEST(Rs274Tool, TaskOptionMakesTheTaskParameterOne) {
+  const Rs274Result preview = run("(debug, #<_task>)\nM2\n");
+  const Rs274Result task = run("(debug, #<_task>)\nM2\n", [](Rs274Options& o, const cnc::testing::TempDir&) { o.task = true; });
+  EXPECT_TRUE(has(preview, "MESSAGE(\" 0.000000\")")) << preview.canon;
+  EXPECT_TRUE(has(task, "MESSAGE(\" 1.000000\")")) << task.canon;
+}
