@@ -231,7 +231,8 @@ struct Interpreter::State {
   void inverse_time_feed_straight(const Pose& from, const Pose& to);
   void inverse_time_feed_arc(double length);
   void plane_axes(int& a1, int& a2, int& a3) const;
-  double arc_tolerance() const;
+  double arc_tolerance() const;     // centre-format radius difference
+  double radius_tolerance() const;  // smallest radius, R-format reach
   // cutter comp
   void comp_straight(bool traverse, const Pose& end);
   void comp_arc(int g, const Pose& end, double c1, double c2, int turns);

@@ -60,9 +60,11 @@ Config Config::from_ini(const cnc::ini::IniFile& ini) {
   c.random_toolchanger = ini.get_bool("EMCIO", "RANDOM_TOOLCHANGER", false);
   c.tool_change_with_spindle_on = ini.get_bool("EMCIO", "TOOL_CHANGE_WITH_SPINDLE_ON", false);
   c.center_arc_radius_tolerance_inch =
-      ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_INCH", c.center_arc_radius_tolerance_inch, {0, 1});
+      ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_INCH", c.center_arc_radius_tolerance_inch,
+                     {kMinCenterArcToleranceInch, kDefaultCenterArcToleranceInch});
   c.center_arc_radius_tolerance_mm =
-      ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_MM", c.center_arc_radius_tolerance_mm, {0, 25});
+      ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_MM", c.center_arc_radius_tolerance_mm,
+                     {kMinCenterArcToleranceMm, kDefaultCenterArcToleranceMm});
   c.max_blocks_without_output =
       ini.get_int("RS274NGC", "MAX_BLOCKS_WITHOUT_OUTPUT", c.max_blocks_without_output, {10, 1e12});
   if (const auto v = ini.find("TRAJ", "COORDINATES")) {

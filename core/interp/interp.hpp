@@ -74,9 +74,19 @@ struct Config {
   std::string startup_code;
   // [EMCIO]RANDOM_TOOLCHANGER
   bool random_toolchanger = false;
-  // [RS274NGC]CENTER_ARC_RADIUS_TOLERANCE_INCH/_MM
-  double center_arc_radius_tolerance_inch = 0.00005;
-  double center_arc_radius_tolerance_mm = 0.00127;
+  // [RS274NGC]CENTER_ARC_RADIUS_TOLERANCE_INCH/_MM: how much the radius to
+  // the end of a centre-format arc may differ from the radius to its start
+  // (absolutely; more than 100 times this, or more than this and by more
+  // than 0.1 %, is an error). LinuxCNC's defaults, 2 * 0.001 inch * sqrt(2)
+  // and 2 * 0.01 mm * sqrt(2) (end and centre rounded to 0.001 inch or 0.01
+  // mm pass), are also the largest values allowed; the smallest are 0.00004
+  // inch and 0.001 mm.
+  double center_arc_radius_tolerance_inch = kDefaultCenterArcToleranceInch;
+  double center_arc_radius_tolerance_mm = kDefaultCenterArcToleranceMm;
+  static constexpr double kDefaultCenterArcToleranceInch = 2 * 0.001 * 1.41421356237309504880;
+  static constexpr double kDefaultCenterArcToleranceMm = 2 * 0.01 * 1.41421356237309504880;
+  static constexpr double kMinCenterArcToleranceInch = 0.00004;
+  static constexpr double kMinCenterArcToleranceMm = 0.001;
   // Axes the machine has (bit i: axis i of XYZABCUVW).
   unsigned axis_mask = 0x1ff;
   // Length units the interpreter starts in.

@@ -40,6 +40,12 @@ double Interpreter::State::arc_tolerance() const {
   return units == Units::Inch ? config.center_arc_radius_tolerance_inch : config.center_arc_radius_tolerance_mm;
 }
 
+double Interpreter::State::radius_tolerance() const {
+  // LinuxCNC's RADIUS_TOLERANCE_INCH (0.00005) and its metric equivalent:
+  // the smallest arc radius, and how far an R arc may fall short.
+  return units == Units::Inch ? 0.00005 : 0.00005 * kMmPerInch;
+}
+
 namespace {
 // Rotates (x, y) by `degrees` about the origin, in polar form as LinuxCNC.
 void rotate_xy(double& x, double& y, double degrees) {
@@ -368,12 +374,13 @@ void Interpreter::State::convert_arc(int g, const Pose& end) {
   const Pose& start = cutter_side != 400 ? comp_program_pos : pos;
   const double s1 = start[a1], s2 = start[a2];
   const double e1 = end[a1], e2 = end[a2];
-  const double tol = arc_tolerance();
+  const double tol = radius_tolerance();
+  const double spiral_tol = arc_tolerance();
   double c1 = 0, c2 = 0;
   char buf[512];
   if (has_r) {
     const double radius = block.get('r');
-    if (std::fabs(s1 - e1) < tol && std::fabs(s2 - e2) < tol) fail("Current point same as end point of arc");
+    if (s1 == e1 && s2 == e2) fail("Current point same as end point of arc");
     const double abs_r = std::fabs(radius);
     const double m1 = (e1 + s1) / 2.0, m2 = (e2 + s2) / 2.0;
     double half = std::hypot(m1 - e1, m2 - e2);
@@ -413,7 +420,7 @@ void Interpreter::State::convert_arc(int g, const Pose& end) {
     }
     const double abs_err = std::fabs(r1 - r2);
     const double rel_err = abs_err / std::max(r1, r2);
-    if (abs_err > tol * 100.0 || (abs_err > tol && rel_err > 0.001)) {
+    if (abs_err > spiral_tol * 100.0 || (abs_err > spiral_tol && rel_err > 0.001)) {
       std::snprintf(buf, sizeof buf,
                     "Radius to end of arc differs from radius to start: start=(%s%.4f,%s%.4f) center=(%s%.4f,%s%.4f) "
                     "end=(%s%.4f,%s%.4f) r1=%.4f r2=%.4f abs_err=%.4g rel_err=%.4f%%",

@@ -415,9 +415,12 @@ double Interpreter::State::read_parameter(std::size_t& i, bool for_exists) {
     if (!found) fail("Named parameter #<" + name + "> not defined");
     return v;
   }
-  if (for_exists) fail("Expected # reading parameter");
   const int index = read_integer_value(i);
+  if (for_exists) return index >= 1 && index < kMaxParameters ? 1.0 : 0.0;
   if (index < 1 || index >= kMaxParameters) fail("Parameter number out of range");
+  if (index >= 5420 && index <= 5428 && cutter_side != 400) {
+    fail("Cannot read current position with cutter radius compensation on");
+  }
   return get_param(index);
 }
 

@@ -110,3 +110,36 @@ TEST(Rs274Tool, TaskOptionMakesTheTaskParameterOne) {
   EXPECT_TRUE(has(preview, "MESSAGE(\" 0.000000\")")) << preview.canon;
   EXPECT_TRUE(has(task, "MESSAGE(\" 1.000000\")")) << task.canon;
 }
+
+// ---------------------------------------------------------------- expressions
+
+TEST(InterpParity, ExistsOfANumberedParameterTellsWhetherTheNumberIsInRange) {
+  const Rs274Result r = run("#<a>=999\nG0 X EXISTS[#1] Y EXISTS[#99999] Z EXISTS[#<a>] A EXISTS[#<b>]\n#1=2\n"
+                            "G0 X EXISTS[##1]\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_TRAVERSE(1.0000, 0.0000, 1.0000, 0.0000, 0.0000, 0.0000)")) << r.canon;
+  EXPECT_FALSE(run("G0 X EXISTS[1]\nM2\n").ok);
+}
+
+// ---------------------------------------------------------------- arcs
+
+TEST(InterpParity, CenterArcWithinLinuxCncsRadiusToleranceRuns) {
+  // r1 = 5.004, r2 = 4.996: 0.008 mm apart, inside 2 * 0.01 mm * sqrt(2)
+  const Rs274Result r = run("G21 G17 F100\nG2 X10 I5.004\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "ARC_FEED(10.0000, 0.0000, 5.0040, 0.0000, -1, 0.0000")) << r.canon;
+}
+
+TEST(InterpParity, ArcRadiusToleranceComesFromTheIniWithinLinuxCncsBounds) {
+  const auto tight = [](Rs274Options& o, const cnc::testing::TempDir& d) {
+    o.ini = d.write("t.ini", "[RS274NGC]\nCENTER_ARC_RADIUS_TOLERANCE_MM = 0.005\n");
+  };
+  const Rs274Result r = run("G21 G17 F100\nG2 X10 I5.004\nM2\n", tight);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("Radius to end of arc differs from radius to start"), std::string::npos) << r.err;
+  // Above LinuxCNC's default (its upper bound) is a configuration error.
+  const Rs274Result loose = run("M2\n", [](Rs274Options& o, const cnc::testing::TempDir& d) {
+    o.ini = d.write("t.ini", "[RS274NGC]\nCENTER_ARC_RADIUS_TOLERANCE_MM = 0.5\n");
+  });
+  EXPECT_NE(loose.err.find("CENTER_ARC_RADIUS_TOLERANCE_MM"), std::string::npos) << loose.err;
+}

@@ -118,7 +118,8 @@ for d in "${tests[@]}"; do
     elif [ $ok -ne 0 ]; then
         fail=$((fail + 1)); failed_names="$failed_names $d"; echo "FAIL  $d: $reason"
         if [ $VERBOSE -eq 1 ]; then
-            [ -f "$d/expected" ] && diff -u "$d/expected" "$d/result" | head -60
+            if [ -f "$d/expected" ]; then diff -u "$d/expected" "$d/result" | head -60
+            else echo "--- result:"; head -40 "$d/result"; fi
             [ -f "$d/checkresult.out" ] && head -40 "$d/checkresult.out"
             echo "--- stderr:"; grep -v '^+ ' "$d/stderr" | tail -15
         fi
