@@ -268,7 +268,10 @@ void Interpreter::State::convert_comment() {
   if (comment_prefix(c, "msg", rest)) {
     canon.message(rest);
   } else if (comment_prefix(c, "debug", rest)) {
-    canon.message(substitute_params(rest));
+    const std::string text = substitute_params(rest);
+    if (params[5599] > 0.0) canon.message(text);  // #5599: DEBUG output on (1 at start)
+  } else if (comment_prefix(c, "abort", rest)) {
+    fail(substitute_params(rest));  // the program stops with the text as its error
   } else if (comment_prefix(c, "print", rest)) {
     canon.print(substitute_params(rest));
   } else if (comment_prefix(c, "logopen", rest)) {

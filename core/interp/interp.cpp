@@ -99,6 +99,7 @@ void Interpreter::init() {
   s.subs.clear();
   s.init_parameters();
   s.load_parameter_file();
+  s.params[5599] = 1.0;  // (DEBUG,...) output on, as LinuxCNC starts
   s.reset_modal(true);
   s.update_tool_from_canon();
   s.canon_init_calls();

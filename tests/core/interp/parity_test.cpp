@@ -143,3 +143,25 @@ TEST(InterpParity, ArcRadiusToleranceComesFromTheIniWithinLinuxCncsBounds) {
   });
   EXPECT_NE(loose.err.find("CENTER_ARC_RADIUS_TOLERANCE_MM"), std::string::npos) << loose.err;
 }
+
+// ---------------------------------------------------------------- comments
+
+TEST(InterpParity, AbortCommentStopsTheProgramWithItsExpandedText) {
+  const Rs274Result r = run("#42=20\nG0 X1\n(abort, stop here #42)\nG0 X2\nM2\n");
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find(" stop here 20.000000"), std::string::npos) << r.err;
+  EXPECT_FALSE(has(r, "STRAIGHT_TRAVERSE(2.0000"));
+  EXPECT_FALSE(has(r, "PROGRAM_END"));
+}
+
+TEST(InterpParity, DebugCommentsTakePrintfStyleFormats) {
+  const Rs274Result r = run("#<v> = 1.123456789\n#<w> = 2.3456789\n(debug,a %d#<v>)\n(debug,b %f#<v> #<w>)\n"
+                            "(debug,c %.7f#<v>)\n(debug,d #<v> %d#<w>)\n(debug,e #<nope>)\n#5599=0\n(debug,off)\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\"a 1\")")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"b 1.1235 2.3457\")")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"c 1.1234568\")")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"d 1.123457 2\")")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"e ######\")")) << r.canon;
+  EXPECT_FALSE(has(r, "off")) << r.canon;
+}
