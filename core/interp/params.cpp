@@ -36,6 +36,9 @@ void Interpreter::State::init_parameters() {
   for (int i = 1; i < kMaxParameters; ++i) persistent[static_cast<std::size_t>(i)] = required_persistent(i);
   params[5220] = 1.0;
   globals.clear();
+  // The value of the last subroutine return: 0 until a subroutine returns.
+  globals["_value"] = 0.0;
+  globals["_value_returned"] = 0.0;
 }
 
 void Interpreter::State::load_parameter_file() {

@@ -412,6 +412,9 @@ double Interpreter::State::read_parameter(std::size_t& i, bool for_exists) {
     double v = 0;
     const bool found = find_named(name, v);
     if (for_exists) return found ? 1.0 : 0.0;
+    // Inside a subroutine definition being passed over (its O-word lines
+    // are read), names need not be defined yet, as in LinuxCNC.
+    if (!found && skip_defining) return 0.0;
     if (!found) fail("Named parameter #<" + name + "> not defined");
     return v;
   }
@@ -610,13 +613,17 @@ void Interpreter::State::read_o_word(std::size_t& i) {
     if (close == std::string::npos) fail("Named parameter not terminated");
     label = norm.substr(i + 1, close - i - 1);
     i = close + 1;
-  } else if (i < norm.size() && norm[i] == '[') {
-    label = std::to_string(static_cast<long long>(read_expression(i)));
+  } else if (i < norm.size() && (norm[i] == '[' || norm[i] == '#')) {
+    // o[expr] and o#n, o#<name>: the label is the integer value
+    label = std::to_string(read_integer_value(i));
   } else {
     const std::size_t start = i;
     while (i < norm.size() && is_digit(norm[i])) ++i;
     if (i == start) fail("Unknown control command in o word");
-    label = norm.substr(start, i - start);
+    // As LinuxCNC reads it, an integer: o0100 and o100 are the same label.
+    std::size_t first = start;
+    while (first + 1 < i && norm[first] == '0') ++first;
+    label = norm.substr(first, i - first);
   }
   block.o_name = label;
   struct Kw {

@@ -165,3 +165,23 @@ TEST(InterpParity, DebugCommentsTakePrintfStyleFormats) {
   EXPECT_TRUE(has(r, "MESSAGE(\"e ######\")")) << r.canon;
   EXPECT_FALSE(has(r, "off")) << r.canon;
 }
+
+// ---------------------------------------------------------------- O-words
+
+TEST(InterpParity, ValueReadsZeroBeforeAnySubroutineReturned) {
+  const Rs274Result r = run("(debug,#<_value> #<_value_returned>)\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\"0.000000 0.000000\")")) << r.canon;
+}
+
+TEST(InterpParity, OWordLabelMayBeAParameterOrExpression) {
+  const Rs274Result r = run("o2 sub\nG0 X2\no2 endsub\no<outer> sub\n#<sub> = 2\no#<sub> call\no<outer> endsub\n"
+                            "o<outer> call\n#7 = 2\no[#7] call\no002 call\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  std::size_t count = 0;
+  for (std::size_t p = r.canon.find("STRAIGHT_TRAVERSE(2.0000"); p != std::string::npos;
+       p = r.canon.find("STRAIGHT_TRAVERSE(2.0000", p + 1)) {
+    ++count;
+  }
+  EXPECT_EQ(count, 3u) << r.canon;
+}
