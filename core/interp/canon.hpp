@@ -91,6 +91,9 @@ class Canon {
   virtual void start_spindle_counterclockwise(int spindle) = 0;
   virtual void stop_spindle_turning(int spindle) = 0;
   virtual void orient_spindle(int spindle, double degrees, int mode) = 0;
+  // M19 Q: wait until the spindle reports it is oriented; not within
+  // `timeout_s` seconds is an error of the machine.
+  virtual void wait_spindle_orient_complete(int spindle, double timeout_s) = 0;
 
   // --- coolant
   virtual void flood_on() = 0;

@@ -260,6 +260,14 @@ void Interpreter::State::check_other_words() const {
   if (block.has_word('r') && !motion_in({20, 30, 760}) && !cycle && g0 != 100 && block.m[kMSpindle] != 19) {
     fail("R word with no g code that uses it");
   }
+  if (block.m[kMSpindle] == 19 && block.has_word('p')) {
+    const double p = block.get('p');
+    if (std::fabs(round_to_int(p) - p) > 0.001) fail("P value not an integer with M19 G2 or G3");
+    if (round_to_int(p) < 0 || round_to_int(p) > 2) fail("P value must be 0,1,or 2 with M19");
+  }
+  if (block.m[kMSpindle] == 19 && block.has_word('r') && (block.get('r') > 360.0 || block.get('r') < 0.0)) {
+    fail("R value must be within 0..360 with M19");
+  }
 }
 
 void Interpreter::State::convert_comment() {
@@ -442,10 +450,17 @@ void Interpreter::State::convert_m(Status& st) {
       spindle = Direction::Stopped;
       break;
     case 19: {
-      const double r = block.has_word('r') ? block.get('r') : 0.0;
-      const int q = block.has_word('p') ? round_to_int(block.get('p')) : 0;
-      canon.orient_spindle(0, r, q);
+      // As LinuxCNC 2.9: the angle is R plus [RS274NGC]ORIENT_OFFSET; without
+      // R and P nothing is oriented (only Q waits); Q waits for the spindle.
       spindle = Direction::Stopped;
+      if (block.has_word('r') || block.has_word('p')) {
+        const double r = (block.has_word('r') ? block.get('r') : 0.0) + config.orient_offset;
+        canon.orient_spindle(0, r, block.has_word('p') ? round_to_int(block.get('p')) : 0);
+      }
+      if (block.has_word('q')) {
+        if (block.get('q') <= 0.0) fail("Q word with M19 requires a value > 0");
+        canon.wait_spindle_orient_complete(0, block.get('q'));
+      }
       break;
     }
     default: break;

@@ -59,6 +59,7 @@ Config Config::from_ini(const cnc::ini::IniFile& ini) {
   c.startup_code = ini.get_string("RS274NGC", "RS274NGC_STARTUP_CODE", "");
   c.random_toolchanger = ini.get_bool("EMCIO", "RANDOM_TOOLCHANGER", false);
   c.tool_change_with_spindle_on = ini.get_bool("EMCIO", "TOOL_CHANGE_WITH_SPINDLE_ON", false);
+  c.orient_offset = ini.get_double("RS274NGC", "ORIENT_OFFSET", 0.0, {0, 360});
   c.center_arc_radius_tolerance_inch =
       ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_INCH", c.center_arc_radius_tolerance_inch,
                      {kMinCenterArcToleranceInch, kDefaultCenterArcToleranceInch});

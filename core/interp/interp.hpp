@@ -95,6 +95,8 @@ struct Config {
   const cnc::ini::IniFile* ini = nullptr;
   // Lathe: start in diameter mode (G7).
   bool lathe_diameter_mode = false;
+  // [RS274NGC]ORIENT_OFFSET: degrees added to M19's R (0..360).
+  double orient_offset = 0;
   // [EMCIO]TOOL_CHANGE_WITH_SPINDLE_ON: M6 leaves the spindle running.
   bool tool_change_with_spindle_on = false;
   // Block delete switch ('/' lines skipped when on).

@@ -125,6 +125,14 @@ class QueueingCanon final : public Canon {
     }
     real_.orient_spindle(spindle, degrees, mode);
   }
+  void wait_spindle_orient_complete(int spindle, double timeout_s) override {
+    ++outputs_;
+    if (holding()) {
+      queue_.push_back(QueuedCall{false, {}, [this, spindle, timeout_s] { real_.wait_spindle_orient_complete(spindle, timeout_s); }});
+      return;
+    }
+    real_.wait_spindle_orient_complete(spindle, timeout_s);
+  }
   void flood_on() override {
     ++outputs_;
     if (holding()) {

@@ -63,6 +63,7 @@ class TextCanon : public Canon {
   void start_spindle_counterclockwise(int spindle) override;
   void stop_spindle_turning(int spindle) override;
   void orient_spindle(int spindle, double degrees, int mode) override;
+  void wait_spindle_orient_complete(int spindle, double timeout_s) override;
   void flood_on() override;
   void flood_off() override;
   void mist_on() override;

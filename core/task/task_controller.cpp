@@ -1325,6 +1325,31 @@ bool TaskController::execute_item(Item& it, int64_t now_ns) {
     case Item::Kind::Message:
       messages_.post(MessageKind::Display, "program", it.text);
       return true;
+    case Item::Kind::WaitOrient: {
+      // M19 Q: the spindle must report is-oriented within the timeout.
+      if (!item_started_) {
+        item_started_ = true;
+        item_started_ns_ = now_ns;
+      }
+      const int s = it.i0 >= 0 && it.i0 < ipc::kMaxSpindles ? it.i0 : 0;
+      const ipc::SpindleStatus& sp = ms_.spindles[s];
+      if (sp.orient_fault != 0) {
+        item_started_ = false;
+        program_error("M19: spindle " + std::to_string(s) + " orientation fault " + std::to_string(sp.orient_fault));
+        return false;
+      }
+      if (sp.orient_state == 2) {
+        item_started_ = false;
+        return true;
+      }
+      if (static_cast<double>(now_ns - item_started_ns_) * 1e-9 > it.d0) {
+        item_started_ = false;
+        program_error("M19: spindle " + std::to_string(s) + " not oriented within Q " + format_double(it.d0) + " s");
+        return false;
+      }
+      exec_state_ = ipc::ExecState::WaitingForSpindleOriented;
+      return false;
+    }
     case Item::Kind::WaitInput: {
       if (!item_started_) {
         item_started_ = true;

@@ -185,3 +185,20 @@ TEST(InterpParity, OWordLabelMayBeAParameterOrExpression) {
   }
   EXPECT_EQ(count, 3u) << r.canon;
 }
+
+// ---------------------------------------------------------------- M19
+
+TEST(InterpParity, SpindleOrientAddsTheIniOffsetAndQWaitsForTheSpindle) {
+  const auto ini = [](Rs274Options& o, const cnc::testing::TempDir& d) {
+    o.ini = d.write("t.ini", "[RS274NGC]\nORIENT_OFFSET = 42.0\n");
+  };
+  const Rs274Result r = run("M19 R45 Q2\nM19 P1\nM19 Q1\nM2\n", ini);
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_NE(r.canon.find("ORIENT_SPINDLE(0, 87.0000, 0)\nN..... SPINDLE.0.WAIT_ORIENT_COMPLETE(2.0000)\n"
+                         "N..... ORIENT_SPINDLE(0, 42.0000, 1)\nN..... SPINDLE.0.WAIT_ORIENT_COMPLETE(1.0000)\n"),
+            std::string::npos)
+      << r.canon;
+  EXPECT_FALSE(run("M19 R10 Q0\nM2\n").ok);
+  EXPECT_FALSE(run("M19 P3\nM2\n").ok);
+  EXPECT_FALSE(run("M19 R361\nM2\n").ok);
+}
