@@ -37,6 +37,15 @@ double Interpreter::State::to_machine_len(double program_len) const {
   return program_len * units_per_inch(canon.machine_length_units()) / units_per_inch(units);
 }
 
+// Rotary axes (A B C) are in degrees whatever the length units.
+double Interpreter::State::to_program_axis(int axis, double machine_value) const {
+  return axis >= 3 && axis <= 5 ? machine_value : to_program_len(machine_value);
+}
+
+double Interpreter::State::to_machine_axis(int axis, double program_value) const {
+  return axis >= 3 && axis <= 5 ? program_value : to_machine_len(program_value);
+}
+
 void Interpreter::State::canon_init_calls() {
   canon.use_length_units(units);
   Pose g5x{};
@@ -65,10 +74,10 @@ void Interpreter::State::reset_modal(bool keep_params) {
   origin = round_to_int(params[5220]);
   if (origin < 1 || origin > 9) origin = 1;
   const int base = 5201 + 20 * origin;
-  for (int i = 0; i < kNumAxes; ++i) origin_offset[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
+  for (int i = 0; i < kNumAxes; ++i) origin_offset[i] = to_program_axis(i, params[static_cast<std::size_t>(base + i)]);
   rotation = params[static_cast<std::size_t>(base + 9)];
   for (int i = 0; i < kNumAxes; ++i) {
-    axis_offset[i] = params[5210] != 0.0 ? to_program_len(params[static_cast<std::size_t>(5211 + i)]) : 0.0;
+    axis_offset[i] = params[5210] != 0.0 ? to_program_axis(i, params[static_cast<std::size_t>(5211 + i)]) : 0.0;
   }
   // Until the first synch the machine is taken to be at its origin, so the
   // program position is minus the stored offsets (as LinuxCNC starts).
@@ -466,13 +475,18 @@ void Interpreter::State::convert_m(Status& st) {
     default: break;
   }
   switch (block.m[kMState]) {
-    case 70: snapshot_modal(saved_m70); break;
-    case 71: saved_m70.valid = false; break;
+    // As LinuxCNC: one saved context per call level; M73 also restores it
+    // when the subroutine returns.
+    case 70: snapshot_modal(frame().saved_modal); break;
+    case 71: frame().saved_modal.valid = false; break;
     case 72:
-      if (!saved_m70.valid) fail("Cannot restore context from invalid stack frame - missing M70/M73?");
-      restore_modal(saved_m70);
+      if (!frame().saved_modal.valid) fail("Cannot restore context from invalid stack frame - missing M70/M73?");
+      restore_modal(frame().saved_modal);
       break;
-    case 73: snapshot_modal(frame().saved_modal); break;
+    case 73:
+      snapshot_modal(frame().saved_modal);
+      if (frames.size() > 1) frame().restore_on_return = true;
+      break;
     default: break;
   }
   switch (block.m[kMCoolant]) {
@@ -579,7 +593,8 @@ void Interpreter::State::convert_units(Units u) {
       axis_offset[i] *= k;
       tool_offset[i] *= k;
     }
-    feed *= k;
+    // The feed rate stays the number programmed: F is read in the units in
+    // force when it is used (LinuxCNC's #<_feed> after G20/G21).
     cycle_r *= k;
     cycle_z *= k;
     cycle_cc *= k;
@@ -659,7 +674,7 @@ void Interpreter::State::convert_tool_length_offset(int g) {
       index = 0;  // the spindle
     }
     const ToolData& t = tools.at(index);
-    for (int i = 0; i < kNumAxes; ++i) off[i] = to_program_len(t.offset[i]);
+    for (int i = 0; i < kNumAxes; ++i) off[i] = to_program_axis(i, t.offset[i]);
     if (g == 432) {
       for (int i = 0; i < kNumAxes; ++i) off[i] += tool_offset[i];
     }
@@ -690,7 +705,7 @@ void Interpreter::State::convert_tool_length_offset(int g) {
 // change, then turned about the program origin by the rotation change.
 void Interpreter::State::set_origin_keeping_machine_position(int base) {
   Pose next{};
-  for (int i = 0; i < kNumAxes; ++i) next[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
+  for (int i = 0; i < kNumAxes; ++i) next[i] = to_program_axis(i, params[static_cast<std::size_t>(base + i)]);
   const double next_rotation = params[static_cast<std::size_t>(base + 9)];
   for (int i = 0; i < kNumAxes; ++i) pos[i] += origin_offset[i] - next[i];
   if (rotation != next_rotation) {
@@ -766,7 +781,7 @@ void Interpreter::State::convert_axis_offsets(int g) {
         pos[i] = pos[i] + axis_offset[i] - v;
         axis_offset[i] = v;
       }
-      params[static_cast<std::size_t>(5211 + i)] = to_machine_len(axis_offset[i]);
+      params[static_cast<std::size_t>(5211 + i)] = to_machine_axis(i, axis_offset[i]);
     }
     params[5210] = 1.0;
   } else if (g == 921 || g == 922) {
@@ -778,7 +793,7 @@ void Interpreter::State::convert_axis_offsets(int g) {
     params[5210] = 0;
   } else {  // 92.3
     for (int i = 0; i < kNumAxes; ++i) {
-      const double next = to_program_len(params[static_cast<std::size_t>(5211 + i)]);
+      const double next = to_program_axis(i, params[static_cast<std::size_t>(5211 + i)]);
       pos[i] = pos[i] + axis_offset[i] - next;
       axis_offset[i] = next;
     }
@@ -821,7 +836,7 @@ void Interpreter::State::convert_coord_setup(int l) {
     double v = block.get(c);
     if (i == 0 && diameter_mode) v /= 2.0;
     if (l == 20) v = machine[i] - tool_offset[i] - rotated[i];
-    params[static_cast<std::size_t>(base + i)] = to_machine_len(v);
+    params[static_cast<std::size_t>(base + i)] = to_machine_axis(i, v);
   }
   if (p == origin) {
     set_origin_keeping_machine_position(base);
@@ -856,14 +871,14 @@ void Interpreter::State::convert_setup_tool(int l) {
     double v = block.get(c);
     if (i == 0 && diameter_mode) v /= 2.0;
     if (l == 1) {
-      t.offset[i] = to_machine_len(v);
+      t.offset[i] = to_machine_axis(i, v);
     } else {
       // L10: offset so that the current position reads v (tool offset
       // applied); L11: as L10 but in G59.3 (coordinate system 9).
       const double machine = program_to_machine(pos)[i];
-      const double new_off = l == 11 ? machine - to_program_len(params[static_cast<std::size_t>(5381 + i)]) - v
+      const double new_off = l == 11 ? machine - to_program_axis(i, params[static_cast<std::size_t>(5381 + i)]) - v
                                      : pos[i] + tool_offset[i] - v;
-      t.offset[i] = to_machine_len(new_off);
+      t.offset[i] = to_machine_axis(i, new_off);
     }
   }
   if (block.has_word('r')) t.diameter = to_machine_len(block.get('r') * 2.0);
@@ -937,7 +952,7 @@ void Interpreter::State::convert_g(Status& st) {
       if (cutter_side != 400) fail("Cannot set reference point with cutter compensation in effect");
       const int base = g0 == 281 ? 5161 : 5181;
       const Pose machine = program_to_machine(pos);
-      for (int i = 0; i < kNumAxes; ++i) params[static_cast<std::size_t>(base + i)] = to_machine_len(machine[i]);
+      for (int i = 0; i < kNumAxes; ++i) params[static_cast<std::size_t>(base + i)] = to_machine_axis(i, machine[i]);
       break;
     }
     case 520:
@@ -974,7 +989,7 @@ void Interpreter::State::convert_home(int g) {
   // The home position is stored in machine coordinates; in program
   // coordinates, only the axes named (all when none) go there.
   Pose machine{};
-  for (int i = 0; i < kNumAxes; ++i) machine[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
+  for (int i = 0; i < kNumAxes; ++i) machine[i] = to_program_axis(i, params[static_cast<std::size_t>(base + i)]);
   const Pose target = machine_to_program(machine);
   Pose home = mid;
   for (int i = 0; i < kNumAxes; ++i) {
@@ -1023,6 +1038,11 @@ void Interpreter::State::end_program(bool pallet) {
   if (flood) {
     canon.flood_off();
     flood = false;
+  }
+  // [RS274NGC]DISABLE_G92_PERSISTENCE: the G92/G52 offset is not kept
+  // (the parameters are cleared; the offset in force stays until reset).
+  if (config.disable_g92_persistence) {
+    for (int k = 5210; k <= 5219; ++k) params[static_cast<std::size_t>(k)] = 0.0;
   }
   if (pallet) canon.pallet_shuttle();
   canon.program_end();

@@ -486,7 +486,7 @@ void Interpreter::State::do_return(bool has_value, double value) {
   for (int k = 0; k < 30; ++k) params[static_cast<std::size_t>(k + 1)] = f.saved_args[static_cast<std::size_t>(k)];
   globals["_value"] = has_value ? value : 0.0;
   globals["_value_returned"] = has_value ? 1.0 : 0.0;
-  if (f.saved_modal.valid) restore_modal(f.saved_modal);
+  if (f.restore_on_return && f.saved_modal.valid) restore_modal(f.saved_modal);
   while (static_cast<int>(files.size()) > f.file_depth) pop_source();
   jump(f.return_offset, f.return_line);
 }

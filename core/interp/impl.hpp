@@ -123,7 +123,6 @@ struct Interpreter::State {
   bool input_pending = false;
   double input_result = 0;
   int n_number = -1;
-  ModalSnapshot saved_m70;  // M70
 
   // ---------------- read.cpp
   ReadResult read_block();
@@ -207,6 +206,8 @@ struct Interpreter::State {
   void end_program(bool pallet);
   double to_program_len(double machine_len) const;
   double to_machine_len(double program_len) const;
+  double to_program_axis(int axis, double machine_value) const;  // lengths scaled, A B C not
+  double to_machine_axis(int axis, double program_value) const;
   void snapshot_modal(ModalSnapshot& s) const;
   void restore_modal(const ModalSnapshot& s);
   void update_tool_from_canon();

@@ -59,6 +59,7 @@ Config Config::from_ini(const cnc::ini::IniFile& ini) {
   c.startup_code = ini.get_string("RS274NGC", "RS274NGC_STARTUP_CODE", "");
   c.random_toolchanger = ini.get_bool("EMCIO", "RANDOM_TOOLCHANGER", false);
   c.tool_change_with_spindle_on = ini.get_bool("EMCIO", "TOOL_CHANGE_WITH_SPINDLE_ON", false);
+  c.disable_g92_persistence = ini.get_bool("RS274NGC", "DISABLE_G92_PERSISTENCE", false);
   c.orient_offset = ini.get_double("RS274NGC", "ORIENT_OFFSET", 0.0, {0, 360});
   c.center_arc_radius_tolerance_inch =
       ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_INCH", c.center_arc_radius_tolerance_inch,
@@ -101,6 +102,9 @@ void Interpreter::init() {
   s.init_parameters();
   s.load_parameter_file();
   s.params[5599] = 1.0;  // (DEBUG,...) output on, as LinuxCNC starts
+  if (s.config.disable_g92_persistence) {
+    for (int k = 5210; k <= 5219; ++k) s.params[static_cast<std::size_t>(k)] = 0.0;
+  }
   s.reset_modal(true);
   s.update_tool_from_canon();
   s.canon_init_calls();

@@ -95,6 +95,9 @@ struct Config {
   const cnc::ini::IniFile* ini = nullptr;
   // Lathe: start in diameter mode (G7).
   bool lathe_diameter_mode = false;
+  // [RS274NGC]DISABLE_G92_PERSISTENCE: the G92/G52 offset (#5210-#5219)
+  // is cleared at start and at program end instead of being kept.
+  bool disable_g92_persistence = false;
   // [RS274NGC]ORIENT_OFFSET: degrees added to M19's R (0..360).
   double orient_offset = 0;
   // [EMCIO]TOOL_CHANGE_WITH_SPINDLE_ON: M6 leaves the spindle running.

@@ -132,7 +132,8 @@ struct Frame {
   int return_line = 0;
   std::vector<Loop> loops;
   std::unordered_map<std::string, bool> if_done;  // label -> a branch ran
-  ModalSnapshot saved_modal;  // M73
+  ModalSnapshot saved_modal;  // M70/M73 at this call level
+  bool restore_on_return = false;  // M73: restored when the subroutine returns
   bool is_user_m = false;
 };
 

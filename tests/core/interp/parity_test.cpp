@@ -202,3 +202,44 @@ TEST(InterpParity, SpindleOrientAddsTheIniOffsetAndQWaitsForTheSpindle) {
   EXPECT_FALSE(run("M19 P3\nM2\n").ok);
   EXPECT_FALSE(run("M19 R361\nM2\n").ok);
 }
+
+// ---------------------------------------------------------------- units and offsets
+
+TEST(InterpParity, FeedParameterKeepsTheProgrammedNumberAcrossUnitChanges) {
+  const Rs274Result r = run("G20\nG21 F250\n(debug,#<_feed>)\nG20 F10\n(debug,#<_feed>)\nG21\nM73\n"
+                            "F33\nM72\n(debug,#<_feed>)\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\"250.000000\")")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"10.000000\")")) << r.canon;
+  EXPECT_TRUE(has(r, "SET_FEED_RATE(33.0000)\nN..... SET_FEED_RATE(10.0000)\nN..... MESSAGE(\"10.000000\")")) << r.canon;
+  EXPECT_FALSE(has(r, "6350")) << r.canon;
+  EXPECT_FALSE(has(r, "0.3937")) << r.canon;
+}
+
+TEST(InterpParity, RotaryAxisOffsetsAreDegreesWhateverTheLengthUnits) {
+  // Machine units are inches (as rs274); the program works in mm.
+  const Rs274Result r = run("G21\nG10 L2 P1 X1 A10\nG92 B5\n(debug,#5221 #5224 #5215)\nG0 A0\nM2\n",
+                            [](Rs274Options& o, const cnc::testing::TempDir& d) {
+                              o.parameter_file = d.write("t.var", "5225\t3.000000\n");
+                            });
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "SET_G5X_OFFSET(1, 0.0000, 0.0000, 0.0000, 0.0000, 3.0000, 0.0000)")) << r.canon;
+  EXPECT_TRUE(has(r, "SET_G5X_OFFSET(1, 1.0000, 0.0000, 0.0000, 10.0000, 3.0000, 0.0000)")) << r.canon;
+  EXPECT_TRUE(has(r, "SET_G92_OFFSET(0.0000, 0.0000, 0.0000, 0.0000, -8.0000, 0.0000)")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"0.039370 10.000000 -8.000000\")")) << r.canon;
+}
+
+TEST(InterpParity, DisabledG92PersistenceClearsTheG92ParametersAtStartAndEnd) {
+  const auto ini = [](bool disable) {
+    return [disable](Rs274Options& o, const cnc::testing::TempDir& d) {
+      o.parameter_file = d.write("t.var", "5210\t1.000000\n5211\t1.000000\n");
+      o.ini = d.write("t.ini", std::string("[RS274NGC]\nDISABLE_G92_PERSISTENCE = ") + (disable ? "1" : "0") + "\n");
+    };
+  };
+  const Rs274Result kept = run("(debug,#5210 #5211)\nM2\n", ini(false));
+  const Rs274Result cleared = run("(debug,#5210 #5211)\nG92 X1\nM2\n", ini(true));
+  EXPECT_TRUE(has(kept, "SET_G92_OFFSET(25.4000,")) << kept.canon;
+  EXPECT_TRUE(has(kept, "MESSAGE(\"1.000000 1.000000\")")) << kept.canon;
+  EXPECT_TRUE(has(cleared, "SET_G92_OFFSET(0.0000, 0.0000")) << cleared.canon;
+  EXPECT_TRUE(has(cleared, "MESSAGE(\"0.000000 0.000000\")")) << cleared.canon;
+}
