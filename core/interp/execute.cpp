@@ -106,7 +106,10 @@ void Interpreter::State::reset_modal(bool keep_params) {
   block_ready = false;
 }
 
-void Interpreter::State::update_tool_from_canon() { tools = canon.tool_table(); }
+void Interpreter::State::update_tool_from_canon() {
+  tools = canon.tool_table();
+  current_index = canon.tool_slot();
+}
 
 void Interpreter::State::snapshot_modal(ModalSnapshot& m) const {
   m.valid = true;
@@ -693,29 +696,28 @@ void Interpreter::State::convert_tool_length_offset(int g) {
     }
     if (g == 431 && diameter_mode && block.has_word('x')) off[0] /= 2.0;
   }
-  // Programmed position stays; the canonical position shifts by the change.
-  for (int i = 0; i < kNumAxes; ++i) pos[i] += tool_offset[i] - off[i];
+  // The machine stays; the program position shifts by the change (X and Y
+  // turned into the rotated system, as LinuxCNC).
+  double dx = tool_offset[0] - off[0], dy = tool_offset[1] - off[1];
+  rotate_xy(dx, dy, -rotation);
+  pos[0] += dx;
+  pos[1] += dy;
+  for (int i = 2; i < kNumAxes; ++i) pos[i] += tool_offset[i] - off[i];
   tool_offset = off;
   tool_offset_g = g;
   canon.use_tool_length_offset(off);
 }
 
-// Takes the G5x origin and rotation from the parameters at `base`. The
-// program position follows as LinuxCNC computes it: shifted by the origin
-// change, then turned about the program origin by the rotation change.
-void Interpreter::State::set_origin_keeping_machine_position(int base) {
-  Pose next{};
-  for (int i = 0; i < kNumAxes; ++i) next[i] = to_program_axis(i, params[static_cast<std::size_t>(base + i)]);
-  const double next_rotation = params[static_cast<std::size_t>(base + 9)];
-  for (int i = 0; i < kNumAxes; ++i) pos[i] += origin_offset[i] - next[i];
-  if (rotation != next_rotation) {
-    const double t = (rotation - next_rotation) * kPi / 180.0;
-    const double x = pos[0], y = pos[1];
-    pos[0] = x * std::cos(t) - y * std::sin(t);
-    pos[1] = x * std::sin(t) + y * std::cos(t);
-  }
-  origin_offset = next;
-  rotation = next_rotation;
+// Makes coordinate system `system` (1-9) the one in force, its origin and
+// rotation taken from the parameters; the current point is expressed in it
+// by `moved` (LinuxCNC's find_current_in_system, or M2's reset).
+void Interpreter::State::load_origin(int system, const Pose& moved) {
+  pos = moved;
+  origin = system;
+  params[5220] = system;
+  const int base = 5201 + 20 * system;
+  for (int i = 0; i < kNumAxes; ++i) origin_offset[i] = to_program_axis(i, params[static_cast<std::size_t>(base + i)]);
+  rotation = params[static_cast<std::size_t>(base + 9)];
 }
 
 void Interpreter::State::convert_coordinate_system(int g) {
@@ -737,10 +739,7 @@ void Interpreter::State::convert_coordinate_system(int g) {
     if (config.linuxcnc_comments) canon.comment("interpreter: continuing to use same coordinate system");
     return;
   }
-  origin = n;
-  params[5220] = n;
-  const int base = 5201 + 20 * n;
-  set_origin_keeping_machine_position(base);
+  load_origin(n, current_in_system(n, false));
   canon.set_g5x_offset(origin, origin_offset);
   canon.set_g92_offset(axis_offset);
   canon.set_xy_rotation(rotation);
@@ -803,53 +802,75 @@ void Interpreter::State::convert_axis_offsets(int g) {
 }
 
 void Interpreter::State::convert_coord_setup(int l) {
-  // G10 L2 / L20 P(1-9 or 0 for the active system) axis words, R rotation
+  // G10 L2 / L20 P(1-9, or 0 for the system in force) axis words, R
+  // rotation (L2 only), as LinuxCNC's convert_setup.
   if (!block.has_word('p')) fail("P word missing with G10 L2");
-  int p = static_cast<int>(round_to_int(block.get('p')));
+  if (block.has_word('i') || block.has_word('j')) fail("I J words not allowed with G10 L2");
+  int p = static_cast<int>(block.get('p') + 0.0001);
   if (p == 0) p = origin;
   if (p < 1 || p > 9) fail("P value out of range with G10 L2");
+  if (cutter_side != 400 && p == origin) fail("Cannot change the active coordinate system with cutter radius compensation on");
   const int base = 5201 + 20 * p;
-  static constexpr char letters[] = "xyzabcuvw";
-  if (l == 20 && block.has_word('r')) fail("R not allowed in G10 L20");
-  if (block.has_word('r')) params[static_cast<std::size_t>(base + 9)] = block.get('r');
-  // L20: the origin that makes the current point read the given values,
-  // with the target system's rotation: origin = machine - tool - rot(v + G92).
-  Pose want = pos;
-  for (int i = 0; i < kNumAxes; ++i) {
-    if (block.has_word(letters[i])) want[i] = block.get(letters[i]) / ((i == 0 && diameter_mode) ? 2.0 : 1.0);
+  const Pose current = current_in_system(p, false);
+  double r = params[static_cast<std::size_t>(base + 9)];
+  if (block.has_word('r')) {
+    if (l == 20) fail("R not allowed in G10 L20");
+    r = block.get('r');
+    params[static_cast<std::size_t>(base + 9)] = r;
   }
-  const Pose machine = program_to_machine(pos);
-  Pose rotated = want;
-  for (int i = 0; i < kNumAxes; ++i) rotated[i] += axis_offset[i];
-  {
-    const double rot = params[static_cast<std::size_t>(base + 9)];
-    if (rot != 0.0) {
-      const double r = std::hypot(rotated[0], rotated[1]);
-      const double t = std::atan2(rotated[1], rotated[0]) + rot * kPi / 180.0;
-      rotated[0] = r * std::cos(t);
-      rotated[1] = r * std::sin(t);
-    }
-  }
-  for (int i = 0; i < kNumAxes; ++i) {
-    const char c = letters[i];
-    if (!block.has_word(c)) continue;
-    double v = block.get(c);
+  auto param = [&](int i) -> double& { return params[static_cast<std::size_t>(base + i)]; };
+  auto word = [&](int i, double& v) {
+    if (!block.has_word(kLetters[i])) return false;
+    v = block.get(kLetters[i]);
     if (i == 0 && diameter_mode) v /= 2.0;
-    if (l == 20) v = machine[i] - tool_offset[i] - rotated[i];
-    params[static_cast<std::size_t>(base + i)] = to_machine_axis(i, v);
-  }
-  if (p == origin) {
-    set_origin_keeping_machine_position(base);
-    if (l == 20) {
-      for (int i = 0; i < kNumAxes; ++i) {
-        if (block.has_word(letters[i])) pos[i] = want[i];  // exactly what was asked
+    return true;
+  };
+  Pose next{};
+  double v = 0;
+  if (l == 20) {
+    // The origin that makes the current point read the values given, in
+    // the system's rotated frame (both X and Y move under a rotation).
+    double oldx = current[0], oldy = current[1];
+    double x = word(0, v) ? v : current[0];
+    double y = word(1, v) ? v : current[1];
+    rotate_xy(oldx, oldy, r);
+    rotate_xy(x, y, r);
+    next[0] = oldx + to_program_axis(0, param(0)) - x;
+    next[1] = oldy + to_program_axis(1, param(1)) - y;
+    param(0) = to_machine_axis(0, next[0]);
+    param(1) = to_machine_axis(1, next[1]);
+  } else {
+    for (int i = 0; i < 2; ++i) {
+      if (word(i, v)) {
+        next[i] = v;
+        param(i) = to_machine_axis(i, v);
+      } else {
+        next[i] = to_program_axis(i, param(i));
       }
     }
-    canon.set_g5x_offset(origin, origin_offset);
-    canon.set_xy_rotation(rotation);
-  } else if (config.linuxcnc_comments) {
-    canon.comment("interpreter: setting coordinate system origin");
   }
+  for (int i = 2; i < kNumAxes; ++i) {
+    if (word(i, v)) {
+      if (l == 20) v = current[i] + to_program_axis(i, param(i)) - v;
+      next[i] = v;
+      param(i) = to_machine_axis(i, v);
+    } else {
+      next[i] = to_program_axis(i, param(i));
+    }
+  }
+  if (p != origin) {
+    if (config.linuxcnc_comments) canon.comment("interpreter: setting coordinate system origin");
+    return;
+  }
+  // The system in force: the current point follows the new origin and
+  // rotation.
+  rotate_xy(pos[0], pos[1], rotation);
+  for (int i = 0; i < kNumAxes; ++i) pos[i] += origin_offset[i] - next[i];
+  origin_offset = next;
+  canon.set_g5x_offset(origin, origin_offset);
+  rotate_xy(pos[0], pos[1], -r);
+  rotation = r;
+  canon.set_xy_rotation(rotation);
 }
 
 void Interpreter::State::convert_setup_tool(int l) {
@@ -864,21 +885,60 @@ void Interpreter::State::convert_setup_tool(int l) {
     fail(buf);
   }
   ToolData t = tools.at(*index);
-  static constexpr char letters[] = "xyzabcuvw";
-  for (int i = 0; i < kNumAxes; ++i) {
-    const char c = letters[i];
-    if (!block.has_word(c)) continue;
-    double v = block.get(c);
+  bool any = block.has_word('r') || block.has_word('q') || block.has_word('i') || block.has_word('j');
+  for (int i = 0; i < kNumAxes; ++i) any = any || block.has_word(kLetters[i]);
+  if (!any) fail("G10 L1 without offsets has no effect");
+  auto word = [&](int i, double& v) {
+    if (!block.has_word(kLetters[i])) return false;
+    v = block.get(kLetters[i]);
     if (i == 0 && diameter_mode) v /= 2.0;
-    if (l == 1) {
-      t.offset[i] = to_machine_axis(i, v);
-    } else {
-      // L10: offset so that the current position reads v (tool offset
-      // applied); L11: as L10 but in G59.3 (coordinate system 9).
-      const double machine = program_to_machine(pos)[i];
-      const double new_off = l == 11 ? machine - to_program_axis(i, params[static_cast<std::size_t>(5381 + i)]) - v
-                                     : pos[i] + tool_offset[i] - v;
-      t.offset[i] = to_machine_axis(i, new_off);
+    return true;
+  };
+  double v = 0;
+  if (l == 1) {
+    for (int i = 0; i < kNumAxes; ++i) {
+      if (word(i, v)) t.offset[i] = to_machine_axis(i, v);
+    }
+  } else {
+    // L10: the offset that makes the current point read the values given in
+    // the system in force; L11: in G59.3 (and without its G92 offset). As
+    // LinuxCNC, X and Y are measured in the system's rotated frame; with
+    // only one of them given the other component of the offset is kept.
+    const int system = l == 11 ? 9 : origin;
+    Pose cur = current_in_system(system, true);
+    if (l == 11 && params[5210] != 0.0) {
+      for (int i = 0; i < kNumAxes; ++i) cur[i] += to_program_axis(i, params[static_cast<std::size_t>(5211 + i)]);
+    }
+    const double rot = params[static_cast<std::size_t>(5201 + 20 * system + 9)];
+    double wx = 0, wy = 0;
+    const bool has_x = word(0, wx), has_y = word(1, wy);
+    if (has_x || has_y) {
+      double tx = cur[0], ty = cur[1];
+      double ox = 0, oy = 0;  // the kept component of the old offset
+      if (has_x && has_y) {
+        tx -= wx;
+        ty -= wy;
+      } else {
+        ox = to_program_axis(0, t.offset[0]);
+        oy = to_program_axis(1, t.offset[1]);
+        rotate_xy(ox, oy, -rot);
+        if (has_x) {
+          ox = 0;
+          tx -= wx;
+          ty = 0;
+        } else {
+          oy = 0;
+          ty -= wy;
+          tx = 0;
+        }
+        rotate_xy(ox, oy, rot);
+      }
+      rotate_xy(tx, ty, rot);
+      t.offset[0] = to_machine_axis(0, tx + ox);
+      t.offset[1] = to_machine_axis(1, ty + oy);
+    }
+    for (int i = 2; i < kNumAxes; ++i) {
+      if (word(i, v)) t.offset[i] = to_machine_axis(i, cur[i] - v);
     }
   }
   if (block.has_word('r')) t.diameter = to_machine_len(block.get('r') * 2.0);
@@ -891,11 +951,12 @@ void Interpreter::State::convert_setup_tool(int l) {
   }
   const int written = tools.update_tool(t);
   canon.set_tool_table_entry(written, t);
-  // Fixed buglet (manual 3.24.3.4): the spindle copy is refreshed only when
-  // the modified tool is the loaded one (ToolTable::update_tool does that),
-  // and on non-random changers the canon learns it with a second entry.
-  if (!tools.is_random() && tools.spindle().number == toolno && written != 0) {
-    canon.set_tool_table_entry(0, tools.spindle());
+  // Non-random changers: the entry the spindle's tool came from (as the
+  // machine reports it, Canon::tool_slot()) is copied to the spindle entry,
+  // and the canon learns it with a second entry, as LinuxCNC does.
+  if (!tools.is_random() && written == current_index && written != 0) {
+    tools.set_slot(0, tools.at(written));
+    canon.set_tool_table_entry(0, tools.at(written));
   }
 }
 
@@ -1000,9 +1061,12 @@ void Interpreter::State::convert_home(int g) {
 }
 
 void Interpreter::State::end_program(bool pallet) {
-  origin = 1;
-  params[5220] = 1.0;
-  set_origin_keeping_machine_position(5221);
+  // Back to G54 keeping the point on the machine (the G92 offset stays).
+  Pose p = pos;
+  rotate_xy(p[0], p[1], rotation);
+  for (int i = 0; i < kNumAxes; ++i) p[i] += origin_offset[i] - to_program_axis(i, params[static_cast<std::size_t>(5221 + i)]);
+  rotate_xy(p[0], p[1], -params[5230]);
+  load_origin(1, p);
   canon.set_g5x_offset(1, origin_offset);
   canon.set_xy_rotation(rotation);
   if (plane != Plane::XY) {

@@ -193,7 +193,7 @@ struct Interpreter::State {
   void convert_setup_tool(int l);
   void convert_coord_setup(int l);
   void convert_coordinate_system(int g);
-  void set_origin_keeping_machine_position(int base);
+  void load_origin(int system, const Pose& moved);
   void convert_axis_offsets(int g);
   void convert_home(int g);
   void convert_units(Units u);
@@ -216,6 +216,7 @@ struct Interpreter::State {
   void convert_motion(int g, Status& st);
   void convert_polar();
   Pose find_ends(bool g53) const;
+  Pose current_in_system(int system, bool without_tool) const;
   Pose program_to_machine(const Pose& p) const;
   Pose machine_to_program(const Pose& m) const;
   void straight(int g, const Pose& end);
@@ -245,5 +246,6 @@ struct Interpreter::State {
 };
 
 const char* plane_name(Plane p);
+void rotate_xy(double& x, double& y, double degrees);
 
 }  // namespace cnc::interp

@@ -142,7 +142,7 @@ bool Interpreter::State::predefined(const std::string& name, double& v) const {
   if (n.starts_with("_abs_") && n.size() == 6) {
     const int axis = axis_index(n[5]);
     if (axis >= 0) {
-      v = pos[axis] + origin_offset[axis] + axis_offset[axis] + tool_offset[axis];
+      v = program_to_machine(pos)[axis];  // through G92, rotation, origin and tool
       return true;
     }
   }

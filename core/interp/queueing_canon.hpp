@@ -224,6 +224,7 @@ class QueueingCanon final : public Canon {
   Units machine_length_units() const override { return real_.machine_length_units(); }
   const cnc::tooltable::ToolTable& tool_table() const override { return real_.tool_table(); }
   int tool_in_spindle() const override { return real_.tool_in_spindle(); }
+  int tool_slot() const override { return real_.tool_slot(); }
   bool is_feed_override_enabled() const override { return real_.is_feed_override_enabled(); }
 
  private:

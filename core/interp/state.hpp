@@ -23,6 +23,8 @@ inline constexpr int kMotionNone = -2;
 inline constexpr double kPi = 3.14159265358979323846;
 inline constexpr double kTiny = 1e-12;
 inline constexpr double kMmPerInch = 25.4;
+// Axis word letters in axis order (X Y Z A B C U V W).
+inline constexpr char kLetters[] = "xyzabcuvw";
 
 // Rounds to the nearest int, saturating (never undefined for huge values).
 inline int round_to_int(double v) {

@@ -392,6 +392,7 @@ void TextCanon::change_tool(int index) {
   call_ += ')';
   out(call_);
   tools_.change_tool(index);
+  slot_ = index;
 }
 
 void TextCanon::change_tool_number(int index) {
@@ -400,6 +401,7 @@ void TextCanon::change_tool_number(int index) {
   call_ += ')';
   out(call_);
   if (m61_loads_tool_data_) tools_.set_spindle_tool(index);
+  slot_ = index;
 }
 
 void TextCanon::set_tool_table_entry(int index, const ToolData& t) {

@@ -243,3 +243,38 @@ TEST(InterpParity, DisabledG92PersistenceClearsTheG92ParametersAtStartAndEnd) {
   EXPECT_TRUE(has(cleared, "SET_G92_OFFSET(0.0000, 0.0000")) << cleared.canon;
   EXPECT_TRUE(has(cleared, "MESSAGE(\"0.000000 0.000000\")")) << cleared.canon;
 }
+
+// ---------------------------------------------------------------- rotated systems
+
+TEST(InterpParity, G10L20InARotatedSystemMovesTheOriginAlongTheRotatedAxis) {
+  const Rs274Result r = run("G20\nG10 L2 P1 R45\nG0 X0 Y0\nG10 L20 P1 X-1\n(debug,#5420 #5421)\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "SET_G5X_OFFSET(1, 0.7071, 0.7071, 0.0000")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"-1.000000 0.000000\")")) << r.canon;
+}
+
+TEST(InterpParity, LeavingARotatedSystemWithG92KeepsTheMachinePoint) {
+  // G55 turned 45 degrees, a G92 offset, then G56: "G0 A1" moves only A.
+  const Rs274Result r = run("g10 l2 p2 x0 y0 z0 r45\ng10 l2 p3 x0 y0 z0 r0\ng55\ng53 g0 x1 y1\ng92 x0 y0\ng56\ng0 a1\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_TRAVERSE(-0.4142, 1.0000, 0.0000, 1.0000, 0.0000, 0.0000)")) << r.canon;
+}
+
+TEST(InterpParity, ToolOffsetChangeInARotatedSystemKeepsTheMachinePoint) {
+  const Rs274Result r = run("G20\nG10 L2 P1 R45\nG0 X1 Y0\nG43.1 X-0.7071068 Y-0.7071068\n(debug,#5420 #5421)\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\"2.000000 0.000000\")")) << r.canon;
+}
+
+TEST(InterpParity, G10L1OfTheSpindlesToolIndexAlsoWritesTheSpindleEntry) {
+  // rs274's simulated machine reports tooldata index 1 in the spindle at start.
+  const Rs274Result r = run("G20 G10 L1 P1 Z1\nM2\n", [](Rs274Options& o, const cnc::testing::TempDir& d) {
+    o.tool_table = d.write("t.tbl", "T1 P1 Z0\nT2 P2 Z0\n");
+  });
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "SET_TOOL_TABLE_ENTRY(1, 1, 0.0000 0.0000 1.0000")) << r.canon;
+  EXPECT_TRUE(has(r, "SET_TOOL_TABLE_ENTRY(0, 1, 0.0000 0.0000 1.0000")) << r.canon;
+  EXPECT_FALSE(run("G10 L1 P1\nM2\n", [](Rs274Options& o, const cnc::testing::TempDir& d) {
+                 o.tool_table = d.write("t.tbl", "T1 P1 Z0\n");
+               }).ok);
+}
