@@ -189,32 +189,218 @@ void Interpreter::State::restore_modal(const ModalSnapshot& m) {
   }
 }
 
+namespace {
+// The argspec letters of a remap (lower case), without @ > ^.
+uint32_t argspec_words(const RemapSpec& r) {
+  uint32_t mask = 0;
+  for (char ch : r.argspec) {
+    const char l = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (l >= 'a' && l <= 'z') mask |= 1u << (l - 'a');
+  }
+  return mask;
+}
+}  // namespace
+
+// The steps of a block in LinuxCNC's order. A remapped code stops the block
+// at its step; it goes on from the next step when the procedure returns.
+enum ExecStep : int {
+  kStepComment = 1, kStepSpindleMode, kStepFeedMode, kStepFeed, kStepSpeed, kStepTool,
+  kStepMIo, kStepMToolChange, kStepMSpindle, kStepMState, kStepMCoolant, kStepMOverride, kStepMUser,
+  kStepG, kStepMotion, kStepStop, kStepEnd
+};
+
 Status Interpreter::State::execute_block() {
   Status st = Status::Ok;
-  if (block.g[kGNonModal] == 530) {
-    const int m = block.g[kGMotion] != -1 ? block.g[kGMotion] : motion_mode;
-    if (m != 0 && m != 10) fail("Must use g0 or g1 with g53");
-    if (block.g[kGDistance] == 910 || (block.g[kGDistance] == -1 && !absolute)) fail("Cannot use g53 incremental");
+  const int first = exec_step;
+  exec_step = 0;
+  if (first == 0) {
+    check_remap_args();
+    if (block.g[kGNonModal] == 530) {
+      const int m = block.g[kGMotion] != -1 ? block.g[kGMotion] : motion_mode;
+      if (m != 0 && m != 10) fail("Must use g0 or g1 with g53");
+      if (block.g[kGDistance] == 910 || (block.g[kGDistance] == -1 && !absolute)) fail("Cannot use g53 incremental");
+    }
+    // Words a remapped code takes (its argspec) are used by it.
+    uint32_t taken = 0;
+    for (int step = kStepComment; step < kStepEnd; ++step) {
+      if (const RemapSpec* r = remap_at_step(step)) taken |= argspec_words(*r);
+    }
+    const uint32_t has = block.has;
+    block.has &= ~taken;
+    check_other_words();
+    block.has = has;
   }
-  check_other_words();
   canon.begin_block(block.line, block.n_number, block.n_text);
   n_number = block.n_number;
-  if (block.has_comment) convert_comment();
-  if (block.g[kGSpindleMode] != -1) convert_spindle_mode(block.g[kGSpindleMode]);
-  if (block.g[kGFeedMode] != -1) convert_feed_mode(block.g[kGFeedMode]);
-  if (block.has_word('f') && feed_mode != FeedMode::InverseTime) {
-    feed = block.get('f');
-    canon.set_feed_rate(feed);
+  for (int step = first == 0 ? int{kStepComment} : first; step < kStepEnd; ++step) {
+    if (const RemapSpec* r = remap_at_step(step)) {
+      start_remap(*r, step);
+      return st;
+    }
+    execute_step(step, st);
   }
-  if (block.has_word('s')) {
-    speed = block.get('s');
-    canon.set_spindle_speed(0, speed);
-  }
-  if (block.has_word('t')) convert_tool_select();
-  convert_m(st);
-  convert_g(st);
-  if (block.m[kMStop] != -1) convert_stop(st);
   return st;
+}
+
+void Interpreter::State::execute_step(int step, Status& st) {
+  switch (step) {
+    case kStepComment:
+      if (block.has_comment) convert_comment();
+      break;
+    case kStepSpindleMode:
+      if (block.g[kGSpindleMode] != -1) convert_spindle_mode(block.g[kGSpindleMode]);
+      break;
+    case kStepFeedMode:
+      if (block.g[kGFeedMode] != -1) convert_feed_mode(block.g[kGFeedMode]);
+      break;
+    case kStepFeed:
+      if (block.has_word('f') && feed_mode != FeedMode::InverseTime) {
+        feed = block.get('f');
+        canon.set_feed_rate(feed);
+      }
+      break;
+    case kStepSpeed:
+      if (block.has_word('s')) {
+        speed = block.get('s');
+        canon.set_spindle_speed(0, speed);
+      }
+      break;
+    case kStepTool:
+      if (block.has_word('t')) convert_tool_select();
+      break;
+    case kStepMIo: convert_m(kMIo, st); break;
+    case kStepMToolChange: convert_m(kMToolChange, st); break;
+    case kStepMSpindle: convert_m(kMSpindle, st); break;
+    case kStepMState: convert_m(kMState, st); break;
+    case kStepMCoolant: convert_m(kMCoolant, st); break;
+    case kStepMOverride: convert_m(kMOverride, st); break;
+    case kStepMUser: convert_m(kMUser, st); break;
+    case kStepG: convert_g(); break;
+    case kStepMotion: convert_g_motion(st); break;
+    case kStepStop:
+      if (block.m[kMStop] != -1) convert_stop(st);
+      break;
+    default: break;
+  }
+}
+
+// ---------------------------------------------------------------- REMAP
+
+const RemapSpec* Interpreter::State::find_remap(char letter, int code, bool active_too) const {
+  for (const RemapSpec& r : config.remaps) {
+    if (r.letter != letter || r.code != code) continue;
+    if (!active_too) {
+      // Inside its own procedure a remapped code is the built-in one.
+      for (const Frame& f : frames) {
+        if (f.remap && f.remap->spec == &r) return nullptr;
+      }
+    }
+    return &r;
+  }
+  return nullptr;
+}
+
+const RemapSpec* Interpreter::State::remap_at_step(int step) const {
+  if (config.remaps.empty()) return nullptr;
+  auto m_at = [&](int group) { return block.m[group] != -1 ? find_remap('m', block.m[group]) : nullptr; };
+  switch (step) {
+    case kStepFeed: return block.has_word('f') ? find_remap('f', 0) : nullptr;
+    case kStepSpeed: return block.has_word('s') ? find_remap('s', 0) : nullptr;
+    case kStepTool: return block.has_word('t') ? find_remap('t', 0) : nullptr;
+    case kStepMIo: return m_at(kMIo);
+    case kStepMToolChange: return m_at(kMToolChange);
+    case kStepMSpindle: return m_at(kMSpindle);
+    case kStepMCoolant: return m_at(kMCoolant);
+    case kStepMOverride: return m_at(kMOverride);
+    case kStepMUser: return m_at(kMUser);
+    case kStepMotion: return block.g[kGMotion] != -1 ? find_remap('g', block.g[kGMotion]) : nullptr;
+    case kStepStop: return m_at(kMStop);
+    default: return nullptr;
+  }
+}
+
+int Interpreter::State::remap_level() const {
+  int n = 0;
+  for (const Frame& f : frames) n += f.remap ? 1 : 0;
+  return n;
+}
+
+
+// Required words (upper case in argspec), a feed (>) and a speed (^) of
+// every remapped code of the block, before anything of it runs.
+void Interpreter::State::check_remap_args() {
+  if (config.remaps.empty()) return;
+  for (int step = kStepComment; step < kStepEnd; ++step) {
+    const RemapSpec* r = remap_at_step(step);
+    if (r == nullptr) continue;
+    std::string missing;
+    for (char ch : r->argspec) {
+      if (ch < 'A' || ch > 'Z') continue;
+      if (!block.has_word(static_cast<char>(ch + 32))) missing += (missing.empty() ? "" : ",") + std::string(1, ch);
+    }
+    if (!missing.empty()) {
+      line_text = "O <" + r->ngc + "> call ";
+      fail("user-defined " + r->name() + ": missing: " + missing);
+    }
+    if (r->argspec.find('>') != std::string::npos && !((block.has_word('f') ? block.get('f') : feed) > 0)) {
+      fail("user-defined " + r->name() + ": needs a feed rate greater than 0 (F)");
+    }
+    if (r->argspec.find('^') != std::string::npos && !((block.has_word('s') ? block.get('s') : speed) > 0)) {
+      fail("user-defined " + r->name() + ": needs a spindle speed greater than 0 (S)");
+    }
+  }
+}
+
+void Interpreter::State::start_remap(const RemapSpec& spec, int step) {
+  auto rc = std::make_shared<RemapCall>();
+  rc->spec = &spec;
+  rc->block = block;
+  rc->resume_step = step + 1;
+  rc->line = current_line;
+  rc->file = current_file;
+  rc->text = line_text;
+  const bool positional = spec.argspec.find('@') != std::string::npos;
+  for (char ch : spec.argspec) {
+    const char l = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (l < 'a' || l > 'z' || !block.has_word(l)) continue;
+    if (positional) {
+      rc->positional.push_back(block.get(l));
+    } else {
+      rc->named.emplace_back(std::string(1, l), block.get(l));
+    }
+  }
+  rc->stage = spec.prolog.empty() ? 1 : 0;
+  call_remap_stage(rc);
+}
+
+void Interpreter::State::call_remap_stage(const std::shared_ptr<RemapCall>& rc) {
+  const RemapSpec& spec = *rc->spec;
+  const std::string& name = rc->stage == 0 ? spec.prolog : rc->stage == 1 ? spec.ngc : spec.epilog;
+  block.o_name = name;
+  block.call_args = rc->positional;
+  do_call();
+  frame().remap = rc;
+  for (const auto& [n, v] : rc->named) frame().locals[n] = v;
+}
+
+// The procedure of stage rc->stage returned: the next one is called, or the
+// block is handed back to be finished. True when the block goes on.
+bool Interpreter::State::remap_returned(const std::shared_ptr<RemapCall>& rc) {
+  const RemapSpec& spec = *rc->spec;
+  int next = rc->stage + 1;
+  if (next == 2 && spec.epilog.empty()) next = 3;
+  if (next <= 2) {
+    rc->stage = next;
+    call_remap_stage(rc);
+    return false;
+  }
+  block = rc->block;
+  exec_step = rc->resume_step;
+  current_line = rc->line;
+  current_file = rc->file;
+  line_text = rc->text;
+  resume_block = true;
+  return true;
 }
 
 // Words no code of the block uses are errors, as in LinuxCNC.
@@ -394,8 +580,9 @@ void Interpreter::State::convert_tool_change(Status& st) {
   st = Status::ExecuteFinish;
 }
 
-void Interpreter::State::convert_m(Status& st) {
-  const int io = block.m[kMIo];
+// One modal group's M code (LinuxCNC's order is the caller's: 5, 6, 7, 3, 8, 9, 10).
+void Interpreter::State::convert_m(int group, Status& st) {
+  const int io = group == kMIo ? block.m[kMIo] : -1;
   if (io != -1) {
     if ((io >= 62 && io <= 65) && (!block.has_word('p') || block.get('p') < 0)) {
       fail("No valid P word with M" + std::to_string(io));
@@ -447,8 +634,8 @@ void Interpreter::State::convert_m(Status& st) {
       default: break;
     }
   }
-  if (block.m[kMToolChange] != -1) convert_tool_change(st);
-  switch (block.m[kMSpindle]) {
+  if (group == kMToolChange && block.m[kMToolChange] != -1) convert_tool_change(st);
+  switch (group == kMSpindle ? block.m[kMSpindle] : -1) {
     case 3:
       canon.start_spindle_clockwise(0);
       spindle = Direction::Clockwise;
@@ -477,7 +664,7 @@ void Interpreter::State::convert_m(Status& st) {
     }
     default: break;
   }
-  switch (block.m[kMState]) {
+  switch (group == kMState ? block.m[kMState] : -1) {
     // As LinuxCNC: one saved context per call level; M73 also restores it
     // when the subroutine returns.
     case 70: snapshot_modal(frame().saved_modal); break;
@@ -492,7 +679,7 @@ void Interpreter::State::convert_m(Status& st) {
       break;
     default: break;
   }
-  switch (block.m[kMCoolant]) {
+  switch (group == kMCoolant ? block.m[kMCoolant] : -1) {
     case 7:
       canon.mist_on();
       mist = true;
@@ -509,7 +696,7 @@ void Interpreter::State::convert_m(Status& st) {
       break;
     default: break;
   }
-  const int ov = block.m[kMOverride];
+  const int ov = group == kMOverride ? block.m[kMOverride] : -1;
   if (ov != -1 && cutter_side != 400) {
     fail(ov == 48 || ov == 50 || ov == 51 ? "Cannot enable overrides with cutter radius compensation on"
                                           : "Cannot disable overrides with cutter radius compensation on");
@@ -544,7 +731,7 @@ void Interpreter::State::convert_m(Status& st) {
       break;
     default: break;
   }
-  const int user = block.m[kMUser];
+  const int user = group == kMUser ? block.m[kMUser] : -1;
   if (user != -1) {
     bool known = false;
     for (const auto& dir : config.user_m_path) {
@@ -960,7 +1147,7 @@ void Interpreter::State::convert_setup_tool(int l) {
   }
 }
 
-void Interpreter::State::convert_g(Status& st) {
+void Interpreter::State::convert_g() {
   if (block.g[kGNonModal] == 40) convert_dwell();
   if (block.g[kGPlane] != -1) convert_plane(block.g[kGPlane]);
   if (block.g[kGUnits] != -1) convert_units(block.g[kGUnits] == 200 ? Units::Inch : Units::Mm);
@@ -1026,6 +1213,11 @@ void Interpreter::State::convert_g(Status& st) {
     default:
       break;
   }
+}
+
+// The motion step: G code of group 1, or axis words in the modal motion.
+void Interpreter::State::convert_g_motion(Status& st) {
+  const int g0 = block.g[kGNonModal];
   int motion = block.g[kGMotion];
   if (motion == 800 && block.any_axis(config.axis_mask) && g0 != 100 && g0 != 280 && g0 != 300 && g0 != 520 &&
       g0 != 920 && block.g[kGToolOffset] != 431 && block.g[kGToolOffset] != 432) {

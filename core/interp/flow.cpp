@@ -175,6 +175,11 @@ ReadResult Interpreter::State::read_block() {
     }
     if (block.o_type != OType::None) {
       handle_o_word();
+      if (resume_block) {
+        // A remap procedure returned: the rest of its block runs now.
+        resume_block = false;
+        return ReadResult::Block;
+      }
       continue;
     }
     // Parameter settings take effect once the whole line is read.
@@ -464,6 +469,7 @@ void Interpreter::State::do_call() {
   f.file_depth = static_cast<int>(files.size());
   f.return_offset = files.back().reader->offset();
   f.return_line = files.back().reader->line_number();
+  if (config.oword_nargs) f.locals["n_args"] = static_cast<double>(args.size());
   const SubDef def = it->second;
   frames.push_back(std::move(f));
   if (def.file != files.back().path) {
@@ -489,6 +495,7 @@ void Interpreter::State::do_return(bool has_value, double value) {
   if (f.restore_on_return && f.saved_modal.valid) restore_modal(f.saved_modal);
   while (static_cast<int>(files.size()) > f.file_depth) pop_source();
   jump(f.return_offset, f.return_line);
+  if (f.remap) remap_returned(f.remap);
 }
 
 }  // namespace cnc::interp

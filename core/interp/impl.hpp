@@ -177,15 +177,30 @@ struct Interpreter::State {
   Frame& frame() { return frames.back(); }
   void jump(int64_t offset, int line_before);
 
+  // ---------------- remapping (execute.cpp)
+  int exec_step = 0;          // execute_block() starts at this step (after a remap returned)
+  bool resume_block = false;  // a remap returned: read_block() hands the block back
+  // The REMAP of a code, unless it is being carried out already (then the
+  // code is the built-in, as in LinuxCNC).
+  const RemapSpec* find_remap(char letter, int code, bool active_too = false) const;
+  const RemapSpec* remap_at_step(int step) const;
+  int remap_level() const;
+  void check_remap_args();
+  void start_remap(const RemapSpec& spec, int step);
+  void call_remap_stage(const std::shared_ptr<RemapCall>& rc);
+  bool remap_returned(const std::shared_ptr<RemapCall>& rc);
+
   // ---------------- execute.cpp
   Status execute_block();
+  void execute_step(int step, Status& st);
   void reset_modal(bool keep_params);
   void canon_init_calls();
   void convert_comment();
   void convert_feed_mode(int g);
   void convert_spindle_mode(int g);
-  void convert_m(Status& st);
-  void convert_g(Status& st);
+  void convert_m(int group, Status& st);
+  void convert_g();
+  void convert_g_motion(Status& st);
   void convert_stop(Status& st);
   void convert_tool_select();
   void convert_tool_change(Status& st);
@@ -246,6 +261,9 @@ struct Interpreter::State {
 };
 
 const char* plane_name(Plane p);
+// Modal group of a built-in G (x10) or M code, -1 when it is none.
+int builtin_g_group(int code);
+int builtin_m_group(int code);
 void rotate_xy(double& x, double& y, double degrees);
 
 }  // namespace cnc::interp

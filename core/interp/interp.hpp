@@ -61,6 +61,20 @@ enum class Status {
 };
 const char* to_string(Status s) noexcept;
 
+// One [RS274NGC]REMAP= line: a G or M code (or T, S, F) whose execution
+// calls O-word subroutines instead of (or, inside them, as) the built-in.
+struct RemapSpec {
+  char letter = 'm';   // 'g', 'm', 't', 's' or 'f'
+  int code = 0;        // G x10 (881 for G88.1), the M number; 0 for T, S, F
+  int modal_group = 10;  // where in the block it runs: 1 (G motion), 4-10 (M)
+  std::string argspec;   // LinuxCNC's: A-Z required, a-z optional, @ positional, > feed, ^ speed
+  std::string ngc;       // the body: o<ngc> (found as ngc.ngc in SUBROUTINE_PATH)
+  std::string prolog;    // subroutine called before the body ("" none)
+  std::string epilog;    // subroutine called after the body ("" none)
+  std::string where;     // "file:line" of the REMAP= line
+  std::string name() const;  // "M400", "G88.1", "T"
+};
+
 struct Config {
   // [RS274NGC]PARAMETER_FILE; empty: no persistence.
   std::filesystem::path parameter_file;
@@ -120,7 +134,16 @@ struct Config {
   // preview or the stand-alone tool (LinuxCNC's rs274 -T sets it).
   bool task = false;
 
-  // Fills the fields above from [RS274NGC], [EMCIO] and [TRAJ].
+  // [RS274NGC]REMAP lines, in file order (docs/interpreter.md, "REMAP").
+  std::vector<RemapSpec> remaps;
+  // [RS274NGC]OWORD_NARGS: an O-word call sets #<n_args> in the subroutine
+  // to the number of arguments it was given.
+  bool oword_nargs = false;
+  // [RS274NGC]DISABLE_FANUC_STYLE_SUB: M98/M99 and O-number subprograms
+  // (O1000 ... M99) are refused.
+  bool disable_fanuc_style_sub = false;
+  // Fills the fields above from [RS274NGC], [EMCIO] and [TRAJ]; a bad REMAP
+  // line throws ConfigError naming its file and line.
   static Config from_ini(const cnc::ini::IniFile& ini);
 };
 

@@ -216,7 +216,7 @@ bool Interpreter::State::predefined(const std::string& name, double& v) const {
     return true;
   }
   if (n == "_remap_level") {
-    v = 0;
+    v = remap_level();
     return true;
   }
   if (n == "_line") {

@@ -50,6 +50,13 @@ int m_group(int code) {
   }
 }
 
+}  // namespace
+
+int builtin_g_group(int code) { return g_group(code); }
+int builtin_m_group(int code) { return m_group(code); }
+
+namespace {
+
 bool is_digit(char c) { return c >= '0' && c <= '9'; }
 bool is_lower(char c) { return c >= 'a' && c <= 'z'; }
 
@@ -208,15 +215,18 @@ void Interpreter::State::read_comment(std::size_t& i) {
 }
 
 void Interpreter::State::add_g(int code) {
-  const int group = g_group(code);
+  int group = g_group(code);
+  if (group < 0 && find_remap('g', code, true) != nullptr) group = kGMotion;
   if (group < 0) fail("Unknown g code used");
   if (block.g[static_cast<std::size_t>(group)] != -1) fail("Two g codes used from same modal group");
   block.g[static_cast<std::size_t>(group)] = code;
 }
 
 void Interpreter::State::add_m(int code) {
-  const int group = m_group(code);
-  if (code > 199) fail("M-code greater than 199: M" + std::to_string(code));
+  int group = m_group(code);
+  const RemapSpec* remap = find_remap('m', code, true);
+  if (remap != nullptr) group = remap->modal_group;
+  if (code > 199 && remap == nullptr) fail("M-code greater than 199: M" + std::to_string(code));
   if (group < 0) fail("Unknown m code used: M" + std::to_string(code));
   if (block.m[static_cast<std::size_t>(group)] != -1) fail("Two m codes used from same modal group");
   if (++block.m_count > 4) fail("Too many m codes on line");

@@ -125,6 +125,20 @@ struct ModalSnapshot {
   bool feed_override = true, speed_override = true;
 };
 
+// A remapped code being carried out: the block it came from (finished
+// after the procedures return, from resume_step on), its arguments, and
+// which procedure runs (prolog, body, epilog).
+struct RemapCall {
+  const RemapSpec* spec = nullptr;
+  Block block;
+  int resume_step = 0;
+  int line = 0;
+  std::string file, text;
+  int stage = 1;  // 0 prolog, 1 body, 2 epilog
+  std::vector<double> positional;                        // argspec with @
+  std::vector<std::pair<std::string, double>> named;     // #<p>, #<q>, ...
+};
+
 struct Frame {
   std::string sub_name;
   std::unordered_map<std::string, double> locals;
@@ -137,6 +151,7 @@ struct Frame {
   ModalSnapshot saved_modal;  // M70/M73 at this call level
   bool restore_on_return = false;  // M73: restored when the subroutine returns
   bool is_user_m = false;
+  std::shared_ptr<RemapCall> remap;  // set when this call carries out a remapped code
 };
 
 struct SourceFile {

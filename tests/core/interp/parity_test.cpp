@@ -278,3 +278,93 @@ TEST(InterpParity, G10L1OfTheSpindlesToolIndexAlsoWritesTheSpindleEntry) {
                  o.tool_table = d.write("t.tbl", "T1 P1 Z0\n");
                }).ok);
 }
+
+// ---------------------------------------------------------------- REMAP
+
+namespace {
+std::function<void(Rs274Options&, const cnc::testing::TempDir&)> with_ini(std::string text) {
+  return [text](Rs274Options& o, const cnc::testing::TempDir& d) { o.ini = d.write("t.ini", text); };
+}
+}  // namespace
+
+TEST(InterpRemap, RemappedMCodeCallsItsSubroutineWithTheArgspecWordsAsNamedParameters) {
+  const Rs274Result r = run("M400 P2.5\nM2\n",
+                            with_ini("[RS274NGC]\nSUBROUTINE_PATH = .\nREMAP=M400 modalgroup=10 argspec=Pq ngc=rm400\n"),
+                            {{"rm400.ngc", "o<rm400> sub\n#<e> = EXISTS[#<q>]\n(debug, p=#<p> q=#<e> level=#<_remap_level>)\n"
+                                           "o<rm400> endsub\nM2\n"}});
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\" p=2.500000 q=0.000000 level=1.000000\")")) << r.canon;
+}
+
+TEST(InterpRemap, TheBlockGoesOnAfterTheProcedureFromTheRemappedCodesStep) {
+  // M400 (group 10) runs after F and before the motion; the move and M30 follow it.
+  const Rs274Result r = run("G0 X1 F50 M400 M30\n",
+                            with_ini("[RS274NGC]\nSUBROUTINE_PATH = .\nREMAP=M400 ngc=rm400\n"),
+                            {{"rm400.ngc", "o<rm400> sub\n(debug, in rm400)\no<rm400> endsub\nM2\n"}});
+  EXPECT_TRUE(r.ok) << r.err;
+  const std::size_t feed = r.canon.find("SET_FEED_RATE(50.0000)");
+  const std::size_t msg = r.canon.find("MESSAGE(\" in rm400\")");
+  const std::size_t move = r.canon.find("STRAIGHT_TRAVERSE(1.0000");
+  const std::size_t end = r.canon.find("PROGRAM_END()");
+  ASSERT_NE(msg, std::string::npos) << r.canon;
+  EXPECT_LT(feed, msg);
+  EXPECT_LT(msg, move);
+  EXPECT_NE(move, std::string::npos) << r.canon;
+  EXPECT_LT(move, end);
+  EXPECT_NE(end, std::string::npos);
+}
+
+TEST(InterpRemap, AMissingRequiredWordIsAnErrorNamingTheCodeAndTheWords) {
+  const Rs274Result r = run("M400 P1\nM2\n",
+                            with_ini("[RS274NGC]\nSUBROUTINE_PATH = .\nREMAP=M400 modalgroup=5 argspec=PQR ngc=rm400\n"),
+                            {{"rm400.ngc", "o<rm400> sub\no<rm400> endsub\nM2\n"}});
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("user-defined M400: missing: Q,R"), std::string::npos) << r.err;
+}
+
+TEST(InterpRemap, RemappedGCodeWithAtGetsItsWordsPositionallyAndConsumesTheAxisWords) {
+  const Rs274Result r = run("G88.1 X1 Z3 Q5\nM2\n",
+                            with_ini("[RS274NGC]\nSUBROUTINE_PATH = .\nOWORD_NARGS = 1\n"
+                                     "REMAP=G88.1 argspec=@xyzpq ngc=rg881\n"),
+                            {{"rg881.ngc", "o<rg881> sub\n(debug, n=#<n_args> #1 #2 #3)\no<rg881> endsub\nM2\n"}});
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\" n=3.000000 1.000000 3.000000 5.000000\")")) << r.canon;
+  EXPECT_FALSE(has(r, "STRAIGHT_"));
+}
+
+TEST(InterpRemap, TheRemappedCodeInsideItsOwnProcedureIsTheBuiltIn) {
+  const Rs274Result r = run("T0 M6\nM2\n",
+                            with_ini("[RS274NGC]\nSUBROUTINE_PATH = .\nREMAP=M6 ngc=change\n"),
+                            {{"change.ngc", "o<change> sub\n(debug, changing)\nM6\no<change> endsub\nM2\n"}});
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\" changing\")")) << r.canon;
+  std::size_t count = 0;
+  for (std::size_t p = r.canon.find("CHANGE_TOOL("); p != std::string::npos; p = r.canon.find("CHANGE_TOOL(", p + 1)) ++count;
+  EXPECT_EQ(count, 1u) << r.canon;
+}
+
+TEST(InterpRemap, PrologAndEpilogSubroutinesRunAroundTheBodyWithTheSameArguments) {
+  const Rs274Result r = run("M401 P7\nM2\n",
+                            with_ini("[RS274NGC]\nSUBROUTINE_PATH = .\n"
+                                     "REMAP=M401 argspec=P prolog=pre ngc=body epilog=post\n"),
+                            {{"pre.ngc", "o<pre> sub\n(debug, pre #<p>)\n#<_shared> = 1\no<pre> endsub\nM2\n"},
+                             {"body.ngc", "o<body> sub\n(debug, body #<p> #<_shared>)\no<body> endsub\nM2\n"},
+                             {"post.ngc", "o<post> sub\n(debug, post #<p>)\no<post> endsub\nM2\n"}});
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\" pre 7.000000\")\nN..... MESSAGE(\" body 7.000000 1.000000\")\n"
+                     "N..... MESSAGE(\" post 7.000000\")")) << r.canon;
+}
+
+TEST(InterpRemap, PythonProceduresAreRefusedAtLoadNamingTheIniFileAndLine) {
+  const Rs274Result py = run("M2\n", with_ini("[RS274NGC]\n\nREMAP=M500 py=m500\n"));
+  EXPECT_FALSE(py.ok);
+  EXPECT_NE(py.err.find("t.ini:3"), std::string::npos) << py.err;
+  EXPECT_NE(py.err.find("Python remap procedures are not supported"), std::string::npos) << py.err;
+  const Rs274Result prolog = run("M2\n", with_ini("[RS274NGC]\nREMAP=M500 prolog=setup ngc=x\n"));
+  EXPECT_FALSE(prolog.ok);
+  EXPECT_NE(prolog.err.find("t.ini:2"), std::string::npos) << prolog.err;
+  EXPECT_NE(prolog.err.find("Python prolog/epilog functions are not supported"), std::string::npos) << prolog.err;
+  const Rs274Result builtin = run("M2\n", with_ini("[RS274NGC]\nREMAP=M3 ngc=x\n"));
+  EXPECT_FALSE(builtin.ok);
+  EXPECT_NE(builtin.err.find("built-in M code"), std::string::npos) << builtin.err;
+}
