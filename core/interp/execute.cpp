@@ -442,13 +442,13 @@ void Interpreter::State::check_other_words() const {
     fail("K word with no G2, G3, G33, G33.1, G76, or G87 to use it");
   }
   if (block.has_word('l') && g0 != 100 && !cycle && cutter != 411 && cutter != 421 && m_io != 66 && mg != 760 &&
-      mg != 52) {
+      mg != 52 && block.m[kMStop] != 98) {
     fail("L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 or NURBS code");
   }
   const int ov = block.m[kMOverride];
   if (block.has_word('p') && !motion_in({20, 30, 50, 52, 740, 760, 820, 840, 860, 880, 890}) && g0 != 40 && g0 != 100 &&
       block.g[kGControl] != 640 && !(ov >= 50 && ov <= 53) && !(m_io >= 62 && m_io <= 66) && !user_m &&
-      block.m[kMSpindle] != 19) {
+      block.m[kMSpindle] != 19 && block.m[kMStop] != 98) {
     fail("P word with no G2 G3 G4 G10 G64 G5 G5.2 G76 G82 G86 G88 G89 or M50 M51 M52 M53 M62 M63 M64 M65 M66 M98 or user M code to use it");
   }
   if (block.has_word('q') && !motion_in({50, 730, 760, 830}) && g0 != 100 && block.g[kGControl] != 640 &&
@@ -1320,8 +1320,47 @@ void Interpreter::State::convert_stop(Status& st) {
       program_ended = true;
       st = Status::ProgramEnd;
       break;
+    case 98: convert_fanuc_call(); break;
+    case 99: convert_fanuc_return(st); break;
     default: break;
   }
+}
+
+// M98 P<n> [L<times>]: runs the Fanuc-style subprogram O<n> ... M99.
+void Interpreter::State::convert_fanuc_call() {
+  if (config.disable_fanuc_style_sub) fail("DISABLE_FANUC_STYLE_SUB set in INI file, but found m98");
+  if (!block.has_word('p')) fail("Found 'm98' code with no P-word");
+  const int times = block.has_word('l') ? round_to_int(block.get('l')) : 1;
+  if (times <= 0) return;
+  block.o_name = std::to_string(round_to_int(block.get('p')));
+  block.call_args.clear();
+  do_call(true, times);
+}
+
+// M99: back from an M98 subprogram (or into it again for L). In the main
+// program it ends the program as M2 does, or, in the task controller
+// (Config::task, as LinuxCNC's task), starts it again from the top.
+void Interpreter::State::convert_fanuc_return(Status& st) {
+  if (config.disable_fanuc_style_sub) fail("DISABLE_FANUC_STYLE_SUB set in INI file, but found m99");
+  if (frames.size() > 1) {
+    Frame& f = frame();
+    if (!f.fanuc) fail("'O.... endsub' or 'O.... return' must follow 'O.... sub' subroutine definition");
+    if (f.fanuc_repeats > 0) {
+      --f.fanuc_repeats;
+      jump(f.fanuc_def.offset, f.fanuc_def.line);
+      return;
+    }
+    do_return(false, 0.0);
+    return;
+  }
+  if (config.task && !files.empty() && files.back().path != "<mdi>") {
+    jump(0, 0);
+    first_line = true;
+    return;
+  }
+  end_program(false);
+  program_ended = true;
+  st = Status::ProgramEnd;
 }
 
 }  // namespace cnc::interp

@@ -258,6 +258,7 @@ bool Interpreter::State::handle_o_word() {
         value = read_expression(i);
         has_value = true;
       }
+      if (frames.size() > 1 && frame().fanuc) fail("Fanuc 'O....' subroutine definition must end with 'M99'");
       if (frames.size() <= 1) {
         std::string src = line_text;
         while (!src.empty() && (src.front() == ' ' || src.front() == '\t')) src.erase(0, 1);
@@ -397,13 +398,17 @@ bool Interpreter::State::handle_o_word() {
       }
       return true;
     }
+    case OType::FanucSub:
+      // Reached in the flow of the program: a program title, or the start
+      // of a Fanuc subprogram the program runs into; nothing to do.
+      return true;
     case OType::None:
       break;
   }
   return false;
 }
 
-void Interpreter::State::do_call() {
+void Interpreter::State::do_call(bool fanuc, int repeats) {
   const std::string label = block.o_name;
   const std::vector<double> args = block.call_args;
   if (frames.size() >= 64) fail("Too many subroutine levels");
@@ -419,11 +424,21 @@ void Interpreter::State::do_call() {
     bool found = false;
     std::string last_text = saved_text;
     if (files.back().path != "<mdi>") {
+      const bool main_program = files.size() == 1 && percent_seen;
       while (r.next(raw)) {
         last_text.assign(raw);
         current_line = r.line_number();
+        if (main_program && is_percent_line(raw)) {
+          // Nothing after the closing '%' belongs to the program; LinuxCNC
+          // reads that line (FINISH) and gives up.
+          line_text = last_text;
+          r.seek(back_offset, back_line);
+          canon.finish();
+          fail("Failed to find sub 'O" + label + "' before EOF");
+        }
         if (skip_line_matches_sub(raw, label)) {
-          subs[label] = SubDef{files.back().path, r.offset(), r.line_number()};
+          subs[label] = SubDef{files.back().path, r.offset(), r.line_number(), block.o_type == OType::FanucSub,
+                               std::string(raw)};
           found = true;
           break;
         }
@@ -450,7 +465,7 @@ void Interpreter::State::do_call() {
       LineReader& fr = *opened;
       while (fr.next(raw)) {
         if (skip_line_matches_sub(raw, label)) {
-          subs[label] = SubDef{*path, fr.offset(), fr.line_number()};
+          subs[label] = SubDef{*path, fr.offset(), fr.line_number(), block.o_type == OType::FanucSub, std::string(raw)};
           found = true;
           break;
         }
@@ -459,9 +474,19 @@ void Interpreter::State::do_call() {
     }
     it = subs.find(label);
   }
+  if (it->second.fanuc != fanuc) {
+    // LinuxCNC keeps the two styles apart; the error shows the definition.
+    line_text = it->second.text;
+    fail(fanuc ? "'O.... sub' subroutine must be called with 'O.... call'"
+               : "Fanuc 'O....' subroutine must be called with 'M98'");
+  }
   Frame f;
   f.sub_name = label;
-  for (int k = 0; k < 30; ++k) {
+  f.fanuc = fanuc;
+  f.fanuc_repeats = repeats - 1;
+  f.fanuc_def = it->second;
+  // An M98 subprogram shares #1-#30 with its caller (Fanuc).
+  for (int k = 0; k < 30 && !fanuc; ++k) {
     f.saved_args[static_cast<std::size_t>(k)] = params[static_cast<std::size_t>(k + 1)];
     params[static_cast<std::size_t>(k + 1)] =
         k < static_cast<int>(args.size()) ? args[static_cast<std::size_t>(k)] : 0.0;
@@ -483,15 +508,17 @@ bool Interpreter::State::skip_line_matches_sub(std::string_view raw, const std::
   while (i < raw.size() && (raw[i] == ' ' || raw[i] == '\t')) ++i;
   if (i >= raw.size() || (raw[i] != 'o' && raw[i] != 'O')) return false;
   parse_line(raw);
-  return block.o_type == OType::Sub && block.o_name == label;
+  return (block.o_type == OType::Sub || block.o_type == OType::FanucSub) && block.o_name == label;
 }
 
 void Interpreter::State::do_return(bool has_value, double value) {
   Frame f = std::move(frames.back());
   frames.pop_back();
-  for (int k = 0; k < 30; ++k) params[static_cast<std::size_t>(k + 1)] = f.saved_args[static_cast<std::size_t>(k)];
-  globals["_value"] = has_value ? value : 0.0;
-  globals["_value_returned"] = has_value ? 1.0 : 0.0;
+  if (!f.fanuc) {
+    for (int k = 0; k < 30; ++k) params[static_cast<std::size_t>(k + 1)] = f.saved_args[static_cast<std::size_t>(k)];
+    globals["_value"] = has_value ? value : 0.0;
+    globals["_value_returned"] = has_value ? 1.0 : 0.0;
+  }
   if (f.restore_on_return && f.saved_modal.valid) restore_modal(f.saved_modal);
   while (static_cast<int>(files.size()) > f.file_depth) pop_source();
   jump(f.return_offset, f.return_line);

@@ -171,7 +171,10 @@ struct Interpreter::State {
   bool skip_line_matches(std::string_view raw);
   bool skip_line_matches_sub(std::string_view raw, const std::string& label);
   void start_skip(const std::string& label, std::initializer_list<OType> types, bool defining = false);
-  void do_call();
+  // An O-word call (o<name> call), or with fanuc an M98 run `repeats` times.
+  void do_call(bool fanuc = false, int repeats = 1);
+  void convert_fanuc_call();
+  void convert_fanuc_return(Status& st);
   void do_return(bool has_value, double value);
   std::optional<std::string> find_sub_file(const std::string& name) const;
   Frame& frame() { return frames.back(); }

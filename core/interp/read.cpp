@@ -39,7 +39,7 @@ int g_group(int code) {
 
 int m_group(int code) {
   switch (code) {
-    case 0: case 1: case 2: case 30: case 60: return kMStop;
+    case 0: case 1: case 2: case 30: case 60: case 98: case 99: return kMStop;
     case 62: case 63: case 64: case 65: case 66: case 67: case 68: return kMIo;
     case 6: case 61: return kMToolChange;
     case 3: case 4: case 5: case 19: return kMSpindle;
@@ -652,7 +652,18 @@ void Interpreter::State::read_o_word(std::size_t& i) {
       break;
     }
   }
-  if (block.o_type == OType::None) fail("Unknown control command in o word");
+  if (block.o_type == OType::None) {
+    // Nothing but comments after the label: a Fanuc-style subprogram start
+    // or a program title (O1000, O<name>).
+    std::size_t k = i;
+    while (k < norm.size() && norm[k] == '(') {
+      const std::size_t close = norm.find(')', k);
+      if (close == std::string::npos) break;
+      k = close + 1;
+    }
+    if (k < norm.size() && norm[k] != ';') fail("Unknown control command in o word");
+    block.o_type = OType::FanucSub;
+  }
   auto need_bracket = [&](const char* what) {
     if (i >= norm.size() || norm[i] != '[') fail(std::string("Left bracket missing after '") + what + "'");
   };

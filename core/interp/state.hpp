@@ -34,7 +34,8 @@ inline int round_to_int(double v) {
 }
 
 enum class OType : uint8_t {
-  None, Sub, EndSub, Call, Return, If, ElseIf, Else, EndIf, Do, While, EndWhile, Repeat, EndRepeat, Break, Continue
+  None, Sub, EndSub, Call, Return, If, ElseIf, Else, EndIf, Do, While, EndWhile, Repeat, EndRepeat, Break, Continue,
+  FanucSub  // a bare O-word line: a Fanuc-style subprogram (called with M98, ended by M99) or a program title
 };
 
 // Modal groups, indexed as LinuxCNC does.
@@ -104,6 +105,8 @@ struct SubDef {
   std::string file;
   int64_t offset = 0;  // first body line
   int line = 0;
+  bool fanuc = false;  // O<n> ... M99 (M98) rather than O<n> sub ... endsub (call)
+  std::string text;    // the defining line, for errors
 };
 
 // Modal state saved by M70/M73 (and restored by M72 / at return).
@@ -152,6 +155,9 @@ struct Frame {
   bool restore_on_return = false;  // M73: restored when the subroutine returns
   bool is_user_m = false;
   std::shared_ptr<RemapCall> remap;  // set when this call carries out a remapped code
+  bool fanuc = false;      // an M98 call: numbered parameters are shared, M99 returns
+  int fanuc_repeats = 0;   // M98 L: times the body runs again after this one
+  SubDef fanuc_def;        // where the body starts (for L)
 };
 
 struct SourceFile {

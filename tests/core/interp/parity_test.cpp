@@ -368,3 +368,46 @@ TEST(InterpRemap, PythonProceduresAreRefusedAtLoadNamingTheIniFileAndLine) {
   EXPECT_FALSE(builtin.ok);
   EXPECT_NE(builtin.err.find("built-in M code"), std::string::npos) << builtin.err;
 }
+
+// ---------------------------------------------------------------- M98/M99
+
+TEST(InterpFanucSubs, M98RunsTheSubprogramLTimesSharingTheNumberedParameters) {
+  const Rs274Result r = run("#1 = 0\nM98 P0100 L3\n(debug, main #1)\nM98 P100 L0\nM30\n"
+                            "O100 (numbered subprogram)\n#1 = [#1 + 1]\nG0 X#1\nM99\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_TRAVERSE(3.0000")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\" main 3.000000\")")) << r.canon;
+  EXPECT_FALSE(has(r, "STRAIGHT_TRAVERSE(4.0000")) << r.canon;
+}
+
+TEST(InterpFanucSubs, M99InTheMainProgramEndsItAndInTheTaskStartsItAgain) {
+  const std::string prog = "#100 = [#100 + 1]\no1 if [#100 GT 2]\nM30\no1 endif\nG0 X#100\nM99\n";
+  const Rs274Result preview = run(prog);
+  EXPECT_TRUE(preview.ok) << preview.err;
+  EXPECT_TRUE(has(preview, "STRAIGHT_TRAVERSE(1.0000")) << preview.canon;
+  EXPECT_FALSE(has(preview, "STRAIGHT_TRAVERSE(2.0000")) << preview.canon;
+  EXPECT_TRUE(has(preview, "PROGRAM_END()"));
+  const Rs274Result task = run(prog, [](Rs274Options& o, const cnc::testing::TempDir&) { o.task = true; });
+  EXPECT_TRUE(task.ok) << task.err;
+  EXPECT_TRUE(has(task, "STRAIGHT_TRAVERSE(2.0000")) << task.canon;
+  EXPECT_TRUE(has(task, "PALLET_SHUTTLE()")) << task.canon;  // the M30 of the third pass
+}
+
+TEST(InterpFanucSubs, TheTwoSubroutineStylesAreNotMixed) {
+  const Rs274Result call_fanuc = run("O1 call\nM30\nO1\nM99\n");
+  EXPECT_NE(call_fanuc.err.find("Fanuc 'O....' subroutine must be called with 'M98'"), std::string::npos) << call_fanuc.err;
+  const Rs274Result m98_sub = run("M98 P1\nM30\nO1 sub\nO1 endsub\n");
+  EXPECT_NE(m98_sub.err.find("'O.... sub' subroutine must be called with 'O.... call'"), std::string::npos) << m98_sub.err;
+  const Rs274Result endsub = run("M98 P1\nM30\nO1\nO1 endsub\n");
+  EXPECT_NE(endsub.err.find("Fanuc 'O....' subroutine definition must end with 'M99'"), std::string::npos) << endsub.err;
+  const Rs274Result m99 = run("O1 call\nM30\nO1 sub\nM99\n");
+  EXPECT_NE(m99.err.find("'O.... endsub' or 'O.... return' must follow"), std::string::npos) << m99.err;
+  const Rs274Result no_p = run("M98\nM30\n");
+  EXPECT_NE(no_p.err.find("Found 'm98' code with no P-word"), std::string::npos) << no_p.err;
+}
+
+TEST(InterpFanucSubs, DisableFanucStyleSubRefusesM98) {
+  const Rs274Result r = run("M98 P1\nM30\nO1\nM99\n", with_ini("[RS274NGC]\nDISABLE_FANUC_STYLE_SUB = 1\n"));
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("DISABLE_FANUC_STYLE_SUB set in INI file, but found m98"), std::string::npos) << r.err;
+}
