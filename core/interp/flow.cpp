@@ -416,6 +416,7 @@ void Interpreter::State::do_call(bool fanuc, int repeats) {
   if (it == subs.end()) {
     // Look further down this file, then in a file named after the sub.
     LineReader& r = *files.back().reader;
+    bool hit_percent = false;
     const int64_t back_offset = r.offset();
     const int back_line = r.line_number();
     const std::string saved_text = line_text;
@@ -429,12 +430,9 @@ void Interpreter::State::do_call(bool fanuc, int repeats) {
         last_text.assign(raw);
         current_line = r.line_number();
         if (main_program && is_percent_line(raw)) {
-          // Nothing after the closing '%' belongs to the program; LinuxCNC
-          // reads that line (FINISH) and gives up.
-          line_text = last_text;
-          r.seek(back_offset, back_line);
-          canon.finish();
-          fail("Failed to find sub 'O" + label + "' before EOF");
+          // Nothing after the closing '%' belongs to the program.
+          hit_percent = true;
+          break;
         }
         if (skip_line_matches_sub(raw, label)) {
           subs[label] = SubDef{files.back().path, r.offset(), r.line_number(), block.o_type == OType::FanucSub,
@@ -449,6 +447,12 @@ void Interpreter::State::do_call(bool fanuc, int repeats) {
     line_text = saved_text;
     if (!found) {
       const auto path = find_sub_file(label);
+      if (!path && hit_percent) {
+        // LinuxCNC reads the closing '%' (FINISH) and gives up.
+        line_text = last_text;
+        canon.finish();
+        fail("Failed to find sub 'O" + label + "' before EOF");
+      }
       if (!path) {
         // LinuxCNC's wording: it searched to the end of the file.
         line_text = last_text;

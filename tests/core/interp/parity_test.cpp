@@ -411,3 +411,13 @@ TEST(InterpFanucSubs, DisableFanucStyleSubRefusesM98) {
   EXPECT_FALSE(r.ok);
   EXPECT_NE(r.err.find("DISABLE_FANUC_STYLE_SUB set in INI file, but found m98"), std::string::npos) << r.err;
 }
+
+TEST(InterpFanucSubs, TheSearchStopsAtTheClosingPercentButGoesOnInTheSubroutineFiles) {
+  const Rs274Result after_percent = run("%\nM98 P7\nM30\n%\nO7\nM99\n");
+  EXPECT_FALSE(after_percent.ok);
+  EXPECT_NE(after_percent.err.find("Failed to find sub 'O7' before EOF"), std::string::npos) << after_percent.err;
+  EXPECT_TRUE(has(after_percent, "FINISH()")) << after_percent.canon;
+  const Rs274Result in_file = run("%\no<lib> call\nM30\n%\n", {}, {{"lib.ngc", "o<lib> sub\n(debug, lib)\no<lib> endsub\nM2\n"}});
+  EXPECT_TRUE(in_file.ok) << in_file.err;
+  EXPECT_TRUE(has(in_file, "MESSAGE(\" lib\")")) << in_file.canon;
+}
