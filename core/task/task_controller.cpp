@@ -141,6 +141,7 @@ TaskController::TaskController(const ini::IniFile& ini, hal::Hal& hal, motion::M
   canon_->on_print = [this](std::string_view t) { post(MessageKind::Text, std::string(t)); };
   interp_config_ = interp::Config::from_ini(ini);
   interp_config_.axis_mask = ms_.traj.axis_mask;
+  interp_config_.task = true;  // #<_task> is 1 and M99 in the main program starts it again, as in LinuxCNC's task
   interp_ = std::make_unique<interp::Interpreter>(*canon_, interp_config_);
   try {
     interp_->init();
