@@ -67,6 +67,7 @@ class PreviewCanon final : public interp::Canon {
   void start_spindle_counterclockwise(int) override {}
   void stop_spindle_turning(int) override {}
   void orient_spindle(int, double, int) override {}
+  void wait_spindle_orient_complete(int, double) override {}
   void flood_on() override {}
   void flood_off() override {}
   void mist_on() override {}

@@ -90,8 +90,6 @@ const std::vector<IgnoredKey>& ignored_linuxcnc_keys() {
       {"EMC", "NML_FILE"},
       {"TASK", "TASK"},
       {"RS274NGC", "FEATURES"},
-      {"RS274NGC", "REMAP"},
-      {"RS274NGC", "ORIENT_OFFSET"},
       {"RS274NGC", "HAL_PIN_VARS"},
       {"RS274NGC", "INI_VARS"},
       {"RS274NGC", "LOG_LEVEL"},

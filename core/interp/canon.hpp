@@ -91,6 +91,9 @@ class Canon {
   virtual void start_spindle_counterclockwise(int spindle) = 0;
   virtual void stop_spindle_turning(int spindle) = 0;
   virtual void orient_spindle(int spindle, double degrees, int mode) = 0;
+  // M19 Q: wait until the spindle reports it is oriented; not within
+  // `timeout_s` seconds is an error of the machine.
+  virtual void wait_spindle_orient_complete(int spindle, double timeout_s) = 0;
 
   // --- coolant
   virtual void flood_on() = 0;
@@ -150,6 +153,15 @@ class Canon {
   virtual Units machine_length_units() const = 0;  // units of the tool table
   virtual const cnc::tooltable::ToolTable& tool_table() const = 0;
   virtual int tool_in_spindle() const = 0;         // tool number, 0 none
+  // Tooldata index the spindle's tool came from, as the machine reports it
+  // (LinuxCNC's GET_EXTERNAL_TOOL_SLOT); a G10 L1/L10/L11 of the tool at
+  // that index also rewrites the spindle's entry (index 0). Default: the
+  // index of tool_in_spindle() in tool_table(), 0 when none.
+  virtual int tool_slot() const {
+    const int n = tool_in_spindle();
+    const auto i = n > 0 ? tool_table().find_tool(n) : std::nullopt;
+    return i ? *i : 0;
+  }
   virtual bool is_feed_override_enabled() const { return true; }
 };
 

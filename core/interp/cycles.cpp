@@ -7,7 +7,7 @@
 namespace cnc::interp {
 
 namespace {
-constexpr char kLetters[] = "xyzabcuvw";
+
 }
 
 void Interpreter::State::convert_cycle(int g, Pose) {

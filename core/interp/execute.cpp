@@ -37,6 +37,15 @@ double Interpreter::State::to_machine_len(double program_len) const {
   return program_len * units_per_inch(canon.machine_length_units()) / units_per_inch(units);
 }
 
+// Rotary axes (A B C) are in degrees whatever the length units.
+double Interpreter::State::to_program_axis(int axis, double machine_value) const {
+  return axis >= 3 && axis <= 5 ? machine_value : to_program_len(machine_value);
+}
+
+double Interpreter::State::to_machine_axis(int axis, double program_value) const {
+  return axis >= 3 && axis <= 5 ? program_value : to_machine_len(program_value);
+}
+
 void Interpreter::State::canon_init_calls() {
   canon.use_length_units(units);
   Pose g5x{};
@@ -65,10 +74,10 @@ void Interpreter::State::reset_modal(bool keep_params) {
   origin = round_to_int(params[5220]);
   if (origin < 1 || origin > 9) origin = 1;
   const int base = 5201 + 20 * origin;
-  for (int i = 0; i < kNumAxes; ++i) origin_offset[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
+  for (int i = 0; i < kNumAxes; ++i) origin_offset[i] = to_program_axis(i, params[static_cast<std::size_t>(base + i)]);
   rotation = params[static_cast<std::size_t>(base + 9)];
   for (int i = 0; i < kNumAxes; ++i) {
-    axis_offset[i] = params[5210] != 0.0 ? to_program_len(params[static_cast<std::size_t>(5211 + i)]) : 0.0;
+    axis_offset[i] = params[5210] != 0.0 ? to_program_axis(i, params[static_cast<std::size_t>(5211 + i)]) : 0.0;
   }
   // Until the first synch the machine is taken to be at its origin, so the
   // program position is minus the stored offsets (as LinuxCNC starts).
@@ -97,7 +106,10 @@ void Interpreter::State::reset_modal(bool keep_params) {
   block_ready = false;
 }
 
-void Interpreter::State::update_tool_from_canon() { tools = canon.tool_table(); }
+void Interpreter::State::update_tool_from_canon() {
+  tools = canon.tool_table();
+  current_index = canon.tool_slot();
+}
 
 void Interpreter::State::snapshot_modal(ModalSnapshot& m) const {
   m.valid = true;
@@ -177,32 +189,218 @@ void Interpreter::State::restore_modal(const ModalSnapshot& m) {
   }
 }
 
+namespace {
+// The argspec letters of a remap (lower case), without @ > ^.
+uint32_t argspec_words(const RemapSpec& r) {
+  uint32_t mask = 0;
+  for (char ch : r.argspec) {
+    const char l = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (l >= 'a' && l <= 'z') mask |= 1u << (l - 'a');
+  }
+  return mask;
+}
+}  // namespace
+
+// The steps of a block in LinuxCNC's order. A remapped code stops the block
+// at its step; it goes on from the next step when the procedure returns.
+enum ExecStep : int {
+  kStepComment = 1, kStepSpindleMode, kStepFeedMode, kStepFeed, kStepSpeed, kStepTool,
+  kStepMIo, kStepMToolChange, kStepMSpindle, kStepMState, kStepMCoolant, kStepMOverride, kStepMUser,
+  kStepG, kStepMotion, kStepStop, kStepEnd
+};
+
 Status Interpreter::State::execute_block() {
   Status st = Status::Ok;
-  if (block.g[kGNonModal] == 530) {
-    const int m = block.g[kGMotion] != -1 ? block.g[kGMotion] : motion_mode;
-    if (m != 0 && m != 10) fail("Must use g0 or g1 with g53");
-    if (block.g[kGDistance] == 910 || (block.g[kGDistance] == -1 && !absolute)) fail("Cannot use g53 incremental");
+  const int first = exec_step;
+  exec_step = 0;
+  if (first == 0) {
+    check_remap_args();
+    if (block.g[kGNonModal] == 530) {
+      const int m = block.g[kGMotion] != -1 ? block.g[kGMotion] : motion_mode;
+      if (m != 0 && m != 10) fail("Must use g0 or g1 with g53");
+      if (block.g[kGDistance] == 910 || (block.g[kGDistance] == -1 && !absolute)) fail("Cannot use g53 incremental");
+    }
+    // Words a remapped code takes (its argspec) are used by it.
+    uint32_t taken = 0;
+    for (int step = kStepComment; step < kStepEnd; ++step) {
+      if (const RemapSpec* r = remap_at_step(step)) taken |= argspec_words(*r);
+    }
+    const uint32_t has = block.has;
+    block.has &= ~taken;
+    check_other_words();
+    block.has = has;
   }
-  check_other_words();
   canon.begin_block(block.line, block.n_number, block.n_text);
   n_number = block.n_number;
-  if (block.has_comment) convert_comment();
-  if (block.g[kGSpindleMode] != -1) convert_spindle_mode(block.g[kGSpindleMode]);
-  if (block.g[kGFeedMode] != -1) convert_feed_mode(block.g[kGFeedMode]);
-  if (block.has_word('f') && feed_mode != FeedMode::InverseTime) {
-    feed = block.get('f');
-    canon.set_feed_rate(feed);
+  for (int step = first == 0 ? int{kStepComment} : first; step < kStepEnd; ++step) {
+    if (const RemapSpec* r = remap_at_step(step)) {
+      start_remap(*r, step);
+      return st;
+    }
+    execute_step(step, st);
   }
-  if (block.has_word('s')) {
-    speed = block.get('s');
-    canon.set_spindle_speed(0, speed);
-  }
-  if (block.has_word('t')) convert_tool_select();
-  convert_m(st);
-  convert_g(st);
-  if (block.m[kMStop] != -1) convert_stop(st);
   return st;
+}
+
+void Interpreter::State::execute_step(int step, Status& st) {
+  switch (step) {
+    case kStepComment:
+      if (block.has_comment) convert_comment();
+      break;
+    case kStepSpindleMode:
+      if (block.g[kGSpindleMode] != -1) convert_spindle_mode(block.g[kGSpindleMode]);
+      break;
+    case kStepFeedMode:
+      if (block.g[kGFeedMode] != -1) convert_feed_mode(block.g[kGFeedMode]);
+      break;
+    case kStepFeed:
+      if (block.has_word('f') && feed_mode != FeedMode::InverseTime) {
+        feed = block.get('f');
+        canon.set_feed_rate(feed);
+      }
+      break;
+    case kStepSpeed:
+      if (block.has_word('s')) {
+        speed = block.get('s');
+        canon.set_spindle_speed(0, speed);
+      }
+      break;
+    case kStepTool:
+      if (block.has_word('t')) convert_tool_select();
+      break;
+    case kStepMIo: convert_m(kMIo, st); break;
+    case kStepMToolChange: convert_m(kMToolChange, st); break;
+    case kStepMSpindle: convert_m(kMSpindle, st); break;
+    case kStepMState: convert_m(kMState, st); break;
+    case kStepMCoolant: convert_m(kMCoolant, st); break;
+    case kStepMOverride: convert_m(kMOverride, st); break;
+    case kStepMUser: convert_m(kMUser, st); break;
+    case kStepG: convert_g(); break;
+    case kStepMotion: convert_g_motion(st); break;
+    case kStepStop:
+      if (block.m[kMStop] != -1) convert_stop(st);
+      break;
+    default: break;
+  }
+}
+
+// ---------------------------------------------------------------- REMAP
+
+const RemapSpec* Interpreter::State::find_remap(char letter, int code, bool active_too) const {
+  for (const RemapSpec& r : config.remaps) {
+    if (r.letter != letter || r.code != code) continue;
+    if (!active_too) {
+      // Inside its own procedure a remapped code is the built-in one.
+      for (const Frame& f : frames) {
+        if (f.remap && f.remap->spec == &r) return nullptr;
+      }
+    }
+    return &r;
+  }
+  return nullptr;
+}
+
+const RemapSpec* Interpreter::State::remap_at_step(int step) const {
+  if (config.remaps.empty()) return nullptr;
+  auto m_at = [&](int group) { return block.m[group] != -1 ? find_remap('m', block.m[group]) : nullptr; };
+  switch (step) {
+    case kStepFeed: return block.has_word('f') ? find_remap('f', 0) : nullptr;
+    case kStepSpeed: return block.has_word('s') ? find_remap('s', 0) : nullptr;
+    case kStepTool: return block.has_word('t') ? find_remap('t', 0) : nullptr;
+    case kStepMIo: return m_at(kMIo);
+    case kStepMToolChange: return m_at(kMToolChange);
+    case kStepMSpindle: return m_at(kMSpindle);
+    case kStepMCoolant: return m_at(kMCoolant);
+    case kStepMOverride: return m_at(kMOverride);
+    case kStepMUser: return m_at(kMUser);
+    case kStepMotion: return block.g[kGMotion] != -1 ? find_remap('g', block.g[kGMotion]) : nullptr;
+    case kStepStop: return m_at(kMStop);
+    default: return nullptr;
+  }
+}
+
+int Interpreter::State::remap_level() const {
+  int n = 0;
+  for (const Frame& f : frames) n += f.remap ? 1 : 0;
+  return n;
+}
+
+
+// Required words (upper case in argspec), a feed (>) and a speed (^) of
+// every remapped code of the block, before anything of it runs.
+void Interpreter::State::check_remap_args() {
+  if (config.remaps.empty()) return;
+  for (int step = kStepComment; step < kStepEnd; ++step) {
+    const RemapSpec* r = remap_at_step(step);
+    if (r == nullptr) continue;
+    std::string missing;
+    for (char ch : r->argspec) {
+      if (ch < 'A' || ch > 'Z') continue;
+      if (!block.has_word(static_cast<char>(ch + 32))) missing += (missing.empty() ? "" : ",") + std::string(1, ch);
+    }
+    if (!missing.empty()) {
+      line_text = "O <" + r->ngc + "> call ";
+      fail("user-defined " + r->name() + ": missing: " + missing);
+    }
+    if (r->argspec.find('>') != std::string::npos && !((block.has_word('f') ? block.get('f') : feed) > 0)) {
+      fail("user-defined " + r->name() + ": needs a feed rate greater than 0 (F)");
+    }
+    if (r->argspec.find('^') != std::string::npos && !((block.has_word('s') ? block.get('s') : speed) > 0)) {
+      fail("user-defined " + r->name() + ": needs a spindle speed greater than 0 (S)");
+    }
+  }
+}
+
+void Interpreter::State::start_remap(const RemapSpec& spec, int step) {
+  auto rc = std::make_shared<RemapCall>();
+  rc->spec = &spec;
+  rc->block = block;
+  rc->resume_step = step + 1;
+  rc->line = current_line;
+  rc->file = current_file;
+  rc->text = line_text;
+  const bool positional = spec.argspec.find('@') != std::string::npos;
+  for (char ch : spec.argspec) {
+    const char l = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (l < 'a' || l > 'z' || !block.has_word(l)) continue;
+    if (positional) {
+      rc->positional.push_back(block.get(l));
+    } else {
+      rc->named.emplace_back(std::string(1, l), block.get(l));
+    }
+  }
+  rc->stage = spec.prolog.empty() ? 1 : 0;
+  call_remap_stage(rc);
+}
+
+void Interpreter::State::call_remap_stage(const std::shared_ptr<RemapCall>& rc) {
+  const RemapSpec& spec = *rc->spec;
+  const std::string& name = rc->stage == 0 ? spec.prolog : rc->stage == 1 ? spec.ngc : spec.epilog;
+  block.o_name = name;
+  block.call_args = rc->positional;
+  do_call();
+  frame().remap = rc;
+  for (const auto& [n, v] : rc->named) frame().locals[n] = v;
+}
+
+// The procedure of stage rc->stage returned: the next one is called, or the
+// block is handed back to be finished. True when the block goes on.
+bool Interpreter::State::remap_returned(const std::shared_ptr<RemapCall>& rc) {
+  const RemapSpec& spec = *rc->spec;
+  int next = rc->stage + 1;
+  if (next == 2 && spec.epilog.empty()) next = 3;
+  if (next <= 2) {
+    rc->stage = next;
+    call_remap_stage(rc);
+    return false;
+  }
+  block = rc->block;
+  exec_step = rc->resume_step;
+  current_line = rc->line;
+  current_file = rc->file;
+  line_text = rc->text;
+  resume_block = true;
+  return true;
 }
 
 // Words no code of the block uses are errors, as in LinuxCNC.
@@ -244,13 +442,13 @@ void Interpreter::State::check_other_words() const {
     fail("K word with no G2, G3, G33, G33.1, G76, or G87 to use it");
   }
   if (block.has_word('l') && g0 != 100 && !cycle && cutter != 411 && cutter != 421 && m_io != 66 && mg != 760 &&
-      mg != 52) {
+      mg != 52 && block.m[kMStop] != 98) {
     fail("L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 or NURBS code");
   }
   const int ov = block.m[kMOverride];
   if (block.has_word('p') && !motion_in({20, 30, 50, 52, 740, 760, 820, 840, 860, 880, 890}) && g0 != 40 && g0 != 100 &&
       block.g[kGControl] != 640 && !(ov >= 50 && ov <= 53) && !(m_io >= 62 && m_io <= 66) && !user_m &&
-      block.m[kMSpindle] != 19) {
+      block.m[kMSpindle] != 19 && block.m[kMStop] != 98) {
     fail("P word with no G2 G3 G4 G10 G64 G5 G5.2 G76 G82 G86 G88 G89 or M50 M51 M52 M53 M62 M63 M64 M65 M66 M98 or user M code to use it");
   }
   if (block.has_word('q') && !motion_in({50, 730, 760, 830}) && g0 != 100 && block.g[kGControl] != 640 &&
@@ -260,6 +458,14 @@ void Interpreter::State::check_other_words() const {
   if (block.has_word('r') && !motion_in({20, 30, 760}) && !cycle && g0 != 100 && block.m[kMSpindle] != 19) {
     fail("R word with no g code that uses it");
   }
+  if (block.m[kMSpindle] == 19 && block.has_word('p')) {
+    const double p = block.get('p');
+    if (std::fabs(round_to_int(p) - p) > 0.001) fail("P value not an integer with M19 G2 or G3");
+    if (round_to_int(p) < 0 || round_to_int(p) > 2) fail("P value must be 0,1,or 2 with M19");
+  }
+  if (block.m[kMSpindle] == 19 && block.has_word('r') && (block.get('r') > 360.0 || block.get('r') < 0.0)) {
+    fail("R value must be within 0..360 with M19");
+  }
 }
 
 void Interpreter::State::convert_comment() {
@@ -268,7 +474,10 @@ void Interpreter::State::convert_comment() {
   if (comment_prefix(c, "msg", rest)) {
     canon.message(rest);
   } else if (comment_prefix(c, "debug", rest)) {
-    canon.message(substitute_params(rest));
+    const std::string text = substitute_params(rest);
+    if (params[5599] > 0.0) canon.message(text);  // #5599: DEBUG output on (1 at start)
+  } else if (comment_prefix(c, "abort", rest)) {
+    fail(substitute_params(rest));  // the program stops with the text as its error
   } else if (comment_prefix(c, "print", rest)) {
     canon.print(substitute_params(rest));
   } else if (comment_prefix(c, "logopen", rest)) {
@@ -371,8 +580,9 @@ void Interpreter::State::convert_tool_change(Status& st) {
   st = Status::ExecuteFinish;
 }
 
-void Interpreter::State::convert_m(Status& st) {
-  const int io = block.m[kMIo];
+// One modal group's M code (LinuxCNC's order is the caller's: 5, 6, 7, 3, 8, 9, 10).
+void Interpreter::State::convert_m(int group, Status& st) {
+  const int io = group == kMIo ? block.m[kMIo] : -1;
   if (io != -1) {
     if ((io >= 62 && io <= 65) && (!block.has_word('p') || block.get('p') < 0)) {
       fail("No valid P word with M" + std::to_string(io));
@@ -424,8 +634,8 @@ void Interpreter::State::convert_m(Status& st) {
       default: break;
     }
   }
-  if (block.m[kMToolChange] != -1) convert_tool_change(st);
-  switch (block.m[kMSpindle]) {
+  if (group == kMToolChange && block.m[kMToolChange] != -1) convert_tool_change(st);
+  switch (group == kMSpindle ? block.m[kMSpindle] : -1) {
     case 3:
       canon.start_spindle_clockwise(0);
       spindle = Direction::Clockwise;
@@ -439,25 +649,37 @@ void Interpreter::State::convert_m(Status& st) {
       spindle = Direction::Stopped;
       break;
     case 19: {
-      const double r = block.has_word('r') ? block.get('r') : 0.0;
-      const int q = block.has_word('p') ? round_to_int(block.get('p')) : 0;
-      canon.orient_spindle(0, r, q);
+      // As LinuxCNC 2.9: the angle is R plus [RS274NGC]ORIENT_OFFSET; without
+      // R and P nothing is oriented (only Q waits); Q waits for the spindle.
       spindle = Direction::Stopped;
+      if (block.has_word('r') || block.has_word('p')) {
+        const double r = (block.has_word('r') ? block.get('r') : 0.0) + config.orient_offset;
+        canon.orient_spindle(0, r, block.has_word('p') ? round_to_int(block.get('p')) : 0);
+      }
+      if (block.has_word('q')) {
+        if (block.get('q') <= 0.0) fail("Q word with M19 requires a value > 0");
+        canon.wait_spindle_orient_complete(0, block.get('q'));
+      }
       break;
     }
     default: break;
   }
-  switch (block.m[kMState]) {
-    case 70: snapshot_modal(saved_m70); break;
-    case 71: saved_m70.valid = false; break;
+  switch (group == kMState ? block.m[kMState] : -1) {
+    // As LinuxCNC: one saved context per call level; M73 also restores it
+    // when the subroutine returns.
+    case 70: snapshot_modal(frame().saved_modal); break;
+    case 71: frame().saved_modal.valid = false; break;
     case 72:
-      if (!saved_m70.valid) fail("Cannot restore context from invalid stack frame - missing M70/M73?");
-      restore_modal(saved_m70);
+      if (!frame().saved_modal.valid) fail("Cannot restore context from invalid stack frame - missing M70/M73?");
+      restore_modal(frame().saved_modal);
       break;
-    case 73: snapshot_modal(frame().saved_modal); break;
+    case 73:
+      snapshot_modal(frame().saved_modal);
+      if (frames.size() > 1) frame().restore_on_return = true;
+      break;
     default: break;
   }
-  switch (block.m[kMCoolant]) {
+  switch (group == kMCoolant ? block.m[kMCoolant] : -1) {
     case 7:
       canon.mist_on();
       mist = true;
@@ -474,7 +696,7 @@ void Interpreter::State::convert_m(Status& st) {
       break;
     default: break;
   }
-  const int ov = block.m[kMOverride];
+  const int ov = group == kMOverride ? block.m[kMOverride] : -1;
   if (ov != -1 && cutter_side != 400) {
     fail(ov == 48 || ov == 50 || ov == 51 ? "Cannot enable overrides with cutter radius compensation on"
                                           : "Cannot disable overrides with cutter radius compensation on");
@@ -509,7 +731,7 @@ void Interpreter::State::convert_m(Status& st) {
       break;
     default: break;
   }
-  const int user = block.m[kMUser];
+  const int user = group == kMUser ? block.m[kMUser] : -1;
   if (user != -1) {
     bool known = false;
     for (const auto& dir : config.user_m_path) {
@@ -561,7 +783,8 @@ void Interpreter::State::convert_units(Units u) {
       axis_offset[i] *= k;
       tool_offset[i] *= k;
     }
-    feed *= k;
+    // The feed rate stays the number programmed: F is read in the units in
+    // force when it is used (LinuxCNC's #<_feed> after G20/G21).
     cycle_r *= k;
     cycle_z *= k;
     cycle_cc *= k;
@@ -641,7 +864,7 @@ void Interpreter::State::convert_tool_length_offset(int g) {
       index = 0;  // the spindle
     }
     const ToolData& t = tools.at(index);
-    for (int i = 0; i < kNumAxes; ++i) off[i] = to_program_len(t.offset[i]);
+    for (int i = 0; i < kNumAxes; ++i) off[i] = to_program_axis(i, t.offset[i]);
     if (g == 432) {
       for (int i = 0; i < kNumAxes; ++i) off[i] += tool_offset[i];
     }
@@ -660,29 +883,28 @@ void Interpreter::State::convert_tool_length_offset(int g) {
     }
     if (g == 431 && diameter_mode && block.has_word('x')) off[0] /= 2.0;
   }
-  // Programmed position stays; the canonical position shifts by the change.
-  for (int i = 0; i < kNumAxes; ++i) pos[i] += tool_offset[i] - off[i];
+  // The machine stays; the program position shifts by the change (X and Y
+  // turned into the rotated system, as LinuxCNC).
+  double dx = tool_offset[0] - off[0], dy = tool_offset[1] - off[1];
+  rotate_xy(dx, dy, -rotation);
+  pos[0] += dx;
+  pos[1] += dy;
+  for (int i = 2; i < kNumAxes; ++i) pos[i] += tool_offset[i] - off[i];
   tool_offset = off;
   tool_offset_g = g;
   canon.use_tool_length_offset(off);
 }
 
-// Takes the G5x origin and rotation from the parameters at `base`. The
-// program position follows as LinuxCNC computes it: shifted by the origin
-// change, then turned about the program origin by the rotation change.
-void Interpreter::State::set_origin_keeping_machine_position(int base) {
-  Pose next{};
-  for (int i = 0; i < kNumAxes; ++i) next[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
-  const double next_rotation = params[static_cast<std::size_t>(base + 9)];
-  for (int i = 0; i < kNumAxes; ++i) pos[i] += origin_offset[i] - next[i];
-  if (rotation != next_rotation) {
-    const double t = (rotation - next_rotation) * kPi / 180.0;
-    const double x = pos[0], y = pos[1];
-    pos[0] = x * std::cos(t) - y * std::sin(t);
-    pos[1] = x * std::sin(t) + y * std::cos(t);
-  }
-  origin_offset = next;
-  rotation = next_rotation;
+// Makes coordinate system `system` (1-9) the one in force, its origin and
+// rotation taken from the parameters; the current point is expressed in it
+// by `moved` (LinuxCNC's find_current_in_system, or M2's reset).
+void Interpreter::State::load_origin(int system, const Pose& moved) {
+  pos = moved;
+  origin = system;
+  params[5220] = system;
+  const int base = 5201 + 20 * system;
+  for (int i = 0; i < kNumAxes; ++i) origin_offset[i] = to_program_axis(i, params[static_cast<std::size_t>(base + i)]);
+  rotation = params[static_cast<std::size_t>(base + 9)];
 }
 
 void Interpreter::State::convert_coordinate_system(int g) {
@@ -704,10 +926,7 @@ void Interpreter::State::convert_coordinate_system(int g) {
     if (config.linuxcnc_comments) canon.comment("interpreter: continuing to use same coordinate system");
     return;
   }
-  origin = n;
-  params[5220] = n;
-  const int base = 5201 + 20 * n;
-  set_origin_keeping_machine_position(base);
+  load_origin(n, current_in_system(n, false));
   canon.set_g5x_offset(origin, origin_offset);
   canon.set_g92_offset(axis_offset);
   canon.set_xy_rotation(rotation);
@@ -748,7 +967,7 @@ void Interpreter::State::convert_axis_offsets(int g) {
         pos[i] = pos[i] + axis_offset[i] - v;
         axis_offset[i] = v;
       }
-      params[static_cast<std::size_t>(5211 + i)] = to_machine_len(axis_offset[i]);
+      params[static_cast<std::size_t>(5211 + i)] = to_machine_axis(i, axis_offset[i]);
     }
     params[5210] = 1.0;
   } else if (g == 921 || g == 922) {
@@ -760,7 +979,7 @@ void Interpreter::State::convert_axis_offsets(int g) {
     params[5210] = 0;
   } else {  // 92.3
     for (int i = 0; i < kNumAxes; ++i) {
-      const double next = to_program_len(params[static_cast<std::size_t>(5211 + i)]);
+      const double next = to_program_axis(i, params[static_cast<std::size_t>(5211 + i)]);
       pos[i] = pos[i] + axis_offset[i] - next;
       axis_offset[i] = next;
     }
@@ -770,53 +989,75 @@ void Interpreter::State::convert_axis_offsets(int g) {
 }
 
 void Interpreter::State::convert_coord_setup(int l) {
-  // G10 L2 / L20 P(1-9 or 0 for the active system) axis words, R rotation
+  // G10 L2 / L20 P(1-9, or 0 for the system in force) axis words, R
+  // rotation (L2 only), as LinuxCNC's convert_setup.
   if (!block.has_word('p')) fail("P word missing with G10 L2");
-  int p = static_cast<int>(round_to_int(block.get('p')));
+  if (block.has_word('i') || block.has_word('j')) fail("I J words not allowed with G10 L2");
+  int p = static_cast<int>(block.get('p') + 0.0001);
   if (p == 0) p = origin;
   if (p < 1 || p > 9) fail("P value out of range with G10 L2");
+  if (cutter_side != 400 && p == origin) fail("Cannot change the active coordinate system with cutter radius compensation on");
   const int base = 5201 + 20 * p;
-  static constexpr char letters[] = "xyzabcuvw";
-  if (l == 20 && block.has_word('r')) fail("R not allowed in G10 L20");
-  if (block.has_word('r')) params[static_cast<std::size_t>(base + 9)] = block.get('r');
-  // L20: the origin that makes the current point read the given values,
-  // with the target system's rotation: origin = machine - tool - rot(v + G92).
-  Pose want = pos;
-  for (int i = 0; i < kNumAxes; ++i) {
-    if (block.has_word(letters[i])) want[i] = block.get(letters[i]) / ((i == 0 && diameter_mode) ? 2.0 : 1.0);
+  const Pose current = current_in_system(p, false);
+  double r = params[static_cast<std::size_t>(base + 9)];
+  if (block.has_word('r')) {
+    if (l == 20) fail("R not allowed in G10 L20");
+    r = block.get('r');
+    params[static_cast<std::size_t>(base + 9)] = r;
   }
-  const Pose machine = program_to_machine(pos);
-  Pose rotated = want;
-  for (int i = 0; i < kNumAxes; ++i) rotated[i] += axis_offset[i];
-  {
-    const double rot = params[static_cast<std::size_t>(base + 9)];
-    if (rot != 0.0) {
-      const double r = std::hypot(rotated[0], rotated[1]);
-      const double t = std::atan2(rotated[1], rotated[0]) + rot * kPi / 180.0;
-      rotated[0] = r * std::cos(t);
-      rotated[1] = r * std::sin(t);
-    }
-  }
-  for (int i = 0; i < kNumAxes; ++i) {
-    const char c = letters[i];
-    if (!block.has_word(c)) continue;
-    double v = block.get(c);
+  auto param = [&](int i) -> double& { return params[static_cast<std::size_t>(base + i)]; };
+  auto word = [&](int i, double& v) {
+    if (!block.has_word(kLetters[i])) return false;
+    v = block.get(kLetters[i]);
     if (i == 0 && diameter_mode) v /= 2.0;
-    if (l == 20) v = machine[i] - tool_offset[i] - rotated[i];
-    params[static_cast<std::size_t>(base + i)] = to_machine_len(v);
-  }
-  if (p == origin) {
-    set_origin_keeping_machine_position(base);
-    if (l == 20) {
-      for (int i = 0; i < kNumAxes; ++i) {
-        if (block.has_word(letters[i])) pos[i] = want[i];  // exactly what was asked
+    return true;
+  };
+  Pose next{};
+  double v = 0;
+  if (l == 20) {
+    // The origin that makes the current point read the values given, in
+    // the system's rotated frame (both X and Y move under a rotation).
+    double oldx = current[0], oldy = current[1];
+    double x = word(0, v) ? v : current[0];
+    double y = word(1, v) ? v : current[1];
+    rotate_xy(oldx, oldy, r);
+    rotate_xy(x, y, r);
+    next[0] = oldx + to_program_axis(0, param(0)) - x;
+    next[1] = oldy + to_program_axis(1, param(1)) - y;
+    param(0) = to_machine_axis(0, next[0]);
+    param(1) = to_machine_axis(1, next[1]);
+  } else {
+    for (int i = 0; i < 2; ++i) {
+      if (word(i, v)) {
+        next[i] = v;
+        param(i) = to_machine_axis(i, v);
+      } else {
+        next[i] = to_program_axis(i, param(i));
       }
     }
-    canon.set_g5x_offset(origin, origin_offset);
-    canon.set_xy_rotation(rotation);
-  } else if (config.linuxcnc_comments) {
-    canon.comment("interpreter: setting coordinate system origin");
   }
+  for (int i = 2; i < kNumAxes; ++i) {
+    if (word(i, v)) {
+      if (l == 20) v = current[i] + to_program_axis(i, param(i)) - v;
+      next[i] = v;
+      param(i) = to_machine_axis(i, v);
+    } else {
+      next[i] = to_program_axis(i, param(i));
+    }
+  }
+  if (p != origin) {
+    if (config.linuxcnc_comments) canon.comment("interpreter: setting coordinate system origin");
+    return;
+  }
+  // The system in force: the current point follows the new origin and
+  // rotation.
+  rotate_xy(pos[0], pos[1], rotation);
+  for (int i = 0; i < kNumAxes; ++i) pos[i] += origin_offset[i] - next[i];
+  origin_offset = next;
+  canon.set_g5x_offset(origin, origin_offset);
+  rotate_xy(pos[0], pos[1], -r);
+  rotation = r;
+  canon.set_xy_rotation(rotation);
 }
 
 void Interpreter::State::convert_setup_tool(int l) {
@@ -831,21 +1072,60 @@ void Interpreter::State::convert_setup_tool(int l) {
     fail(buf);
   }
   ToolData t = tools.at(*index);
-  static constexpr char letters[] = "xyzabcuvw";
-  for (int i = 0; i < kNumAxes; ++i) {
-    const char c = letters[i];
-    if (!block.has_word(c)) continue;
-    double v = block.get(c);
+  bool any = block.has_word('r') || block.has_word('q') || block.has_word('i') || block.has_word('j');
+  for (int i = 0; i < kNumAxes; ++i) any = any || block.has_word(kLetters[i]);
+  if (!any) fail("G10 L1 without offsets has no effect");
+  auto word = [&](int i, double& v) {
+    if (!block.has_word(kLetters[i])) return false;
+    v = block.get(kLetters[i]);
     if (i == 0 && diameter_mode) v /= 2.0;
-    if (l == 1) {
-      t.offset[i] = to_machine_len(v);
-    } else {
-      // L10: offset so that the current position reads v (tool offset
-      // applied); L11: as L10 but in G59.3 (coordinate system 9).
-      const double machine = program_to_machine(pos)[i];
-      const double new_off = l == 11 ? machine - to_program_len(params[static_cast<std::size_t>(5381 + i)]) - v
-                                     : pos[i] + tool_offset[i] - v;
-      t.offset[i] = to_machine_len(new_off);
+    return true;
+  };
+  double v = 0;
+  if (l == 1) {
+    for (int i = 0; i < kNumAxes; ++i) {
+      if (word(i, v)) t.offset[i] = to_machine_axis(i, v);
+    }
+  } else {
+    // L10: the offset that makes the current point read the values given in
+    // the system in force; L11: in G59.3 (and without its G92 offset). As
+    // LinuxCNC, X and Y are measured in the system's rotated frame; with
+    // only one of them given the other component of the offset is kept.
+    const int system = l == 11 ? 9 : origin;
+    Pose cur = current_in_system(system, true);
+    if (l == 11 && params[5210] != 0.0) {
+      for (int i = 0; i < kNumAxes; ++i) cur[i] += to_program_axis(i, params[static_cast<std::size_t>(5211 + i)]);
+    }
+    const double rot = params[static_cast<std::size_t>(5201 + 20 * system + 9)];
+    double wx = 0, wy = 0;
+    const bool has_x = word(0, wx), has_y = word(1, wy);
+    if (has_x || has_y) {
+      double tx = cur[0], ty = cur[1];
+      double ox = 0, oy = 0;  // the kept component of the old offset
+      if (has_x && has_y) {
+        tx -= wx;
+        ty -= wy;
+      } else {
+        ox = to_program_axis(0, t.offset[0]);
+        oy = to_program_axis(1, t.offset[1]);
+        rotate_xy(ox, oy, -rot);
+        if (has_x) {
+          ox = 0;
+          tx -= wx;
+          ty = 0;
+        } else {
+          oy = 0;
+          ty -= wy;
+          tx = 0;
+        }
+        rotate_xy(ox, oy, rot);
+      }
+      rotate_xy(tx, ty, rot);
+      t.offset[0] = to_machine_axis(0, tx + ox);
+      t.offset[1] = to_machine_axis(1, ty + oy);
+    }
+    for (int i = 2; i < kNumAxes; ++i) {
+      if (word(i, v)) t.offset[i] = to_machine_axis(i, cur[i] - v);
     }
   }
   if (block.has_word('r')) t.diameter = to_machine_len(block.get('r') * 2.0);
@@ -858,15 +1138,16 @@ void Interpreter::State::convert_setup_tool(int l) {
   }
   const int written = tools.update_tool(t);
   canon.set_tool_table_entry(written, t);
-  // Fixed buglet (manual 3.24.3.4): the spindle copy is refreshed only when
-  // the modified tool is the loaded one (ToolTable::update_tool does that),
-  // and on non-random changers the canon learns it with a second entry.
-  if (!tools.is_random() && tools.spindle().number == toolno && written != 0) {
-    canon.set_tool_table_entry(0, tools.spindle());
+  // Non-random changers: the entry the spindle's tool came from (as the
+  // machine reports it, Canon::tool_slot()) is copied to the spindle entry,
+  // and the canon learns it with a second entry, as LinuxCNC does.
+  if (!tools.is_random() && written == current_index && written != 0) {
+    tools.set_slot(0, tools.at(written));
+    canon.set_tool_table_entry(0, tools.at(written));
   }
 }
 
-void Interpreter::State::convert_g(Status& st) {
+void Interpreter::State::convert_g() {
   if (block.g[kGNonModal] == 40) convert_dwell();
   if (block.g[kGPlane] != -1) convert_plane(block.g[kGPlane]);
   if (block.g[kGUnits] != -1) convert_units(block.g[kGUnits] == 200 ? Units::Inch : Units::Mm);
@@ -919,7 +1200,7 @@ void Interpreter::State::convert_g(Status& st) {
       if (cutter_side != 400) fail("Cannot set reference point with cutter compensation in effect");
       const int base = g0 == 281 ? 5161 : 5181;
       const Pose machine = program_to_machine(pos);
-      for (int i = 0; i < kNumAxes; ++i) params[static_cast<std::size_t>(base + i)] = to_machine_len(machine[i]);
+      for (int i = 0; i < kNumAxes; ++i) params[static_cast<std::size_t>(base + i)] = to_machine_axis(i, machine[i]);
       break;
     }
     case 520:
@@ -932,6 +1213,11 @@ void Interpreter::State::convert_g(Status& st) {
     default:
       break;
   }
+}
+
+// The motion step: G code of group 1, or axis words in the modal motion.
+void Interpreter::State::convert_g_motion(Status& st) {
+  const int g0 = block.g[kGNonModal];
   int motion = block.g[kGMotion];
   if (motion == 800 && block.any_axis(config.axis_mask) && g0 != 100 && g0 != 280 && g0 != 300 && g0 != 520 &&
       g0 != 920 && block.g[kGToolOffset] != 431 && block.g[kGToolOffset] != 432) {
@@ -956,7 +1242,7 @@ void Interpreter::State::convert_home(int g) {
   // The home position is stored in machine coordinates; in program
   // coordinates, only the axes named (all when none) go there.
   Pose machine{};
-  for (int i = 0; i < kNumAxes; ++i) machine[i] = to_program_len(params[static_cast<std::size_t>(base + i)]);
+  for (int i = 0; i < kNumAxes; ++i) machine[i] = to_program_axis(i, params[static_cast<std::size_t>(base + i)]);
   const Pose target = machine_to_program(machine);
   Pose home = mid;
   for (int i = 0; i < kNumAxes; ++i) {
@@ -967,9 +1253,12 @@ void Interpreter::State::convert_home(int g) {
 }
 
 void Interpreter::State::end_program(bool pallet) {
-  origin = 1;
-  params[5220] = 1.0;
-  set_origin_keeping_machine_position(5221);
+  // Back to G54 keeping the point on the machine (the G92 offset stays).
+  Pose p = pos;
+  rotate_xy(p[0], p[1], rotation);
+  for (int i = 0; i < kNumAxes; ++i) p[i] += origin_offset[i] - to_program_axis(i, params[static_cast<std::size_t>(5221 + i)]);
+  rotate_xy(p[0], p[1], -params[5230]);
+  load_origin(1, p);
   canon.set_g5x_offset(1, origin_offset);
   canon.set_xy_rotation(rotation);
   if (plane != Plane::XY) {
@@ -1006,6 +1295,11 @@ void Interpreter::State::end_program(bool pallet) {
     canon.flood_off();
     flood = false;
   }
+  // [RS274NGC]DISABLE_G92_PERSISTENCE: the G92/G52 offset is not kept
+  // (the parameters are cleared; the offset in force stays until reset).
+  if (config.disable_g92_persistence) {
+    for (int k = 5210; k <= 5219; ++k) params[static_cast<std::size_t>(k)] = 0.0;
+  }
   if (pallet) canon.pallet_shuttle();
   canon.program_end();
 }
@@ -1026,8 +1320,47 @@ void Interpreter::State::convert_stop(Status& st) {
       program_ended = true;
       st = Status::ProgramEnd;
       break;
+    case 98: convert_fanuc_call(); break;
+    case 99: convert_fanuc_return(st); break;
     default: break;
   }
+}
+
+// M98 P<n> [L<times>]: runs the Fanuc-style subprogram O<n> ... M99.
+void Interpreter::State::convert_fanuc_call() {
+  if (config.disable_fanuc_style_sub) fail("DISABLE_FANUC_STYLE_SUB set in INI file, but found m98");
+  if (!block.has_word('p')) fail("Found 'm98' code with no P-word");
+  const int times = block.has_word('l') ? round_to_int(block.get('l')) : 1;
+  if (times <= 0) return;
+  block.o_name = std::to_string(round_to_int(block.get('p')));
+  block.call_args.clear();
+  do_call(true, times);
+}
+
+// M99: back from an M98 subprogram (or into it again for L). In the main
+// program it ends the program as M2 does, or, in the task controller
+// (Config::task, as LinuxCNC's task), starts it again from the top.
+void Interpreter::State::convert_fanuc_return(Status& st) {
+  if (config.disable_fanuc_style_sub) fail("DISABLE_FANUC_STYLE_SUB set in INI file, but found m99");
+  if (frames.size() > 1) {
+    Frame& f = frame();
+    if (!f.fanuc) fail("'O.... endsub' or 'O.... return' must follow 'O.... sub' subroutine definition");
+    if (f.fanuc_repeats > 0) {
+      --f.fanuc_repeats;
+      jump(f.fanuc_def.offset, f.fanuc_def.line);
+      return;
+    }
+    do_return(false, 0.0);
+    return;
+  }
+  if (config.task && !files.empty() && files.back().path != "<mdi>") {
+    jump(0, 0);
+    first_line = true;
+    return;
+  }
+  end_program(false);
+  program_ended = true;
+  st = Status::ProgramEnd;
 }
 
 }  // namespace cnc::interp

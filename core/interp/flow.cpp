@@ -175,6 +175,11 @@ ReadResult Interpreter::State::read_block() {
     }
     if (block.o_type != OType::None) {
       handle_o_word();
+      if (resume_block) {
+        // A remap procedure returned: the rest of its block runs now.
+        resume_block = false;
+        return ReadResult::Block;
+      }
       continue;
     }
     // Parameter settings take effect once the whole line is read.
@@ -253,6 +258,7 @@ bool Interpreter::State::handle_o_word() {
         value = read_expression(i);
         has_value = true;
       }
+      if (frames.size() > 1 && frame().fanuc) fail("Fanuc 'O....' subroutine definition must end with 'M99'");
       if (frames.size() <= 1) {
         std::string src = line_text;
         while (!src.empty() && (src.front() == ' ' || src.front() == '\t')) src.erase(0, 1);
@@ -392,13 +398,17 @@ bool Interpreter::State::handle_o_word() {
       }
       return true;
     }
+    case OType::FanucSub:
+      // Reached in the flow of the program: a program title, or the start
+      // of a Fanuc subprogram the program runs into; nothing to do.
+      return true;
     case OType::None:
       break;
   }
   return false;
 }
 
-void Interpreter::State::do_call() {
+void Interpreter::State::do_call(bool fanuc, int repeats) {
   const std::string label = block.o_name;
   const std::vector<double> args = block.call_args;
   if (frames.size() >= 64) fail("Too many subroutine levels");
@@ -406,6 +416,7 @@ void Interpreter::State::do_call() {
   if (it == subs.end()) {
     // Look further down this file, then in a file named after the sub.
     LineReader& r = *files.back().reader;
+    bool hit_percent = false;
     const int64_t back_offset = r.offset();
     const int back_line = r.line_number();
     const std::string saved_text = line_text;
@@ -414,11 +425,18 @@ void Interpreter::State::do_call() {
     bool found = false;
     std::string last_text = saved_text;
     if (files.back().path != "<mdi>") {
+      const bool main_program = files.size() == 1 && percent_seen;
       while (r.next(raw)) {
         last_text.assign(raw);
         current_line = r.line_number();
+        if (main_program && is_percent_line(raw)) {
+          // Nothing after the closing '%' belongs to the program.
+          hit_percent = true;
+          break;
+        }
         if (skip_line_matches_sub(raw, label)) {
-          subs[label] = SubDef{files.back().path, r.offset(), r.line_number()};
+          subs[label] = SubDef{files.back().path, r.offset(), r.line_number(), block.o_type == OType::FanucSub,
+                               std::string(raw)};
           found = true;
           break;
         }
@@ -429,6 +447,12 @@ void Interpreter::State::do_call() {
     line_text = saved_text;
     if (!found) {
       const auto path = find_sub_file(label);
+      if (!path && hit_percent) {
+        // LinuxCNC reads the closing '%' (FINISH) and gives up.
+        line_text = last_text;
+        canon.finish();
+        fail("Failed to find sub 'O" + label + "' before EOF");
+      }
       if (!path) {
         // LinuxCNC's wording: it searched to the end of the file.
         line_text = last_text;
@@ -445,7 +469,7 @@ void Interpreter::State::do_call() {
       LineReader& fr = *opened;
       while (fr.next(raw)) {
         if (skip_line_matches_sub(raw, label)) {
-          subs[label] = SubDef{*path, fr.offset(), fr.line_number()};
+          subs[label] = SubDef{*path, fr.offset(), fr.line_number(), block.o_type == OType::FanucSub, std::string(raw)};
           found = true;
           break;
         }
@@ -454,9 +478,19 @@ void Interpreter::State::do_call() {
     }
     it = subs.find(label);
   }
+  if (it->second.fanuc != fanuc) {
+    // LinuxCNC keeps the two styles apart; the error shows the definition.
+    line_text = it->second.text;
+    fail(fanuc ? "'O.... sub' subroutine must be called with 'O.... call'"
+               : "Fanuc 'O....' subroutine must be called with 'M98'");
+  }
   Frame f;
   f.sub_name = label;
-  for (int k = 0; k < 30; ++k) {
+  f.fanuc = fanuc;
+  f.fanuc_repeats = repeats - 1;
+  f.fanuc_def = it->second;
+  // An M98 subprogram shares #1-#30 with its caller (Fanuc).
+  for (int k = 0; k < 30 && !fanuc; ++k) {
     f.saved_args[static_cast<std::size_t>(k)] = params[static_cast<std::size_t>(k + 1)];
     params[static_cast<std::size_t>(k + 1)] =
         k < static_cast<int>(args.size()) ? args[static_cast<std::size_t>(k)] : 0.0;
@@ -464,6 +498,7 @@ void Interpreter::State::do_call() {
   f.file_depth = static_cast<int>(files.size());
   f.return_offset = files.back().reader->offset();
   f.return_line = files.back().reader->line_number();
+  if (config.oword_nargs) f.locals["n_args"] = static_cast<double>(args.size());
   const SubDef def = it->second;
   frames.push_back(std::move(f));
   if (def.file != files.back().path) {
@@ -477,18 +512,21 @@ bool Interpreter::State::skip_line_matches_sub(std::string_view raw, const std::
   while (i < raw.size() && (raw[i] == ' ' || raw[i] == '\t')) ++i;
   if (i >= raw.size() || (raw[i] != 'o' && raw[i] != 'O')) return false;
   parse_line(raw);
-  return block.o_type == OType::Sub && block.o_name == label;
+  return (block.o_type == OType::Sub || block.o_type == OType::FanucSub) && block.o_name == label;
 }
 
 void Interpreter::State::do_return(bool has_value, double value) {
   Frame f = std::move(frames.back());
   frames.pop_back();
-  for (int k = 0; k < 30; ++k) params[static_cast<std::size_t>(k + 1)] = f.saved_args[static_cast<std::size_t>(k)];
-  globals["_value"] = has_value ? value : 0.0;
-  globals["_value_returned"] = has_value ? 1.0 : 0.0;
-  if (f.saved_modal.valid) restore_modal(f.saved_modal);
+  if (!f.fanuc) {
+    for (int k = 0; k < 30; ++k) params[static_cast<std::size_t>(k + 1)] = f.saved_args[static_cast<std::size_t>(k)];
+    globals["_value"] = has_value ? value : 0.0;
+    globals["_value_returned"] = has_value ? 1.0 : 0.0;
+  }
+  if (f.restore_on_return && f.saved_modal.valid) restore_modal(f.saved_modal);
   while (static_cast<int>(files.size()) > f.file_depth) pop_source();
   jump(f.return_offset, f.return_line);
+  if (f.remap) remap_returned(f.remap);
 }
 
 }  // namespace cnc::interp

@@ -123,7 +123,6 @@ struct Interpreter::State {
   bool input_pending = false;
   double input_result = 0;
   int n_number = -1;
-  ModalSnapshot saved_m70;  // M70
 
   // ---------------- read.cpp
   ReadResult read_block();
@@ -172,21 +171,39 @@ struct Interpreter::State {
   bool skip_line_matches(std::string_view raw);
   bool skip_line_matches_sub(std::string_view raw, const std::string& label);
   void start_skip(const std::string& label, std::initializer_list<OType> types, bool defining = false);
-  void do_call();
+  // An O-word call (o<name> call), or with fanuc an M98 run `repeats` times.
+  void do_call(bool fanuc = false, int repeats = 1);
+  void convert_fanuc_call();
+  void convert_fanuc_return(Status& st);
   void do_return(bool has_value, double value);
   std::optional<std::string> find_sub_file(const std::string& name) const;
   Frame& frame() { return frames.back(); }
   void jump(int64_t offset, int line_before);
 
+  // ---------------- remapping (execute.cpp)
+  int exec_step = 0;          // execute_block() starts at this step (after a remap returned)
+  bool resume_block = false;  // a remap returned: read_block() hands the block back
+  // The REMAP of a code, unless it is being carried out already (then the
+  // code is the built-in, as in LinuxCNC).
+  const RemapSpec* find_remap(char letter, int code, bool active_too = false) const;
+  const RemapSpec* remap_at_step(int step) const;
+  int remap_level() const;
+  void check_remap_args();
+  void start_remap(const RemapSpec& spec, int step);
+  void call_remap_stage(const std::shared_ptr<RemapCall>& rc);
+  bool remap_returned(const std::shared_ptr<RemapCall>& rc);
+
   // ---------------- execute.cpp
   Status execute_block();
+  void execute_step(int step, Status& st);
   void reset_modal(bool keep_params);
   void canon_init_calls();
   void convert_comment();
   void convert_feed_mode(int g);
   void convert_spindle_mode(int g);
-  void convert_m(Status& st);
-  void convert_g(Status& st);
+  void convert_m(int group, Status& st);
+  void convert_g();
+  void convert_g_motion(Status& st);
   void convert_stop(Status& st);
   void convert_tool_select();
   void convert_tool_change(Status& st);
@@ -194,7 +211,7 @@ struct Interpreter::State {
   void convert_setup_tool(int l);
   void convert_coord_setup(int l);
   void convert_coordinate_system(int g);
-  void set_origin_keeping_machine_position(int base);
+  void load_origin(int system, const Pose& moved);
   void convert_axis_offsets(int g);
   void convert_home(int g);
   void convert_units(Units u);
@@ -207,6 +224,8 @@ struct Interpreter::State {
   void end_program(bool pallet);
   double to_program_len(double machine_len) const;
   double to_machine_len(double program_len) const;
+  double to_program_axis(int axis, double machine_value) const;  // lengths scaled, A B C not
+  double to_machine_axis(int axis, double program_value) const;
   void snapshot_modal(ModalSnapshot& s) const;
   void restore_modal(const ModalSnapshot& s);
   void update_tool_from_canon();
@@ -215,6 +234,7 @@ struct Interpreter::State {
   void convert_motion(int g, Status& st);
   void convert_polar();
   Pose find_ends(bool g53) const;
+  Pose current_in_system(int system, bool without_tool) const;
   Pose program_to_machine(const Pose& p) const;
   Pose machine_to_program(const Pose& m) const;
   void straight(int g, const Pose& end);
@@ -231,7 +251,8 @@ struct Interpreter::State {
   void inverse_time_feed_straight(const Pose& from, const Pose& to);
   void inverse_time_feed_arc(double length);
   void plane_axes(int& a1, int& a2, int& a3) const;
-  double arc_tolerance() const;
+  double arc_tolerance() const;     // centre-format radius difference
+  double radius_tolerance() const;  // smallest radius, R-format reach
   // cutter comp
   void comp_straight(bool traverse, const Pose& end);
   void comp_arc(int g, const Pose& end, double c1, double c2, int turns);
@@ -243,5 +264,9 @@ struct Interpreter::State {
 };
 
 const char* plane_name(Plane p);
+// Modal group of a built-in G (x10) or M code, -1 when it is none.
+int builtin_g_group(int code);
+int builtin_m_group(int code);
+void rotate_xy(double& x, double& y, double degrees);
 
 }  // namespace cnc::interp

@@ -1,6 +1,8 @@
 // The public Interpreter API over Interpreter::State.
 #include "core/interp/interp.hpp"
 
+#include <cmath>
+#include <cstdio>
 #include <sstream>
 
 #include "core/ini/ini_file.hpp"
@@ -46,6 +48,123 @@ const char* to_string(Plane p) noexcept {
   return "?";
 }
 
+std::string RemapSpec::name() const {
+  if (letter == 'g') {
+    char buf[24];
+    if (code % 10 != 0) {
+      std::snprintf(buf, sizeof buf, "G%d.%d", code / 10, code % 10);
+    } else {
+      std::snprintf(buf, sizeof buf, "G%d", code / 10);
+    }
+    return buf;
+  }
+  if (letter == 'm') return "M" + std::to_string(code);
+  return std::string(1, static_cast<char>(letter - 32));
+}
+
+namespace {
+
+// A subroutine name given to REMAP (ngc=, prolog=, epilog=) must be found as
+// name.ngc in SUBROUTINE_PATH (or beside the INI file).
+bool ngc_file_exists(const Config& c, const cnc::ini::IniFile& ini, const std::string& name) {
+  std::vector<std::filesystem::path> dirs = c.subroutine_path;
+  dirs.push_back(ini.directory());
+  for (const auto& d : dirs) {
+    std::error_code ec;
+    if (std::filesystem::exists(d / (name + ".ngc"), ec) || std::filesystem::exists(d / (name + ".NGC"), ec)) return true;
+  }
+  return false;
+}
+
+// Parses one REMAP= value as LinuxCNC does: the code, then key=value words.
+RemapSpec parse_remap(const Config& c, const cnc::ini::IniFile& ini, const cnc::ini::Entry& e) {
+  RemapSpec r;
+  r.where = e.file + ":" + std::to_string(e.line);
+  std::vector<std::string> words;
+  {
+    std::istringstream in(e.value);
+    for (std::string w; in >> w;) words.push_back(w);
+  }
+  auto bad = [&](const std::string& what) { ini.fail(&e, "REMAP=" + e.value + ": " + what); };
+  if (words.empty()) bad("no code to remap");
+  const std::string code = cnc::to_lower(words[0]);
+  r.letter = code[0];
+  const std::string number = code.substr(1);
+  if (r.letter == 't' || r.letter == 's' || r.letter == 'f') {
+    if (!number.empty()) bad("T, S and F are remapped without a number");
+  } else if (r.letter == 'g' || r.letter == 'm') {
+    char* end = nullptr;
+    const double v = std::strtod(number.c_str(), &end);
+    if (number.empty() || end == nullptr || *end != '\0' || !(v >= 0) || v > 999) bad("'" + words[0] + "' is not a G or M code");
+    r.code = static_cast<int>(std::lround(v * (r.letter == 'g' ? 10 : 1)));
+    if (std::fabs(v * (r.letter == 'g' ? 10 : 1) - r.code) > 1e-6) bad("'" + words[0] + "' is not a G or M code");
+  } else {
+    bad("only G and M codes, T, S and F can be remapped");
+  }
+  bool group_given = false;
+  for (std::size_t k = 1; k < words.size(); ++k) {
+    const std::size_t eq = words[k].find('=');
+    if (eq == std::string::npos) bad("'" + words[k] + "' is not key=value");
+    const std::string key = cnc::to_lower(words[k].substr(0, eq));
+    const std::string value = words[k].substr(eq + 1);
+    if (key == "modalgroup") {
+      char* end = nullptr;
+      const long g = std::strtol(value.c_str(), &end, 10);
+      if (value.empty() || *end != '\0') bad("modalgroup=" + value + " is not a number");
+      r.modal_group = static_cast<int>(g);
+      group_given = true;
+    } else if (key == "argspec") {
+      for (char ch : value) {
+        const char l = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+        if (ch == '@' || ch == '>' || ch == '^') continue;
+        if (l < 'a' || l > 'z' || l == 'g' || l == 'm' || l == 'n' || l == 'o') {
+          bad(std::string("argspec: '") + ch + "' is not a word letter, @, > or ^");
+        }
+      }
+      r.argspec = value;
+    } else if (key == "ngc") {
+      r.ngc = cnc::to_lower(value);
+    } else if (key == "prolog" || key == "epilog") {
+      // LinuxCNC's prolog/epilog are Python functions; here they name an
+      // O-word subroutine file, and anything else is refused.
+      if (!ngc_file_exists(c, ini, cnc::to_lower(value))) {
+        bad(key + "=" + value + " names no subroutine file " + value +
+            ".ngc in SUBROUTINE_PATH: Python prolog/epilog functions are not supported");
+      }
+      (key == "prolog" ? r.prolog : r.epilog) = cnc::to_lower(value);
+    } else if (key == "py" || key == "python") {
+      bad(key + "=" + value + ": Python remap procedures are not supported (use ngc=)");
+    } else {
+      bad("unknown key '" + key + "' (modalgroup, argspec, ngc, prolog, epilog)");
+    }
+  }
+  if (r.ngc.empty()) bad("ngc= is missing (the O-word subroutine that implements " + r.name() + ")");
+  if (r.letter == 'g') {
+    if (!group_given) r.modal_group = 1;
+    if (r.modal_group != 1) bad("a G code can only be remapped in modal group 1");
+    if (builtin_g_group(r.code) >= 0) bad(r.name() + " is a built-in G code, which cannot be remapped");
+  } else if (r.letter == 'm') {
+    const int builtin = builtin_m_group(r.code);
+    if (r.code == 0 || r.code == 1 || r.code == 60) {
+      r.modal_group = 4;
+    } else if (r.code == 6 || r.code == 61) {
+      r.modal_group = 6;
+    } else if (builtin >= 0 && !(r.code >= 100 && r.code <= 199)) {
+      bad(r.name() + " is a built-in M code that cannot be remapped (M0, M1, M60, M6 and M61 can)");
+    } else if (!group_given) {
+      r.modal_group = 10;
+    } else if (r.modal_group < 5 || r.modal_group > 10) {
+      bad("modalgroup=" + std::to_string(r.modal_group) + ": an M code is remapped in modal group 5 to 10");
+    }
+  }
+  for (const RemapSpec& o : c.remaps) {
+    if (o.letter == r.letter && o.code == r.code) bad(r.name() + " is already remapped at " + o.where);
+  }
+  return r;
+}
+
+}  // namespace
+
 Config Config::from_ini(const cnc::ini::IniFile& ini) {
   Config c;
   c.ini = &ini;
@@ -59,12 +178,19 @@ Config Config::from_ini(const cnc::ini::IniFile& ini) {
   c.startup_code = ini.get_string("RS274NGC", "RS274NGC_STARTUP_CODE", "");
   c.random_toolchanger = ini.get_bool("EMCIO", "RANDOM_TOOLCHANGER", false);
   c.tool_change_with_spindle_on = ini.get_bool("EMCIO", "TOOL_CHANGE_WITH_SPINDLE_ON", false);
+  c.disable_g92_persistence = ini.get_bool("RS274NGC", "DISABLE_G92_PERSISTENCE", false);
+  c.orient_offset = ini.get_double("RS274NGC", "ORIENT_OFFSET", 0.0, {0, 360});
   c.center_arc_radius_tolerance_inch =
-      ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_INCH", c.center_arc_radius_tolerance_inch, {0, 1});
+      ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_INCH", c.center_arc_radius_tolerance_inch,
+                     {kMinCenterArcToleranceInch, kDefaultCenterArcToleranceInch});
   c.center_arc_radius_tolerance_mm =
-      ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_MM", c.center_arc_radius_tolerance_mm, {0, 25});
+      ini.get_double("RS274NGC", "CENTER_ARC_RADIUS_TOLERANCE_MM", c.center_arc_radius_tolerance_mm,
+                     {kMinCenterArcToleranceMm, kDefaultCenterArcToleranceMm});
   c.max_blocks_without_output =
       ini.get_int("RS274NGC", "MAX_BLOCKS_WITHOUT_OUTPUT", c.max_blocks_without_output, {10, 1e12});
+  c.oword_nargs = ini.get_bool("RS274NGC", "OWORD_NARGS", false);
+  c.disable_fanuc_style_sub = ini.get_bool("RS274NGC", "DISABLE_FANUC_STYLE_SUB", false);
+  for (const cnc::ini::Entry* e : ini.find_all_entries("RS274NGC", "REMAP")) c.remaps.push_back(parse_remap(c, ini, *e));
   if (const auto v = ini.find("TRAJ", "COORDINATES")) {
     unsigned mask = 0;
     for (char ch : *v) {
@@ -97,6 +223,10 @@ void Interpreter::init() {
   s.subs.clear();
   s.init_parameters();
   s.load_parameter_file();
+  s.params[5599] = 1.0;  // (DEBUG,...) output on, as LinuxCNC starts
+  if (s.config.disable_g92_persistence) {
+    for (int k = 5210; k <= 5219; ++k) s.params[static_cast<std::size_t>(k)] = 0.0;
+  }
   s.reset_modal(true);
   s.update_tool_from_canon();
   s.canon_init_calls();
@@ -111,6 +241,10 @@ void Interpreter::reset() {
   s.files.clear();
   s.subs.clear();
   s.program_path.clear();
+  s.frames.clear();
+  s.frames.emplace_back();
+  s.exec_step = 0;
+  s.resume_block = false;
   s.reset_modal(true);
   s.update_tool_from_canon();
   s.canon.on_reset();
@@ -127,6 +261,8 @@ void Interpreter::open(const std::filesystem::path& program) {
   s.first_line = true;
   s.program_ended = false;
   s.skipping = false;
+  s.exec_step = 0;
+  s.resume_block = false;
   s.current_line = 0;
   s.current_file = program.string();
   s.line_text.clear();
@@ -278,6 +414,35 @@ void Interpreter::synch() {
   s.params[5399] = s.canon.input_value();
   s.synch_pending = false;
   s.machine_waited();
+}
+
+void Interpreter::unwind() {
+  State& s = *s_;
+  while (s.frames.size() > 1) {
+    Frame f = std::move(s.frames.back());
+    s.frames.pop_back();
+    for (int k = 0; k < 30; ++k) s.params[static_cast<std::size_t>(k + 1)] = f.saved_args[static_cast<std::size_t>(k)];
+    while (static_cast<int>(s.files.size()) > f.file_depth) s.pop_source();
+    if (!s.files.empty()) s.jump(f.return_offset, f.return_line);
+  }
+  s.skipping = false;
+  s.skip_defining = false;
+  s.block_ready = false;
+  s.exec_step = 0;
+  s.resume_block = false;
+  s.queueing.queue().clear();
+}
+
+std::vector<std::string> Interpreter::call_stack() const {
+  const State& s = *s_;
+  std::vector<std::string> out;
+  for (std::size_t k = 1; k < s.frames.size(); ++k) {
+    const Frame& f = s.frames[k];
+    const std::size_t depth = static_cast<std::size_t>(f.file_depth);
+    const std::string file = depth >= 1 && depth <= s.files.size() ? s.files[depth - 1].path : std::string("?");
+    out.push_back("o<" + f.sub_name + "> called at " + file + ":" + std::to_string(f.return_line));
+  }
+  return out;
 }
 
 bool Interpreter::is_synch_pending() const noexcept { return s_->synch_pending; }

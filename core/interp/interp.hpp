@@ -61,6 +61,20 @@ enum class Status {
 };
 const char* to_string(Status s) noexcept;
 
+// One [RS274NGC]REMAP= line: a G or M code (or T, S, F) whose execution
+// calls O-word subroutines instead of (or, inside them, as) the built-in.
+struct RemapSpec {
+  char letter = 'm';   // 'g', 'm', 't', 's' or 'f'
+  int code = 0;        // G x10 (881 for G88.1), the M number; 0 for T, S, F
+  int modal_group = 10;  // where in the block it runs: 1 (G motion), 4-10 (M)
+  std::string argspec;   // LinuxCNC's: A-Z required, a-z optional, @ positional, > feed, ^ speed
+  std::string ngc;       // the body: o<ngc> (found as ngc.ngc in SUBROUTINE_PATH)
+  std::string prolog;    // subroutine called before the body ("" none)
+  std::string epilog;    // subroutine called after the body ("" none)
+  std::string where;     // "file:line" of the REMAP= line
+  std::string name() const;  // "M400", "G88.1", "T"
+};
+
 struct Config {
   // [RS274NGC]PARAMETER_FILE; empty: no persistence.
   std::filesystem::path parameter_file;
@@ -74,9 +88,19 @@ struct Config {
   std::string startup_code;
   // [EMCIO]RANDOM_TOOLCHANGER
   bool random_toolchanger = false;
-  // [RS274NGC]CENTER_ARC_RADIUS_TOLERANCE_INCH/_MM
-  double center_arc_radius_tolerance_inch = 0.00005;
-  double center_arc_radius_tolerance_mm = 0.00127;
+  // [RS274NGC]CENTER_ARC_RADIUS_TOLERANCE_INCH/_MM: how much the radius to
+  // the end of a centre-format arc may differ from the radius to its start
+  // (absolutely; more than 100 times this, or more than this and by more
+  // than 0.1 %, is an error). LinuxCNC's defaults, 2 * 0.001 inch * sqrt(2)
+  // and 2 * 0.01 mm * sqrt(2) (end and centre rounded to 0.001 inch or 0.01
+  // mm pass), are also the largest values allowed; the smallest are 0.00004
+  // inch and 0.001 mm.
+  double center_arc_radius_tolerance_inch = kDefaultCenterArcToleranceInch;
+  double center_arc_radius_tolerance_mm = kDefaultCenterArcToleranceMm;
+  static constexpr double kDefaultCenterArcToleranceInch = 2 * 0.001 * 1.41421356237309504880;
+  static constexpr double kDefaultCenterArcToleranceMm = 2 * 0.01 * 1.41421356237309504880;
+  static constexpr double kMinCenterArcToleranceInch = 0.00004;
+  static constexpr double kMinCenterArcToleranceMm = 0.001;
   // Axes the machine has (bit i: axis i of XYZABCUVW).
   unsigned axis_mask = 0x1ff;
   // Length units the interpreter starts in.
@@ -85,6 +109,11 @@ struct Config {
   const cnc::ini::IniFile* ini = nullptr;
   // Lathe: start in diameter mode (G7).
   bool lathe_diameter_mode = false;
+  // [RS274NGC]DISABLE_G92_PERSISTENCE: the G92/G52 offset (#5210-#5219)
+  // is cleared at start and at program end instead of being kept.
+  bool disable_g92_persistence = false;
+  // [RS274NGC]ORIENT_OFFSET: degrees added to M19's R (0..360).
+  double orient_offset = 0;
   // [EMCIO]TOOL_CHANGE_WITH_SPINDLE_ON: M6 leaves the spindle running.
   bool tool_change_with_spindle_on = false;
   // Block delete switch ('/' lines skipped when on).
@@ -101,8 +130,20 @@ struct Config {
   // Lines one read() call reads at most before it returns Status::Yield
   // (not an INI key: it bounds the work per call, not what a program may do).
   int lines_per_read = 256;
+  // #<_task>: 1 when the interpreter runs in the task controller, 0 in a
+  // preview or the stand-alone tool (LinuxCNC's rs274 -T sets it).
+  bool task = false;
 
-  // Fills the fields above from [RS274NGC], [EMCIO] and [TRAJ].
+  // [RS274NGC]REMAP lines, in file order (docs/interpreter.md, "REMAP").
+  std::vector<RemapSpec> remaps;
+  // [RS274NGC]OWORD_NARGS: an O-word call sets #<n_args> in the subroutine
+  // to the number of arguments it was given.
+  bool oword_nargs = false;
+  // [RS274NGC]DISABLE_FANUC_STYLE_SUB: M98/M99 and O-number subprograms
+  // (O1000 ... M99) are refused.
+  bool disable_fanuc_style_sub = false;
+  // Fills the fields above from [RS274NGC], [EMCIO] and [TRAJ]; a bad REMAP
+  // line throws ConfigError naming its file and line.
   static Config from_ini(const cnc::ini::IniFile& ini);
 };
 
@@ -145,6 +186,15 @@ class Interpreter {
   // synchronising at once at synch points (start-up code, offset lines,
   // tools and tests; the task controller reads MDI stepwise instead).
   Status execute(std::string_view mdi_line);
+  // After an InterpError: leaves every subroutine call in progress and goes
+  // on at the top level after the outermost call, drops the moves cutter
+  // compensation held back and any skip in progress (LinuxCNC's
+  // unwind_call; `rs274 -n 0` goes on after an error so). The modal state
+  // and the parameters stay as they are.
+  void unwind();
+  // The subroutine calls in progress, outermost first, as "o<name> called
+  // at file:line" (for `rs274 -s`).
+  std::vector<std::string> call_stack() const;
   // Re-reads the machine state after the machine caught up.
   void synch();
   bool is_synch_pending() const noexcept;

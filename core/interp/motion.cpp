@@ -8,7 +8,7 @@
 namespace cnc::interp {
 
 namespace {
-constexpr char kLetters[] = "xyzabcuvw";
+
 
 const char* plane_upper(int axis) {
   static constexpr const char* names[] = {"X", "Y", "Z", "A", "B", "C", "U", "V", "W"};
@@ -40,16 +40,41 @@ double Interpreter::State::arc_tolerance() const {
   return units == Units::Inch ? config.center_arc_radius_tolerance_inch : config.center_arc_radius_tolerance_mm;
 }
 
-namespace {
-// Rotates (x, y) by `degrees` about the origin, in polar form as LinuxCNC.
-void rotate_xy(double& x, double& y, double degrees) {
-  if (degrees == 0.0) return;
-  const double r = std::hypot(x, y);
-  const double t = std::atan2(y, x) + degrees * kPi / 180.0;
-  x = r * std::cos(t);
-  y = r * std::sin(t);
+double Interpreter::State::radius_tolerance() const {
+  // LinuxCNC's RADIUS_TOLERANCE_INCH (0.00005) and its metric equivalent:
+  // the smallest arc radius, and how far an R arc may fall short.
+  return units == Units::Inch ? 0.00005 : 0.00005 * kMmPerInch;
 }
-}  // namespace
+
+// Rotates (x, y) by `degrees` counter-clockwise about the origin (LinuxCNC's
+// Interp::rotate).
+void rotate_xy(double& x, double& y, double degrees) {
+  const double t = degrees * kPi / 180.0;
+  const double xx = x * std::cos(t) - y * std::sin(t);
+  const double yy = x * std::sin(t) + y * std::cos(t);
+  x = xx;
+  y = yy;
+}
+
+// Where the current point is in coordinate system `system` (1-9) with the
+// parameters' origin, rotation and G92 offset (LinuxCNC's
+// find_current_in_system; `without_tool`: with the tool length offset taken
+// off, find_current_in_system_without_tlo).
+Pose Interpreter::State::current_in_system(int system, bool without_tool) const {
+  Pose p = pos;
+  for (int i = 0; i < kNumAxes; ++i) p[i] += axis_offset[i];
+  rotate_xy(p[0], p[1], rotation);
+  const int base = 5201 + 20 * system;
+  for (int i = 0; i < kNumAxes; ++i) {
+    p[i] += origin_offset[i] + (without_tool ? tool_offset[i] : 0.0);
+    p[i] -= to_program_axis(i, params[static_cast<std::size_t>(base + i)]);
+  }
+  rotate_xy(p[0], p[1], -params[static_cast<std::size_t>(base + 9)]);
+  if (params[5210] != 0.0) {
+    for (int i = 0; i < kNumAxes; ++i) p[i] -= to_program_axis(i, params[static_cast<std::size_t>(5211 + i)]);
+  }
+  return p;
+}
 
 // Program coordinates (current units) to absolute machine coordinates in
 // the same units: G92 first, then the XY rotation of the G5x system, then
@@ -73,30 +98,35 @@ Pose Interpreter::State::machine_to_program(const Pose& m) const {
 Pose Interpreter::State::find_ends(bool g53) const {
   const Pose& base = cutter_side != 400 ? comp_program_pos : pos;
   Pose end = base;
-  Pose machine = g53 ? program_to_machine(base) : Pose{};
-  for (int i = 0; i < kNumAxes; ++i) {
-    const char c = kLetters[i];
-    if (!((config.axis_mask >> i) & 1u) || !block.has_word(c)) continue;
-    double v = block.get(c);
+  auto word = [&](int i, double& v) {
+    if (!((config.axis_mask >> i) & 1u) || !block.has_word(kLetters[i])) return false;
+    v = block.get(kLetters[i]);
     if (i == 0 && diameter_mode) v /= 2.0;
-    if (g53) {
-      machine[i] = v;
-    } else if (absolute) {
-      end[i] = v;
-    } else {
-      end[i] = base[i] + v;
-    }
-  }
+    return true;
+  };
   if (g53) {
-    const Pose p = machine_to_program(machine);
-    for (int i = 0; i < kNumAxes; ++i) {
-      if (((config.axis_mask >> i) & 1u) && block.has_word(kLetters[i])) end[i] = p[i];
+    // LinuxCNC's find_ends for G53: X and Y through the rotation (the other
+    // one keeps its place on the machine), the rest without it; A B C
+    // without the tool offset.
+    double cx = pos[0] + axis_offset[0], cy = pos[1] + axis_offset[1];
+    rotate_xy(cx, cy, rotation);
+    double v = 0;
+    double px = word(0, v) ? v - origin_offset[0] - tool_offset[0] : cx;
+    double py = word(1, v) ? v - origin_offset[1] - tool_offset[1] : cy;
+    rotate_xy(px, py, -rotation);
+    end[0] = px - axis_offset[0];
+    end[1] = py - axis_offset[1];
+    for (int i = 2; i < kNumAxes; ++i) {
+      if (!word(i, v)) continue;
+      const bool rotary = i >= 3 && i <= 5;
+      end[i] = v - origin_offset[i] - axis_offset[i] - (rotary ? 0.0 : tool_offset[i]);
     }
-    // a rotated system moves the other plane axis too
-    if (rotation != 0.0 && (block.has_word('x') || block.has_word('y'))) {
-      end[0] = p[0];
-      end[1] = p[1];
-    }
+    return end;
+  }
+  for (int i = 0; i < kNumAxes; ++i) {
+    double v = 0;
+    if (!word(i, v)) continue;
+    end[i] = absolute ? v : base[i] + v;
   }
   if ((block.has_polar_r || block.has_polar_a) && !g53) {
     end[0] = polar_end_x;
@@ -368,12 +398,13 @@ void Interpreter::State::convert_arc(int g, const Pose& end) {
   const Pose& start = cutter_side != 400 ? comp_program_pos : pos;
   const double s1 = start[a1], s2 = start[a2];
   const double e1 = end[a1], e2 = end[a2];
-  const double tol = arc_tolerance();
+  const double tol = radius_tolerance();
+  const double spiral_tol = arc_tolerance();
   double c1 = 0, c2 = 0;
   char buf[512];
   if (has_r) {
     const double radius = block.get('r');
-    if (std::fabs(s1 - e1) < tol && std::fabs(s2 - e2) < tol) fail("Current point same as end point of arc");
+    if (s1 == e1 && s2 == e2) fail("Current point same as end point of arc");
     const double abs_r = std::fabs(radius);
     const double m1 = (e1 + s1) / 2.0, m2 = (e2 + s2) / 2.0;
     double half = std::hypot(m1 - e1, m2 - e2);
@@ -413,7 +444,7 @@ void Interpreter::State::convert_arc(int g, const Pose& end) {
     }
     const double abs_err = std::fabs(r1 - r2);
     const double rel_err = abs_err / std::max(r1, r2);
-    if (abs_err > tol * 100.0 || (abs_err > tol && rel_err > 0.001)) {
+    if (abs_err > spiral_tol * 100.0 || (abs_err > spiral_tol && rel_err > 0.001)) {
       std::snprintf(buf, sizeof buf,
                     "Radius to end of arc differs from radius to start: start=(%s%.4f,%s%.4f) center=(%s%.4f,%s%.4f) "
                     "end=(%s%.4f,%s%.4f) r1=%.4f r2=%.4f abs_err=%.4g rel_err=%.4f%%",

@@ -1,6 +1,7 @@
 // Numbered and named parameters: LinuxCNC's numbering (5061 probe, 5161
 // G28, 5181 G30, 5211 G92, 5220-5390 coordinate systems, 5399 M66, 5400
 // tool, 5420 position), predefined read-only names, and the parameter file.
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -35,6 +36,9 @@ void Interpreter::State::init_parameters() {
   for (int i = 1; i < kMaxParameters; ++i) persistent[static_cast<std::size_t>(i)] = required_persistent(i);
   params[5220] = 1.0;
   globals.clear();
+  // The value of the last subroutine return: 0 until a subroutine returns.
+  globals["_value"] = 0.0;
+  globals["_value_returned"] = 0.0;
 }
 
 void Interpreter::State::load_parameter_file() {
@@ -138,7 +142,7 @@ bool Interpreter::State::predefined(const std::string& name, double& v) const {
   if (n.starts_with("_abs_") && n.size() == 6) {
     const int axis = axis_index(n[5]);
     if (axis >= 0) {
-      v = pos[axis] + origin_offset[axis] + axis_offset[axis] + tool_offset[axis];
+      v = program_to_machine(pos)[axis];  // through G92, rotation, origin and tool
       return true;
     }
   }
@@ -212,7 +216,7 @@ bool Interpreter::State::predefined(const std::string& name, double& v) const {
     return true;
   }
   if (n == "_remap_level") {
-    v = 0;
+    v = remap_level();
     return true;
   }
   if (n == "_line") {
@@ -220,7 +224,7 @@ bool Interpreter::State::predefined(const std::string& name, double& v) const {
     return true;
   }
   if (n == "_task") {
-    v = 0;
+    v = config.task ? 1 : 0;
     return true;
   }
   if (n == "_vmajor") {
@@ -281,50 +285,79 @@ void Interpreter::State::set_named(const std::string& name, double value) {
 }
 
 std::string Interpreter::State::substitute_params(std::string_view text) {
-  // (DEBUG,...) text: #n and #<name> replaced by "%f" values, unknown names
-  // by "######" as LinuxCNC does.
+  // (DEBUG,...), (PRINT,...), (LOG,...) and (ABORT,...) text as LinuxCNC
+  // expands it: #n and #<name> become their values, unknown ones
+  // "######"; a format given before them holds for the rest of the text:
+  // %d (no decimals), %f (4 decimals), %.Nf (N decimals), else "%f" (6).
   std::string out;
+  std::string format = "%f";
   std::size_t i = 0;
   char buf[64];
   while (i < text.size()) {
     const char c = text[i];
+    if (c == '%') {
+      ++i;
+      if (i < text.size() && text[i] == 'd') {
+        format = "%.0f";
+        ++i;
+      } else if (i < text.size() && text[i] == 'f') {
+        format = "%.4f";
+        ++i;
+      } else if (i < text.size() && text[i] == '.') {
+        ++i;
+        if (i + 1 < text.size() && std::isdigit(static_cast<unsigned char>(text[i])) && text[i + 1] == 'f') {
+          format = std::string("%.") + text[i] + "f";
+          i += 2;
+        } else {
+          out.push_back('.');
+        }
+      } else {
+        out.push_back('%');
+      }
+      continue;
+    }
     if (c != '#') {
       out.push_back(c);
       ++i;
       continue;
     }
-    if (i + 1 < text.size() && text[i + 1] == '<') {
-      const std::size_t close = text.find('>', i);
-      if (close == std::string_view::npos) {
-        out.append(text.substr(i));
-        break;
+    ++i;
+    if (i >= text.size()) fail("Named parameter not terminated");
+    bool found = false;
+    double v = 0;
+    if (std::isdigit(static_cast<unsigned char>(text[i]))) {
+      long index = 0;
+      while (i < text.size() && std::isdigit(static_cast<unsigned char>(text[i]))) {
+        if (index < 1000000) index = index * 10 + (text[i] - '0');
+        ++i;
       }
-      std::string name;
-      for (char ch : text.substr(i + 2, close - i - 2)) {
-        if (ch == ' ' || ch == '\t') continue;
-        name.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(ch))));
+      if (index >= 1 && index < kMaxParameters) {
+        v = get_param(static_cast<int>(index));
+        found = true;
+      } else if (index == 0) {
+        found = true;  // LinuxCNC reads its unused #0: always 0
       }
-      double v = 0;
-      if (find_named(name, v)) {
-        std::snprintf(buf, sizeof buf, "%f", v + 0.0);  // LinuxCNC shows -0 as 0
-        out += buf;
-      } else {
-        out += "######";
-      }
-      i = close + 1;
-      continue;
-    }
-    std::size_t j = i + 1;
-    int index = 0;
-    while (j < text.size() && text[j] >= '0' && text[j] <= '9' && index < 100000) index = index * 10 + (text[j++] - '0');
-    if (j == i + 1 || index < 1 || index >= kMaxParameters) {
-      out.push_back(c);
+    } else if (text[i] == '<') {
       ++i;
+      std::string name;
+      while (i < text.size() && text[i] != '>' && text[i] != ')') {
+        if (text[i] != ' ' && text[i] != '\t') name.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(text[i]))));
+        ++i;
+      }
+      if (i >= text.size() || text[i] != '>') fail("Named parameter not terminated");
+      ++i;
+      found = find_named(name, v);
+    } else {
+      out.push_back('#');
       continue;
     }
-    std::snprintf(buf, sizeof buf, "%f", get_param(index) + 0.0);
-    out += buf;
-    i = j;
+    if (found) {
+      if (std::fabs(v) < 0.0001) v = 0.0;  // LinuxCNC shows near-zero (and -0) as 0
+      const int n = std::snprintf(buf, sizeof buf, format.c_str(), v);
+      out += (n < 0 || n >= 30) ? std::string("######") : std::string(buf);
+    } else {
+      out += "######";
+    }
   }
   return out;
 }

@@ -125,6 +125,14 @@ class QueueingCanon final : public Canon {
     }
     real_.orient_spindle(spindle, degrees, mode);
   }
+  void wait_spindle_orient_complete(int spindle, double timeout_s) override {
+    ++outputs_;
+    if (holding()) {
+      queue_.push_back(QueuedCall{false, {}, [this, spindle, timeout_s] { real_.wait_spindle_orient_complete(spindle, timeout_s); }});
+      return;
+    }
+    real_.wait_spindle_orient_complete(spindle, timeout_s);
+  }
   void flood_on() override {
     ++outputs_;
     if (holding()) {
@@ -216,6 +224,7 @@ class QueueingCanon final : public Canon {
   Units machine_length_units() const override { return real_.machine_length_units(); }
   const cnc::tooltable::ToolTable& tool_table() const override { return real_.tool_table(); }
   int tool_in_spindle() const override { return real_.tool_in_spindle(); }
+  int tool_slot() const override { return real_.tool_slot(); }
   bool is_feed_override_enabled() const override { return real_.is_feed_override_enabled(); }
 
  private:

@@ -39,7 +39,7 @@ int g_group(int code) {
 
 int m_group(int code) {
   switch (code) {
-    case 0: case 1: case 2: case 30: case 60: return kMStop;
+    case 0: case 1: case 2: case 30: case 60: case 98: case 99: return kMStop;
     case 62: case 63: case 64: case 65: case 66: case 67: case 68: return kMIo;
     case 6: case 61: return kMToolChange;
     case 3: case 4: case 5: case 19: return kMSpindle;
@@ -49,6 +49,13 @@ int m_group(int code) {
     default: return (code >= 100 && code <= 199) ? kMUser : -1;
   }
 }
+
+}  // namespace
+
+int builtin_g_group(int code) { return g_group(code); }
+int builtin_m_group(int code) { return m_group(code); }
+
+namespace {
 
 bool is_digit(char c) { return c >= '0' && c <= '9'; }
 bool is_lower(char c) { return c >= 'a' && c <= 'z'; }
@@ -208,15 +215,18 @@ void Interpreter::State::read_comment(std::size_t& i) {
 }
 
 void Interpreter::State::add_g(int code) {
-  const int group = g_group(code);
+  int group = g_group(code);
+  if (group < 0 && find_remap('g', code, true) != nullptr) group = kGMotion;
   if (group < 0) fail("Unknown g code used");
   if (block.g[static_cast<std::size_t>(group)] != -1) fail("Two g codes used from same modal group");
   block.g[static_cast<std::size_t>(group)] = code;
 }
 
 void Interpreter::State::add_m(int code) {
-  const int group = m_group(code);
-  if (code > 199) fail("M-code greater than 199: M" + std::to_string(code));
+  int group = m_group(code);
+  const RemapSpec* remap = find_remap('m', code, true);
+  if (remap != nullptr) group = remap->modal_group;
+  if (code > 199 && remap == nullptr) fail("M-code greater than 199: M" + std::to_string(code));
   if (group < 0) fail("Unknown m code used: M" + std::to_string(code));
   if (block.m[static_cast<std::size_t>(group)] != -1) fail("Two m codes used from same modal group");
   if (++block.m_count > 4) fail("Too many m codes on line");
@@ -412,12 +422,18 @@ double Interpreter::State::read_parameter(std::size_t& i, bool for_exists) {
     double v = 0;
     const bool found = find_named(name, v);
     if (for_exists) return found ? 1.0 : 0.0;
+    // Inside a subroutine definition being passed over (its O-word lines
+    // are read), names need not be defined yet, as in LinuxCNC.
+    if (!found && skip_defining) return 0.0;
     if (!found) fail("Named parameter #<" + name + "> not defined");
     return v;
   }
-  if (for_exists) fail("Expected # reading parameter");
   const int index = read_integer_value(i);
+  if (for_exists) return index >= 1 && index < kMaxParameters ? 1.0 : 0.0;
   if (index < 1 || index >= kMaxParameters) fail("Parameter number out of range");
+  if (index >= 5420 && index <= 5428 && cutter_side != 400) {
+    fail("Cannot read current position with cutter radius compensation on");
+  }
   return get_param(index);
 }
 
@@ -607,13 +623,17 @@ void Interpreter::State::read_o_word(std::size_t& i) {
     if (close == std::string::npos) fail("Named parameter not terminated");
     label = norm.substr(i + 1, close - i - 1);
     i = close + 1;
-  } else if (i < norm.size() && norm[i] == '[') {
-    label = std::to_string(static_cast<long long>(read_expression(i)));
+  } else if (i < norm.size() && (norm[i] == '[' || norm[i] == '#')) {
+    // o[expr] and o#n, o#<name>: the label is the integer value
+    label = std::to_string(read_integer_value(i));
   } else {
     const std::size_t start = i;
     while (i < norm.size() && is_digit(norm[i])) ++i;
     if (i == start) fail("Unknown control command in o word");
-    label = norm.substr(start, i - start);
+    // As LinuxCNC reads it, an integer: o0100 and o100 are the same label.
+    std::size_t first = start;
+    while (first + 1 < i && norm[first] == '0') ++first;
+    label = norm.substr(first, i - first);
   }
   block.o_name = label;
   struct Kw {
@@ -632,7 +652,18 @@ void Interpreter::State::read_o_word(std::size_t& i) {
       break;
     }
   }
-  if (block.o_type == OType::None) fail("Unknown control command in o word");
+  if (block.o_type == OType::None) {
+    // Nothing but comments after the label: a Fanuc-style subprogram start
+    // or a program title (O1000, O<name>).
+    std::size_t k = i;
+    while (k < norm.size() && norm[k] == '(') {
+      const std::size_t close = norm.find(')', k);
+      if (close == std::string::npos) break;
+      k = close + 1;
+    }
+    if (k < norm.size() && norm[k] != ';') fail("Unknown control command in o word");
+    block.o_type = OType::FanucSub;
+  }
   auto need_bracket = [&](const char* what) {
     if (i >= norm.size() || norm[i] != '[') fail(std::string("Left bracket missing after '") + what + "'");
   };

@@ -1,5 +1,7 @@
 #include "core/interp/rs274_run.hpp"
 
+#include <functional>
+
 #include "core/ini/ini_file.hpp"
 #include "core/interp/text_canon.hpp"
 #include "core/tooltable/tool_table.hpp"
@@ -15,7 +17,74 @@ std::string describe(const InterpError& e, const Rs274Options& o) {
 
 }  // namespace
 
+namespace {
+
+// rs274 -n 1: MDI lines from `in` until "quit" or its end, then "continue
+// program? y/n". Returns true to go on with the program.
+bool mdi_then_continue(Interpreter& interp, std::FILE* in, const std::function<void(const InterpError&)>& report) {
+  std::fprintf(stderr, "starting MDI\n");
+  char line[512];
+  for (;;) {
+    std::fprintf(stderr, "READ => ");
+    if (in == nullptr || std::fgets(line, sizeof line, in) == nullptr) break;
+    std::string text(line);
+    while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
+    if (text == "quit") break;
+    try {
+      interp.execute(text);
+    } catch (const InterpError& e) {
+      report(e);
+      interp.unwind();
+    }
+  }
+  std::fprintf(stderr, "continue program? y/n =>");
+  return in != nullptr && std::fgets(line, sizeof line, in) != nullptr && line[0] == 'y';
+}
+
+// An error that reading again cannot get past (rs274 -n 0 would repeat it
+// for ever): the end of the file.
+bool at_end_of_input(const InterpError& e) {
+  return e.message().starts_with("File ended with no percent sign") || e.message().starts_with("EOF in file");
+}
+
+// interpret_from_file of LinuxCNC's rs274 driver: read and execute to the
+// program end, after an error stop, go on or ask (Rs274Options::on_error).
+bool run_program(Interpreter& interp, const Rs274Options& o, const std::function<void(const InterpError&)>& report) {
+  for (;;) {
+    Status st = Status::Ok;
+    try {
+      st = interp.read();
+    } catch (const InterpError& e) {
+      report(e);
+      interp.unwind();
+      if (o.on_error == 2 || at_end_of_input(e)) return false;
+      if (o.on_error == 1 && !mdi_then_continue(interp, o.mdi_in, report)) return false;
+      continue;
+    }
+    if (st == Status::SynchRequired) {
+      interp.synch();
+      continue;
+    }
+    if (st == Status::Yield) continue;
+    if (st != Status::Ok) return true;
+    try {
+      st = interp.execute();
+    } catch (const InterpError& e) {
+      report(e);
+      interp.unwind();
+      if (o.on_error == 2) return false;
+      if (o.on_error == 1 && !mdi_then_continue(interp, o.mdi_in, report)) return false;
+      continue;
+    }
+    if (st == Status::ExecuteFinish) interp.synch();
+    if (st == Status::ProgramEnd) return true;
+  }
+}
+
+}  // namespace
+
 bool run_rs274(const Rs274Options& o, std::FILE* out, std::string& error, std::FILE* err_out) {
+  error.clear();
   cnc::ini::IniFile ini;
   Config cfg;
   if (!o.ini.empty()) {
@@ -24,6 +93,7 @@ bool run_rs274(const Rs274Options& o, std::FILE* out, std::string& error, std::F
   }
   if (o.random_toolchanger) cfg.random_toolchanger = true;
   cfg.block_delete = o.block_delete;
+  cfg.task = o.task;
   if (o.ini.empty() || !ini.find("TRAJ", "COORDINATES")) {
     unsigned mask = 0;
     for (char c : o.axes) {
@@ -38,6 +108,16 @@ bool run_rs274(const Rs274Options& o, std::FILE* out, std::string& error, std::F
   if (!o.tool_table.empty()) table = cnc::tooltable::ToolTable::load(o.tool_table, kind);
   TextCanon canon(out, table, o.machine_units);
   Interpreter interp(canon, cfg);
+  // Errors go out as they happen, after the calls made before them.
+  const std::function<void(const InterpError&)> report = [&](const InterpError& e) {
+    canon.flush();
+    std::string text = describe(e, o);
+    if (o.print_stack) {
+      for (const std::string& f : interp.call_stack()) text += "\n" + f;
+    }
+    if (error.empty()) error = text;
+    if (err_out != nullptr) std::fprintf(err_out, "%s\n", text.c_str());
+  };
   bool ok = true;
   try {
     interp.init();
@@ -45,21 +125,19 @@ bool run_rs274(const Rs274Options& o, std::FILE* out, std::string& error, std::F
       interp.open(o.program);
     } catch (const InterpError& e) {
       // rs274 stops at once when the program cannot be opened
-      canon.flush();
-      error = describe(e, o);
-      if (err_out != nullptr) std::fprintf(err_out, "%s\n", error.c_str());
+      report(e);
       return false;
     }
     canon.on_reset();
-    interp.run_to_end();
+    ok = run_program(interp, o, report);
   } catch (const InterpError& e) {
-    canon.flush();
-    error = describe(e, o);
-    if (err_out != nullptr) std::fprintf(err_out, "%s\n", error.c_str());
+    report(e);
     ok = false;
   }
   canon.clear_block();
-  canon.on_reset();
+  // rs274 resets at close and at exit; with an INI file LinuxCNC closes
+  // lazily (no reset at close).
+  if (o.ini.empty()) canon.on_reset();
   canon.on_reset();
   canon.flush();
   if (!o.parameter_file.empty()) interp.save_parameters();

@@ -23,10 +23,19 @@ struct Rs274Options {
   // Errors as LinuxCNC's rs274 prints them (message, then the block) when
   // true; otherwise "file:line: message", then the block.
   bool rs274_error_format = true;
+  // rs274 -n: after an error 0 goes on with the next line (leaving any
+  // subroutine in progress), 1 reads MDI lines from `mdi_in` until "quit"
+  // and then asks whether to go on, 2 stops (default).
+  int on_error = 2;
+  std::FILE* mdi_in = nullptr;
+  // rs274 -s: print the subroutine call stack after an error message.
+  bool print_stack = false;
+  // rs274 -T: run as in the task controller (#<_task> reads 1).
+  bool task = false;
 };
 
 // Writes the canonical calls to `out` (may be null). On an interpreter
-// error returns false and sets `error` to "message\nline text" as rs274
+// error (with on_error 2, or an error in an MDI answer) returns false and sets `error` to "message\nline text" as rs274
 // prints it (or "file:line: message\nline text"), and writes that text to `err_out` when not null (before the
 // closing calls, as rs274 does). Throws for unreadable tool table / INI.
 bool run_rs274(const Rs274Options& options, std::FILE* out, std::string& error, std::FILE* err_out = nullptr);

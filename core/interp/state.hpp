@@ -23,6 +23,8 @@ inline constexpr int kMotionNone = -2;
 inline constexpr double kPi = 3.14159265358979323846;
 inline constexpr double kTiny = 1e-12;
 inline constexpr double kMmPerInch = 25.4;
+// Axis word letters in axis order (X Y Z A B C U V W).
+inline constexpr char kLetters[] = "xyzabcuvw";
 
 // Rounds to the nearest int, saturating (never undefined for huge values).
 inline int round_to_int(double v) {
@@ -32,7 +34,8 @@ inline int round_to_int(double v) {
 }
 
 enum class OType : uint8_t {
-  None, Sub, EndSub, Call, Return, If, ElseIf, Else, EndIf, Do, While, EndWhile, Repeat, EndRepeat, Break, Continue
+  None, Sub, EndSub, Call, Return, If, ElseIf, Else, EndIf, Do, While, EndWhile, Repeat, EndRepeat, Break, Continue,
+  FanucSub  // a bare O-word line: a Fanuc-style subprogram (called with M98, ended by M99) or a program title
 };
 
 // Modal groups, indexed as LinuxCNC does.
@@ -102,6 +105,8 @@ struct SubDef {
   std::string file;
   int64_t offset = 0;  // first body line
   int line = 0;
+  bool fanuc = false;  // O<n> ... M99 (M98) rather than O<n> sub ... endsub (call)
+  std::string text;    // the defining line, for errors
 };
 
 // Modal state saved by M70/M73 (and restored by M72 / at return).
@@ -123,6 +128,20 @@ struct ModalSnapshot {
   bool feed_override = true, speed_override = true;
 };
 
+// A remapped code being carried out: the block it came from (finished
+// after the procedures return, from resume_step on), its arguments, and
+// which procedure runs (prolog, body, epilog).
+struct RemapCall {
+  const RemapSpec* spec = nullptr;
+  Block block;
+  int resume_step = 0;
+  int line = 0;
+  std::string file, text;
+  int stage = 1;  // 0 prolog, 1 body, 2 epilog
+  std::vector<double> positional;                        // argspec with @
+  std::vector<std::pair<std::string, double>> named;     // #<p>, #<q>, ...
+};
+
 struct Frame {
   std::string sub_name;
   std::unordered_map<std::string, double> locals;
@@ -132,8 +151,13 @@ struct Frame {
   int return_line = 0;
   std::vector<Loop> loops;
   std::unordered_map<std::string, bool> if_done;  // label -> a branch ran
-  ModalSnapshot saved_modal;  // M73
+  ModalSnapshot saved_modal;  // M70/M73 at this call level
+  bool restore_on_return = false;  // M73: restored when the subroutine returns
   bool is_user_m = false;
+  std::shared_ptr<RemapCall> remap;  // set when this call carries out a remapped code
+  bool fanuc = false;      // an M98 call: numbered parameters are shared, M99 returns
+  int fanuc_repeats = 0;   // M98 L: times the body runs again after this one
+  SubDef fanuc_def;        // where the body starts (for L)
 };
 
 struct SourceFile {

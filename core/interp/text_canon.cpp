@@ -358,6 +358,15 @@ void TextCanon::set_spindle_mode(int spindle, double css_max_rpm) {
   out(call_);
 }
 
+void TextCanon::wait_spindle_orient_complete(int spindle, double timeout_s) {
+  call_ = "SPINDLE.";
+  integer(call_, spindle);
+  call_ += ".WAIT_ORIENT_COMPLETE(";
+  fix4(call_, timeout_s);
+  call_ += ')';
+  out(call_);
+}
+
 void TextCanon::orient_spindle(int spindle, double degrees, int mode) {
   call_ = "ORIENT_SPINDLE(";
   integer(call_, spindle);
@@ -383,6 +392,7 @@ void TextCanon::change_tool(int index) {
   call_ += ')';
   out(call_);
   tools_.change_tool(index);
+  slot_ = index;
 }
 
 void TextCanon::change_tool_number(int index) {
@@ -391,6 +401,7 @@ void TextCanon::change_tool_number(int index) {
   call_ += ')';
   out(call_);
   if (m61_loads_tool_data_) tools_.set_spindle_tool(index);
+  slot_ = index;
 }
 
 void TextCanon::set_tool_table_entry(int index, const ToolData& t) {

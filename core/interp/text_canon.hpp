@@ -63,6 +63,7 @@ class TextCanon : public Canon {
   void start_spindle_counterclockwise(int spindle) override;
   void stop_spindle_turning(int spindle) override;
   void orient_spindle(int spindle, double degrees, int mode) override;
+  void wait_spindle_orient_complete(int spindle, double timeout_s) override;
   void flood_on() override;
   void flood_off() override;
   void mist_on() override;
@@ -108,6 +109,8 @@ class TextCanon : public Canon {
   Units machine_length_units() const override { return machine_units_; }
   const cnc::tooltable::ToolTable& tool_table() const override { return tools_; }
   int tool_in_spindle() const override;
+  // As rs274's saicanon: index 1 until a tool change says otherwise.
+  int tool_slot() const override { return slot_; }
 
  protected:
   // Receives each formatted call ("NAME(args)") after it is written.
@@ -133,6 +136,7 @@ class TextCanon : public Canon {
   double input_value_ = 0;
   int selected_ = -1;
   bool m61_loads_tool_data_ = false;
+  int slot_ = 1;
 };
 
 }  // namespace cnc::interp

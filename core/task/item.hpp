@@ -22,6 +22,7 @@ struct Item {
     Flood,         // i0 = on
     Mist,          // i0 = on
     Message,       // (MSG,...): text
+    WaitOrient,    // M19 Q: i0 = spindle, d0 = timeout
     WaitInput,     // M66: i0 = index, i1 = digital, i2 = wait type, d0 = timeout
     UserMCode,     // M100-M199: i0 = code, d0 = P, d1 = Q
     ProgramStop,   // M0 / M60 (pauses)

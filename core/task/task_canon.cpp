@@ -351,6 +351,14 @@ void TaskCanon::orient_spindle(int spindle, double degrees, int mode) {
   queue_motion(0, c, true);
 }
 
+void TaskCanon::wait_spindle_orient_complete(int spindle, double timeout_s) {
+  Item it;
+  it.kind = Item::Kind::WaitOrient;
+  it.i0 = spindle;
+  it.d0 = timeout_s;
+  items_.push_back(std::move(it));
+}
+
 void TaskCanon::simple(Item::Kind kind, int i0) {
   Item it;
   it.kind = kind;

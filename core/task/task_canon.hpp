@@ -94,6 +94,7 @@ class TaskCanon : public interp::Canon {
   void start_spindle_counterclockwise(int spindle) override;
   void stop_spindle_turning(int spindle) override;
   void orient_spindle(int spindle, double degrees, int mode) override;
+  void wait_spindle_orient_complete(int spindle, double timeout_s) override;
   void flood_on() override { simple(Item::Kind::Flood, 1); }
   void flood_off() override { simple(Item::Kind::Flood, 0); }
   void mist_on() override { simple(Item::Kind::Mist, 1); }

@@ -139,6 +139,7 @@ TaskController::TaskController(const ini::IniFile& ini, hal::Hal& hal, motion::M
   canon_->on_print = [this](std::string_view t) { post(MessageKind::Text, std::string(t)); };
   interp_config_ = interp::Config::from_ini(ini);
   interp_config_.axis_mask = ms_.traj.axis_mask;
+  interp_config_.task = true;  // #<_task> is 1 and M99 in the main program starts it again, as in LinuxCNC's task
   interp_ = std::make_unique<interp::Interpreter>(*canon_, interp_config_);
   try {
     interp_->init();
@@ -1383,6 +1384,31 @@ bool TaskController::execute_item(Item& it, int64_t now_ns) {
     case Item::Kind::Message:
       messages_.post(MessageKind::Display, "program", it.text);
       return true;
+    case Item::Kind::WaitOrient: {
+      // M19 Q: the spindle must report is-oriented within the timeout.
+      if (!item_started_) {
+        item_started_ = true;
+        item_started_ns_ = now_ns;
+      }
+      const int s = it.i0 >= 0 && it.i0 < ipc::kMaxSpindles ? it.i0 : 0;
+      const ipc::SpindleStatus& sp = ms_.spindles[s];
+      if (sp.orient_fault != 0) {
+        item_started_ = false;
+        program_error("M19: spindle " + std::to_string(s) + " orientation fault " + std::to_string(sp.orient_fault));
+        return false;
+      }
+      if (sp.orient_state == 2) {
+        item_started_ = false;
+        return true;
+      }
+      if (static_cast<double>(now_ns - item_started_ns_) * 1e-9 > it.d0) {
+        item_started_ = false;
+        program_error("M19: spindle " + std::to_string(s) + " not oriented within Q " + format_double(it.d0) + " s");
+        return false;
+      }
+      exec_state_ = ipc::ExecState::WaitingForSpindleOriented;
+      return false;
+    }
     case Item::Kind::WaitInput: {
       if (!item_started_) {
         item_started_ = true;

@@ -5,6 +5,7 @@
 // name `rs274` (LinuxCNC's regression tests put it on PATH so), exactly as
 // LinuxCNC prints them: the message, then the block.
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 
@@ -15,12 +16,16 @@
 namespace {
 void usage() {
   std::fprintf(stderr,
-               "Usage: cnc-rs274 [-t tool.tbl] [-v var-file.var] [-i file.ini] [-b] [-g] [-r] [-m mm|inch]\n"
-               "                 [-a AXES] [-q] program.ngc [output]\n"
+               "Usage: cnc-rs274 [-t tool.tbl] [-v var-file.var] [-i file.ini] [-n 0|1|2] [-b] [-s] [-g] [-T]\n"
+               "                 [-l level] [-r] [-m mm|inch] [-a AXES] [-q] program.ngc [output]\n"
                "    -t: tool table (LinuxCNC format)\n"
                "    -v: parameter file (read at start, written atomically at the end)\n"
                "    -i: INI file ([RS274NGC], [EMCIO]RANDOM_TOOLCHANGER, [TRAJ]COORDINATES)\n"
+               "    -n: after an error 0: go on, 1: read MDI lines from stdin, 2: stop (default)\n"
                "    -b: toggle block delete (default off: '/' lines run)\n"
+               "    -s: toggle printing the subroutine call stack after an error\n"
+               "    -T: run as in the task controller (#<_task> is 1)\n"
+               "    -l: log level (accepted for rs274 compatibility; no debug log)\n"
                "    -g: batch mode (accepted for rs274 compatibility; always on)\n"
                "    -r: random tool changer\n"
                "    -m: machine (tool table and parameter) units, default inch as rs274\n"
@@ -36,7 +41,7 @@ int main(int argc, char** argv) {
   o.rs274_error_format = std::strcmp(slash ? slash + 1 : argv[0], "rs274") == 0;
   bool quiet = false;
   int opt;
-  while ((opt = getopt(argc, argv, "t:v:i:bgrm:a:qn:p:sT")) != -1) {
+  while ((opt = getopt(argc, argv, "t:v:i:bgrm:a:qn:p:sTl:")) != -1) {
     switch (opt) {
       case 't': o.tool_table = optarg; break;
       case 'v': o.parameter_file = optarg; break;
@@ -47,7 +52,13 @@ int main(int argc, char** argv) {
       case 'm': o.machine_units = std::strcmp(optarg, "mm") == 0 ? Units::Mm : Units::Inch; break;
       case 'a': o.axes = optarg; break;
       case 'q': quiet = true; break;
-      case 'n': case 'p': case 's': case 'T': break;
+      case 'n': o.on_error = std::atoi(optarg); break;
+      case 's': o.print_stack = !o.print_stack; break;
+      case 'T': o.task = true; break;
+      case 'l': break;
+      case 'p':
+        std::fprintf(stderr, "cnc-rs274: -p %s: interpreter plugins are not supported\n", optarg);
+        return 2;
       default: usage(); return 2;
     }
   }
@@ -56,6 +67,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   o.program = argv[optind];
+  o.mdi_in = stdin;
   std::FILE* out = stdout;
   if (optind + 1 < argc) {
     out = std::fopen(argv[optind + 1], "w");

@@ -1,0 +1,423 @@
+// Parity with LinuxCNC 2.9's interpreter where this one moved the machine
+// differently or refused programs LinuxCNC runs (issue 19). Each test runs a
+// small program as `rs274 -g` does and checks the canonical calls (the
+// values are what LinuxCNC 2.9's rs274 prints for the same program).
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <functional>
+#include <sstream>
+
+#include "core/interp/rs274_run.hpp"
+#include "tests/support/testing.hpp"
+
+namespace fs = std::filesystem;
+using cnc::interp::Rs274Options;
+
+namespace {
+
+struct Rs274Result {
+  bool ok = false;
+  std::string canon;  // calls without the running index, one a line
+  std::string err;    // what went to stderr
+};
+
+// Runs `program` (written as test.ngc in a fresh folder, with `files`
+// beside it) inside that folder; `setup` adjusts the options.
+Rs274Result run(const std::string& program, const std::function<void(Rs274Options&, const cnc::testing::TempDir&)>& setup = {},
+        const std::vector<std::pair<std::string, std::string>>& files = {}) {
+  cnc::testing::TempDir dir;
+  for (const auto& [name, text] : files) dir.write(name, text);
+  dir.write("test.ngc", program);
+  Rs274Options o;
+  o.program = "test.ngc";
+  if (setup) setup(o, dir);
+  char* buf = nullptr;
+  std::size_t size = 0;
+  std::FILE* mem = open_memstream(&buf, &size);
+  char* ebuf = nullptr;
+  std::size_t esize = 0;
+  std::FILE* emem = open_memstream(&ebuf, &esize);
+  const fs::path back = fs::current_path();
+  fs::current_path(dir.path());
+  Rs274Result r;
+  std::string error;
+  try {
+    r.ok = cnc::interp::run_rs274(o, mem, error, emem);
+  } catch (const std::exception& e) {
+    r.err = std::string("thrown: ") + e.what();
+  }
+  fs::current_path(back);
+  std::fclose(mem);
+  std::fclose(emem);
+  std::istringstream in(std::string(buf, size));
+  std::free(buf);
+  r.err += std::string(ebuf, esize);
+  std::free(ebuf);
+  std::string line;
+  while (std::getline(in, line)) {
+    // "%5ld N..... CALL": drop the index as LinuxCNC's tests do
+    const std::size_t n = line.find(" N");
+    r.canon += (n == std::string::npos ? line : line.substr(n + 1)) + "\n";
+  }
+  return r;
+}
+
+bool has(const Rs274Result& r, const std::string& text) { return r.canon.find(text) != std::string::npos; }
+
+}  // namespace
+
+// ---------------------------------------------------------------- the tool
+
+TEST(Rs274Tool, ContinueModeGoesOnAtTheTopLevelAfterTheOutermostCall) {
+  const Rs274Result r = run("o<fail> call\no<fail> call\nM2\n",
+                    [](Rs274Options& o, const cnc::testing::TempDir&) { o.on_error = 0; },
+                    {{"fail.ngc", "o<fail> sub\n(debug, pre)\n#1 = [1/0]\n(debug, post)\no<fail> endsub\nM2\n"}});
+  EXPECT_TRUE(r.ok) << r.err;
+  std::size_t count = 0;
+  for (std::size_t p = r.canon.find("MESSAGE(\" pre\")"); p != std::string::npos; p = r.canon.find("MESSAGE(\" pre\")", p + 1)) ++count;
+  EXPECT_EQ(count, 2u) << r.canon;
+  EXPECT_FALSE(has(r, "post"));
+  EXPECT_TRUE(has(r, "PROGRAM_END()"));
+}
+
+TEST(Rs274Tool, StopModeStopsAtTheFirstError) {
+  const Rs274Result r = run("#1 = [1/0]\nG0 X1\nM2\n");
+  EXPECT_FALSE(r.ok);
+  EXPECT_FALSE(has(r, "STRAIGHT_TRAVERSE"));
+  EXPECT_NE(r.err.find("Attempt to divide by zero"), std::string::npos) << r.err;
+}
+
+TEST(Rs274Tool, PrintStackNamesTheCallsInProgress) {
+  const Rs274Result r = run("o<inner> sub\n#1 = [1/0]\no<inner> endsub\no<inner> call\nM2\n",
+                    [](Rs274Options& o, const cnc::testing::TempDir&) { o.print_stack = true; });
+  EXPECT_NE(r.err.find("o<inner> called at test.ngc:4"), std::string::npos) << r.err;
+}
+
+TEST(Rs274Tool, WithAnIniFileTheRunEndsWithOneResetAsLinuxCncClosesLazily) {
+  const Rs274Result with_ini = run("G0 X1\nM2\n", [](Rs274Options& o, const cnc::testing::TempDir& d) {
+    o.ini = d.write("t.ini", "[RS274NGC]\n");
+  });
+  const Rs274Result without = run("G0 X1\nM2\n");
+  EXPECT_NE(with_ini.canon.find("PROGRAM_END()\nN..... ON_RESET()\n"), std::string::npos) << with_ini.canon;
+  EXPECT_EQ(with_ini.canon.find("ON_RESET()\nN..... ON_RESET()"), std::string::npos) << with_ini.canon;
+  EXPECT_NE(without.canon.find("PROGRAM_END()\nN..... ON_RESET()\nN..... ON_RESET()\n"), std::string::npos);
+}
+
+TEST(Rs274Tool, TaskOptionMakesTheTaskParameterOne) {
+  const Rs274Result preview = run("(debug, #<_task>)\nM2\n");
+  const Rs274Result task = run("(debug, #<_task>)\nM2\n", [](Rs274Options& o, const cnc::testing::TempDir&) { o.task = true; });
+  EXPECT_TRUE(has(preview, "MESSAGE(\" 0.000000\")")) << preview.canon;
+  EXPECT_TRUE(has(task, "MESSAGE(\" 1.000000\")")) << task.canon;
+}
+
+// ---------------------------------------------------------------- expressions
+
+TEST(InterpParity, ExistsOfANumberedParameterTellsWhetherTheNumberIsInRange) {
+  const Rs274Result r = run("#<a>=999\nG0 X EXISTS[#1] Y EXISTS[#99999] Z EXISTS[#<a>] A EXISTS[#<b>]\n#1=2\n"
+                            "G0 X EXISTS[##1]\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_TRAVERSE(1.0000, 0.0000, 1.0000, 0.0000, 0.0000, 0.0000)")) << r.canon;
+  EXPECT_FALSE(run("G0 X EXISTS[1]\nM2\n").ok);
+}
+
+// ---------------------------------------------------------------- arcs
+
+TEST(InterpParity, CenterArcWithinLinuxCncsRadiusToleranceRuns) {
+  // r1 = 5.004, r2 = 4.996: 0.008 mm apart, inside 2 * 0.01 mm * sqrt(2)
+  const Rs274Result r = run("G21 G17 F100\nG2 X10 I5.004\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "ARC_FEED(10.0000, 0.0000, 5.0040, 0.0000, -1, 0.0000")) << r.canon;
+}
+
+TEST(InterpParity, ArcRadiusToleranceComesFromTheIniWithinLinuxCncsBounds) {
+  const auto tight = [](Rs274Options& o, const cnc::testing::TempDir& d) {
+    o.ini = d.write("t.ini", "[RS274NGC]\nCENTER_ARC_RADIUS_TOLERANCE_MM = 0.005\n");
+  };
+  const Rs274Result r = run("G21 G17 F100\nG2 X10 I5.004\nM2\n", tight);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("Radius to end of arc differs from radius to start"), std::string::npos) << r.err;
+  // Above LinuxCNC's default (its upper bound) is a configuration error.
+  const Rs274Result loose = run("M2\n", [](Rs274Options& o, const cnc::testing::TempDir& d) {
+    o.ini = d.write("t.ini", "[RS274NGC]\nCENTER_ARC_RADIUS_TOLERANCE_MM = 0.5\n");
+  });
+  EXPECT_NE(loose.err.find("CENTER_ARC_RADIUS_TOLERANCE_MM"), std::string::npos) << loose.err;
+}
+
+// ---------------------------------------------------------------- comments
+
+TEST(InterpParity, AbortCommentStopsTheProgramWithItsExpandedText) {
+  const Rs274Result r = run("#42=20\nG0 X1\n(abort, stop here #42)\nG0 X2\nM2\n");
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find(" stop here 20.000000"), std::string::npos) << r.err;
+  EXPECT_FALSE(has(r, "STRAIGHT_TRAVERSE(2.0000"));
+  EXPECT_FALSE(has(r, "PROGRAM_END"));
+}
+
+TEST(InterpParity, DebugCommentsTakePrintfStyleFormats) {
+  const Rs274Result r = run("#<v> = 1.123456789\n#<w> = 2.3456789\n(debug,a %d#<v>)\n(debug,b %f#<v> #<w>)\n"
+                            "(debug,c %.7f#<v>)\n(debug,d #<v> %d#<w>)\n(debug,e #<nope>)\n#5599=0\n(debug,off)\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\"a 1\")")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"b 1.1235 2.3457\")")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"c 1.1234568\")")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"d 1.123457 2\")")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"e ######\")")) << r.canon;
+  EXPECT_FALSE(has(r, "off")) << r.canon;
+}
+
+// ---------------------------------------------------------------- O-words
+
+TEST(InterpParity, ValueReadsZeroBeforeAnySubroutineReturned) {
+  const Rs274Result r = run("(debug,#<_value> #<_value_returned>)\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\"0.000000 0.000000\")")) << r.canon;
+}
+
+TEST(InterpParity, OWordLabelMayBeAParameterOrExpression) {
+  const Rs274Result r = run("o2 sub\nG0 X2\no2 endsub\no<outer> sub\n#<sub> = 2\no#<sub> call\no<outer> endsub\n"
+                            "o<outer> call\n#7 = 2\no[#7] call\no002 call\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  std::size_t count = 0;
+  for (std::size_t p = r.canon.find("STRAIGHT_TRAVERSE(2.0000"); p != std::string::npos;
+       p = r.canon.find("STRAIGHT_TRAVERSE(2.0000", p + 1)) {
+    ++count;
+  }
+  EXPECT_EQ(count, 3u) << r.canon;
+}
+
+// ---------------------------------------------------------------- M19
+
+TEST(InterpParity, SpindleOrientAddsTheIniOffsetAndQWaitsForTheSpindle) {
+  const auto ini = [](Rs274Options& o, const cnc::testing::TempDir& d) {
+    o.ini = d.write("t.ini", "[RS274NGC]\nORIENT_OFFSET = 42.0\n");
+  };
+  const Rs274Result r = run("M19 R45 Q2\nM19 P1\nM19 Q1\nM2\n", ini);
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_NE(r.canon.find("ORIENT_SPINDLE(0, 87.0000, 0)\nN..... SPINDLE.0.WAIT_ORIENT_COMPLETE(2.0000)\n"
+                         "N..... ORIENT_SPINDLE(0, 42.0000, 1)\nN..... SPINDLE.0.WAIT_ORIENT_COMPLETE(1.0000)\n"),
+            std::string::npos)
+      << r.canon;
+  EXPECT_FALSE(run("M19 R10 Q0\nM2\n").ok);
+  EXPECT_FALSE(run("M19 P3\nM2\n").ok);
+  EXPECT_FALSE(run("M19 R361\nM2\n").ok);
+}
+
+// ---------------------------------------------------------------- units and offsets
+
+TEST(InterpParity, FeedParameterKeepsTheProgrammedNumberAcrossUnitChanges) {
+  const Rs274Result r = run("G20\nG21 F250\n(debug,#<_feed>)\nG20 F10\n(debug,#<_feed>)\nG21\nM73\n"
+                            "F33\nM72\n(debug,#<_feed>)\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\"250.000000\")")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"10.000000\")")) << r.canon;
+  EXPECT_TRUE(has(r, "SET_FEED_RATE(33.0000)\nN..... SET_FEED_RATE(10.0000)\nN..... MESSAGE(\"10.000000\")")) << r.canon;
+  EXPECT_FALSE(has(r, "6350")) << r.canon;
+  EXPECT_FALSE(has(r, "0.3937")) << r.canon;
+}
+
+TEST(InterpParity, RotaryAxisOffsetsAreDegreesWhateverTheLengthUnits) {
+  // Machine units are inches (as rs274); the program works in mm.
+  const Rs274Result r = run("G21\nG10 L2 P1 X1 A10\nG92 B5\n(debug,#5221 #5224 #5215)\nG0 A0\nM2\n",
+                            [](Rs274Options& o, const cnc::testing::TempDir& d) {
+                              o.parameter_file = d.write("t.var", "5225\t3.000000\n");
+                            });
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "SET_G5X_OFFSET(1, 0.0000, 0.0000, 0.0000, 0.0000, 3.0000, 0.0000)")) << r.canon;
+  EXPECT_TRUE(has(r, "SET_G5X_OFFSET(1, 1.0000, 0.0000, 0.0000, 10.0000, 3.0000, 0.0000)")) << r.canon;
+  EXPECT_TRUE(has(r, "SET_G92_OFFSET(0.0000, 0.0000, 0.0000, 0.0000, -8.0000, 0.0000)")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"0.039370 10.000000 -8.000000\")")) << r.canon;
+}
+
+TEST(InterpParity, DisabledG92PersistenceClearsTheG92ParametersAtStartAndEnd) {
+  const auto ini = [](bool disable) {
+    return [disable](Rs274Options& o, const cnc::testing::TempDir& d) {
+      o.parameter_file = d.write("t.var", "5210\t1.000000\n5211\t1.000000\n");
+      o.ini = d.write("t.ini", std::string("[RS274NGC]\nDISABLE_G92_PERSISTENCE = ") + (disable ? "1" : "0") + "\n");
+    };
+  };
+  const Rs274Result kept = run("(debug,#5210 #5211)\nM2\n", ini(false));
+  const Rs274Result cleared = run("(debug,#5210 #5211)\nG92 X1\nM2\n", ini(true));
+  EXPECT_TRUE(has(kept, "SET_G92_OFFSET(25.4000,")) << kept.canon;
+  EXPECT_TRUE(has(kept, "MESSAGE(\"1.000000 1.000000\")")) << kept.canon;
+  EXPECT_TRUE(has(cleared, "SET_G92_OFFSET(0.0000, 0.0000")) << cleared.canon;
+  EXPECT_TRUE(has(cleared, "MESSAGE(\"0.000000 0.000000\")")) << cleared.canon;
+}
+
+// ---------------------------------------------------------------- rotated systems
+
+TEST(InterpParity, G10L20InARotatedSystemMovesTheOriginAlongTheRotatedAxis) {
+  const Rs274Result r = run("G20\nG10 L2 P1 R45\nG0 X0 Y0\nG10 L20 P1 X-1\n(debug,#5420 #5421)\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "SET_G5X_OFFSET(1, 0.7071, 0.7071, 0.0000")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\"-1.000000 0.000000\")")) << r.canon;
+}
+
+TEST(InterpParity, LeavingARotatedSystemWithG92KeepsTheMachinePoint) {
+  // G55 turned 45 degrees, a G92 offset, then G56: "G0 A1" moves only A.
+  const Rs274Result r = run("g10 l2 p2 x0 y0 z0 r45\ng10 l2 p3 x0 y0 z0 r0\ng55\ng53 g0 x1 y1\ng92 x0 y0\ng56\ng0 a1\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_TRAVERSE(-0.4142, 1.0000, 0.0000, 1.0000, 0.0000, 0.0000)")) << r.canon;
+}
+
+TEST(InterpParity, ToolOffsetChangeInARotatedSystemKeepsTheMachinePoint) {
+  const Rs274Result r = run("G20\nG10 L2 P1 R45\nG0 X1 Y0\nG43.1 X-0.7071068 Y-0.7071068\n(debug,#5420 #5421)\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\"2.000000 0.000000\")")) << r.canon;
+}
+
+TEST(InterpParity, G10L1OfTheSpindlesToolIndexAlsoWritesTheSpindleEntry) {
+  // rs274's simulated machine reports tooldata index 1 in the spindle at start.
+  const Rs274Result r = run("G20 G10 L1 P1 Z1\nM2\n", [](Rs274Options& o, const cnc::testing::TempDir& d) {
+    o.tool_table = d.write("t.tbl", "T1 P1 Z0\nT2 P2 Z0\n");
+  });
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "SET_TOOL_TABLE_ENTRY(1, 1, 0.0000 0.0000 1.0000")) << r.canon;
+  EXPECT_TRUE(has(r, "SET_TOOL_TABLE_ENTRY(0, 1, 0.0000 0.0000 1.0000")) << r.canon;
+  EXPECT_FALSE(run("G10 L1 P1\nM2\n", [](Rs274Options& o, const cnc::testing::TempDir& d) {
+                 o.tool_table = d.write("t.tbl", "T1 P1 Z0\n");
+               }).ok);
+}
+
+// ---------------------------------------------------------------- REMAP
+
+namespace {
+std::function<void(Rs274Options&, const cnc::testing::TempDir&)> with_ini(std::string text) {
+  return [text](Rs274Options& o, const cnc::testing::TempDir& d) { o.ini = d.write("t.ini", text); };
+}
+}  // namespace
+
+TEST(InterpRemap, RemappedMCodeCallsItsSubroutineWithTheArgspecWordsAsNamedParameters) {
+  const Rs274Result r = run("M400 P2.5\nM2\n",
+                            with_ini("[RS274NGC]\nSUBROUTINE_PATH = .\nREMAP=M400 modalgroup=10 argspec=Pq ngc=rm400\n"),
+                            {{"rm400.ngc", "o<rm400> sub\n#<e> = EXISTS[#<q>]\n(debug, p=#<p> q=#<e> level=#<_remap_level>)\n"
+                                           "o<rm400> endsub\nM2\n"}});
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\" p=2.500000 q=0.000000 level=1.000000\")")) << r.canon;
+}
+
+TEST(InterpRemap, TheBlockGoesOnAfterTheProcedureFromTheRemappedCodesStep) {
+  // M400 (group 10) runs after F and before the motion; the move and M30 follow it.
+  const Rs274Result r = run("G0 X1 F50 M400 M30\n",
+                            with_ini("[RS274NGC]\nSUBROUTINE_PATH = .\nREMAP=M400 ngc=rm400\n"),
+                            {{"rm400.ngc", "o<rm400> sub\n(debug, in rm400)\no<rm400> endsub\nM2\n"}});
+  EXPECT_TRUE(r.ok) << r.err;
+  const std::size_t feed = r.canon.find("SET_FEED_RATE(50.0000)");
+  const std::size_t msg = r.canon.find("MESSAGE(\" in rm400\")");
+  const std::size_t move = r.canon.find("STRAIGHT_TRAVERSE(1.0000");
+  const std::size_t end = r.canon.find("PROGRAM_END()");
+  ASSERT_NE(msg, std::string::npos) << r.canon;
+  EXPECT_LT(feed, msg);
+  EXPECT_LT(msg, move);
+  EXPECT_NE(move, std::string::npos) << r.canon;
+  EXPECT_LT(move, end);
+  EXPECT_NE(end, std::string::npos);
+}
+
+TEST(InterpRemap, AMissingRequiredWordIsAnErrorNamingTheCodeAndTheWords) {
+  const Rs274Result r = run("M400 P1\nM2\n",
+                            with_ini("[RS274NGC]\nSUBROUTINE_PATH = .\nREMAP=M400 modalgroup=5 argspec=PQR ngc=rm400\n"),
+                            {{"rm400.ngc", "o<rm400> sub\no<rm400> endsub\nM2\n"}});
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("user-defined M400: missing: Q,R"), std::string::npos) << r.err;
+}
+
+TEST(InterpRemap, RemappedGCodeWithAtGetsItsWordsPositionallyAndConsumesTheAxisWords) {
+  const Rs274Result r = run("G88.1 X1 Z3 Q5\nM2\n",
+                            with_ini("[RS274NGC]\nSUBROUTINE_PATH = .\nOWORD_NARGS = 1\n"
+                                     "REMAP=G88.1 argspec=@xyzpq ngc=rg881\n"),
+                            {{"rg881.ngc", "o<rg881> sub\n(debug, n=#<n_args> #1 #2 #3)\no<rg881> endsub\nM2\n"}});
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\" n=3.000000 1.000000 3.000000 5.000000\")")) << r.canon;
+  EXPECT_FALSE(has(r, "STRAIGHT_"));
+}
+
+TEST(InterpRemap, TheRemappedCodeInsideItsOwnProcedureIsTheBuiltIn) {
+  const Rs274Result r = run("T0 M6\nM2\n",
+                            with_ini("[RS274NGC]\nSUBROUTINE_PATH = .\nREMAP=M6 ngc=change\n"),
+                            {{"change.ngc", "o<change> sub\n(debug, changing)\nM6\no<change> endsub\nM2\n"}});
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\" changing\")")) << r.canon;
+  std::size_t count = 0;
+  for (std::size_t p = r.canon.find("CHANGE_TOOL("); p != std::string::npos; p = r.canon.find("CHANGE_TOOL(", p + 1)) ++count;
+  EXPECT_EQ(count, 1u) << r.canon;
+}
+
+TEST(InterpRemap, PrologAndEpilogSubroutinesRunAroundTheBodyWithTheSameArguments) {
+  const Rs274Result r = run("M401 P7\nM2\n",
+                            with_ini("[RS274NGC]\nSUBROUTINE_PATH = .\n"
+                                     "REMAP=M401 argspec=P prolog=pre ngc=body epilog=post\n"),
+                            {{"pre.ngc", "o<pre> sub\n(debug, pre #<p>)\n#<_shared> = 1\no<pre> endsub\nM2\n"},
+                             {"body.ngc", "o<body> sub\n(debug, body #<p> #<_shared>)\no<body> endsub\nM2\n"},
+                             {"post.ngc", "o<post> sub\n(debug, post #<p>)\no<post> endsub\nM2\n"}});
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "MESSAGE(\" pre 7.000000\")\nN..... MESSAGE(\" body 7.000000 1.000000\")\n"
+                     "N..... MESSAGE(\" post 7.000000\")")) << r.canon;
+}
+
+TEST(InterpRemap, PythonProceduresAreRefusedAtLoadNamingTheIniFileAndLine) {
+  const Rs274Result py = run("M2\n", with_ini("[RS274NGC]\n\nREMAP=M500 py=m500\n"));
+  EXPECT_FALSE(py.ok);
+  EXPECT_NE(py.err.find("t.ini:3"), std::string::npos) << py.err;
+  EXPECT_NE(py.err.find("Python remap procedures are not supported"), std::string::npos) << py.err;
+  const Rs274Result prolog = run("M2\n", with_ini("[RS274NGC]\nREMAP=M500 prolog=setup ngc=x\n"));
+  EXPECT_FALSE(prolog.ok);
+  EXPECT_NE(prolog.err.find("t.ini:2"), std::string::npos) << prolog.err;
+  EXPECT_NE(prolog.err.find("Python prolog/epilog functions are not supported"), std::string::npos) << prolog.err;
+  const Rs274Result builtin = run("M2\n", with_ini("[RS274NGC]\nREMAP=M3 ngc=x\n"));
+  EXPECT_FALSE(builtin.ok);
+  EXPECT_NE(builtin.err.find("built-in M code"), std::string::npos) << builtin.err;
+}
+
+// ---------------------------------------------------------------- M98/M99
+
+TEST(InterpFanucSubs, M98RunsTheSubprogramLTimesSharingTheNumberedParameters) {
+  const Rs274Result r = run("#1 = 0\nM98 P0100 L3\n(debug, main #1)\nM98 P100 L0\nM30\n"
+                            "O100 (numbered subprogram)\n#1 = [#1 + 1]\nG0 X#1\nM99\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_TRAVERSE(3.0000")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\" main 3.000000\")")) << r.canon;
+  EXPECT_FALSE(has(r, "STRAIGHT_TRAVERSE(4.0000")) << r.canon;
+}
+
+TEST(InterpFanucSubs, M99InTheMainProgramEndsItAndInTheTaskStartsItAgain) {
+  const std::string prog = "#100 = [#100 + 1]\no1 if [#100 GT 2]\nM30\no1 endif\nG0 X#100\nM99\n";
+  const Rs274Result preview = run(prog);
+  EXPECT_TRUE(preview.ok) << preview.err;
+  EXPECT_TRUE(has(preview, "STRAIGHT_TRAVERSE(1.0000")) << preview.canon;
+  EXPECT_FALSE(has(preview, "STRAIGHT_TRAVERSE(2.0000")) << preview.canon;
+  EXPECT_TRUE(has(preview, "PROGRAM_END()"));
+  const Rs274Result task = run(prog, [](Rs274Options& o, const cnc::testing::TempDir&) { o.task = true; });
+  EXPECT_TRUE(task.ok) << task.err;
+  EXPECT_TRUE(has(task, "STRAIGHT_TRAVERSE(2.0000")) << task.canon;
+  EXPECT_TRUE(has(task, "PALLET_SHUTTLE()")) << task.canon;  // the M30 of the third pass
+}
+
+TEST(InterpFanucSubs, TheTwoSubroutineStylesAreNotMixed) {
+  const Rs274Result call_fanuc = run("O1 call\nM30\nO1\nM99\n");
+  EXPECT_NE(call_fanuc.err.find("Fanuc 'O....' subroutine must be called with 'M98'"), std::string::npos) << call_fanuc.err;
+  const Rs274Result m98_sub = run("M98 P1\nM30\nO1 sub\nO1 endsub\n");
+  EXPECT_NE(m98_sub.err.find("'O.... sub' subroutine must be called with 'O.... call'"), std::string::npos) << m98_sub.err;
+  const Rs274Result endsub = run("M98 P1\nM30\nO1\nO1 endsub\n");
+  EXPECT_NE(endsub.err.find("Fanuc 'O....' subroutine definition must end with 'M99'"), std::string::npos) << endsub.err;
+  const Rs274Result m99 = run("O1 call\nM30\nO1 sub\nM99\n");
+  EXPECT_NE(m99.err.find("'O.... endsub' or 'O.... return' must follow"), std::string::npos) << m99.err;
+  const Rs274Result no_p = run("M98\nM30\n");
+  EXPECT_NE(no_p.err.find("Found 'm98' code with no P-word"), std::string::npos) << no_p.err;
+}
+
+TEST(InterpFanucSubs, DisableFanucStyleSubRefusesM98) {
+  const Rs274Result r = run("M98 P1\nM30\nO1\nM99\n", with_ini("[RS274NGC]\nDISABLE_FANUC_STYLE_SUB = 1\n"));
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("DISABLE_FANUC_STYLE_SUB set in INI file, but found m98"), std::string::npos) << r.err;
+}
+
+TEST(InterpFanucSubs, TheSearchStopsAtTheClosingPercentButGoesOnInTheSubroutineFiles) {
+  const Rs274Result after_percent = run("%\nM98 P7\nM30\n%\nO7\nM99\n");
+  EXPECT_FALSE(after_percent.ok);
+  EXPECT_NE(after_percent.err.find("Failed to find sub 'O7' before EOF"), std::string::npos) << after_percent.err;
+  EXPECT_TRUE(has(after_percent, "FINISH()")) << after_percent.canon;
+  const Rs274Result in_file = run("%\no<lib> call\nM30\n%\n", {}, {{"lib.ngc", "o<lib> sub\n(debug, lib)\no<lib> endsub\nM2\n"}});
+  EXPECT_TRUE(in_file.ok) << in_file.err;
+  EXPECT_TRUE(has(in_file, "MESSAGE(\" lib\")")) << in_file.canon;
+}
