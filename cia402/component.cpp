@@ -6,7 +6,7 @@
 #include <memory>
 #include <vector>
 
-#include "cia402/canopen_link.hpp"
+#include "cia402/link.hpp"
 #include "cia402/components.hpp"
 #include "cia402/drive_group.hpp"
 #include "core/hal/component.hpp"

@@ -6,12 +6,11 @@
 #include <memory>
 #include <thread>
 
-#include "cia402/canopen_link.hpp"
 #include "core/hal/component.hpp"
 #include "core/hal/hal.hpp"
 #include "core/hal/thread.hpp"
 #include "core/util/strings.hpp"
-#include "fieldbus/ethercat/cia402_link.hpp"
+#include "fieldbus/ethercat/cia402_binding.hpp"
 #include "fieldbus/ethercat/config.hpp"
 #include "fieldbus/ethercat/master.hpp"
 #include "fieldbus/ethercat/sim/segment.hpp"

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "cia402/canopen_link.hpp"
+#include "fieldbus/canopen/cia402_binding.hpp"
 #include "cia402/drive_group.hpp"
 #include "cia402/sim/sim_config.hpp"
 #include "cia402/sim/sim_host.hpp"
@@ -123,7 +123,7 @@ class Rig {
     if (master_->boot_state() != canopen::BootState::Succeeded) {
       throw std::runtime_error("rig: boot failed: " + master_->boot_error());
     }
-    link_ = std::make_unique<SteppedLink>(*this, make_canopen_link(*master_));
+    link_ = std::make_unique<SteppedLink>(*this, canopen::make_cia402_link(*master_));
     group_ = std::make_unique<DriveGroup>(load_group_config(ini_, "CIA402", "cia402.0"), *link_, &messages);
   }
 

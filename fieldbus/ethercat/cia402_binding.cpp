@@ -1,11 +1,9 @@
-#include "fieldbus/ethercat/cia402_link.hpp"
+#include "fieldbus/ethercat/cia402_binding.hpp"
 
 #include "fieldbus/ethercat/master.hpp"
 
 namespace cnc::ethercat {
 namespace {
-
-cia402::Slot slot(const ProcessSlot& s) { return cia402::Slot{s.bytes, s.bit_offset, s.bit_length}; }
 
 class EthercatLink final : public cia402::DriveLink {
  public:
@@ -18,10 +16,10 @@ class EthercatLink final : public cia402::DriveLink {
     return m_.config().slaves.empty() || m_.config().slave(static_cast<unsigned>(a)) != nullptr;
   }
   cia402::Slot output(int a, cia402::Object o) const noexcept override {
-    return slot(m_.output(static_cast<unsigned>(a), o.index, o.sub));
+    return m_.output(static_cast<unsigned>(a), o.index, o.sub);
   }
   cia402::Slot input(int a, cia402::Object o) const noexcept override {
-    return slot(m_.input(static_cast<unsigned>(a), o.index, o.sub));
+    return m_.input(static_cast<unsigned>(a), o.index, o.sub);
   }
   cia402::ConfigResult read_wait(int a, cia402::Object o, unsigned size) override {
     const SdoResult r = m_.sdo_upload(static_cast<unsigned>(a), o.index, o.sub);
