@@ -63,6 +63,7 @@ Controller::Controller(const Options& options) : options_(options), status_(std:
   }
 
   register_all_components(registry_);
+  for (Registrar r : options.extra_components) r(registry_);
   interp_ = std::make_unique<hal::CommandInterpreter>(hal_, registry_, &ini_, &messages_);
   try {
 #ifdef CNC_HAVE_IO

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "core/daemon/plugins.hpp"
 #include "core/hal/commands.hpp"
 #include "core/ini/ini_file.hpp"
 #include "core/ipc/admin.hpp"
@@ -23,6 +24,9 @@ struct Options {
   std::filesystem::path ini_file;
   std::string instance = "default";
   bool verbose = false;
+  // Registered after the product's components: the build's plug-ins
+  // (plugins.hpp), e.g. the simulators.
+  std::vector<Registrar> extra_components;
 };
 
 class Controller : private ipc::CommandReporter {

@@ -6,7 +6,7 @@
 #include <array>
 #include <memory>
 
-#include "fieldbus/ethercat/sim/segment.hpp"
+#include "sim/ethercat/segment.hpp"
 
 namespace cnc::ethercat {
 namespace {
