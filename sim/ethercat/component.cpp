@@ -15,6 +15,7 @@ namespace {
 class SimComponent : public hal::Component {
  public:
   SimComponent(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(ctx.hal, "ethercat_sim") {
+    mark_as_simulation();
     args.allow_only({"name", "drives"});
     name_ = args.get_string("name", "sim");
     const int64_t drives = args.get_int("drives", 3, 1, 64);

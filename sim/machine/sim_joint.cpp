@@ -78,6 +78,7 @@ struct SimJoint {
 class SimJointComponent : public hal::Component {
  public:
   SimJointComponent(hal::ComponentContext& ctx, const hal::LoadArgs& args) : hal::Component(ctx.hal, args.component()) {
+    mark_as_simulation();
     args.allow_only({"count", "names"});
     for (const auto& n : args.instance_names("sim-joint", 1, kMaxJoints)) {
       joints_.push_back(std::make_unique<SimJoint>());

@@ -10,6 +10,7 @@ namespace {
 class SimToolchanger : public hal::Component {
  public:
   SimToolchanger(hal::ComponentContext& ctx, const hal::LoadArgs& args) : hal::Component(ctx.hal, "sim_toolchanger") {
+    mark_as_simulation();
     args.allow_only({});
     const std::string n = "sim-toolchanger.";
     prepare_ = make_pin<bool>(n + "prepare", hal::PinDir::In);
