@@ -24,9 +24,11 @@ class SimComponent : public hal::Component {
     register_segment(name_, segment_);
     // The slaves' own time: watchdogs expire and drives coast while no
     // frame arrives at all (the master stopped), as on real hardware.
+    // While frames arrive they carry the time, and this thread keeps off
+    // the lock the master's servo thread sends under.
     clock_ = std::thread([this] {
       while (!stop_.load(std::memory_order_acquire)) {
-        segment_->poll();
+        segment_->poll_if_idle();
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
       }
     });

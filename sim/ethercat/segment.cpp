@@ -57,6 +57,15 @@ void Segment::poll() {
   for (auto& s : slaves_) s->poll(t);
 }
 
+bool Segment::poll_if_idle() {
+  const uint64_t passed = frames_.load() - dropped_.load();
+  const bool frames_passed = passed != passed_at_idle_poll_ && break_after_.load() == 0;
+  passed_at_idle_poll_ = passed;
+  if (frames_passed) return false;
+  poll();
+  return true;
+}
+
 void Segment::execute(DatagramRef& d, std::size_t connected, int64_t t) noexcept {
   const Command c = d.command();
   constexpr int64_t kHop = 750;

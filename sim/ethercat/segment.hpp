@@ -42,6 +42,12 @@ class Segment {
   bool process(uint8_t* frame, std::size_t size);
   // Time passes without frames (watchdogs, drives coasting).
   void poll();
+  // The slaves' own clock thread (one thread only): poll(), unless frames
+  // reached every slave since the previous call (each frame polls the
+  // slaves it passes). So while a master exchanges frames the clock thread
+  // never holds the segment's lock that the master's servo thread takes to
+  // send. Returns whether it polled.
+  bool poll_if_idle();
 
   // --- fault injection ---
   void drop_frames(unsigned n) noexcept { drop_.store(n); }
@@ -64,6 +70,7 @@ class Segment {
   std::atomic<unsigned> drop_{0}, corrupt_{0}, break_after_{0};
   int wkc_delta_ = 0;
   std::atomic<uint64_t> frames_{0}, dropped_{0};
+  uint64_t passed_at_idle_poll_ = 0;  // frames that passed every slave, at the last poll_if_idle()
 };
 
 // Named segments for in-process links ("sim:<name>"): registering one also
