@@ -141,9 +141,10 @@ std::string format_status(const ipc::Status& s, const ipc::Liveness* live) {
   }
   for (const ipc::SimulatorStatus& sim : s.simulators) {
     if (sim.name.empty()) continue;
-    o << fmt("  %-14s simulator on its own thread: %" PRIu64 " periods, %" PRIu64 " late, woken %" PRIu64
-             " times; exec %.1f us (max %.1f)\n",
-             sim.name.c_str(), sim.steps, sim.late_steps, sim.wakes, static_cast<double>(sim.exec_last_ns) / 1e3,
+    o << fmt("  %-14s simulator on its own thread: %" PRIu64 " periods, %" PRIu64 " late (%" PRIu64
+             " caught up in the HAL thread), woken %" PRIu64 " times; exec %.1f us (max %.1f)\n",
+             sim.name.c_str(), sim.steps, sim.late_steps, sim.helped_steps, sim.wakes,
+             static_cast<double>(sim.exec_last_ns) / 1e3,
              static_cast<double>(sim.exec_max_ns) / 1e3);
   }
   o << fmt("Last command: serial %u %s, %s\n", s.echo.serial, to_string(s.echo.type), to_string(s.echo.state));
@@ -294,6 +295,7 @@ std::string status_json(const ipc::Status& s, int indent, const ipc::Liveness* l
     simulators.push_back({{"name", sim.name.c_str()},
                           {"steps", sim.steps},
                           {"late_steps", sim.late_steps},
+                          {"helped_steps", sim.helped_steps},
                           {"wakes", sim.wakes},
                           {"exec_last_ns", sim.exec_last_ns},
                           {"exec_max_ns", sim.exec_max_ns}});

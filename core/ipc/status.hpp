@@ -257,6 +257,7 @@ struct SimulatorStatus {
   FixedString<32> name;          // "cia402-sim"; empty: no simulator
   uint64_t steps = 0;            // periods simulated
   uint64_t late_steps = 0;       // periods asked for before the previous one was simulated (answers late)
+  uint64_t helped_steps = 0;     // of them, simulated by the HAL thread itself: the simulator had not started
   uint64_t wakes = 0;            // requests that had to wake the simulator's thread (a system call in the HAL thread)
   int64_t exec_last_ns = 0;      // one period's simulation, every bus of the simulator
   int64_t exec_max_ns = 0;

@@ -69,7 +69,8 @@ struct SimBus {
   std::atomic<int64_t> requested_ns{0};     // bus time asked for since then (servo thread)
   std::atomic<int64_t> done_ns{0};          // of it, simulated
   std::atomic<uint64_t> late{0};            // periods asked for before the previous was simulated
-  std::atomic_flag busy = ATOMIC_FLAG_INIT; // a real-time pass runs (the inline hand-over waits for it)
+  std::atomic<uint64_t> helped{0};          // of them, simulated by the servo thread (the stepper had not started)
+  std::atomic_flag busy = ATOMIC_FLAG_INIT; // a thread advances the bus (held by a real-time pass or a catch-up)
   int64_t base_ns = -1;                     // bus time at the first request
   class Stepper* stepper = nullptr;         // set before the HAL threads start
 
@@ -103,7 +104,15 @@ struct SimBus {
     advance_to(monotonic_ns() - origin_ns, true);
     busy.clear(std::memory_order_release);
   }
-  // Simulates what the servo thread has asked for; false: nothing to do.
+  // Simulates what the servo thread has asked for, unless another thread
+  // is at it (never waits); false: nothing done.
+  bool try_catch_up() noexcept {
+    if (busy.test_and_set(std::memory_order_acquire)) return false;
+    const bool worked = catch_up();
+    busy.clear(std::memory_order_release);
+    return worked;
+  }
+  // The same, by the one thread that advances the bus.
   bool catch_up() noexcept {
     const int64_t asked = requested_ns.load(std::memory_order_acquire);
     if (base_ns < 0) base_ns = vbus->now_ns();  // from where the real-time clock left the bus
@@ -121,7 +130,8 @@ struct SimBus {
 // more period. The servo thread only writes atomics: it makes a system call
 // (a futex wake) only when the stepper has given up polling and sleeps
 // (after a stall of the servo thread, or before its first cycle), counted
-// in wakes(). SCHED_FIFO just below the servo thread when permitted, so
+// in wakes(), and simulates only periods the stepper has not started in
+// time (SimBus::update). SCHED_FIFO just below the servo thread when permitted, so
 // that the drives answer each SYNC before the next cycle reads. Its own
 // execution time is published apart from the servo thread's.
 class Stepper {
@@ -148,6 +158,17 @@ class Stepper {
       futex_wake(&seq_);
     }
   }
+  // Fault injection (`cnc inject "stepper hold" 1`): the stepper simulates
+  // nothing, as when a loaded host does not schedule it. Returns once the
+  // stepper has stopped (at most 1 s; false if it did not).
+  bool hold(bool on) {
+    hold_.store(on);
+    if (!on) return true;
+    seq_.fetch_add(1);
+    futex_wake(&seq_);
+    for (int i = 0; i < 10'000 && !held_.load(); ++i) std::this_thread::sleep_for(std::chrono::microseconds(100));
+    return held_.load();
+  }
   uint64_t steps() const noexcept { return steps_.load(std::memory_order_relaxed); }
   uint64_t wakes() const noexcept { return wakes_.load(std::memory_order_relaxed); }
   int64_t exec_last_ns() const noexcept { return exec_last_ns_.load(std::memory_order_relaxed); }
@@ -163,12 +184,18 @@ class Stepper {
     }
     while (!stop_.load()) {
       const uint32_t seen = seq_.load();
+      if (hold_.load()) {
+        held_.store(true);
+        futex_wait(&seq_, seen, 1'000'000);
+        continue;
+      }
+      held_.store(false);
       bool real_time = false, worked = false;
       const int64_t t0 = monotonic_ns();
       for (SimBus* b : buses_) {
         switch (b->mode.load(std::memory_order_acquire)) {
           case SimBus::kRealTime: b->real_time_pass(); real_time = true; break;
-          case SimBus::kStepper: worked = b->catch_up() || worked; break;
+          case SimBus::kStepper: worked = b->try_catch_up() || worked; break;
           default: break;  // stepped inline by the caller of update()
         }
       }
@@ -210,14 +237,17 @@ class Stepper {
   std::atomic<bool> stop_{false};
   std::atomic<uint32_t> seq_{0};     // bumped by every request (the futex word)
   std::atomic<bool> sleeping_{false};
+  std::atomic<bool> hold_{false}, held_{false};  // injected: asked to stop, stopped
   std::atomic<int64_t> next_request_ns_{0}, period_ns_{0};
   std::atomic<uint64_t> steps_{0}, wakes_{0};
   std::atomic<int64_t> exec_last_ns_{0}, exec_max_ns_{0};
 };
 
 // The first call decides who simulates: the stepper thread when the servo
-// thread runs on its own clock, this call itself when the thread is stepped
-// by hand (deterministic tests). Either way one period of bus time per call.
+// thread runs on its own clock (this call helps only when the stepper has
+// not started the previous period), this call itself when the thread is
+// stepped by hand (deterministic tests). Either way one period of bus time
+// per call.
 void SimBus::update(const rt::CycleInfo& info) noexcept {
   int m = mode.load(std::memory_order_relaxed);
   if (m == kRealTime) {
@@ -239,8 +269,16 @@ void SimBus::update(const rt::CycleInfo& info) noexcept {
     catch_up();
     return;
   }
-  if (done_ns.load(std::memory_order_acquire) < asked) late.fetch_add(1, std::memory_order_relaxed);
   requested_ns.store(asked + info.period_ns, std::memory_order_release);
+  if (done_ns.load(std::memory_order_acquire) < asked) {
+    // The previous period's answers missed this cycle's read. If the
+    // stepper has not even started it (not scheduled: a loaded host
+    // without SCHED_FIFO), simulate it and this one here, so that the next
+    // read is on time again and the drives' feedback never lags more than
+    // a cycle; if it is at it, leave it (never wait).
+    late.fetch_add(1, std::memory_order_relaxed);
+    if (try_catch_up()) helped.fetch_add(1, std::memory_order_relaxed);
+  }
   // The next cycle's request: one period after this one on the thread's
   // grid (this cycle's wake-up latency taken out).
   stepper->notify(monotonic_ns() - info.wake_latency_ns + info.period_ns, info.period_ns);
@@ -330,7 +368,11 @@ class SimComponent : public hal::Component, public ipc::ControllerService {
       s.steps = stepper_->steps();
       s.wakes = stepper_->wakes();
       s.late_steps = 0;
-      for (const auto& b : buses_) s.late_steps += b->late.load(std::memory_order_relaxed);
+      s.helped_steps = 0;
+      for (const auto& b : buses_) {
+        s.late_steps += b->late.load(std::memory_order_relaxed);
+        s.helped_steps += b->helped.load(std::memory_order_relaxed);
+      }
       s.exec_last_ns = stepper_->exec_last_ns();
       s.exec_max_ns = stepper_->exec_max_ns();
       return;
@@ -343,6 +385,16 @@ class SimComponent : public hal::Component, public ipc::ControllerService {
     if (cmd.type != ipc::CommandType::SimInject) return false;
     const std::string text(cmd.text.view());
     const auto words = split_blanks(text);
+    if (words.size() == 2 && iequals(words[0], "stepper") && iequals(words[1], "hold")) {
+      if (!stepper_) {
+        reporter.report(cmd, ipc::CommandState::Rejected, "no bus of cia402_sim has CLOCK = SERVO");
+      } else if (!stepper_->hold(cmd.d[0] != 0)) {
+        reporter.report(cmd, ipc::CommandState::Rejected, "the stepper did not stop within 1 s");
+      } else {
+        reporter.report(cmd, ipc::CommandState::Done);
+      }
+      return true;
+    }
     if (words.empty() || !iequals(words[0], "drive")) return false;  // another simulator's
     std::string why = "no simulated drive answers \"" + text + "\"";
     const int64_t node = words.size() > 1 ? parse_int(words[1]).value_or(0) : 0;

@@ -55,6 +55,24 @@ class SimStepper : public ::testing::Test {
     service->contribute_status(*s);
     return s->simulators[0];
   }
+  // `cnc inject TEXT VALUE`: true when done.
+  bool inject(const std::string& text, double value) {
+    struct Reporter : ipc::CommandReporter {
+      void report(const ipc::Command&, ipc::CommandState state, std::string_view why) override {
+        done = state == ipc::CommandState::Done;
+        reason = why;
+      }
+      bool done = false;
+      std::string reason;
+    } reporter;
+    ipc::Command cmd{};
+    cmd.type = ipc::CommandType::SimInject;
+    cmd.text.assign(text);
+    cmd.d[0] = value;
+    EXPECT_TRUE(service->handle_command(cmd, reporter)) << text;
+    EXPECT_TRUE(reporter.done) << text << ": " << reporter.reason;
+    return reporter.done;
+  }
   // Polls until `done` or 10 s pass (a loaded host is slow, never this slow).
   template <class F>
   bool eventually(F done) {
@@ -98,6 +116,25 @@ TEST_F(SimStepper, ServoThreadOnItsOwnClockLeavesThePeriodToTheStepper) {
   EXPECT_GT(s.exec_max_ns, 0);
   EXPECT_EQ(s.late_steps, 0u) << "each period was simulated before the next was asked for";
   EXPECT_GT(thread->simulation_exec_max_ns(), 0) << "the update function is counted as the simulator's";
+}
+
+// A stepper that does not run (a loaded host without SCHED_FIFO): the
+// period it has not started is simulated by the next cycle's update, with
+// that cycle's own, so the drives' answers are never more than a cycle late.
+TEST_F(SimStepper, PeriodTheStepperHasNotStartedIsCaughtUpByTheNextCycle) {
+  cycle(true);
+  ASSERT_TRUE(eventually([&] { return simulator().steps >= 1; }));
+  const int64_t t0 = bus->now_ns();
+  ASSERT_TRUE(inject("stepper hold", 1));
+  cycle(true);  // asks for a period the held stepper will not simulate
+  cycle(true);
+  EXPECT_EQ(bus->now_ns(), t0 + 2'000'000) << "both periods simulated by the second cycle's update";
+  ipc::SimulatorStatus s = simulator();
+  EXPECT_EQ(s.late_steps, 1u);
+  EXPECT_EQ(s.helped_steps, 1u);
+  ASSERT_TRUE(inject("stepper hold", 0));
+  cycle(true);
+  EXPECT_TRUE(eventually([&] { return bus->now_ns() == t0 + 3'000'000; })) << "the stepper simulates again";
 }
 
 TEST_F(SimStepper, ThreadSteppedByHandSimulatesEachPeriodInline) {

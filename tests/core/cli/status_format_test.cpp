@@ -78,13 +78,15 @@ TEST(StatusFormat, ServoTimeOfProductAndSimulatorsIsShownApart) {
   sim.name.assign("cia402-sim");
   sim.steps = 61'000;
   sim.late_steps = 2;
+  sim.helped_steps = 1;
   sim.wakes = 3;
   sim.exec_last_ns = 120'000;
   sim.exec_max_ns = 410'000;
   const std::string text = cli::format_status(*s);
   EXPECT_NE(text.find("of which product functions 45.0 us (max 85.0), simulators 3.0 us (max 7.5)"), std::string::npos)
       << text;
-  EXPECT_NE(text.find("cia402-sim     simulator on its own thread: 61000 periods, 2 late, woken 3 times; "
+  EXPECT_NE(text.find("cia402-sim     simulator on its own thread: 61000 periods, 2 late (1 caught up in the "
+                      "HAL thread), woken 3 times; "
                       "exec 120.0 us (max 410.0)"),
             std::string::npos)
       << text;
@@ -93,6 +95,7 @@ TEST(StatusFormat, ServoTimeOfProductAndSimulatorsIsShownApart) {
   EXPECT_EQ(j["threads"][0]["sim_exec_last_ns"], 3'000);
   EXPECT_EQ(j["simulators"][0]["name"], "cia402-sim");
   EXPECT_EQ(j["simulators"][0]["late_steps"], 2);
+  EXPECT_EQ(j["simulators"][0]["helped_steps"], 1);
   EXPECT_EQ(j["simulators"][0]["wakes"], 3);
   EXPECT_EQ(j["simulators"][0]["exec_max_ns"], 410'000);
 }
