@@ -6,7 +6,7 @@
 #include <memory>
 #include <vector>
 
-#include "cia402/canopen_link.hpp"
+#include "cia402/link.hpp"
 #include "cia402/components.hpp"
 #include "cia402/drive_group.hpp"
 #include "core/hal/component.hpp"
@@ -245,7 +245,7 @@ class Cia402Component : public hal::Component, public ipc::ControllerService {
 
 }  // namespace
 
-void register_master_component(hal::ComponentRegistry& registry) {
+void register_components(hal::ComponentRegistry& registry) {
   registry.add("cia402",
                "CiA 402 drives per INI section on a loaded fieldbus: sections=CIA402[,CIA402_1] (functions "
                "cia402.N.read / cia402.N.write)",

@@ -1,7 +1,8 @@
-// The drive profile's HAL components:
+// The drive layer's HAL component:
 //   loadrt cia402 [sections=CIA402[,CIA402_1]]      master-side drive control
-//   loadrt cia402_sim [sections=CIA402_SIM[,...]]   simulated drives (in-process)
-// The daemon registers them with register_components(); see docs/cia402.md.
+// on a bus loaded before it (found through cia402/link.hpp's finders). The
+// daemon registers it with register_components(); see docs/cia402.md. The
+// simulated drives (cia402_sim) are not part of the product: sim/cia402.
 #pragma once
 
 #include <cstddef>
@@ -16,7 +17,6 @@ namespace cnc::cia402 {
 class DriveGroup;
 
 void register_components(hal::ComponentRegistry& registry);
-void register_master_component(hal::ComponentRegistry& registry);
 
 // The drive group of `loadrt cia402` by section order (0 = cia402.0); null if none.
 DriveGroup* find_group(hal::Hal& hal, std::size_t index);

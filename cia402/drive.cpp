@@ -140,7 +140,7 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
   link_was_ok_ = fb.link_ok;
 
   prev_state_ = state_;
-  statusword_ = get_slot<uint16_t>(slots_.statusword);
+  statusword_ = read_slot<uint16_t>(slots_.statusword);
   state_ = decode_state(statusword_);
   if (state_ == State::Invalid && !invalid_reported_) {
     post(true, "statusword 0x%04X matches no CiA 402 state", statusword_);
@@ -149,11 +149,11 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
     invalid_reported_ = false;
   }
 
-  const int32_t raw = get_slot<int32_t>(slots_.position_actual);
+  const int32_t raw = read_slot<int32_t>(slots_.position_actual);
   const int64_t pos = position_.update(raw);
   fb.pos_fb = config_.scaling.to_units(pos);
   if (slots_.velocity_actual) {
-    fb.vel_fb = config_.scaling.to_units_rate(static_cast<double>(get_slot<int32_t>(slots_.velocity_actual)));
+    fb.vel_fb = config_.scaling.to_units_rate(static_cast<double>(read_slot<int32_t>(slots_.velocity_actual)));
   } else if (health_.inputs_fresh && have_prev_position_) {
     fb.vel_fb = config_.scaling.to_units(static_cast<double>(pos - prev_position_)) / period_s_;
   }
@@ -163,22 +163,22 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
     have_prev_position_ = true;
   }
   if (slots_.ferror_actual) {
-    fb.ferror = config_.scaling.to_units(static_cast<int64_t>(get_slot<int32_t>(slots_.ferror_actual)));
+    fb.ferror = config_.scaling.to_units(static_cast<int64_t>(read_slot<int32_t>(slots_.ferror_actual)));
   } else {
     // The target of two cycles ago is the demand this sample belongs to
     // (one cycle of transport, one of interpolation in the drive).
     fb.ferror = state_ == State::OperationEnabled ? config_.scaling.to_units(target_history_[1] - pos) : 0.0;
   }
-  fb.torque = slots_.torque_actual ? get_slot<int16_t>(slots_.torque_actual) * 0.1 * config_.scaling.direction : 0.0;
+  fb.torque = slots_.torque_actual ? read_slot<int16_t>(slots_.torque_actual) * 0.1 * config_.scaling.direction : 0.0;
   if (slots_.modes_display) {
-    mode_display_ = static_cast<Mode>(get_slot<int8_t>(slots_.modes_display));
+    mode_display_ = static_cast<Mode>(read_slot<int8_t>(slots_.modes_display));
     mode_display_known_ = true;
   }
   if (slots_.error_code) {
-    error_code_ = get_slot<uint16_t>(slots_.error_code);
+    error_code_ = read_slot<uint16_t>(slots_.error_code);
     error_code_known_ = true;
   }
-  const uint32_t din = get_slot<uint32_t>(slots_.digital_inputs);
+  const uint32_t din = read_slot<uint32_t>(slots_.digital_inputs);
   fb.digital_inputs = din;
   fb.home_sw = (din & din::kHomeSwitch) != 0;
   const bool drive_pos = (din & din::kPositiveLimit) != 0, drive_neg = (din & din::kNegativeLimit) != 0;
@@ -186,10 +186,10 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
   fb.neg_lim_sw = config_.scaling.direction > 0 ? drive_neg : drive_pos;
 
   // Touch probes: 1 on the probe input, 2 on the encoder's zero pulse.
-  probe_status_ = get_slot<uint16_t>(slots_.probe_status);
+  probe_status_ = read_slot<uint16_t>(slots_.probe_status);
   fb.index_found = false;
   auto latched_units = [&](const Slot& s) {
-    const int32_t at = get_slot<int32_t>(s);
+    const int32_t at = read_slot<int32_t>(s);
     const int64_t unwrapped = pos + static_cast<int32_t>(static_cast<uint32_t>(at) - static_cast<uint32_t>(raw));
     return config_.scaling.to_units(unwrapped);
   };
@@ -509,9 +509,9 @@ void Drive::write_targets(const DriveCommand& cmd, bool operating) noexcept {
   }
   target_history_[1] = target_history_[0];
   target_history_[0] = target_;
-  put_slot<int32_t>(slots_.target_position, static_cast<int32_t>(static_cast<uint32_t>(static_cast<uint64_t>(target_))));
-  put_slot<int32_t>(slots_.target_velocity, velocity);
-  put_slot<int16_t>(slots_.target_torque, torque);
+  write_slot<int32_t>(slots_.target_position, static_cast<int32_t>(static_cast<uint32_t>(static_cast<uint64_t>(target_))));
+  write_slot<int32_t>(slots_.target_velocity, velocity);
+  write_slot<int16_t>(slots_.target_torque, torque);
 }
 
 void Drive::run_acyclic(int64_t now) noexcept {
@@ -596,9 +596,9 @@ void Drive::write(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexc
                          (c & cw::kEnableOperation) && (c & cw::kQuickStop);
   write_targets(cmd, operating);
   controlword_ = c;
-  put_slot<uint16_t>(slots_.controlword, c);
-  put_slot<int8_t>(slots_.modes, static_cast<int8_t>(mode_cmd_));
-  put_slot<uint16_t>(slots_.probe_function, static_cast<uint16_t>(probe1_.function() | probe2_.function()));
+  write_slot<uint16_t>(slots_.controlword, c);
+  write_slot<int8_t>(slots_.modes, static_cast<int8_t>(mode_cmd_));
+  write_slot<uint16_t>(slots_.probe_function, static_cast<uint16_t>(probe1_.function() | probe2_.function()));
   run_acyclic(now);
   prev_pos_cmd_ = cmd.pos_cmd;
   have_prev_cmd_ = true;

@@ -1,78 +1,32 @@
 // What a fieldbus gives the drive layer, independent of the transport
-// (CANopen today, EtherCAT CoE next): per drive, where each cyclically
+// (CANopen, EtherCAT CoE): per drive, where each cyclically
 // mapped object lives in the process image, a realtime request/poll path
 // for the few objects that are not mapped (mode, touch probe, error code),
 // a blocking path for configuration at start-up, and the health of the
 // link. Slots are read and written by the servo thread only, between the
 // bus's read and write functions; never allocate, never block there.
+// The drive layer owns this interface; each bus implements it in its own
+// folder (fieldbus/canopen/cia402_binding, fieldbus/ethercat/cia402_binding)
+// and registers a finder, so cia402/ never includes a bus.
 #pragma once
 
 #include <cstdint>
-#include <cstring>
+#include <memory>
 #include <string>
-#include <type_traits>
 
 #include "cia402/profile.hpp"
+#include "core/util/process_slot.hpp"
+
+namespace cnc::hal {
+class Hal;
+}
 
 namespace cnc::cia402 {
 
-// One object in a byte image: pointer, bit offset, bit length
-// (little-endian, as CANopen PDOs and EtherCAT process data are).
-struct Slot {
-  uint8_t* bytes = nullptr;
-  uint16_t bit_offset = 0;
-  uint8_t bit_length = 0;
-  explicit operator bool() const noexcept { return bytes != nullptr; }
-};
-
-namespace detail {
-inline uint64_t load_bits(const Slot& s) noexcept {
-  uint64_t v = 0;
-  const unsigned n = s.bit_length > 64 ? 64 : s.bit_length;
-  if ((s.bit_offset & 7) == 0 && (n & 7) == 0) {
-    const uint8_t* p = s.bytes + s.bit_offset / 8;
-    for (unsigned i = 0; i < n / 8; ++i) v |= static_cast<uint64_t>(p[i]) << (8 * i);
-    return v;
-  }
-  for (unsigned i = 0; i < n; ++i) {
-    const unsigned b = s.bit_offset + i;
-    if ((s.bytes[b / 8] >> (b % 8)) & 1u) v |= uint64_t{1} << i;
-  }
-  return v;
-}
-inline void store_bits(const Slot& s, uint64_t v) noexcept {
-  const unsigned n = s.bit_length > 64 ? 64 : s.bit_length;
-  if ((s.bit_offset & 7) == 0 && (n & 7) == 0) {
-    uint8_t* p = s.bytes + s.bit_offset / 8;
-    for (unsigned i = 0; i < n / 8; ++i) p[i] = static_cast<uint8_t>(v >> (8 * i));
-    return;
-  }
-  for (unsigned i = 0; i < n; ++i) {
-    const unsigned b = s.bit_offset + i;
-    const uint8_t m = static_cast<uint8_t>(1u << (b % 8));
-    if ((v >> i) & 1u) s.bytes[b / 8] |= m;
-    else s.bytes[b / 8] = static_cast<uint8_t>(s.bytes[b / 8] & ~m);
-  }
-}
-}  // namespace detail
-
-// Integer value of a slot, sign-extended for signed T; 0 when unmapped.
-template <class T>
-inline T get_slot(const Slot& s) noexcept {
-  static_assert(std::is_integral_v<T>);
-  if (!s.bytes || s.bit_length == 0) return T{};
-  uint64_t v = detail::load_bits(s);
-  if constexpr (std::is_signed_v<T>) {
-    if (s.bit_length < 64 && ((v >> (s.bit_length - 1)) & 1u)) v |= ~uint64_t{0} << s.bit_length;
-  }
-  return static_cast<T>(v);
-}
-template <class T>
-inline void put_slot(const Slot& s, T value) noexcept {
-  static_assert(std::is_integral_v<T>);
-  if (!s.bytes || s.bit_length == 0) return;
-  detail::store_bits(s, static_cast<uint64_t>(static_cast<std::conditional_t<std::is_signed_v<T>, int64_t, uint64_t>>(value)));
-}
+// One mapped object in the bus's process image: the process-image slot of
+// core/util/process_slot.hpp (read_slot / write_slot), handed through by
+// every bus unchanged.
+using Slot = ProcessSlot;
 
 // Health of one drive's link, refreshed by the bus every cycle.
 struct LinkHealth {
@@ -125,5 +79,16 @@ class DriveLink {
   // True once, when the request has finished (result in `out`).
   virtual bool poll(int handle, AcyclicResult& out) noexcept = 0;
 };
+
+// The link of a bus by its HAL prefix ("canopen.0", "ethercat.0"), asked of
+// every registered finder; throws std::runtime_error naming the bus when
+// none knows it. Non-realtime (loadrt cia402).
+std::unique_ptr<DriveLink> find_link(hal::Hal& hal, const std::string& bus);
+
+// Each bus registers how to find its links by bus name (its
+// register_components does); a finder returns null for a bus that is not
+// its own. Registering the same finder twice keeps one.
+using LinkFinder = std::unique_ptr<DriveLink> (*)(hal::Hal& hal, const std::string& bus);
+void register_link_finder(LinkFinder finder);
 
 }  // namespace cnc::cia402

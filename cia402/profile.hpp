@@ -1,12 +1,14 @@
 // The CiA 402 drive profile (IEC 61800-7-201) as both sides use it: states
 // and their statusword patterns, controlword commands, modes of operation,
-// object addresses, option codes, and error codes (0x603F / EMCY) as text.
+// object addresses and option codes (error codes: error_codes.hpp).
 // Transport-independent (CANopen and EtherCAT CoE alike); header data and
 // pure functions only, realtime-safe, no allocation.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+
+#include "cia402/error_codes.hpp"
 
 namespace cnc::cia402 {
 
@@ -230,32 +232,5 @@ inline constexpr int16_t kAbortNone = 0;
 inline constexpr int16_t kAbortFault = 1;
 inline constexpr int16_t kAbortDisableVoltage = 2;
 inline constexpr int16_t kAbortQuickStop = 3;
-
-// ---------------------------------------------------------------- errors
-
-// The most specific text known for an error code of 0x603F or an EMCY
-// ("following error", "DC-link over-voltage"), else its class ("current",
-// "device hardware"). Never null.
-const char* error_code_text(uint16_t code) noexcept;
-// Error codes the simulator raises and the master explains.
-namespace err {
-inline constexpr uint16_t kNone = 0x0000;
-inline constexpr uint16_t kGeneric = 0x1000;
-inline constexpr uint16_t kOverCurrent = 0x2310;
-inline constexpr uint16_t kShortCircuit = 0x2320;
-inline constexpr uint16_t kOverVoltage = 0x3210;
-inline constexpr uint16_t kUnderVoltage = 0x3220;
-inline constexpr uint16_t kOverTemperature = 0x4210;
-inline constexpr uint16_t kParameter = 0x6320;
-inline constexpr uint16_t kEncoder = 0x7305;
-inline constexpr uint16_t kHeartbeat = 0x8130;
-inline constexpr uint16_t kRpdoTimeout = 0x8250;
-inline constexpr uint16_t kFollowingError = 0x8611;
-inline constexpr uint16_t kReferenceLimit = 0x8612;
-inline constexpr uint16_t kPositiveLimitSwitch = 0xFF01;  // vendor: travel limit switch reached
-inline constexpr uint16_t kNegativeLimitSwitch = 0xFF02;
-inline constexpr uint16_t kSoftwareLimit = 0xFF03;
-inline constexpr uint16_t kSyncLost = 0xFF04;
-}  // namespace err
 
 }  // namespace cnc::cia402

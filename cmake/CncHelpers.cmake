@@ -164,3 +164,57 @@ function(cnc_fuzz_doc_seeds var kind)
   endforeach()
   set(${var} ${found} PARENT_SCOPE)
 endfunction()
+
+# cnc_check_product_links(): the simulators (sim/, targets cnc_sim*) are not
+# part of the product. Fails the configuration when a product target links
+# one of them, directly or through another library: every cnc_* library
+# that is not a simulator, and the programs a machine runs (cnc, halcmd,
+# cnc-hmi). cncd is the one exception: it takes the simulators as its
+# build-time plug-in (core/daemon/plugins.hpp), never through a library.
+function(_cnc_sim_links target out)
+  set(seen "${ARGN}")
+  set(found "")
+  foreach(prop LINK_LIBRARIES INTERFACE_LINK_LIBRARIES)
+    get_target_property(libs ${target} ${prop})
+    if(NOT libs)
+      continue()
+    endif()
+    foreach(lib IN LISTS libs)
+      if(NOT TARGET ${lib} OR lib IN_LIST seen)
+        continue()
+      endif()
+      list(APPEND seen ${lib})
+      if(lib MATCHES "^cnc_sim")
+        list(APPEND found ${lib})
+      else()
+        _cnc_sim_links(${lib} sub ${seen})
+        list(APPEND found ${sub})
+      endif()
+    endforeach()
+  endforeach()
+  set(${out} ${found} PARENT_SCOPE)
+endfunction()
+
+function(cnc_check_product_links)
+  set(products cnc halcmd cnc-hmi)
+  foreach(dir IN ITEMS core/util core/ini core/rt core/hal core/ipc core/tooltable kinematics core/tp core/interp
+                       core/motion cia402 fieldbus/can fieldbus/canopen fieldbus/ethercat fieldbus/modbus comp core/io core/task
+                       core/daemon core/cli hmi)
+    if(EXISTS ${PROJECT_SOURCE_DIR}/${dir}/CMakeLists.txt)
+      get_directory_property(targets DIRECTORY ${PROJECT_SOURCE_DIR}/${dir} BUILDSYSTEM_TARGETS)
+      list(APPEND products ${targets})
+    endif()
+  endforeach()
+  list(REMOVE_ITEM products cncd)
+  foreach(t IN LISTS products)
+    if(NOT TARGET ${t} OR t MATCHES "^cnc_sim")
+      continue()
+    endif()
+    _cnc_sim_links(${t} sims)
+    if(sims)
+      list(REMOVE_DUPLICATES sims)
+      message(FATAL_ERROR "${t} is part of the product but links the simulators (${sims}): "
+                          "product targets never link sim/ (docs/architecture.md, \"Simulators\")")
+    endif()
+  endforeach()
+endfunction()

@@ -3,59 +3,11 @@
 #include <cstdio>
 #include <ctime>
 
+#include "cia402/error_codes.hpp"
+
 namespace cnc::hmi {
 
-std::string decode_drive_error(uint16_t code) {
-  struct Known {
-    uint16_t code;
-    const char* text;
-  };
-  static constexpr Known kKnown[] = {
-      {0x0000, "no error"},
-      {0x1000, "generic error"},
-      {0x2310, "continuous over-current"},
-      {0x2320, "short circuit at the output"},
-      {0x2330, "earth leakage"},
-      {0x3210, "DC-link over-voltage"},
-      {0x3220, "DC-link under-voltage"},
-      {0x4210, "device over-temperature"},
-      {0x4310, "drive over-temperature"},
-      {0x5530, "non-volatile memory error"},
-      {0x6010, "software reset (watchdog)"},
-      {0x6320, "parameter error"},
-      {0x7300, "sensor error"},
-      {0x7305, "incremental encoder 1 broken"},
-      {0x7500, "communication error"},
-      {0x8110, "CAN overrun (objects lost)"},
-      {0x8120, "CAN in error passive mode"},
-      {0x8130, "heartbeat or life guard error"},
-      {0x8140, "recovered from bus off"},
-      {0x8210, "PDO not processed: length error"},
-      {0x8220, "PDO length exceeded"},
-      {0x8250, "RPDO timeout"},
-      {0x8611, "following error"},
-      {0x8612, "reference limit"},
-      {0x9000, "external error"},
-  };
-  for (const auto& k : kKnown) {
-    if (k.code == code) return k.text;
-  }
-  const char* cls = nullptr;
-  switch (code >> 12) {
-    case 0x1: cls = "generic error"; break;
-    case 0x2: cls = "current"; break;
-    case 0x3: cls = "voltage"; break;
-    case 0x4: cls = "temperature"; break;
-    case 0x5: cls = "device hardware"; break;
-    case 0x6: cls = "device software"; break;
-    case 0x7: cls = "additional modules / sensors"; break;
-    case 0x8: cls = "monitoring / communication"; break;
-    case 0x9: cls = "external error"; break;
-    case 0xF: cls = (code >> 8) == 0xFF ? "vendor specific" : "device specific"; break;
-    default: cls = "unknown class"; break;
-  }
-  return std::string(cls) + " error";
-}
+std::string decode_drive_error(uint16_t code) { return cia402::error_code_text(code); }
 
 const char* drive_state_name(uint8_t state) noexcept {
   switch (state) {

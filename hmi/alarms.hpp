@@ -18,7 +18,7 @@
 namespace cnc::hmi {
 
 // Text for a CiA 301/402 error code (0x603F, EMCY), e.g. 0x2310
-// "continuous over-current".
+// "continuous over-current": the one table of cia402/error_codes.hpp.
 std::string decode_drive_error(uint16_t code);
 // Name of a CiA-402 state as numbered in the status (cia402::State).
 const char* drive_state_name(uint8_t state) noexcept;

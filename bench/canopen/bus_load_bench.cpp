@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "fieldbus/can/bus_load.hpp"
-#include "fieldbus/can/virtual_bus.hpp"
+#include "sim/can/virtual_bus.hpp"
 #include "fieldbus/canopen/master.hpp"
 #include "fieldbus/canopen/slave_node.hpp"
 

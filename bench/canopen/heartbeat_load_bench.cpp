@@ -25,13 +25,13 @@
 #include <thread>
 #include <vector>
 
-#include "cia402/sim/sim_config.hpp"
-#include "cia402/sim/sim_host.hpp"
+#include "sim/cia402/sim_config.hpp"
+#include "sim/cia402/sim_host.hpp"
 #include "core/ini/ini_file.hpp"
 #include "core/rt/periodic_task.hpp"
 #include "core/util/messages.hpp"
 #include "core/util/time.hpp"
-#include "fieldbus/can/virtual_bus.hpp"
+#include "sim/can/virtual_bus.hpp"
 #include "fieldbus/canopen/config.hpp"
 #include "fieldbus/canopen/master.hpp"
 

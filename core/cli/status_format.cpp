@@ -153,6 +153,11 @@ std::string format_status(const ipc::Status& s, const ipc::Liveness* live) {
              static_cast<double>(t.latency_max_ns) / 1e3, static_cast<double>(t.period_min_ns) / 1e3,
              static_cast<double>(t.period_max_ns) / 1e3, static_cast<double>(t.exec_last_ns) / 1e3,
              static_cast<double>(t.exec_max_ns) / 1e3);
+    if (t.sim_exec_max_ns > 0) {
+      o << fmt("                 of which product functions %.1f us (max %.1f), simulators %.1f us (max %.1f)\n",
+               static_cast<double>(t.product_exec_last_ns) / 1e3, static_cast<double>(t.product_exec_max_ns) / 1e3,
+               static_cast<double>(t.sim_exec_last_ns) / 1e3, static_cast<double>(t.sim_exec_max_ns) / 1e3);
+    }
     if (t.overruns > 0) {
       o << fmt("                 overruns: streak %u now, longest %u; %" PRIu64 " periods missed, longest gap %" PRId64
                "; %" PRIu64 " blamed on late wake-ups",
@@ -163,6 +168,14 @@ std::string format_status(const ipc::Status& s, const ipc::Liveness* live) {
       }
       o << "\n";
     }
+  }
+  for (const ipc::SimulatorStatus& sim : s.simulators) {
+    if (sim.name.empty()) continue;
+    o << fmt("  %-14s simulator on its own thread: %" PRIu64 " periods, %" PRIu64 " late (%" PRIu64
+             " caught up in the HAL thread), woken %" PRIu64 " times; exec %.1f us (max %.1f)\n",
+             sim.name.c_str(), sim.steps, sim.late_steps, sim.helped_steps, sim.wakes,
+             static_cast<double>(sim.exec_last_ns) / 1e3,
+             static_cast<double>(sim.exec_max_ns) / 1e3);
   }
   o << fmt("Last command: serial %u %s, %s\n", s.echo.serial, to_string(s.echo.type), to_string(s.echo.state));
   return o.str();
@@ -327,9 +340,25 @@ std::string status_json(const ipc::Status& s, int indent, const ipc::Liveness* l
                        {"period_min_ns", t.period_min_ns},
                        {"period_max_ns", t.period_max_ns},
                        {"exec_last_ns", t.exec_last_ns},
-                       {"exec_max_ns", t.exec_max_ns}});
+                       {"exec_max_ns", t.exec_max_ns},
+                       {"product_exec_last_ns", t.product_exec_last_ns},
+                       {"product_exec_max_ns", t.product_exec_max_ns},
+                       {"sim_exec_last_ns", t.sim_exec_last_ns},
+                       {"sim_exec_max_ns", t.sim_exec_max_ns}});
   }
   j["threads"] = threads;
+  json simulators = json::array();
+  for (const ipc::SimulatorStatus& sim : s.simulators) {
+    if (sim.name.empty()) continue;
+    simulators.push_back({{"name", sim.name.c_str()},
+                          {"steps", sim.steps},
+                          {"late_steps", sim.late_steps},
+                          {"helped_steps", sim.helped_steps},
+                          {"wakes", sim.wakes},
+                          {"exec_last_ns", sim.exec_last_ns},
+                          {"exec_max_ns", sim.exec_max_ns}});
+  }
+  j["simulators"] = simulators;
   return j.dump(indent);
 }
 

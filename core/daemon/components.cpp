@@ -11,9 +11,6 @@
 #ifdef CNC_HAVE_TP
 #include "core/tp/lookahead_planner.hpp"
 #endif
-#ifdef CNC_HAVE_IO
-#include "core/io/io_controller.hpp"
-#endif
 #ifdef CNC_HAVE_CANOPEN
 #include "fieldbus/canopen/components.hpp"
 #endif
@@ -47,9 +44,6 @@ void register_all_components(hal::ComponentRegistry& registry) {
   };
 #endif
   motion::register_components(registry, planner);
-#endif
-#ifdef CNC_HAVE_IO
-  io::register_components(registry);
 #endif
 #ifdef CNC_HAVE_CANOPEN
   canopen::register_components(registry);

@@ -73,6 +73,7 @@ Controller::Controller(const Options& options) : options_(options), status_(std:
   }
 
   register_all_components(registry_);
+  for (Registrar r : options.extra_components) r(registry_);
   interp_ = std::make_unique<hal::CommandInterpreter>(hal_, registry_, &ini_, &messages_);
   try {
 #ifdef CNC_HAVE_IO
@@ -346,9 +347,14 @@ void Controller::publish_status() {
     ts.period_max_ns = snap.actual_period_max_ns;
     ts.exec_last_ns = snap.exec_last_ns;
     ts.exec_max_ns = snap.exec_max_ns;
+    ts.product_exec_last_ns = t->product_exec_last_ns();
+    ts.product_exec_max_ns = t->product_exec_max_ns();
+    ts.sim_exec_last_ns = t->simulation_exec_last_ns();
+    ts.sim_exec_max_ns = t->simulation_exec_max_ns();
   }
   for (; i < ipc::kMaxThreads; ++i) s.threads[i] = ipc::ThreadStatus{};
   s.health.realtime_fifo = fifo;
+  for (ipc::SimulatorStatus& sim : s.simulators) sim = ipc::SimulatorStatus{};  // simulators fill their own
   for (ipc::ControllerService* svc : services_) svc->contribute_status(s);
   server_->publish(s);
 }

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "core/daemon/plugins.hpp"
 #include "core/hal/commands.hpp"
 #include "core/ini/ini_file.hpp"
 #include "core/ipc/admin.hpp"
@@ -28,6 +29,9 @@ struct Options {
   // Load and check everything (INI, HAL files, components, the INI key
   // check), then stop: no instance segment, no threads started.
   bool check_only = false;
+  // Registered after the product's components: the build's plug-ins
+  // (plugins.hpp), e.g. the simulators.
+  std::vector<Registrar> extra_components;
 };
 
 class Controller : private ipc::CommandReporter {

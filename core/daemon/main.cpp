@@ -4,6 +4,7 @@
 #include <string>
 
 #include "core/daemon/controller.hpp"
+#include "core/daemon/plugins.hpp"
 #include "core/ipc/segment.hpp"
 
 namespace {
@@ -24,6 +25,7 @@ void usage() {
 int main(int argc, char** argv) {
   cnc::daemon::Options opt;
   opt.instance = cnc::ipc::default_instance();
+  opt.extra_components = cnc::daemon::plugin_registrars();
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if ((a == "--instance" || a == "-i") && i + 1 < argc) {

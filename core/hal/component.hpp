@@ -30,6 +30,9 @@ class Component {
   Component& operator=(const Component&) = delete;
 
   const std::string& name() const noexcept { return name_; }
+  // A simulator (sim/), not part of the product: the time its functions
+  // take is counted apart from the product's in its thread's status.
+  bool is_simulation() const noexcept { return simulation_; }
 
   // After every HAL file has run and before the threads start.
   virtual void on_ready() {}
@@ -39,6 +42,9 @@ class Component {
 
  protected:
   Hal& hal() noexcept { return hal_; }
+  // For simulators, in their constructor (before their functions are added
+  // to a thread).
+  void mark_as_simulation() noexcept { simulation_ = true; }
   template <class T>
   Pin<T> make_pin(const std::string& name, PinDir dir, T initial = T{}) {
     return hal_.new_pin<T>(this, name, dir, initial);
@@ -58,6 +64,7 @@ class Component {
  private:
   Hal& hal_;
   std::string name_;
+  bool simulation_ = false;
 };
 
 // The arguments of `loadrt name key=value ...`.

@@ -5,6 +5,7 @@
 #include <string>
 #include <thread>
 
+#include "core/hal/component.hpp"
 #include "core/util/time.hpp"
 
 namespace cnc::hal {
@@ -22,11 +23,13 @@ void Thread::run_cycle(const rt::CycleInfo& in) noexcept {
   int64_t t0 = start;
   Function* longest = nullptr;
   int64_t longest_ns = -1;
+  int64_t simulation_ns = 0;
   for (std::size_t i = 0; i < list.count; ++i) {
     Function* f = list.items[i];
     f->fn(f->arg, info);
     const int64_t t1 = clock_();
     const int64_t dt = t1 - t0;
+    if (list.simulation[i]) simulation_ns += dt;
     f->time->cell.set<int64_t>(dt);
     if (dt > f->tmax->cell.get<int64_t>()) f->tmax->cell.set<int64_t>(dt);
     if (dt > longest_ns) {
@@ -36,6 +39,15 @@ void Thread::run_cycle(const rt::CycleInfo& in) noexcept {
     t0 = t1;
   }
   const int64_t total = t0 - start;
+  const int64_t product_ns = total - simulation_ns;
+  product_last_ns_.store(product_ns, std::memory_order_relaxed);
+  sim_last_ns_.store(simulation_ns, std::memory_order_relaxed);
+  if (product_ns > product_max_ns_.load(std::memory_order_relaxed)) {
+    product_max_ns_.store(product_ns, std::memory_order_relaxed);
+  }
+  if (simulation_ns > sim_max_ns_.load(std::memory_order_relaxed)) {
+    sim_max_ns_.store(simulation_ns, std::memory_order_relaxed);
+  }
   if (time_) {
     time_->cell.set<int64_t>(total);
     if (total > tmax_->cell.get<int64_t>()) tmax_->cell.set<int64_t>(total);
@@ -227,7 +239,10 @@ void Thread::set_functions(const std::vector<Function*>& list) {
   const int next = 1 - active_.load(std::memory_order_relaxed);
   List& l = lists_[next];
   l.count = list.size() < kMaxFunctions ? list.size() : kMaxFunctions;
-  for (std::size_t i = 0; i < l.count; ++i) l.items[i] = list[i];
+  for (std::size_t i = 0; i < l.count; ++i) {
+    l.items[i] = list[i];
+    l.simulation[i] = list[i]->owner && list[i]->owner->is_simulation();
+  }
   active_.store(next);
   // The old list may still be in use by a cycle that began before the swap:
   // wait (here, never in the servo thread) until that cycle has ended.

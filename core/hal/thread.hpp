@@ -80,6 +80,14 @@ class Thread {
   rt::PeriodicTask& task() noexcept { return task_; }
   const rt::PeriodicTask& task() const noexcept { return task_; }
 
+  // The last cycle's execution time split between the product's functions
+  // and the simulators' (functions of components that are
+  // is_simulation()), and the longest of each since the start. Any thread.
+  int64_t product_exec_last_ns() const noexcept { return product_last_ns_.load(std::memory_order_relaxed); }
+  int64_t product_exec_max_ns() const noexcept { return product_max_ns_.load(std::memory_order_relaxed); }
+  int64_t simulation_exec_last_ns() const noexcept { return sim_last_ns_.load(std::memory_order_relaxed); }
+  int64_t simulation_exec_max_ns() const noexcept { return sim_max_ns_.load(std::memory_order_relaxed); }
+
   // Thread parameters <name>.time and <name>.tmax, set by the HAL.
   void set_params(detail::ParamObj* time, detail::ParamObj* tmax) { time_ = time; tmax_ = tmax; }
 
@@ -102,6 +110,7 @@ class Thread {
  private:
   struct List {
     std::array<Function*, kMaxFunctions> items{};
+    std::array<bool, kMaxFunctions> simulation{};  // the function's component is a simulator
     std::size_t count = 0;
   };
   static void trampoline(void* self, const rt::CycleInfo& info);
@@ -124,6 +133,7 @@ class Thread {
   detail::ParamObj* time_ = nullptr;
   detail::ParamObj* tmax_ = nullptr;
   Clock clock_;
+  std::atomic<int64_t> product_last_ns_{0}, product_max_ns_{0}, sim_last_ns_{0}, sim_max_ns_{0};
 
   // Overrun account, servo thread only except where atomic.
   std::atomic<uint32_t> overrun_limit_{kDefaultOverrunLimit};

@@ -92,7 +92,4 @@ class IoController : public hal::Component, public ipc::ControllerService {
   std::string failure_;
 };
 
-// Registers the simulated tool changer (sim_toolchanger) for HAL files.
-void register_components(hal::ComponentRegistry& registry);
-
 }  // namespace cnc::io

@@ -40,6 +40,7 @@ const char* to_string(EstopCause c) noexcept;
 
 inline constexpr int kMaxSpindles = 8;
 inline constexpr int kMaxThreads = 4;
+inline constexpr int kMaxSimulators = 2;
 
 struct HealthStatus {
   uint64_t heartbeat = 0;        // +1 per publication
@@ -267,6 +268,24 @@ struct ThreadStatus {
   int64_t period_max_ns = 0;
   int64_t exec_last_ns = 0;
   int64_t exec_max_ns = 0;
+  // exec split: the product's functions, and the simulators' (sim/) that
+  // run in this thread; each with its longest cycle since the start.
+  int64_t product_exec_last_ns = 0;
+  int64_t product_exec_max_ns = 0;
+  int64_t sim_exec_last_ns = 0;
+  int64_t sim_exec_max_ns = 0;
+};
+
+// A simulator that does its work on a thread of its own, in step with a
+// HAL thread (cia402_sim's stepper): its time, apart from that thread's.
+struct SimulatorStatus {
+  FixedString<32> name;          // "cia402-sim"; empty: no simulator
+  uint64_t steps = 0;            // periods simulated
+  uint64_t late_steps = 0;       // periods asked for before the previous one was simulated (answers late)
+  uint64_t helped_steps = 0;     // of them, simulated by the HAL thread itself: the simulator had not started
+  uint64_t wakes = 0;            // requests that had to wake the simulator's thread (a system call in the HAL thread)
+  int64_t exec_last_ns = 0;      // one period's simulation, every bus of the simulator
+  int64_t exec_max_ns = 0;
 };
 
 struct Status {
@@ -280,6 +299,7 @@ struct Status {
   IoStatus io;
   DriveStatus drives[kMaxJoints + 1];
   ThreadStatus threads[kMaxThreads];
+  SimulatorStatus simulators[kMaxSimulators];
 };
 
 }  // namespace cnc::ipc

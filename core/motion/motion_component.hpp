@@ -107,7 +107,7 @@ class MotionComponent : public hal::Component, public ipc::ControllerService {
   std::string stall_reason_;
 };
 
-// Registers motmod and the simulation components (sim_joint).
+// Registers motmod (the simulated joint, sim_joint, is in sim/machine).
 void register_components(hal::ComponentRegistry& registry, PlannerFactory planner_factory);
 
 }  // namespace cnc::motion

@@ -15,6 +15,11 @@ struct CycleInfo {
   int64_t period_ns = 0;          // nominal period
   int64_t actual_period_ns = 0;   // since the previous wake-up (nominal on the first cycle)
   int64_t wake_latency_ns = 0;    // wake-up minus scheduled time
+  // Set by rt::PeriodicTask: the cycle runs on the thread's own clock. False
+  // when a test or a simulation steps the thread by hand
+  // (hal::Thread::run_cycle), as fast as it likes: a simulator then does its
+  // work inline, deterministically, instead of on a thread of its own.
+  bool periodic = false;
 
   // Deadlines (docs/architecture.md, "The servo cycle"). A cycle overruns
   // when it ends after the next slot of the thread's grid; the slots it ran

@@ -92,6 +92,7 @@ void PeriodicTask::loop() {
 
   CycleInfo info;
   info.period_ns = period_ns_;
+  info.periodic = true;
   int64_t next = monotonic_ns() + period_ns_;
   int64_t last_wake = 0;
   while (!stop_requested_.load(std::memory_order_acquire)) {

@@ -1,11 +1,13 @@
 #include "fieldbus/can/transport.hpp"
 
+#include <mutex>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "core/util/strings.hpp"
 #include "core/util/time.hpp"
 #include "fieldbus/can/socketcan.hpp"
-#include "fieldbus/can/virtual_bus.hpp"
 
 namespace cnc::can {
 
@@ -23,11 +25,37 @@ const char* to_string(SendStatus s) noexcept {
   return "?";
 }
 
+namespace {
+struct Kind {
+  std::string name;
+  TransportOpener open;
+};
+std::mutex& kinds_mutex() {
+  static std::mutex m;
+  return m;
+}
+std::vector<Kind>& kinds() {
+  static std::vector<Kind> k;
+  return k;
+}
+}  // namespace
+
+void register_transport_kind(const std::string& kind, TransportOpener opener) {
+  std::lock_guard<std::mutex> lock(kinds_mutex());
+  const std::string name = to_lower(kind);
+  for (Kind& k : kinds()) {
+    if (k.name == name) {
+      k.open = opener;
+      return;
+    }
+  }
+  kinds().push_back({name, opener});
+}
+
 std::unique_ptr<Transport> open_transport(std::string_view spec) {
   const auto colon = spec.find(':');
   if (colon == std::string_view::npos) {
-    throw std::runtime_error("CAN interface \"" + std::string(spec) +
-                             "\": expected socketcan:<interface> or virtual:<bus>[,bitrate=N][,stuffing=...]");
+    throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": expected <kind>:<name>, e.g. socketcan:can0");
   }
   const std::string kind = to_lower(trim(spec.substr(0, colon)));
   const auto parts = split(spec.substr(colon + 1), ',');
@@ -42,30 +70,20 @@ std::unique_ptr<Transport> open_transport(std::string_view spec) {
     }
     return std::make_unique<SocketCanTransport>(name, o);
   }
-  if (kind == "virtual") {
-    VirtualBusOptions o;
-    o.manual_clock = false;
-    for (std::size_t i = 1; i < parts.size(); ++i) {
-      const auto opt = trim(parts[i]);
-      const auto eq = opt.find('=');
-      const auto key = opt.substr(0, eq);
-      const auto value = eq == std::string_view::npos ? std::string_view{} : trim(opt.substr(eq + 1));
-      if (key == "bitrate") {
-        const auto n = parse_uint(value);
-        if (!n || *n == 0 || *n > 1'000'000) throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": bitrate must be 1..1000000");
-        o.bitrate = static_cast<uint32_t>(*n);
-      } else if (key == "stuffing") {
-        if (value == "worst") o.stuffing = Stuffing::WorstCase;
-        else if (value == "exact") o.stuffing = Stuffing::Exact;
-        else if (value == "nominal") o.stuffing = Stuffing::Nominal;
-        else throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": stuffing must be worst, exact or nominal");
-      } else {
-        throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": unknown option \"" + std::string(opt) + "\"");
-      }
+  std::vector<std::string> options;
+  for (std::size_t i = 1; i < parts.size(); ++i) options.emplace_back(trim(parts[i]));
+  std::string known = "socketcan";
+  TransportOpener opener = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(kinds_mutex());
+    for (const Kind& k : kinds()) {
+      if (k.name == kind) opener = k.open;
+      known += ", " + k.name;
     }
-    return VirtualBus::named(name, o)->open_port("port");
   }
-  throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": unknown kind \"" + kind + "\" (socketcan or virtual)");
+  if (opener) return opener(spec, name, options);
+  throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": unknown kind \"" + kind + "\" (this controller has: " +
+                           known + (kind == "virtual" ? "; the simulated bus comes with the simulators, sim/)" : ")"));
 }
 
 }  // namespace cnc::can

@@ -11,6 +11,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "fieldbus/can/error_frame.hpp"
 #include "fieldbus/can/frame.hpp"
@@ -80,12 +81,21 @@ class Transport {
   virtual int64_t now_ns() const noexcept;
 };
 
-// Opens a transport from a text specification:
+// Opens a transport from a text specification "<kind>:<name>[,options]":
 //   socketcan:<ifname>[,fd]          a SocketCAN raw socket (e.g. socketcan:can0)
-//   virtual:<bus>[,bitrate=N][,stuffing=worst|exact|nominal]
-//                                    a port on the named in-process virtual bus
-//                                    (real-time clock; created on first use)
+// and the kinds registered with register_transport_kind, e.g. the simulated
+// in-process bus of sim/can (virtual:<bus>[,bitrate=N][,stuffing=...]).
 // Throws std::runtime_error with the reason on failure. Non-realtime.
 std::unique_ptr<Transport> open_transport(std::string_view spec);
+
+// Opens a transport of a registered kind: `name` and `options` are the
+// specification's parts after the colon, split at commas and trimmed;
+// `spec` is the whole text for messages. Throws std::runtime_error.
+using TransportOpener = std::unique_ptr<Transport> (*)(std::string_view spec, const std::string& name,
+                                                       const std::vector<std::string>& options);
+// Adds a kind of transport beyond SocketCAN (the simulators do, for
+// "virtual"); `kind` is matched without regard to case. Registering a kind
+// again replaces its opener. Non-realtime, before the transports are opened.
+void register_transport_kind(const std::string& kind, TransportOpener opener);
 
 }  // namespace cnc::can

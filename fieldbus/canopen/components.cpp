@@ -8,6 +8,7 @@
 #include "core/ini/ini_file.hpp"
 #include "core/util/messages.hpp"
 #include "core/util/strings.hpp"
+#include "fieldbus/canopen/cia402_binding.hpp"
 #include "fieldbus/canopen/master.hpp"
 
 namespace cnc::canopen {
@@ -17,7 +18,7 @@ namespace {
 struct ObjectPin {
   ValueKind kind = ValueKind::Unsigned;
   bool wide = false;  // 64-bit integer
-  PdoSlot slot;
+  ProcessSlot slot;
   hal::BitPin bit;
   hal::S32Pin s32;
   hal::U32Pin u32;
@@ -250,6 +251,11 @@ class CanopenComponent : public hal::Component {
   MessageQueue* messages_ = nullptr;
 };
 
+std::unique_ptr<cia402::DriveLink> find_link(hal::Hal& hal, const std::string& bus) {
+  Master* m = find_master(hal, bus);
+  return m ? make_cia402_link(*m) : nullptr;
+}
+
 }  // namespace
 
 void register_components(hal::ComponentRegistry& registry) {
@@ -258,6 +264,7 @@ void register_components(hal::ComponentRegistry& registry) {
                [](hal::ComponentContext& ctx, const hal::LoadArgs& args) -> std::unique_ptr<hal::Component> {
                  return std::make_unique<CanopenComponent>(ctx, args);
                });
+  cia402::register_link_finder(&find_link);
 }
 
 Master* find_master(hal::Hal& hal, const std::string& name) {

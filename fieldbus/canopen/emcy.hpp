@@ -1,5 +1,6 @@
-// Emergency messages (CiA 301 §7.2.7, codes of CiA 301 and CiA 402):
-// decoding of the 8 bytes, error code and error register as text.
+// Emergency messages (CiA 301 §7.2.7): decoding of the 8 bytes, the error
+// register as text; the codes' texts come from the one table of
+// cia402/error_codes.hpp.
 // Realtime-safe: no allocation, texts are static or written into a buffer.
 #pragma once
 
@@ -22,10 +23,6 @@ struct Emcy {
 bool decode_emcy(const can::Frame& f, Emcy& out) noexcept;
 can::Frame encode_emcy(unsigned node_id, const Emcy& e) noexcept;
 
-// The most specific text known for the code ("following error"), falling
-// back to its class ("monitoring: communication", "device hardware").
-const char* emcy_code_text(uint16_t code) noexcept;
-const char* emcy_class_text(uint16_t code) noexcept;
 // "generic, current" for the set bits of 0x1001, into buf.
 const char* error_register_text(uint8_t reg, char* buf, std::size_t size) noexcept;
 // "EMCY 0x8611 following error (error register 0x21: generic, profile; vendor 00 00 00 00 00)"

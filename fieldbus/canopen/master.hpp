@@ -24,9 +24,9 @@
 #include <thread>
 #include <vector>
 
+#include "core/util/process_slot.hpp"
 #include "fieldbus/can/transport.hpp"
 #include "fieldbus/canopen/config.hpp"
-#include "fieldbus/canopen/process_data.hpp"
 #include "fieldbus/canopen/sdo_client.hpp"
 
 namespace cnc {
@@ -142,8 +142,8 @@ class Master {
 
   // Process data of a node, found once (non-realtime) and used each cycle.
   // Outputs: objects the master writes (RPDO); inputs: objects it reads (TPDO).
-  PdoSlot output(uint8_t node, uint16_t index, uint8_t sub) const noexcept;
-  PdoSlot input(uint8_t node, uint16_t index, uint8_t sub) const noexcept;
+  ProcessSlot output(uint8_t node, uint16_t index, uint8_t sub) const noexcept;
+  ProcessSlot input(uint8_t node, uint16_t index, uint8_t sub) const noexcept;
   // SYNC serial at which this node's inputs were last sampled (servo thread).
   uint64_t inputs_sync_serial(uint8_t node) const noexcept;
 

@@ -196,7 +196,7 @@ bool Master::cyclic_send(const can::Frame& f) noexcept {
   return false;
 }
 
-PdoSlot Master::output(uint8_t node, uint16_t index, uint8_t sub) const noexcept {
+ProcessSlot Master::output(uint8_t node, uint16_t index, uint8_t sub) const noexcept {
   for (const auto& n : nodes_) {
     if (n->cfg.id != node) continue;
     for (std::size_t k = 0; k < n->cfg.rpdos.size(); ++k) {
@@ -206,7 +206,7 @@ PdoSlot Master::output(uint8_t node, uint16_t index, uint8_t sub) const noexcept
         if (e.index == index && e.sub == sub && !e.is_dummy()) {
           for (const RpdoRt& r : rpdos_) {
             if (nodes_[r.node].get() == n.get() && r.number == p.number) {
-              return PdoSlot{const_cast<uint8_t*>(r.image.data()), static_cast<uint16_t>(bit), e.bits};
+              return ProcessSlot{const_cast<uint8_t*>(r.image.data()), static_cast<uint16_t>(bit), e.bits};
             }
           }
         }
@@ -217,7 +217,7 @@ PdoSlot Master::output(uint8_t node, uint16_t index, uint8_t sub) const noexcept
   return {};
 }
 
-PdoSlot Master::input(uint8_t node, uint16_t index, uint8_t sub) const noexcept {
+ProcessSlot Master::input(uint8_t node, uint16_t index, uint8_t sub) const noexcept {
   for (const auto& n : nodes_) {
     if (n->cfg.id != node) continue;
     for (std::size_t k = 0; k < n->cfg.tpdos.size(); ++k) {
@@ -227,7 +227,7 @@ PdoSlot Master::input(uint8_t node, uint16_t index, uint8_t sub) const noexcept 
         if (e.index == index && e.sub == sub && !e.is_dummy()) {
           for (const TpdoRt& t : tpdos_) {
             if (nodes_[t.node].get() == n.get() && t.number == p.number) {
-              return PdoSlot{const_cast<uint8_t*>(t.image.data()), static_cast<uint16_t>(bit), e.bits};
+              return ProcessSlot{const_cast<uint8_t*>(t.image.data()), static_cast<uint16_t>(bit), e.bits};
             }
           }
         }

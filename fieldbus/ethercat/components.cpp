@@ -1,20 +1,15 @@
 #include "fieldbus/ethercat/components.hpp"
 
-#include <atomic>
-#include <chrono>
 #include <cstdio>
 #include <memory>
-#include <thread>
 
-#include "cia402/canopen_link.hpp"
 #include "core/hal/component.hpp"
 #include "core/hal/hal.hpp"
 #include "core/hal/thread.hpp"
 #include "core/util/strings.hpp"
-#include "fieldbus/ethercat/cia402_link.hpp"
+#include "fieldbus/ethercat/cia402_binding.hpp"
 #include "fieldbus/ethercat/config.hpp"
 #include "fieldbus/ethercat/master.hpp"
-#include "fieldbus/ethercat/sim/segment.hpp"
 
 namespace cnc::ethercat {
 namespace {
@@ -183,37 +178,6 @@ class EthercatComponent : public hal::Component {
   std::vector<std::unique_ptr<Bus>> buses_;
 };
 
-class SimComponent : public hal::Component {
- public:
-  SimComponent(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(ctx.hal, "ethercat_sim") {
-    args.allow_only({"name", "drives"});
-    name_ = args.get_string("name", "sim");
-    const int64_t drives = args.get_int("drives", 3, 1, 64);
-    segment_ = std::make_shared<sim::Segment>();
-    segment_->add_drives(static_cast<unsigned>(drives));
-    sim::register_segment(name_, segment_);
-    // The slaves' own time: watchdogs expire and drives coast while no
-    // frame arrives at all (the master stopped), as on real hardware.
-    clock_ = std::thread([this] {
-      while (!stop_.load(std::memory_order_acquire)) {
-        segment_->poll();
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      }
-    });
-  }
-  ~SimComponent() override {
-    stop_.store(true, std::memory_order_release);
-    clock_.join();
-    sim::unregister_segment(name_);
-  }
-
- private:
-  std::string name_;
-  std::shared_ptr<sim::Segment> segment_;
-  std::atomic<bool> stop_{false};
-  std::thread clock_;
-};
-
 std::unique_ptr<cia402::DriveLink> find_link(hal::Hal& hal, const std::string& bus) {
   Master* m = find_master(hal, bus);
   return m ? make_cia402_link(*m) : nullptr;
@@ -227,10 +191,6 @@ void register_components(hal::ComponentRegistry& registry) {
                "ethercat.N.write)",
                [](hal::ComponentContext& ctx, const hal::LoadArgs& args) -> std::unique_ptr<hal::Component> {
                  return std::make_unique<EthercatComponent>(ctx, args);
-               });
-  registry.add("ethercat_sim", "simulated EtherCAT CiA 402 drives in-process: name=sim drives=3 (INTERFACE = sim:<name>)",
-               [](hal::ComponentContext& ctx, const hal::LoadArgs& args) -> std::unique_ptr<hal::Component> {
-                 return std::make_unique<SimComponent>(ctx, args);
                });
   cia402::register_link_finder(&find_link);
 }

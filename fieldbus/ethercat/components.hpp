@@ -3,8 +3,6 @@
 //       functions ethercat.N.read (first in the servo thread) and
 //       ethercat.N.write (last); start-up in on_ready (throws with slave,
 //       object and reason); the DC lock steers the thread named by THREAD.
-//   loadrt ethercat_sim [name=sim] [drives=3]       simulated CiA 402 drives
-//       in-process, for INTERFACE = sim:<name> (load it first).
 // Registering also tells `loadrt cia402` how to find an EtherCAT bus
 // ([CIA402] BUS = ethercat.0, drive ADDRESS = ring position).
 #pragma once

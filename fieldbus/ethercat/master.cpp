@@ -10,7 +10,7 @@
 #include <future>
 
 #include "core/util/messages.hpp"
-#include "fieldbus/canopen/emcy.hpp"
+#include "cia402/error_codes.hpp"
 #include "fieldbus/canopen/sdo_abort.hpp"
 #ifdef CNC_ETHERCAT_ESI
 #include "fieldbus/ethercat/esi.hpp"

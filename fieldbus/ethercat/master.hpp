@@ -25,6 +25,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/util/process_slot.hpp"
 #include "fieldbus/ethercat/dc.hpp"
 #include "fieldbus/ethercat/frame.hpp"
 #include "fieldbus/ethercat/link.hpp"
@@ -111,14 +112,6 @@ struct SdoInfoEntry {
   uint16_t index = 0, data_type = 0, bit_length = 0, access = 0;
   uint8_t sub = 0;
   std::string name;
-};
-
-// A mapped object in the process image (bit position and length).
-struct ProcessSlot {
-  uint8_t* bytes = nullptr;
-  uint16_t bit_offset = 0;
-  uint8_t bit_length = 0;
-  explicit operator bool() const noexcept { return bytes != nullptr; }
 };
 
 // What the scan found about one slave.

@@ -12,7 +12,7 @@
 #include <future>
 
 #include "core/util/messages.hpp"
-#include "fieldbus/canopen/emcy.hpp"
+#include "cia402/error_codes.hpp"
 #include "fieldbus/canopen/sdo_abort.hpp"
 #ifdef CNC_ETHERCAT_ESI
 #include "fieldbus/ethercat/esi.hpp"
@@ -70,7 +70,7 @@ void Master::handle_emergency(SlaveInfo& s, const uint8_t* d) {
     post(false, slave_label(s.position) + ": EMCY 0x0000 error reset");
   } else {
     post(true, fmt("%s: EMCY 0x%04X %s (error register 0x%02X)", slave_label(s.position).c_str(), code,
-                   canopen::emcy_code_text(code), reg));
+                   cia402::error_code_text(code), reg));
   }
 }
 

@@ -7,7 +7,7 @@
 #include <cmath>
 #include <vector>
 
-#include "cia402/sim/drive_model.hpp"
+#include "sim/cia402/drive_model.hpp"
 #include "tests/support/testing.hpp"
 
 using namespace cnc;

@@ -14,6 +14,7 @@
 #include "core/ini/ini_file.hpp"
 #include "core/motion/motion_component.hpp"
 #include "core/util/messages.hpp"
+#include "sim/register.hpp"
 #include "tests/support/testing.hpp"
 
 using namespace cnc;
@@ -70,6 +71,7 @@ struct Machine {
   Machine(double drive_window_mm, double ferror_mm)
       : ini(ini::IniFile::parse(machine_ini(cnc::testing::unique_name("ferror"), drive_window_mm, ferror_mm), "m.ini")) {
     daemon::register_all_components(registry);
+    sim::register_components(registry);
     hal::CommandInterpreter halcmd(hal, registry, &ini, &messages);
     halcmd.run_text(kHal, "m.hal");
     for (hal::Component* c : hal.components()) c->on_ready();

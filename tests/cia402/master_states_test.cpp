@@ -45,14 +45,14 @@ class FakeLink final : public DriveLink {
 
   void drive_reports(uint16_t statusword, int32_t position = 0, Mode display = Mode::CyclicSyncPosition,
                      uint16_t error = 0) {
-    put_slot<uint16_t>(find(true, obj::kStatusword), statusword);
-    put_slot<int32_t>(find(true, obj::kPositionActual), position);
-    put_slot<int8_t>(find(true, obj::kModesDisplay), static_cast<int8_t>(display));
-    put_slot<uint16_t>(find(true, obj::kErrorCode), error);
+    write_slot<uint16_t>(find(true, obj::kStatusword), statusword);
+    write_slot<int32_t>(find(true, obj::kPositionActual), position);
+    write_slot<int8_t>(find(true, obj::kModesDisplay), static_cast<int8_t>(display));
+    write_slot<uint16_t>(find(true, obj::kErrorCode), error);
   }
-  uint16_t controlword() const { return get_slot<uint16_t>(find(false, obj::kControlword)); }
-  int32_t target() const { return get_slot<int32_t>(find(false, obj::kTargetPosition)); }
-  int8_t mode() const { return get_slot<int8_t>(find(false, obj::kModes)); }
+  uint16_t controlword() const { return read_slot<uint16_t>(find(false, obj::kControlword)); }
+  int32_t target() const { return read_slot<int32_t>(find(false, obj::kTargetPosition)); }
+  int8_t mode() const { return read_slot<int8_t>(find(false, obj::kModes)); }
 
  private:
   void place(bool in, Object o, uint16_t byte, uint8_t bits) {

@@ -88,12 +88,28 @@ TEST(Cia402Profile, ModesParseByNameOrNumber) {
   EXPECT_EQ(supported_mode_bit(Mode::CyclicSyncTorque), 9);
 }
 
-TEST(Cia402Profile, ErrorCodesReadAsText) {
+TEST(Cia402ErrorCodes, KnownCodesReadAsText) {
   EXPECT_STREQ(error_code_text(0x8611), "following error");
   EXPECT_STREQ(error_code_text(0x2310), "continuous over-current");
   EXPECT_STREQ(error_code_text(0x7305), "incremental encoder 1 broken");
-  EXPECT_STREQ(error_code_text(0x3299), "voltage");        // the class when the code is unknown
-  EXPECT_STREQ(error_code_text(0xFF77), "vendor specific");
+  EXPECT_STREQ(error_code_text(0x3210), "DC-link over-voltage");
+  EXPECT_STREQ(error_code_text(0x4210), "device over-temperature");
+  EXPECT_STREQ(error_code_text(0x6320), "parameter error");
+  EXPECT_STREQ(error_code_text(0x8130), "life guard or heartbeat error");
+  EXPECT_STREQ(error_code_text(0x8250), "RPDO timeout");
+  EXPECT_STREQ(error_code_text(0x8612), "reference limit");
+  EXPECT_STREQ(error_code_text(0x9000), "external error");
+  EXPECT_STREQ(error_code_text(0x0000), "error reset or no error");
+}
+
+TEST(Cia402ErrorCodes, UnknownCodesReadAsTheirClass) {
+  EXPECT_STREQ(error_code_text(0x2399), "current, device output side");
+  EXPECT_STREQ(error_code_text(0x3299), "voltage inside the device");
+  EXPECT_STREQ(error_code_text(0x4321), "temperature");
+  EXPECT_STREQ(error_code_text(0x5531), "device hardware");
+  EXPECT_STREQ(error_code_text(0x8199), "monitoring: communication");
+  EXPECT_STREQ(error_code_text(0xFF77), "device specific");
+  EXPECT_STREQ(error_code_text(0xF100), "additional functions");
 }
 
 TEST(Cia402Profile, HomingMethodsDefinedByTheProfile) {

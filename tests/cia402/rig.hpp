@@ -14,13 +14,13 @@
 #include <string>
 #include <vector>
 
-#include "cia402/canopen_link.hpp"
+#include "fieldbus/canopen/cia402_binding.hpp"
 #include "cia402/drive_group.hpp"
-#include "cia402/sim/sim_config.hpp"
-#include "cia402/sim/sim_host.hpp"
+#include "sim/cia402/sim_config.hpp"
+#include "sim/cia402/sim_host.hpp"
 #include "core/ini/ini_file.hpp"
 #include "core/util/messages.hpp"
-#include "fieldbus/can/virtual_bus.hpp"
+#include "sim/can/virtual_bus.hpp"
 #include "fieldbus/canopen/config.hpp"
 #include "fieldbus/canopen/master.hpp"
 #include "tests/support/testing.hpp"
@@ -126,7 +126,7 @@ class Rig {
     if (master_->boot_state() != canopen::BootState::Succeeded) {
       throw std::runtime_error("rig: boot failed: " + master_->boot_error());
     }
-    link_ = std::make_unique<SteppedLink>(*this, make_canopen_link(*master_));
+    link_ = std::make_unique<SteppedLink>(*this, canopen::make_cia402_link(*master_));
     group_ = std::make_unique<DriveGroup>(load_group_config(ini_, "CIA402", "cia402.0"), *link_, &messages);
   }
 

@@ -18,6 +18,7 @@
 #include "core/util/atomic_file.hpp"
 #include "core/util/messages.hpp"
 #include "kinematics/kinematics.hpp"
+#include "sim/machine/components.hpp"
 #include "tests/core/motion/simple_planner.hpp"
 #include "tests/support/testing.hpp"
 
@@ -87,6 +88,7 @@ class Rig {
       return std::make_unique<cnc::testing::SimplePlanner>(c);
     });
     comp::register_components(registry_);
+    sim::register_sim_joint(registry_);
     hal::CommandInterpreter interp(hal_, registry_, &ini_, &messages);
     interp.run_file(dir / "m.hal");
     for (hal::Component* c : hal_.components()) c->on_ready();

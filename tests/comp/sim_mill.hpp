@@ -30,6 +30,7 @@
 #include "core/util/atomic_file.hpp"
 #include "core/util/messages.hpp"
 #include "kinematics/kinematics.hpp"
+#include "sim/register.hpp"
 
 namespace cnc::testing {
 
@@ -51,7 +52,7 @@ class SimMill : private ipc::CommandReporter {
     kin::register_kinematics_components(registry_);
     if (!planner) planner = [](const tp::PlannerConfig& c) { return tp::make_planner(c); };
     motion::register_components(registry_, planner);
-    io::register_components(registry_);
+    sim::register_components(registry_);  // sim_toolchanger, cia402_sim and their buses
     comp::register_components(registry_);
     if (extra) extra(registry_);
     hal_.add_component(std::make_unique<io::IoController>(hal_, io::IoConfig::from_ini(ini_), &messages_));

@@ -381,8 +381,8 @@ class LogicTests : public QObject {
     s.drives[1].state = 4;
     log.update_drives(s, 8);
     QVERIFY(log.log().back().text.find("fault cleared") != std::string::npos);
-    QCOMPARE(decode_drive_error(0x2399), std::string("current error"));
-    QCOMPARE(decode_drive_error(0xFF01), std::string("vendor specific error"));
+    QCOMPARE(decode_drive_error(0x2399), std::string("current, device output side"));
+    QCOMPARE(decode_drive_error(0x5530), std::string("data storage (EEPROM)"));
     QCOMPARE(std::string(drive_state_name(4)), std::string("operation enabled"));
   }
 

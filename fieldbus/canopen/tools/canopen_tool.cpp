@@ -94,7 +94,7 @@ int cmd_boot(const BusConfig& c, double run_s, std::optional<std::pair<ObjectAdd
 
   struct Track {
     uint8_t id;
-    PdoSlot out, in;
+    ProcessSlot out, in;
     std::vector<int32_t> commanded;
     uint64_t matches = 0, exact_delay = 0, future = 0, stale = 0;
   };

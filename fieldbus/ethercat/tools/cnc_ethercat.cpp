@@ -24,7 +24,7 @@
 #include <thread>
 
 #include "cia402/drive_group.hpp"
-#include "fieldbus/ethercat/cia402_link.hpp"
+#include "fieldbus/ethercat/cia402_binding.hpp"
 #include "fieldbus/ethercat/master.hpp"
 
 using namespace cnc;

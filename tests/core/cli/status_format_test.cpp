@@ -105,3 +105,43 @@ TEST(StatusFormat, LimitsInForceAreShownAsTextAndJson) {
   EXPECT_EQ(js["spindles"][0]["speed_out"], 10000);
   EXPECT_EQ(js["spindles"][0]["speed_limited"], true);
 }
+
+// The servo thread's time is split between the product's functions and the
+// simulators' that run in it; a simulator on a thread of its own shows its
+// time apart (docs/architecture.md, "Simulators").
+TEST(StatusFormat, ServoTimeOfProductAndSimulatorsIsShownApart) {
+  auto s = std::make_unique<ipc::Status>();
+  ipc::ThreadStatus& t = s->threads[0];
+  t.name.assign("servo-thread");
+  t.period_ns = 1'000'000;
+  t.exec_last_ns = 48'000;
+  t.exec_max_ns = 90'000;
+  t.product_exec_last_ns = 45'000;
+  t.product_exec_max_ns = 85'000;
+  t.sim_exec_last_ns = 3'000;
+  t.sim_exec_max_ns = 7'500;
+  ipc::SimulatorStatus& sim = s->simulators[0];
+  sim.name.assign("cia402-sim");
+  sim.steps = 61'000;
+  sim.late_steps = 2;
+  sim.helped_steps = 1;
+  sim.wakes = 3;
+  sim.exec_last_ns = 120'000;
+  sim.exec_max_ns = 410'000;
+  const std::string text = cli::format_status(*s);
+  EXPECT_NE(text.find("of which product functions 45.0 us (max 85.0), simulators 3.0 us (max 7.5)"), std::string::npos)
+      << text;
+  EXPECT_NE(text.find("cia402-sim     simulator on its own thread: 61000 periods, 2 late (1 caught up in the "
+                      "HAL thread), woken 3 times; "
+                      "exec 120.0 us (max 410.0)"),
+            std::string::npos)
+      << text;
+  const auto j = nlohmann::json::parse(cli::status_json(*s));
+  EXPECT_EQ(j["threads"][0]["product_exec_max_ns"], 85'000);
+  EXPECT_EQ(j["threads"][0]["sim_exec_last_ns"], 3'000);
+  EXPECT_EQ(j["simulators"][0]["name"], "cia402-sim");
+  EXPECT_EQ(j["simulators"][0]["late_steps"], 2);
+  EXPECT_EQ(j["simulators"][0]["helped_steps"], 1);
+  EXPECT_EQ(j["simulators"][0]["wakes"], 3);
+  EXPECT_EQ(j["simulators"][0]["exec_max_ns"], 410'000);
+}

@@ -354,3 +354,30 @@ TEST_F(HalThreadOverruns, OverrunAccountingDoesNotAllocate) {
   }
   EXPECT_EQ(check.allocations(), 0u);
 }
+
+// A simulator in the servo thread (a component that marks itself as one):
+// its functions' time is counted apart from the product's.
+namespace {
+class SimulatedPlant : public Component {
+ public:
+  explicit SimulatedPlant(Hal& hal) : Component(hal, "plant") {
+    mark_as_simulation();
+    hal.export_function(
+        this, "plant.update", [](void*, const cnc::rt::CycleInfo&) { g_now += 70'000; }, nullptr);
+  }
+};
+}  // namespace
+
+TEST_F(HalThreadOverruns, SimulatorFunctionsAreTimedApartFromTheProducts) {
+  hal.add_component(std::make_unique<SimulatedPlant>(hal));
+  hal.add_function("plant.update", "servo-thread");
+  workers->set_cost(0, 30'000);
+  cycle();
+  EXPECT_EQ(thread->simulation_exec_last_ns(), 70'000);
+  EXPECT_EQ(thread->product_exec_last_ns(), 30'000 + 10'000 + 10'000);
+  workers->set_cost(0, 10'000);
+  cycle();
+  EXPECT_EQ(thread->product_exec_last_ns(), 30'000);
+  EXPECT_EQ(thread->product_exec_max_ns(), 50'000);
+  EXPECT_EQ(thread->simulation_exec_max_ns(), 70'000);
+}

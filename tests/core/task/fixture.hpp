@@ -21,6 +21,7 @@
 #include "core/task/task_controller.hpp"
 #include "core/util/messages.hpp"
 #include "kinematics/kinematics.hpp"
+#include "sim/machine/components.hpp"
 #include "tests/core/motion/simple_planner.hpp"
 #include "tests/support/testing.hpp"
 
@@ -57,7 +58,8 @@ class TaskMachine {
     hal::register_core_components(registry_);
     kin::register_kinematics_components(registry_);
     motion::register_components(registry_, std::move(planner_factory));
-    io::register_components(registry_);
+    sim::register_sim_joint(registry_);
+    sim::register_sim_toolchanger(registry_);
     hal_.add_component(std::make_unique<io::IoController>(hal_, io::IoConfig::from_ini(ini_), &messages));
     hal::CommandInterpreter interp(hal_, registry_, &ini_, &messages);
     interp.run_file(dir / "sim.hal");

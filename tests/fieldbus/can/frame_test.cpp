@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <string>
+#include <vector>
 
 #include "fieldbus/can/error_frame.hpp"
 #include "fieldbus/can/frame.hpp"
@@ -88,9 +89,31 @@ TEST(ErrorFrames, DecodeAndDescribe) {
 TEST(OpenTransport, RejectsUnknownSpecifications) {
   EXPECT_THROW(open_transport("can0"), std::runtime_error);
   EXPECT_THROW(open_transport("serial:ttyS0"), std::runtime_error);
-  EXPECT_THROW(open_transport("virtual:x,bitrate=0"), std::runtime_error);
-  EXPECT_THROW(open_transport("virtual:x,speed=1"), std::runtime_error);
-  auto t = open_transport("virtual:open-transport-test,bitrate=500000");
-  EXPECT_EQ(t->bitrate(), 500000u);
-  EXPECT_EQ(t->name(), "virtual:port");
+  EXPECT_THROW(open_transport("socketcan:can0,speed=1"), std::runtime_error);
+}
+
+// The product knows SocketCAN only; other kinds come from whoever
+// registers them (the simulators register "virtual").
+TEST(OpenTransport, OpensARegisteredKindWithItsNameAndOptions) {
+  static std::string seen;
+  register_transport_kind("Test-Kind", [](std::string_view spec, const std::string& name,
+                                          const std::vector<std::string>& options) -> std::unique_ptr<Transport> {
+    seen = std::string(spec) + "|" + name;
+    for (const auto& o : options) seen += "|" + o;
+    throw std::runtime_error("opened");
+  });
+  try {
+    open_transport("test-kind: bus-a , x=1,  y ");
+    FAIL() << "the registered opener was not called";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "opened");
+  }
+  EXPECT_EQ(seen, "test-kind: bus-a , x=1,  y |bus-a|x=1|y");
+  try {
+    open_transport("nosuch:x");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("unknown kind \"nosuch\""), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("test-kind"), std::string::npos) << e.what();
+  }
 }

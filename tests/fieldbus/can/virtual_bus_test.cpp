@@ -3,7 +3,7 @@
 #include <thread>
 #include <vector>
 
-#include "fieldbus/can/virtual_bus.hpp"
+#include "sim/can/virtual_bus.hpp"
 #include "tests/support/testing.hpp"
 
 using namespace cnc::can;
@@ -33,6 +33,15 @@ struct Bus {
 };
 
 }  // namespace
+
+TEST(VirtualBus, OpensThroughOpenTransportOnceRegistered) {
+  register_virtual_transport();
+  EXPECT_THROW(open_transport("virtual:x,bitrate=0"), std::runtime_error);
+  EXPECT_THROW(open_transport("virtual:x,speed=1"), std::runtime_error);
+  auto t = open_transport("virtual:open-transport-test,bitrate=500000");
+  EXPECT_EQ(t->bitrate(), 500000u);
+  EXPECT_EQ(t->name(), "virtual:port");
+}
 
 TEST(VirtualBus, DeliversToEveryOtherPortAfterTheFrameTime) {
   Bus t;

@@ -7,7 +7,7 @@
 #include "core/ini/ini_file.hpp"
 #include "core/util/messages.hpp"
 #include "core/util/time.hpp"
-#include "fieldbus/can/virtual_bus.hpp"
+#include "sim/can/virtual_bus.hpp"
 #include "fieldbus/canopen/components.hpp"
 #include "fieldbus/canopen/master.hpp"
 #include "fieldbus/canopen/slave_runner.hpp"
@@ -29,6 +29,7 @@ struct Device {
     od.add({0x6064, 0}, D::Integer32, A::ReadOnly, 0, true);
     od.add({0x607A, 0}, D::Integer32, A::ReadWrite, 0, true);
     od.add({0x60FD, 0}, D::Unsigned32, A::ReadOnly, 0x4, true);
+    can::register_virtual_transport();  // the master opens INTERFACE = virtual:<bus>
     port = can::VirtualBus::named(bus, {1'000'000, can::Stuffing::WorstCase, false, -1})->open_port("device");
     SlaveOptions o;
     o.node_id = id;

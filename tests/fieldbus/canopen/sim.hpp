@@ -7,7 +7,7 @@
 #include <memory>
 #include <vector>
 
-#include "fieldbus/can/virtual_bus.hpp"
+#include "sim/can/virtual_bus.hpp"
 
 namespace cnc::canopen::test {
 

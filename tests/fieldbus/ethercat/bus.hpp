@@ -14,7 +14,7 @@
 
 #include "core/util/messages.hpp"
 #include "fieldbus/ethercat/master.hpp"
-#include "fieldbus/ethercat/sim/segment.hpp"
+#include "sim/ethercat/segment.hpp"
 #include "tests/support/testing.hpp"
 
 namespace cnc::ethercat::test {

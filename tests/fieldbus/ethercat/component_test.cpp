@@ -19,6 +19,7 @@
 #include "fieldbus/ethercat/components.hpp"
 #include "fieldbus/ethercat/config.hpp"
 #include "fieldbus/ethercat/master.hpp"
+#include "sim/register.hpp"
 #include "tests/support/testing.hpp"
 
 using namespace cnc;
@@ -48,6 +49,7 @@ TEST(EthercatComponent, LoadrtRunsCia402DrivesOverTheSimulatedBus) {
   canopen::register_components(registry);
   ethercat::register_components(registry);
   cia402::register_components(registry);
+  sim::register_components(registry);
   MessageQueue messages;
   hal::CommandInterpreter halcmd(hal, registry, &ini, &messages);
   halcmd.run_text(
@@ -121,6 +123,7 @@ TEST(EthercatComponent, CiaDriveOnAMissingBusNamesIt) {
   hal::ComponentRegistry registry;
   ethercat::register_components(registry);
   cia402::register_components(registry);
+  sim::register_components(registry);
   MessageQueue messages;
   hal::CommandInterpreter halcmd(hal, registry, &ini, &messages);
   try {

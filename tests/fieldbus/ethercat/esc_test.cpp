@@ -6,7 +6,7 @@
 #include <array>
 #include <memory>
 
-#include "fieldbus/ethercat/sim/segment.hpp"
+#include "sim/ethercat/segment.hpp"
 
 namespace cnc::ethercat {
 namespace {
@@ -258,6 +258,23 @@ TEST(EthercatEsc, CableBreakHidesTheSlavesBehindIt) {
   l.seg->drop_frames(1);
   EXPECT_EQ(l.dg(Command::BRD, 0, reg::kType, {}, 1).wkc, 0);
   EXPECT_EQ(l.seg->frames_dropped(), 1u);
+}
+
+// The slaves' clock thread (ethercat_sim) polls them only while no frame
+// reaches them all: each frame polls the slaves it passes, and the thread
+// keeps off the lock the master's servo thread sends under.
+TEST(EthercatEsc, ClockThreadPollsOnlyWhileNoFramesPassEverySlave) {
+  Line l(2);
+  EXPECT_TRUE(l.seg->poll_if_idle()) << "no frame yet";
+  l.dg(Command::BRD, 0, reg::kType, {}, 1);
+  EXPECT_FALSE(l.seg->poll_if_idle()) << "a frame passed every slave since";
+  EXPECT_TRUE(l.seg->poll_if_idle()) << "none since the previous call";
+  l.seg->drop_frames(1);
+  l.dg(Command::BRD, 0, reg::kType, {}, 1);
+  EXPECT_TRUE(l.seg->poll_if_idle()) << "a lost frame reaches no slave";
+  l.seg->break_after(1);
+  l.dg(Command::BRD, 0, reg::kType, {}, 1);
+  EXPECT_TRUE(l.seg->poll_if_idle()) << "slaves behind a cable break see no frames";
 }
 
 }  // namespace

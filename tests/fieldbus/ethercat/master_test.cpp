@@ -8,7 +8,7 @@
 #include <cmath>
 
 #include "cia402/drive_group.hpp"
-#include "fieldbus/ethercat/cia402_link.hpp"
+#include "fieldbus/ethercat/cia402_binding.hpp"
 #include "tests/fieldbus/ethercat/bus.hpp"
 
 namespace cnc::ethercat {

@@ -1,0 +1,3 @@
+// A higher layer (tests/layers).
+#pragma once
+#include "low/a.hpp"
