@@ -35,16 +35,7 @@ void Master::stop() {
   jobs_cv_.notify_all();
   if (worker_.joinable()) worker_.join();
   // Requests queued while the worker stopped still get their answer.
-  for (;;) {
-    std::function<void()> job;
-    {
-      std::lock_guard lock(jobs_mutex_);
-      if (jobs_.empty()) break;
-      job = std::move(jobs_.front());
-      jobs_.pop_front();
-    }
-    job();
-  }
+  run_queued_jobs();
 }
 
 void Master::release() {

@@ -310,6 +310,9 @@ class Master {
   SdoResult run_on_worker(std::function<SdoResult()> job);
 
   void worker_loop();
+  // Runs the queued jobs until the queue is empty (the worker, and stop()
+  // for requests queued while the worker stopped).
+  void run_queued_jobs();
   void worker_go_op();
   void worker_poll_emergencies();
   void worker_report_fault();

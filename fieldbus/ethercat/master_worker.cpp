@@ -173,21 +173,25 @@ void Master::worker_restart() {
   }
 }
 
+void Master::run_queued_jobs() {
+  for (;;) {
+    std::function<void()> job;
+    {
+      std::lock_guard lock(jobs_mutex_);
+      if (jobs_.empty()) return;
+      job = std::move(jobs_.front());
+      jobs_.pop_front();
+    }
+    job();
+  }
+}
+
 void Master::worker_loop() {
   worker_id_ = std::this_thread::get_id();
   int64_t next_emcy = 0;
   bool op_tried = false;
   while (!stop_.load()) {
-    for (;;) {
-      std::function<void()> job;
-      {
-        std::lock_guard lock(jobs_mutex_);
-        if (jobs_.empty()) break;
-        job = std::move(jobs_.front());
-        jobs_.pop_front();
-      }
-      job();
-    }
+    run_queued_jobs();
     worker_rt_requests();
     // Every reply reaches both sockets on a raw link: drop the cyclic ones
     // this socket collected, so that its buffer never fills.

@@ -169,6 +169,7 @@ TEST(CanopenComponent, SyncPeriodThatDiffersFromItsThreadStopsStartUp) {
   const auto ini = ini::IniFile::parse("[CANOPEN]\nINTERFACE = virtual:" + bus +
                                            "\nSYNC_PERIOD_US = 2000\nNODE = 3\n[CANOPEN_NODE_3]\nNAME = x\n",
                                        "machine.ini");
+  can::register_virtual_transport();  // INTERFACE = virtual:<bus>
   hal::Hal hal;
   hal::ComponentRegistry registry;
   hal::register_core_components(registry);

@@ -183,6 +183,7 @@ TEST(EthercatComponent, CycleThatDiffersFromItsThreadStopsStartUp) {
   hal::ComponentRegistry registry;
   hal::register_core_components(registry);
   ethercat::register_components(registry);
+  sim::register_components(registry);
   hal::CommandInterpreter halcmd(hal, registry, &ini, nullptr);
   halcmd.run_text(
       "loadrt threads name1=servo-thread period1=1000000\n"
