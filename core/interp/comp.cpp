@@ -158,7 +158,11 @@ void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
     pos = e;
     return;
   }
-  const V2 n = left ? left_of(d) : left_of(d) * -1.0;
+  // The offset from the direction's angle, as LinuxCNC computes it: the
+  // residue of sin(pi) decides the sign of a zero in the printed output.
+  const double theta = std::atan2(p1.y - p0.y, p1.x - p0.x);
+  const double normal = left ? theta + kPi / 2 : theta - kPi / 2;
+  const V2 n{std::cos(normal), std::sin(normal)};
   Geo g;
   g.start = p0 + n * r;
   g.end = p1 + n * r;

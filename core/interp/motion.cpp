@@ -357,6 +357,11 @@ void Interpreter::State::straight(int g, const Pose& end) {
     if (feed_mode == FeedMode::InverseTime && !block.has_word('f')) fail("F word missing with inverse time g1 move");
     if (feed_mode == FeedMode::UnitsPerRev && speed == 0.0) fail("Cannot feed with zero spindle speed in feed per rev mode");
   }
+  // Under cutter compensation the inverse-time rate comes from the
+  // programmed move, so it is the same with compensation on or off
+  // (LinuxCNC's interp/inverse-time-with-comp); the rate waits in the queue
+  // behind the held-back move.
+  if (g != 0 && feed_mode == FeedMode::InverseTime) inverse_time_feed_straight(cutter_side != 400 ? comp_program_pos : pos, end);
   if (cutter_side != 400) {
     comp_straight(g == 0, end);
     return;
@@ -364,7 +369,6 @@ void Interpreter::State::straight(int g, const Pose& end) {
   if (g == 0) {
     emit_traverse(end);
   } else {
-    if (feed_mode == FeedMode::InverseTime) inverse_time_feed_straight(pos, end);
     emit_feed(end);
   }
 }
@@ -453,10 +457,6 @@ void Interpreter::State::convert_arc(int g, const Pose& end) {
     }
   }
   const int rotation = g == 20 ? -turns : turns;
-  if (cutter_side != 400) {
-    comp_arc(g, end, c1, c2, rotation);
-    return;
-  }
   if (feed_mode == FeedMode::InverseTime) {
     // helix length: planar arc length and the normal travel
     double a_start = std::atan2(s2 - c2, s1 - c1), a_end = std::atan2(e2 - c2, e1 - c1);
@@ -470,6 +470,10 @@ void Interpreter::State::convert_arc(int g, const Pose& end) {
     }
     const double r = std::hypot(s1 - c1, s2 - c2);
     inverse_time_feed_arc(std::hypot(std::fabs(sweep) * r, end[a3] - start[a3]));
+  }
+  if (cutter_side != 400) {
+    comp_arc(g, end, c1, c2, rotation);
+    return;
   }
   canon.arc_feed(current_line, e1, e2, c1, c2, rotation, end[a3], end);
   pos = end;

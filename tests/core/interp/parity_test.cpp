@@ -421,3 +421,15 @@ TEST(InterpFanucSubs, TheSearchStopsAtTheClosingPercentButGoesOnInTheSubroutineF
   EXPECT_TRUE(in_file.ok) << in_file.err;
   EXPECT_TRUE(has(in_file, "MESSAGE(\" lib\")")) << in_file.canon;
 }
+
+// ---------------------------------------------------------------- cutter compensation
+
+TEST(InterpCutterComp, InverseTimeFeedsOfCompensatedMovesComeFromTheProgrammedMove) {
+  // G93 with compensation on: the rate is F times the programmed length,
+  // set before each move, as with compensation off.
+  const auto r = run("g20 g0 x0 y0 z0\ng42.1 d0.4\ng93 g1 x1 f30\ny1 f20\nx-1 f20\ng94 g40 g1 x-2 f25\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "SET_FEED_RATE(30.0000)\nN..... STRAIGHT_FEED(1.0000, -0.2000,")) << r.canon;
+  EXPECT_TRUE(has(r, "SET_FEED_RATE(20.0000)\nN..... ARC_FEED(")) << r.canon;
+  EXPECT_TRUE(has(r, "SET_FEED_RATE(40.0000)\nN..... ARC_FEED(")) << r.canon;
+}
