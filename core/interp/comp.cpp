@@ -108,8 +108,13 @@ CompMove* Interpreter::State::held_move() {
 }
 
 void Interpreter::State::hold_move(const CompMove& m) {
+  int a1, a2, a3;
+  plane_axes(a1, a2, a3);
   queueing.count_output();
   queueing.queue().push_back(QueuedCall{true, m, {}});
+  // the move starts where the tool is now
+  queueing.queue().back().move.start1 = pos[a1];
+  queueing.queue().back().move.start2 = pos[a2];
 }
 
 void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
@@ -161,7 +166,8 @@ void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
   // The offset from the direction's angle, as LinuxCNC computes it: the
   // residue of sin(pi) decides the sign of a zero in the printed output.
   const double theta = std::atan2(p1.y - p0.y, p1.x - p0.x);
-  const double normal = left ? theta + kPi / 2 : theta - kPi / 2;
+  double normal = left ? theta + kPi / 2 : theta - kPi / 2;
+  if (normal <= -kPi) normal += 2 * kPi;
   const V2 n{std::cos(normal), std::sin(normal)};
   Geo g;
   g.start = p0 + n * r;
@@ -293,6 +299,16 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
   if (!ok) {
     fail(new_is_arc ? "Arc move in concave corner cannot be reached by the tool without gouging"
                     : "Straight feed in concave corner cannot be reached by the tool without gouging");
+  }
+  // A held-back line whose end would have to lie behind its start, against
+  // its programmed direction, makes the tool run backwards and cut into the
+  // corner's other side (LinuxCNC refuses this gouge too).
+  if (!prev_arc) {
+    const V2 prev_start{prev.start1, prev.start2};
+    if (dot(x - prev_start, t_prev) < 0) {
+      fail(new_is_arc ? "Arc move in concave corner cannot be reached by the tool without gouging"
+                      : "Straight feed in concave corner cannot be reached by the tool without gouging");
+    }
   }
   prev.end[a1] = x.x;
   prev.end[a2] = x.y;

@@ -103,6 +103,7 @@ struct Interpreter::State {
   double cutter_radius = 0;
   int cutter_orientation = 0;
   bool cutter_first_move = true;
+  bool comp_exit_move = false;  // G40 ended compensation: the next move must be straight
   Pose comp_program_pos{};
   double last_tangent_x = 1, last_tangent_y = 0;  // uncompensated (programmed) position under comp
   // canned cycles

@@ -233,11 +233,15 @@ void Interpreter::State::convert_motion(int g, Status& st) {
     case 0:
     case 10: {
       motion_mode = g;
+      comp_exit_move = false;
       straight(g, find_ends(g53));
       return;
     }
     case 20:
     case 30:
+      // The exit move goes from the offset tool to the programmed point; an
+      // arc cannot (LinuxCNC refuses it too).
+      if (comp_exit_move) fail("The move just after exiting cutter compensation mode must be straight, not an arc");
       motion_mode = g;
       convert_arc(g, find_ends(false));
       return;

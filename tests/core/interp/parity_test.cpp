@@ -433,3 +433,22 @@ TEST(InterpCutterComp, InverseTimeFeedsOfCompensatedMovesComeFromTheProgrammedMo
   EXPECT_TRUE(has(r, "SET_FEED_RATE(20.0000)\nN..... ARC_FEED(")) << r.canon;
   EXPECT_TRUE(has(r, "SET_FEED_RATE(40.0000)\nN..... ARC_FEED(")) << r.canon;
 }
+
+TEST(InterpCutterComp, ArcAsTheMoveRightAfterG40IsRefused) {
+  const auto r = run("g0 x0 y0 z0\ng41.1 d.5\ng1 x1 f1\ng1 x2\ng40\ng2 i1\nm2\n");
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("The move just after exiting cutter compensation mode must be straight, not an arc"), std::string::npos)
+      << r.err;
+  // a straight move in between (even Z only) ends the exit
+  const auto ok = run("g0 x0 y0 z0\ng41.1 d.5\ng1 x1 f1\ng1 x2\ng40\ng0 z1\ng2 i1\nm2\n");
+  EXPECT_TRUE(ok.ok) << ok.err;
+}
+
+TEST(InterpCutterComp, ConcaveCornerAfterAMoveShorterThanTheToolRadiusIsAGouge) {
+  // The Y move is 0.1 long with a 0.25 radius tool: its offset would have
+  // to run backwards to meet the next move.
+  const auto r = run("g0 x0 y0 z0\ng41.1 d.5\ng1 x1 f1\ng1 x2\ng1 y.1\ng1 x1\ng40\ng1 x2\nm2\n");
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("Straight feed in concave corner cannot be reached by the tool without gouging"), std::string::npos)
+      << r.err;
+}
