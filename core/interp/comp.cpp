@@ -188,15 +188,51 @@ void Interpreter::State::comp_arc(int g, const Pose& end, double c1, double c2, 
   int a1, a2, a3;
   plane_axes(a1, a2, a3);
   (void)g;
-  if (cutter_first_move) fail("Radius of cutter compensation entry arc is not greater than the tool radius");
   const double r = cutter_radius;
   const bool left = cutter_side == 410;
   const V2 p0{comp_program_pos[a1], comp_program_pos[a2]};
   const V2 p1{end[a1], end[a2]};
-  const V2 c{c1, c2};
-  const double R = len(p0 - c);
+  V2 c{c1, c2};
+  const double R = len(p1 - c);
   // tool inside the arc when the comp side faces the centre
   const bool inside = (rotation > 0) == left;
+  if (cutter_first_move) {
+    // Entry arc (LinuxCNC 2.9): from where the tool is to the offset end
+    // point, about a centre moved along the radius through that end until
+    // it is as far from both ends. The tool must start farther than its
+    // radius from the programmed end.
+    const V2 tool{pos[a1], pos[a2]};
+    if (len(p1 - tool) <= r) fail("Radius of cutter compensation entry arc is not greater than the tool radius");
+    const double tr = inside ? R - r : R + r;
+    if (tr <= 0) fail("Tool radius not less than arc radius with comp");
+    const V2 u = unit(p1 - c);
+    const V2 e = c + u * tr;
+    // |c + u*k - tool| = |c + u*k - e| = tr - k, solved for k
+    const V2 w = c - tool;
+    const double k = (tr * tr - dot(w, w)) / (2 * (dot(w, u) + tr));
+    c = c + u * k;
+    CompMove m;
+    m.kind = CompMove::Arc;
+    m.line = current_line;
+    m.end = end;
+    m.end[a1] = e.x;
+    m.end[a2] = e.y;
+    m.first_end = e.x;
+    m.second_end = e.y;
+    m.center1 = c.x;
+    m.center2 = c.y;
+    m.rotation = rotation;
+    m.axis_end = end[a3];
+    comp_flush();
+    hold_move(m);
+    const V2 t1 = arc_tangent(V2{c1, c2}, p1, rotation);
+    last_tangent_x = t1.x;
+    last_tangent_y = t1.y;
+    cutter_first_move = false;
+    comp_program_pos = end;
+    pos = m.end;
+    return;
+  }
   const double tr = inside ? R - r : R + r;
   if (tr <= 0) fail("Tool radius not less than arc radius with comp");
   const V2 s = c + unit(p0 - c) * tr;

@@ -96,7 +96,9 @@ Pose Interpreter::State::machine_to_program(const Pose& m) const {
 }
 
 Pose Interpreter::State::find_ends(bool g53) const {
-  const Pose& base = cutter_side != 400 ? comp_program_pos : pos;
+  // Under compensation, and for the exit move after G40, axes not named
+  // keep their programmed (not the offset tool's) position.
+  const Pose& base = cutter_side != 400 || comp_exit_move ? comp_program_pos : pos;
   Pose end = base;
   auto word = [&](int i, double& v) {
     if (!((config.axis_mask >> i) & 1u) || !block.has_word(kLetters[i])) return false;
@@ -229,12 +231,16 @@ void Interpreter::State::convert_motion(int g, Status& st) {
     nurbs_active = false;  // another motion abandons an unfinished NURBS list
     nurbs_points.clear();
   }
+  // Cycles, splines and the rest start from the tool: they end a G40 exit
+  // too (lines, probes and threads end it after taking their end point).
+  if (g != 0 && g != 10 && g != 20 && g != 30 && g != 800 && !(g >= 382 && g <= 385) && g != 330 && g != 331) comp_exit_move = false;
   switch (g) {
     case 0:
     case 10: {
       motion_mode = g;
+      const Pose e = find_ends(g53);
       comp_exit_move = false;
-      straight(g, find_ends(g53));
+      straight(g, e);
       return;
     }
     case 20:
@@ -247,12 +253,20 @@ void Interpreter::State::convert_motion(int g, Status& st) {
       return;
     case 382: case 383: case 384: case 385:
       motion_mode = g;
-      convert_probe(g, find_ends(false), st);
+      {
+        const Pose e = find_ends(false);
+        comp_exit_move = false;
+        convert_probe(g, e, st);
+      }
       return;
     case 330:
     case 331:
       motion_mode = g;
-      convert_threading(g, find_ends(false));
+      {
+        const Pose e = find_ends(false);
+        comp_exit_move = false;
+        convert_threading(g, e);
+      }
       return;
     case 800:
       if (config.linuxcnc_comments) canon.comment("interpreter: motion mode set to none");

@@ -452,3 +452,30 @@ TEST(InterpCutterComp, ConcaveCornerAfterAMoveShorterThanTheToolRadiusIsAGouge) 
   EXPECT_NE(r.err.find("Straight feed in concave corner cannot be reached by the tool without gouging"), std::string::npos)
       << r.err;
 }
+
+TEST(InterpCutterComp, EntryArcEndsOffsetAboutACentreAsFarFromTheToolAsFromItsEnd) {
+  // From the tool at (0.25, 0.5) a CW arc about (0.5, 0.5) to (0.5, 0.75),
+  // tool radius 0.1 on the left (outside): the tool ends at (0.5, 0.85)
+  // about (0.5, 0.5857), as LinuxCNC 2.9 cuts it.
+  const auto r = run("g20 f60\ng0 x0 y.5 z.25\ng1 x.25\ng41.1 d.2 g2 x.5 y.75 i.25\ng1 x.75\ng40 x1\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "ARC_FEED(0.5000, 0.8500, 0.5000, 0.5857, -1, 0.2500,")) << r.canon;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(0.7500, 0.8500, 0.2500,")) << r.canon;
+  // inside the arc (right side)
+  const auto in = run("g20 f60\ng0 x0 y.5 z.25\ng1 x.25\ng42.1 d.2 g2 x.5 y.75 i.25\ng1 x.75\ng40 x1\nm2\n");
+  ASSERT_TRUE(in.ok) << in.err;
+  EXPECT_TRUE(has(in, "ARC_FEED(0.5000, 0.6500, 0.5000, 0.3667, -1, 0.2500,")) << in.canon;
+  // the tool must start farther than its radius from the arc's end
+  const auto near = run("g20 f60\ng0 x0 y.5 z.25\ng1 x.25\ng41.1 d1.2 g2 x.5 y.75 i.25\nm2\n");
+  EXPECT_FALSE(near.ok);
+  EXPECT_NE(near.err.find("Radius of cutter compensation entry arc is not greater than the tool radius"), std::string::npos)
+      << near.err;
+}
+
+TEST(InterpCutterComp, ExitMoveKeepsTheProgrammedPositionOfAxesItDoesNotName) {
+  // G40 X1 after a move along Y 0.75 (tool offset to Y 0.85): the exit
+  // move ends at the programmed Y 0.75, not at the tool's Y.
+  const auto r = run("g20 f60\ng0 x0 y.75 z0\ng41.1 d.2 g1 x.5\ng1 x.75\ng40 x1\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(1.0000, 0.7500, 0.0000,")) << r.canon;
+}
