@@ -59,6 +59,9 @@ bool circle_circle(V2 c1, double r1, V2 c2, double r2, V2 prev_end, V2 t_prev, V
 }  // namespace
 
 namespace {
+// Turn (radians) below which a convex corner is joined without an arc.
+constexpr double kConvexCornerTolerance = 0.05;
+
 struct Geo {
   bool arc = false;
   V2 start, end;  // tool centre
@@ -144,6 +147,7 @@ void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
     // to pass through its end (LinuxCNC 2.9).
     last_tangent_x = dir.x;
     last_tangent_y = dir.y;
+    last_curvature = 0;
     cutter_first_move = false;
     comp_program_pos = end;
     pos = m.end;
@@ -180,6 +184,7 @@ void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
   hold_move(m);
   last_tangent_x = d.x;
   last_tangent_y = d.y;
+  last_curvature = 0;
   comp_program_pos = end;
   pos = m.end;
 }
@@ -228,17 +233,24 @@ void Interpreter::State::comp_arc(int g, const Pose& end, double c1, double c2, 
     const V2 t1 = arc_tangent(V2{c1, c2}, p1, rotation);
     last_tangent_x = t1.x;
     last_tangent_y = t1.y;
+    last_curvature = rotation > 0 ? 1 / R : -1 / R;
     cutter_first_move = false;
     comp_program_pos = end;
     pos = m.end;
     return;
   }
+  // A centre-format arc's two radii may differ within the tolerance: the
+  // tool path starts beside the programmed start and ends beside the
+  // programmed end (with a zero radius tool exactly there, as in LinuxCNC);
+  // a concave corner before it meets the circle through its start.
   const double tr = inside ? R - r : R + r;
-  if (tr <= 0) fail("Tool radius not less than arc radius with comp");
-  const V2 s = c + unit(p0 - c) * tr;
+  const double R0 = len(p0 - c);
+  const double tr_start = inside ? R0 - r : R0 + r;
+  if (tr <= 0 || tr_start <= 0) fail("Tool radius not less than arc radius with comp");
+  const V2 s = c + unit(p0 - c) * tr_start;
   const V2 e = c + unit(p1 - c) * tr;
   const V2 t0 = arc_tangent(c, p0, rotation);
-  comp_corner(V2Ref{s.x, s.y}, V2Ref{t0.x, t0.y}, true, V2Ref{c.x, c.y}, tr, rotation);
+  comp_corner(V2Ref{s.x, s.y}, V2Ref{t0.x, t0.y}, true, V2Ref{c.x, c.y}, tr_start, rotation);
   CompMove m;
   m.kind = CompMove::Arc;
   m.line = current_line;
@@ -255,6 +267,7 @@ void Interpreter::State::comp_arc(int g, const Pose& end, double c1, double c2, 
   const V2 t1 = arc_tangent(c, p1, rotation);
   last_tangent_x = t1.x;
   last_tangent_y = t1.y;
+  last_curvature = rotation > 0 ? 1 / R : -1 / R;
   comp_program_pos = end;
   pos = m.end;
 }
@@ -285,13 +298,25 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
     return;
   }
   if (std::fabs(turn) < 1e-12) {
-    // Reversal: a line turns around the tool (convex); an arc bending
-    // towards the tool side cuts into the corner (concave).
-    convex = true;
+    // Reversal: the new path leaves along the old one backwards. It is a
+    // concave corner when the new path runs off to the side away from the
+    // tool (the tool then sits between the two paths), so the offsets
+    // cross; otherwise the tool turns around the corner (two lines, or
+    // arcs of the same bend, turn around it too).
+    double k_new = 0;
     if (new_is_arc) {
-      const double side = cross(t_prev, V2{center_ref.x, center_ref.y} - corner);
-      convex = left ? side < 0 : side > 0;
+      const double rp = len(corner - V2{center_ref.x, center_ref.y});
+      k_new = rotation > 0 ? 1 / rp : -1 / rp;
     }
+    const double spread = k_new + last_curvature;  // > 0: new path left of the old one reversed
+    convex = std::fabs(spread) < 1e-12 || (left ? spread > 0 : spread < 0);
+  }
+  // A convex corner turning less than 0.05 rad gets no arc: the new move
+  // goes on from where the held-back one ends (LinuxCNC 2.9 does the same;
+  // the step is at most the tool radius times the angle).
+  if (convex && std::atan2(std::fabs(turn), along) < kConvexCornerTolerance) {
+    comp_flush();
+    return;
   }
   if (convex) {
     const CompMove before = prev;
@@ -331,7 +356,6 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
     const V2 pc{prev.center1, prev.center2};
     ok = circle_circle(pc, len(prev_end - pc), V2{center_ref.x, center_ref.y}, tool_r, prev_end, t_prev, x);
   }
-  (void)rotation;
   if (!ok) {
     fail(new_is_arc ? "Arc move in concave corner cannot be reached by the tool without gouging"
                     : "Straight feed in concave corner cannot be reached by the tool without gouging");

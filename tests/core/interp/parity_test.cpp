@@ -479,3 +479,31 @@ TEST(InterpCutterComp, ExitMoveKeepsTheProgrammedPositionOfAxesItDoesNotName) {
   ASSERT_TRUE(r.ok) << r.err;
   EXPECT_TRUE(has(r, "STRAIGHT_FEED(1.0000, 0.7500, 0.0000,")) << r.canon;
 }
+
+TEST(InterpCutterComp, ConvexCornerTurningLessThanFiftyMilliradiansGetsNoArc) {
+  // X10 Y1 to X20 Y0.51: a 0.049 rad right turn with the tool on the left.
+  const auto r = run("g21 g0 x-10 y0 z0\ng41.1 d2 g1 x0 y1 f100\ng1 x10\ng1 x20 y0.51\ng40 g1 x30\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(10.0000, 2.0000, 0.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STRAIGHT_FEED(20.0489, 1.5088,")) << r.canon;
+}
+
+TEST(InterpCutterComp, LineLeavingAnArcsEndBackwardsAwayFromTheToolIsAConcaveCorner) {
+  // The CCW arc ends going -Y at its left end; the line goes back +Y with
+  // the tool on its right, between the line and the arc: the two offset
+  // paths meet (LinuxCNC's inside-corners), no turn around the corner.
+  const auto r = run("g20 g0 x3 y2.845 z0\ng42.1 d.15 g1 x2.2708 f8\ng3 x1.8296 i-.2206\ng1 y3.56\ng40 g1 x1\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "ARC_FEED(1.9046, 3.1023, 2.0502, 2.8450, 1, 0.0000,")) << r.canon;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(1.9046, 3.5600,")) << r.canon;
+}
+
+TEST(InterpCutterComp, ArcWithSlightlyDifferentEndRadiusEndsBesideItsProgrammedEnd) {
+  // Centre-format arcs whose end radius differs within the tolerance: with
+  // a zero radius tool the tool path is the program, no corner arcs.
+  const auto r = run("g20 g0 x1.2281 y1.3456 z0\ng41.1 d0 g1 x1.2281 y1.3457 f8\n"
+                     "g2 x0.1253 y0.9881 i-0.6093 j-0.0001\ng3 x0.7669 y1.4548 i0.2437 j0.3394\ng40 g1 x1\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "ARC_FEED(0.1253, 0.9881, 0.6188, 1.3456, -1, 0.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... ARC_FEED(0.7669, 1.4548, 0.3690, 1.3275, 1,")) << r.canon;
+}
