@@ -318,6 +318,30 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
     comp_flush();
     return;
   }
+  // concave: meet where the offset paths cross
+  V2 x;
+  bool ok = false;
+  const bool prev_arc = prev.kind == CompMove::Arc;
+  if (convex) {
+  } else if (!prev_arc && !new_is_arc) {
+    const double den = cross(t_prev, t_new);
+    if (std::fabs(den) < 1e-12) fail("Cannot intersect parallel lines");
+    const double k = cross(start - prev_end, t_new) / den;
+    x = prev_end + t_prev * k;
+    ok = true;
+  } else if (!prev_arc && new_is_arc) {
+    ok = line_circle(prev_end, t_prev, V2{center_ref.x, center_ref.y}, tool_r, prev_end, t_prev, x);
+  } else if (prev_arc && !new_is_arc) {
+    const V2 pc{prev.center1, prev.center2};
+    ok = line_circle(start, t_new, pc, len(prev_end - pc), prev_end, t_prev, x);
+  } else {
+    const V2 pc{prev.center1, prev.center2};
+    ok = circle_circle(pc, len(prev_end - pc), V2{center_ref.x, center_ref.y}, tool_r, prev_end, t_prev, x);
+  }
+  // A concave corner turning more than a right angle with an arc, where
+  // the offset paths do not meet: the tool turns around the corner instead
+  // of refusing a gouge (LinuxCNC's crazy-paths runs so).
+  if (!convex && !ok && along < 0 && (prev_arc || new_is_arc)) convex = true;
   if (convex) {
     const CompMove before = prev;
     comp_flush();  // prev is gone after this
@@ -336,25 +360,6 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
     comp_emit(a);
     pos = a.end;
     return;
-  }
-  // concave: meet where the offset paths cross
-  V2 x;
-  bool ok = false;
-  const bool prev_arc = prev.kind == CompMove::Arc;
-  if (!prev_arc && !new_is_arc) {
-    const double den = cross(t_prev, t_new);
-    if (std::fabs(den) < 1e-12) fail("Cannot intersect parallel lines");
-    const double k = cross(start - prev_end, t_new) / den;
-    x = prev_end + t_prev * k;
-    ok = true;
-  } else if (!prev_arc && new_is_arc) {
-    ok = line_circle(prev_end, t_prev, V2{center_ref.x, center_ref.y}, tool_r, prev_end, t_prev, x);
-  } else if (prev_arc && !new_is_arc) {
-    const V2 pc{prev.center1, prev.center2};
-    ok = line_circle(start, t_new, pc, len(prev_end - pc), prev_end, t_prev, x);
-  } else {
-    const V2 pc{prev.center1, prev.center2};
-    ok = circle_circle(pc, len(prev_end - pc), V2{center_ref.x, center_ref.y}, tool_r, prev_end, t_prev, x);
   }
   if (!ok) {
     fail(new_is_arc ? "Arc move in concave corner cannot be reached by the tool without gouging"

@@ -507,3 +507,14 @@ TEST(InterpCutterComp, ArcWithSlightlyDifferentEndRadiusEndsBesideItsProgrammedE
   EXPECT_TRUE(has(r, "ARC_FEED(0.1253, 0.9881, 0.6188, 1.3456, -1, 0.0000, 0.0000, 0.0000, 0.0000)\n"
                      "N..... ARC_FEED(0.7669, 1.4548, 0.3690, 1.3275, 1,")) << r.canon;
 }
+
+TEST(InterpCutterComp, SharpCornerIntoAnArcWhoseOffsetsDoNotMeetTurnsAroundTheCorner) {
+  // A line then a tight CW arc leaving it almost backwards, tool on the
+  // right: the tangents call it concave but the offset paths never meet;
+  // LinuxCNC turns around the corner (its crazy-paths) instead of an error.
+  const auto r = run("g21 g0 x-42 y-104.657107 z0\ng42.1 d.5 g1 x-39.500873 f100\ng1 x-54.500873 y-94.657107\n"
+                     "g2 i-1.575966 j-2.552711 x-57.872219 y-99.613276\ng40 g1 x-62.872219 y-114.613276\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(-54.3622, -94.4491, 0.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... ARC_FEED(-54.6322, -94.8698, -54.5009, -94.6571, 1,")) << r.canon;
+}
