@@ -59,6 +59,9 @@ bool circle_circle(V2 c1, double r1, V2 c2, double r2, V2 prev_end, V2 t_prev, V
 }  // namespace
 
 namespace {
+// Turn (radians) below which a convex corner is joined without an arc.
+constexpr double kConvexCornerTolerance = 0.05;
+
 struct Geo {
   bool arc = false;
   V2 start, end;  // tool centre
@@ -108,8 +111,13 @@ CompMove* Interpreter::State::held_move() {
 }
 
 void Interpreter::State::hold_move(const CompMove& m) {
+  int a1, a2, a3;
+  plane_axes(a1, a2, a3);
   queueing.count_output();
   queueing.queue().push_back(QueuedCall{true, m, {}});
+  // the move starts where the tool is now
+  queueing.queue().back().move.start1 = pos[a1];
+  queueing.queue().back().move.start2 = pos[a2];
 }
 
 void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
@@ -139,6 +147,7 @@ void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
     // to pass through its end (LinuxCNC 2.9).
     last_tangent_x = dir.x;
     last_tangent_y = dir.y;
+    last_curvature = 0;
     cutter_first_move = false;
     comp_program_pos = end;
     pos = m.end;
@@ -158,7 +167,12 @@ void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
     pos = e;
     return;
   }
-  const V2 n = left ? left_of(d) : left_of(d) * -1.0;
+  // The offset from the direction's angle, as LinuxCNC computes it: the
+  // residue of sin(pi) decides the sign of a zero in the printed output.
+  const double theta = std::atan2(p1.y - p0.y, p1.x - p0.x);
+  double normal = left ? theta + kPi / 2 : theta - kPi / 2;
+  if (normal <= -kPi) normal += 2 * kPi;
+  const V2 n{std::cos(normal), std::sin(normal)};
   Geo g;
   g.start = p0 + n * r;
   g.end = p1 + n * r;
@@ -170,6 +184,7 @@ void Interpreter::State::comp_straight(bool traverse, const Pose& end) {
   hold_move(m);
   last_tangent_x = d.x;
   last_tangent_y = d.y;
+  last_curvature = 0;
   comp_program_pos = end;
   pos = m.end;
 }
@@ -178,21 +193,64 @@ void Interpreter::State::comp_arc(int g, const Pose& end, double c1, double c2, 
   int a1, a2, a3;
   plane_axes(a1, a2, a3);
   (void)g;
-  if (cutter_first_move) fail("Radius of cutter compensation entry arc is not greater than the tool radius");
   const double r = cutter_radius;
   const bool left = cutter_side == 410;
   const V2 p0{comp_program_pos[a1], comp_program_pos[a2]};
   const V2 p1{end[a1], end[a2]};
-  const V2 c{c1, c2};
-  const double R = len(p0 - c);
+  V2 c{c1, c2};
+  const double R = len(p1 - c);
   // tool inside the arc when the comp side faces the centre
   const bool inside = (rotation > 0) == left;
+  if (cutter_first_move) {
+    // Entry arc (LinuxCNC 2.9): from where the tool is to the offset end
+    // point, about a centre moved along the radius through that end until
+    // it is as far from both ends. The tool must start farther than its
+    // radius from the programmed end.
+    const V2 tool{pos[a1], pos[a2]};
+    if (len(p1 - tool) <= r) fail("Radius of cutter compensation entry arc is not greater than the tool radius");
+    const double tr = inside ? R - r : R + r;
+    if (tr <= 0) fail("Tool radius not less than arc radius with comp");
+    const V2 u = unit(p1 - c);
+    const V2 e = c + u * tr;
+    // |c + u*k - tool| = |c + u*k - e| = tr - k, solved for k
+    const V2 w = c - tool;
+    const double k = (tr * tr - dot(w, w)) / (2 * (dot(w, u) + tr));
+    c = c + u * k;
+    CompMove m;
+    m.kind = CompMove::Arc;
+    m.line = current_line;
+    m.end = end;
+    m.end[a1] = e.x;
+    m.end[a2] = e.y;
+    m.first_end = e.x;
+    m.second_end = e.y;
+    m.center1 = c.x;
+    m.center2 = c.y;
+    m.rotation = rotation;
+    m.axis_end = end[a3];
+    comp_flush();
+    hold_move(m);
+    const V2 t1 = arc_tangent(V2{c1, c2}, p1, rotation);
+    last_tangent_x = t1.x;
+    last_tangent_y = t1.y;
+    last_curvature = rotation > 0 ? 1 / R : -1 / R;
+    cutter_first_move = false;
+    comp_program_pos = end;
+    pos = m.end;
+    return;
+  }
+  // A centre-format arc's two radii may differ within the tolerance: the
+  // tool path starts beside the programmed start and ends beside the
+  // programmed end (with a zero radius tool exactly there, as in LinuxCNC);
+  // a concave corner before it meets the circle through its start.
   const double tr = inside ? R - r : R + r;
-  if (tr <= 0) fail("Tool radius not less than arc radius with comp");
-  const V2 s = c + unit(p0 - c) * tr;
+  const double R0 = len(p0 - c);
+  const double tr_start = inside ? R0 - r : R0 + r;
+  if (tr <= 0 || tr_start <= 0) fail("Tool radius not less than arc radius with comp");
+  const V2 s = c + unit(p0 - c) * tr_start;
   const V2 e = c + unit(p1 - c) * tr;
   const V2 t0 = arc_tangent(c, p0, rotation);
-  comp_corner(V2Ref{s.x, s.y}, V2Ref{t0.x, t0.y}, true, V2Ref{c.x, c.y}, tr, rotation);
+  comp_corner(V2Ref{s.x, s.y}, V2Ref{t0.x, t0.y}, true, V2Ref{c.x, c.y}, tr_start, rotation);
   CompMove m;
   m.kind = CompMove::Arc;
   m.line = current_line;
@@ -209,6 +267,7 @@ void Interpreter::State::comp_arc(int g, const Pose& end, double c1, double c2, 
   const V2 t1 = arc_tangent(c, p1, rotation);
   last_tangent_x = t1.x;
   last_tangent_y = t1.y;
+  last_curvature = rotation > 0 ? 1 / R : -1 / R;
   comp_program_pos = end;
   pos = m.end;
 }
@@ -239,14 +298,50 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
     return;
   }
   if (std::fabs(turn) < 1e-12) {
-    // Reversal: a line turns around the tool (convex); an arc bending
-    // towards the tool side cuts into the corner (concave).
-    convex = true;
+    // Reversal: the new path leaves along the old one backwards. It is a
+    // concave corner when the new path runs off to the side away from the
+    // tool (the tool then sits between the two paths), so the offsets
+    // cross; otherwise the tool turns around the corner (two lines, or
+    // arcs of the same bend, turn around it too).
+    double k_new = 0;
     if (new_is_arc) {
-      const double side = cross(t_prev, V2{center_ref.x, center_ref.y} - corner);
-      convex = left ? side < 0 : side > 0;
+      const double rp = len(corner - V2{center_ref.x, center_ref.y});
+      k_new = rotation > 0 ? 1 / rp : -1 / rp;
     }
+    const double spread = k_new + last_curvature;  // > 0: new path left of the old one reversed
+    convex = std::fabs(spread) < 1e-12 || (left ? spread > 0 : spread < 0);
   }
+  // A convex corner turning less than 0.05 rad gets no arc: the new move
+  // goes on from where the held-back one ends (LinuxCNC 2.9 does the same;
+  // the step is at most the tool radius times the angle).
+  if (convex && std::atan2(std::fabs(turn), along) < kConvexCornerTolerance) {
+    comp_flush();
+    return;
+  }
+  // concave: meet where the offset paths cross
+  V2 x;
+  bool ok = false;
+  const bool prev_arc = prev.kind == CompMove::Arc;
+  if (convex) {
+  } else if (!prev_arc && !new_is_arc) {
+    const double den = cross(t_prev, t_new);
+    if (std::fabs(den) < 1e-12) fail("Cannot intersect parallel lines");
+    const double k = cross(start - prev_end, t_new) / den;
+    x = prev_end + t_prev * k;
+    ok = true;
+  } else if (!prev_arc && new_is_arc) {
+    ok = line_circle(prev_end, t_prev, V2{center_ref.x, center_ref.y}, tool_r, prev_end, t_prev, x);
+  } else if (prev_arc && !new_is_arc) {
+    const V2 pc{prev.center1, prev.center2};
+    ok = line_circle(start, t_new, pc, len(prev_end - pc), prev_end, t_prev, x);
+  } else {
+    const V2 pc{prev.center1, prev.center2};
+    ok = circle_circle(pc, len(prev_end - pc), V2{center_ref.x, center_ref.y}, tool_r, prev_end, t_prev, x);
+  }
+  // A concave corner turning more than a right angle with an arc, where
+  // the offset paths do not meet: the tool turns around the corner instead
+  // of refusing a gouge (LinuxCNC's crazy-paths runs so).
+  if (!convex && !ok && along < 0 && (prev_arc || new_is_arc)) convex = true;
   if (convex) {
     const CompMove before = prev;
     comp_flush();  // prev is gone after this
@@ -266,29 +361,19 @@ void Interpreter::State::comp_corner(V2Ref start_ref, V2Ref t_new_ref, bool new_
     pos = a.end;
     return;
   }
-  // concave: meet where the offset paths cross
-  V2 x;
-  bool ok = false;
-  const bool prev_arc = prev.kind == CompMove::Arc;
-  if (!prev_arc && !new_is_arc) {
-    const double den = cross(t_prev, t_new);
-    if (std::fabs(den) < 1e-12) fail("Cannot intersect parallel lines");
-    const double k = cross(start - prev_end, t_new) / den;
-    x = prev_end + t_prev * k;
-    ok = true;
-  } else if (!prev_arc && new_is_arc) {
-    ok = line_circle(prev_end, t_prev, V2{center_ref.x, center_ref.y}, tool_r, prev_end, t_prev, x);
-  } else if (prev_arc && !new_is_arc) {
-    const V2 pc{prev.center1, prev.center2};
-    ok = line_circle(start, t_new, pc, len(prev_end - pc), prev_end, t_prev, x);
-  } else {
-    const V2 pc{prev.center1, prev.center2};
-    ok = circle_circle(pc, len(prev_end - pc), V2{center_ref.x, center_ref.y}, tool_r, prev_end, t_prev, x);
-  }
-  (void)rotation;
   if (!ok) {
     fail(new_is_arc ? "Arc move in concave corner cannot be reached by the tool without gouging"
                     : "Straight feed in concave corner cannot be reached by the tool without gouging");
+  }
+  // A held-back line whose end would have to lie behind its start, against
+  // its programmed direction, makes the tool run backwards and cut into the
+  // corner's other side (LinuxCNC refuses this gouge too).
+  if (!prev_arc) {
+    const V2 prev_start{prev.start1, prev.start2};
+    if (dot(x - prev_start, t_prev) < 0) {
+      fail(new_is_arc ? "Arc move in concave corner cannot be reached by the tool without gouging"
+                      : "Straight feed in concave corner cannot be reached by the tool without gouging");
+    }
   }
   prev.end[a1] = x.x;
   prev.end[a2] = x.y;

@@ -97,6 +97,7 @@ void Interpreter::State::reset_modal(bool keep_params) {
   toolchange_flag = false;
   cutter_side = 400;
   cutter_radius = 0;
+  comp_exit_move = false;
   queueing.queue().clear();
   cycle_l = 1;
   frames.clear();
@@ -795,7 +796,10 @@ void Interpreter::State::convert_units(Units u) {
 
 void Interpreter::State::convert_cutter_comp(int g) {
   if (g == 400) {
-    if (cutter_side != 400) comp_flush();
+    if (cutter_side != 400) {
+      comp_flush();
+      comp_exit_move = true;
+    }
     if (config.linuxcnc_comments) canon.comment("interpreter: cutter radius compensation off");
     cutter_side = 400;
     return;

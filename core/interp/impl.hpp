@@ -103,8 +103,10 @@ struct Interpreter::State {
   double cutter_radius = 0;
   int cutter_orientation = 0;
   bool cutter_first_move = true;
+  bool comp_exit_move = false;  // G40 ended compensation: the next move must be straight
   Pose comp_program_pos{};
   double last_tangent_x = 1, last_tangent_y = 0;  // uncompensated (programmed) position under comp
+  double last_curvature = 0;  // of the programmed path at its end: +1/R turning left (G3), -1/R right, 0 a line
   // canned cycles
   double cycle_r = 0, cycle_z = 0, cycle_cc = 0;
   int cycle_l = 1;

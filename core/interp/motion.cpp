@@ -96,7 +96,9 @@ Pose Interpreter::State::machine_to_program(const Pose& m) const {
 }
 
 Pose Interpreter::State::find_ends(bool g53) const {
-  const Pose& base = cutter_side != 400 ? comp_program_pos : pos;
+  // Under compensation, and for the exit move after G40, axes not named
+  // keep their programmed (not the offset tool's) position.
+  const Pose& base = cutter_side != 400 || comp_exit_move ? comp_program_pos : pos;
   Pose end = base;
   auto word = [&](int i, double& v) {
     if (!((config.axis_mask >> i) & 1u) || !block.has_word(kLetters[i])) return false;
@@ -229,26 +231,42 @@ void Interpreter::State::convert_motion(int g, Status& st) {
     nurbs_active = false;  // another motion abandons an unfinished NURBS list
     nurbs_points.clear();
   }
+  // Cycles, splines and the rest start from the tool: they end a G40 exit
+  // too (lines, probes and threads end it after taking their end point).
+  if (g != 0 && g != 10 && g != 20 && g != 30 && g != 800 && !(g >= 382 && g <= 385) && g != 330 && g != 331) comp_exit_move = false;
   switch (g) {
     case 0:
     case 10: {
       motion_mode = g;
-      straight(g, find_ends(g53));
+      const Pose e = find_ends(g53);
+      comp_exit_move = false;
+      straight(g, e);
       return;
     }
     case 20:
     case 30:
+      // The exit move goes from the offset tool to the programmed point; an
+      // arc cannot (LinuxCNC refuses it too).
+      if (comp_exit_move) fail("The move just after exiting cutter compensation mode must be straight, not an arc");
       motion_mode = g;
       convert_arc(g, find_ends(false));
       return;
     case 382: case 383: case 384: case 385:
       motion_mode = g;
-      convert_probe(g, find_ends(false), st);
+      {
+        const Pose e = find_ends(false);
+        comp_exit_move = false;
+        convert_probe(g, e, st);
+      }
       return;
     case 330:
     case 331:
       motion_mode = g;
-      convert_threading(g, find_ends(false));
+      {
+        const Pose e = find_ends(false);
+        comp_exit_move = false;
+        convert_threading(g, e);
+      }
       return;
     case 800:
       if (config.linuxcnc_comments) canon.comment("interpreter: motion mode set to none");
@@ -357,6 +375,11 @@ void Interpreter::State::straight(int g, const Pose& end) {
     if (feed_mode == FeedMode::InverseTime && !block.has_word('f')) fail("F word missing with inverse time g1 move");
     if (feed_mode == FeedMode::UnitsPerRev && speed == 0.0) fail("Cannot feed with zero spindle speed in feed per rev mode");
   }
+  // Under cutter compensation the inverse-time rate comes from the
+  // programmed move, so it is the same with compensation on or off
+  // (LinuxCNC's interp/inverse-time-with-comp); the rate waits in the queue
+  // behind the held-back move.
+  if (g != 0 && feed_mode == FeedMode::InverseTime) inverse_time_feed_straight(cutter_side != 400 ? comp_program_pos : pos, end);
   if (cutter_side != 400) {
     comp_straight(g == 0, end);
     return;
@@ -364,7 +387,6 @@ void Interpreter::State::straight(int g, const Pose& end) {
   if (g == 0) {
     emit_traverse(end);
   } else {
-    if (feed_mode == FeedMode::InverseTime) inverse_time_feed_straight(pos, end);
     emit_feed(end);
   }
 }
@@ -453,10 +475,6 @@ void Interpreter::State::convert_arc(int g, const Pose& end) {
     }
   }
   const int rotation = g == 20 ? -turns : turns;
-  if (cutter_side != 400) {
-    comp_arc(g, end, c1, c2, rotation);
-    return;
-  }
   if (feed_mode == FeedMode::InverseTime) {
     // helix length: planar arc length and the normal travel
     double a_start = std::atan2(s2 - c2, s1 - c1), a_end = std::atan2(e2 - c2, e1 - c1);
@@ -470,6 +488,10 @@ void Interpreter::State::convert_arc(int g, const Pose& end) {
     }
     const double r = std::hypot(s1 - c1, s2 - c2);
     inverse_time_feed_arc(std::hypot(std::fabs(sweep) * r, end[a3] - start[a3]));
+  }
+  if (cutter_side != 400) {
+    comp_arc(g, end, c1, c2, rotation);
+    return;
   }
   canon.arc_feed(current_line, e1, e2, c1, c2, rotation, end[a3], end);
   pos = end;

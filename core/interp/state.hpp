@@ -171,6 +171,7 @@ struct CompMove {
   enum Kind : uint8_t { Traverse, Feed, Arc } kind = Feed;
   int line = 0;
   Pose end{};
+  double start1 = 0, start2 = 0;  // where it starts in the plane (tool centre)
   double first_end = 0, second_end = 0, center1 = 0, center2 = 0, axis_end = 0;
   int rotation = 0;
 };

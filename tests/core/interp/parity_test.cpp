@@ -421,3 +421,100 @@ TEST(InterpFanucSubs, TheSearchStopsAtTheClosingPercentButGoesOnInTheSubroutineF
   EXPECT_TRUE(in_file.ok) << in_file.err;
   EXPECT_TRUE(has(in_file, "MESSAGE(\" lib\")")) << in_file.canon;
 }
+
+// ---------------------------------------------------------------- cutter compensation
+
+TEST(InterpCutterComp, InverseTimeFeedsOfCompensatedMovesComeFromTheProgrammedMove) {
+  // G93 with compensation on: the rate is F times the programmed length,
+  // set before each move, as with compensation off.
+  const auto r = run("g20 g0 x0 y0 z0\ng42.1 d0.4\ng93 g1 x1 f30\ny1 f20\nx-1 f20\ng94 g40 g1 x-2 f25\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "SET_FEED_RATE(30.0000)\nN..... STRAIGHT_FEED(1.0000, -0.2000,")) << r.canon;
+  EXPECT_TRUE(has(r, "SET_FEED_RATE(20.0000)\nN..... ARC_FEED(")) << r.canon;
+  EXPECT_TRUE(has(r, "SET_FEED_RATE(40.0000)\nN..... ARC_FEED(")) << r.canon;
+}
+
+TEST(InterpCutterComp, ArcAsTheMoveRightAfterG40IsRefused) {
+  const auto r = run("g0 x0 y0 z0\ng41.1 d.5\ng1 x1 f1\ng1 x2\ng40\ng2 i1\nm2\n");
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("The move just after exiting cutter compensation mode must be straight, not an arc"), std::string::npos)
+      << r.err;
+  // a straight move in between (even Z only) ends the exit
+  const auto ok = run("g0 x0 y0 z0\ng41.1 d.5\ng1 x1 f1\ng1 x2\ng40\ng0 z1\ng2 i1\nm2\n");
+  EXPECT_TRUE(ok.ok) << ok.err;
+}
+
+TEST(InterpCutterComp, ConcaveCornerAfterAMoveShorterThanTheToolRadiusIsAGouge) {
+  // The Y move is 0.1 long with a 0.25 radius tool: its offset would have
+  // to run backwards to meet the next move.
+  const auto r = run("g0 x0 y0 z0\ng41.1 d.5\ng1 x1 f1\ng1 x2\ng1 y.1\ng1 x1\ng40\ng1 x2\nm2\n");
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("Straight feed in concave corner cannot be reached by the tool without gouging"), std::string::npos)
+      << r.err;
+}
+
+TEST(InterpCutterComp, EntryArcEndsOffsetAboutACentreAsFarFromTheToolAsFromItsEnd) {
+  // From the tool at (0.25, 0.5) a CW arc about (0.5, 0.5) to (0.5, 0.75),
+  // tool radius 0.1 on the left (outside): the tool ends at (0.5, 0.85)
+  // about (0.5, 0.5857), as LinuxCNC 2.9 cuts it.
+  const auto r = run("g20 f60\ng0 x0 y.5 z.25\ng1 x.25\ng41.1 d.2 g2 x.5 y.75 i.25\ng1 x.75\ng40 x1\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "ARC_FEED(0.5000, 0.8500, 0.5000, 0.5857, -1, 0.2500,")) << r.canon;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(0.7500, 0.8500, 0.2500,")) << r.canon;
+  // inside the arc (right side)
+  const auto in = run("g20 f60\ng0 x0 y.5 z.25\ng1 x.25\ng42.1 d.2 g2 x.5 y.75 i.25\ng1 x.75\ng40 x1\nm2\n");
+  ASSERT_TRUE(in.ok) << in.err;
+  EXPECT_TRUE(has(in, "ARC_FEED(0.5000, 0.6500, 0.5000, 0.3667, -1, 0.2500,")) << in.canon;
+  // the tool must start farther than its radius from the arc's end
+  const auto near = run("g20 f60\ng0 x0 y.5 z.25\ng1 x.25\ng41.1 d1.2 g2 x.5 y.75 i.25\nm2\n");
+  EXPECT_FALSE(near.ok);
+  EXPECT_NE(near.err.find("Radius of cutter compensation entry arc is not greater than the tool radius"), std::string::npos)
+      << near.err;
+}
+
+TEST(InterpCutterComp, ExitMoveKeepsTheProgrammedPositionOfAxesItDoesNotName) {
+  // G40 X1 after a move along Y 0.75 (tool offset to Y 0.85): the exit
+  // move ends at the programmed Y 0.75, not at the tool's Y.
+  const auto r = run("g20 f60\ng0 x0 y.75 z0\ng41.1 d.2 g1 x.5\ng1 x.75\ng40 x1\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(1.0000, 0.7500, 0.0000,")) << r.canon;
+}
+
+TEST(InterpCutterComp, ConvexCornerTurningLessThanFiftyMilliradiansGetsNoArc) {
+  // X10 Y1 to X20 Y0.51: a 0.049 rad right turn with the tool on the left.
+  const auto r = run("g21 g0 x-10 y0 z0\ng41.1 d2 g1 x0 y1 f100\ng1 x10\ng1 x20 y0.51\ng40 g1 x30\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(10.0000, 2.0000, 0.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STRAIGHT_FEED(20.0489, 1.5088,")) << r.canon;
+}
+
+TEST(InterpCutterComp, LineLeavingAnArcsEndBackwardsAwayFromTheToolIsAConcaveCorner) {
+  // The CCW arc ends going -Y at its left end; the line goes back +Y with
+  // the tool on its right, between the line and the arc: the two offset
+  // paths meet (LinuxCNC's inside-corners), no turn around the corner.
+  const auto r = run("g20 g0 x3 y2.845 z0\ng42.1 d.15 g1 x2.2708 f8\ng3 x1.8296 i-.2206\ng1 y3.56\ng40 g1 x1\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "ARC_FEED(1.9046, 3.1023, 2.0502, 2.8450, 1, 0.0000,")) << r.canon;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(1.9046, 3.5600,")) << r.canon;
+}
+
+TEST(InterpCutterComp, ArcWithSlightlyDifferentEndRadiusEndsBesideItsProgrammedEnd) {
+  // Centre-format arcs whose end radius differs within the tolerance: with
+  // a zero radius tool the tool path is the program, no corner arcs.
+  const auto r = run("g20 g0 x1.2281 y1.3456 z0\ng41.1 d0 g1 x1.2281 y1.3457 f8\n"
+                     "g2 x0.1253 y0.9881 i-0.6093 j-0.0001\ng3 x0.7669 y1.4548 i0.2437 j0.3394\ng40 g1 x1\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "ARC_FEED(0.1253, 0.9881, 0.6188, 1.3456, -1, 0.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... ARC_FEED(0.7669, 1.4548, 0.3690, 1.3275, 1,")) << r.canon;
+}
+
+TEST(InterpCutterComp, SharpCornerIntoAnArcWhoseOffsetsDoNotMeetTurnsAroundTheCorner) {
+  // A line then a tight CW arc leaving it almost backwards, tool on the
+  // right: the tangents call it concave but the offset paths never meet;
+  // LinuxCNC turns around the corner (its crazy-paths) instead of an error.
+  const auto r = run("g21 g0 x-42 y-104.657107 z0\ng42.1 d.5 g1 x-39.500873 f100\ng1 x-54.500873 y-94.657107\n"
+                     "g2 i-1.575966 j-2.552711 x-57.872219 y-99.613276\ng40 g1 x-62.872219 y-114.613276\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(-54.3622, -94.4491, 0.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... ARC_FEED(-54.6322, -94.8698, -54.5009, -94.6571, 1,")) << r.canon;
+}
