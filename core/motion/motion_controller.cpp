@@ -367,8 +367,15 @@ bool MotionController::handle(const MotionCommand& c, MotionResult& result) noex
           cfg_.spindle[static_cast<std::size_t>(c.joint)].max_reverse <= 0) {
         why = reason("spindle %d may not turn in reverse ([SPINDLE_%d]MAX_REVERSE_VELOCITY is 0)", c.joint, c.joint);
       } else if (c.type == Cmd::SetSpindle) {
+        const bool on = c.value[1] != 0 && c.value[0] != 0;
+        // Started, reversed or a new speed: the next feed move waits for
+        // spindle.N.at-speed (a stop does not wait).
+        if (on && (!s.on || s.speed != c.value[0])) {
+          atspeed_next_feed_ = true;
+          at_speed_stale_[static_cast<std::size_t>(c.joint)] = 2;
+        }
         s.speed = c.value[0];
-        s.on = c.value[1] != 0 && c.value[0] != 0;
+        s.on = on;
         if (s.on) s.brake = false;
         s.orient = false;
       } else if (c.type == Cmd::SpindleBrake) {
@@ -762,6 +769,22 @@ const char* MotionController::cmd_segment(const MotionCommand& c, bool& retry) n
     }
   }
   tp::Result r = tp::Result::Ok;
+  const bool feed = c.type == Cmd::SetCircle || c.type == Cmd::Probe ||
+                    (c.type == Cmd::SetLine && c.segment.type != tp::MotionType::Traverse);
+  if (feed && atspeed_next_feed_) {
+    // The feed move starts after a stop that waits for the spindles to be
+    // at speed (LinuxCNC holds the move's start; rapids do not wait).
+    tp::SegmentParams w = c.segment;
+    w.type = tp::MotionType::Dwell;
+    w.wait_spindle_at_speed = true;
+    r = tp_.add_dwell(0, w);
+    if (r == tp::Result::QueueFull) {
+      retry = true;
+      return nullptr;
+    }
+    if (r != tp::Result::Ok) return reason("line %d: the planner refused the wait for the spindle: %s", c.segment.line, tp_result_text(r));
+    atspeed_next_feed_ = false;
+  }
   switch (c.type) {
     case Cmd::SetLine:
       r = tp_.add_line(c.end, c.segment);
@@ -1045,7 +1068,7 @@ void MotionController::run_teleop(double dt) noexcept {
   apply_inverse_kinematics();
 }
 
-void MotionController::run_coord(double /*dt*/) noexcept {
+void MotionController::run_coord(double dt) noexcept {
   tp::CycleInputs ti;
   double scale = feed_override_enabled_ ? feed_scale_ : 1.0;
   if (adaptive_enabled_) scale *= std::clamp(in_.adaptive_feed, 0.0, 1.0);
@@ -1054,7 +1077,13 @@ void MotionController::run_coord(double /*dt*/) noexcept {
   ti.rapid_scale = feed_override_enabled_ ? rapid_scale_ : 1.0;
   ti.max_velocity = max_velocity_;
   ti.probe_input = in_.probe_input;
+  for (int i = 0; i < cfg_.spindles; ++i) {
+    int& stale = at_speed_stale_[static_cast<std::size_t>(i)];
+    ti.spindles_at_speed = ti.spindles_at_speed && stale == 0 && in_.spindles[static_cast<std::size_t>(i)].at_speed;
+    if (stale > 0) --stale;
+  }
   tp_.run_cycle(ti, tp_out_);
+  watch_spindle_wait(dt);
   carte_cmd_ = tp_out_.position;
   if (tp_out_.probe_tripped && !probe_tripped_) {
     probe_tripped_ = true;
@@ -1076,6 +1105,32 @@ void MotionController::run_coord(double /*dt*/) noexcept {
     }
   }
   apply_inverse_kinematics();
+}
+
+void MotionController::watch_spindle_wait(double dt) noexcept {
+  if (!tp_out_.waiting_for_spindle) {
+    spindle_wait_ = -1;
+    spindle_wait_s_ = 0;
+    return;
+  }
+  int s = 0;
+  while (s + 1 < cfg_.spindles && in_.spindles[static_cast<std::size_t>(s)].at_speed &&
+         at_speed_stale_[static_cast<std::size_t>(s)] == 0) {
+    ++s;
+  }
+  if (s != spindle_wait_) spindle_wait_s_ = 0;  // the timeout is the waited-for spindle's
+  spindle_wait_ = s;
+  spindle_wait_s_ += dt;
+  const double timeout = cfg_.spindle[static_cast<std::size_t>(s)].at_speed_timeout_s;
+  if (timeout > 0 && spindle_wait_s_ >= timeout) {
+    spindle_timeout_reason_.format("spindle %d did not reach speed within %g s ([SPINDLE_%d]AT_SPEED_TIMEOUT; "
+                                   "spindle.%d.at-speed stayed FALSE)",
+                                   s, timeout, s, s);
+    ++spindle_timeouts_;
+    tp_.abort();
+    spindle_wait_ = -1;
+    spindle_wait_s_ = 0;
+  }
 }
 
 void MotionController::set_output(bool digital, int index, double value) noexcept {
@@ -1324,6 +1379,8 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
   t.angular_units = cfg_.angular_units_per_degree;
   t.cycle_time_s = dt_;
   t.servo_cycles = cycles_;
+  t.spindle_wait = spindle_wait_;
+  t.spindle_wait_s = spindle_wait_s_;
   for (int j = 0; j < kMaxJoints; ++j) {
     ipc::JointStatus& js = s.joints[j];
     if (j >= cfg_.num_joints) {
@@ -1418,6 +1475,8 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
   s.fault_spindle = fault_spindle_;
   s.overrun_hold = overrun_hold_;
   s.overrun_holds = overrun_holds_;
+  s.spindle_timeouts = spindle_timeouts_;
+  s.spindle_timeout_reason = spindle_timeout_reason_;
 }
 
 }  // namespace cnc::motion

@@ -1550,6 +1550,21 @@ void TaskController::update(int64_t now_ns) {
     }
   }
 
+  // A feed move waited past [SPINDLE_n]AT_SPEED_TIMEOUT: motion has dropped
+  // the queued moves; the program (or MDI) is aborted with the reason.
+  if (ms_.spindle_timeouts != spindle_timeouts_seen_) {
+    spindle_timeouts_seen_ = ms_.spindle_timeouts;
+    const std::string why = std::string(ms_.spindle_timeout_reason.view());
+    if (interp_state_ != ipc::InterpState::Idle) {
+      program_error("program aborted" + (ms_.traj.motion_line > 0 ? " at line " + std::to_string(ms_.traj.motion_line)
+                                                                   : std::string()) + ": " + why);
+    } else if (running_mdi_ || !mdi_queue_.empty()) {
+      program_error("MDI aborted: " + why);
+    } else {
+      messages_.post(MessageKind::Error, "motion", why);
+    }
+  }
+
   // Program.
   if (interp_state_ != ipc::InterpState::Idle) {
     run_interpreter();
