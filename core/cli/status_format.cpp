@@ -74,6 +74,10 @@ std::string format_status(const ipc::Status& s, const ipc::Liveness* live) {
                s.motion.enabled ? "enabled" : "disabled", s.motion.inpos ? "in position" : "moving", s.motion.queue,
                s.motion.motion_line, s.motion.current_vel);
     }
+    if (s.motion.spindle_wait >= 0) {
+      o << fmt("  waiting for spindle %d at speed (%.1f s; spindle.%d.at-speed is FALSE)\n", s.motion.spindle_wait,
+               s.motion.spindle_wait_s, s.motion.spindle_wait);
+    }
     if (s.motion.estop_latched) {
       o << fmt("  E-stop     latched in the servo thread: %s\n",
                s.motion.estop_cause == ipc::EstopCause::Request
@@ -227,6 +231,8 @@ std::string status_json(const ipc::Status& s, int indent, const ipc::Liveness* l
                  {"paused", s.motion.paused},
                  {"queue", s.motion.queue},
                  {"queue_full", s.motion.queue_full},
+                 {"spindle_wait", s.motion.spindle_wait},
+                 {"spindle_wait_s", s.motion.spindle_wait_s},
                  {"motion_line", s.motion.motion_line},
                  {"axis_mask", s.motion.axis_mask},
                  {"joints", s.motion.joints},

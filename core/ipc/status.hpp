@@ -135,6 +135,10 @@ struct TrajStatus {
   double angular_units = 1;      // per degree
   double cycle_time_s = 0.001;
   uint64_t servo_cycles = 0;
+  // The path holds the start of a feed move until this spindle's
+  // spindle.N.at-speed (-1: not waiting), waiting for spindle_wait_s so far.
+  int32_t spindle_wait = -1;
+  double spindle_wait_s = 0;
   // E-stop latched in the servo thread (a request through the segment, or
   // the E-stop chain open); cleared only by E-stop reset with the chain closed.
   bool estop_latched = false;

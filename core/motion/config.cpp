@@ -77,6 +77,7 @@ void load_spindle(const ini::IniFile& ini, int n, SpindleConfig& sp) {
   sp.min_forward = ini.get_double(s, "MIN_FORWARD_VELOCITY", 0, {0, 1e99});
   sp.max_reverse = ini.get_double(s, "MAX_REVERSE_VELOCITY", sp.max_forward, {0, 1e99});
   sp.min_reverse = ini.get_double(s, "MIN_REVERSE_VELOCITY", sp.min_forward, {0, 1e99});
+  sp.at_speed_timeout_s = ini.get_double(s, "AT_SPEED_TIMEOUT", 0, {0, 1e6});
   if (sp.min_forward > sp.max_forward) {
     ini.fail(ini.find_entry(s, "MIN_FORWARD_VELOCITY"), "must not exceed MAX_FORWARD_VELOCITY");
   }

@@ -76,6 +76,9 @@ struct SpindleConfig {
   double min_forward = 0;     // MIN_FORWARD_VELOCITY
   double max_reverse = 1e99;  // MAX_REVERSE_VELOCITY (default: MAX_FORWARD_VELOCITY)
   double min_reverse = 0;     // MIN_REVERSE_VELOCITY (default: MIN_FORWARD_VELOCITY)
+  // AT_SPEED_TIMEOUT: seconds a feed move may wait for spindle.N.at-speed
+  // before the program is aborted; 0 waits for ever (LinuxCNC).
+  double at_speed_timeout_s = 0;
 };
 
 struct MotionConfig {

@@ -140,6 +140,9 @@ class MotionController {
   void run_free(double dt) noexcept;
   void run_teleop(double dt) noexcept;
   void run_coord(double dt) noexcept;
+  // While the path waits for the spindles to be at speed: which one, and
+  // the abort after its AT_SPEED_TIMEOUT.
+  void watch_spindle_wait(double dt) noexcept;
   void run_homing(double dt) noexcept;
   void home_step(int j, double dt) noexcept;
   void start_home_sequence(int sequence) noexcept;
@@ -237,6 +240,17 @@ class MotionController {
   };
   std::array<Spindle, kMaxSpindles> spindles_{};
   uint32_t last_queued_id_ = 0;       // id of the last segment given to the planner
+  // At-speed (LinuxCNC's atspeed_next_feed): a spindle was started or its
+  // speed changed, so the next feed move waits for spindle.N.at-speed.
+  bool atspeed_next_feed_ = false;
+  // Cycles in which a spindle's at-speed is not believed yet after its
+  // command changed: the pin still answers the old command until whatever
+  // drives it has seen the new one (e.g. a stopped VFD is "at speed").
+  std::array<int, kMaxSpindles> at_speed_stale_{};
+  int spindle_wait_ = -1;             // the spindle the path waits for (-1: none)
+  double spindle_wait_s_ = 0;         // how long it has waited
+  uint32_t spindle_timeouts_ = 0;
+  FixedString<200> spindle_timeout_reason_;
   // M62-M65/M67: set when the first move queued after the command starts.
   struct PendingOutput {
     bool pending = false;

@@ -37,6 +37,11 @@ struct MotionStatus {
   // (OVERRUN_ACTION = HOLD); cleared by resume, step, abort or disable.
   bool overrun_hold = false;
   uint32_t overrun_holds = 0;  // such holds so far: the task pauses on each new one
+  // A feed move waited longer than [SPINDLE_n]AT_SPEED_TIMEOUT for
+  // spindle.N.at-speed: motion aborted the queued moves; the task aborts the
+  // program on each new one, with the reason.
+  uint32_t spindle_timeouts = 0;
+  FixedString<200> spindle_timeout_reason;
   double servo_exec_ns = 0;
 };
 

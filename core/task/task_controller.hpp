@@ -191,6 +191,7 @@ class TaskController : public ipc::ControllerService {
   // The drive panel as last contributed to the status (drive names, fault texts).
   std::array<ipc::DriveStatus, kMaxJoints + 1> drives_{};
   std::array<bool, ipc::kMaxSpindles> spindle_limited_{};  // last reported: held at a limit
+  uint32_t spindle_timeouts_seen_ = 0;  // motion's at-speed timeouts already acted on
   uint32_t overrun_holds_seen_ = 0;  // motion's OVERRUN_ACTION = HOLD pauses already adopted
 };
 

@@ -959,6 +959,10 @@ void Executor::handle_stops() noexcept {
         dwell_left_ -= T_;
         return;
       }
+      if (piece(s.piece).spindle_wait && !spindles_at_speed_) {
+        waiting_spindle_ = true;
+        return;
+      }
       dwelling_ = false;
     }
     x_ = s.a;
@@ -1121,6 +1125,8 @@ void Executor::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
     probed_ = pose_;
     aborting_ = true;
   }
+  spindles_at_speed_ = in.spindles_at_speed;
+  waiting_spindle_ = false;
   handle_stops();
   if (step_active_ && x_ >= step_s_ - kLanding && at_rest()) {
     step_active_ = false;
@@ -1163,6 +1169,7 @@ void Executor::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
     out.move_end = pose_;
   }
   out.done = is_idle();
+  out.waiting_for_spindle = waiting_spindle_;
   out.probe_tripped = probe_tripped_;
   if (probe_tripped_) out.probed_position = probed_;
 }

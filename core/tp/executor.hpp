@@ -173,6 +173,8 @@ class Executor {
   Pose probed_;
   bool dwelling_ = false;
   double dwell_left_ = 0;
+  bool spindles_at_speed_ = true;   // CycleInputs::spindles_at_speed of this cycle
+  bool waiting_spindle_ = false;    // held at a spindle_wait stop this cycle
   uint64_t completed_ = 0;
   uint64_t overruns_ = 0;
   uint64_t cycles_ = 0;

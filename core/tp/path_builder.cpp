@@ -86,6 +86,7 @@ struct PathBuilder::Held {
   Junction junction = Junction::Unknown;
   double dwell = 0;         // with Junction::Stop: dwell at the stop
   uint32_t dwell_inputs = 0;
+  bool spindle_wait = false;  // with Junction::Stop: also wait there for the spindles to be at speed
   Vertex vx;                // with Junction::Window
   double dt_norm = 0;       // |tangent jump| at the corner
   double m2 = 0;            // curved neighbours: bound of their second derivatives
@@ -254,6 +255,7 @@ Result PathBuilder::add_dwell(double seconds, const SegmentParams& params) noexc
     h.junction = Junction::Stop;
     h.dwell = seconds;
     h.dwell_inputs = 1;
+    h.spindle_wait = params.wait_spindle_at_speed;
     finalize(false);
     return Result::Ok;
   }
@@ -263,6 +265,7 @@ Result PathBuilder::add_dwell(double seconds, const SegmentParams& params) noexc
   h.junction = Junction::Stop;
   h.dwell = seconds;
   h.dwell_inputs = 1;
+  h.spindle_wait = params.wait_spindle_at_speed;
   h.inputs = 0;
   finalize(false);
   return Result::Ok;
@@ -846,6 +849,7 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
     st.epoch = epoch_;
     st.stop = h.dwell_inputs > 0 ? StopKind::Dwell : StopKind::Stop;
     st.dwell_s = h.dwell;
+    st.spindle_wait = h.spindle_wait;
     st.inputs_done = h.dwell_inputs + (pieces == 0 ? h.inputs : 0);
     store_.pieces.push_slot() = st;
   }

@@ -59,6 +59,7 @@ struct Piece {
   double a_cap = kInf;   // tangential acceleration cap of the move (SET_LINE acc)
   PieceBounds bounds;
   double dwell_s = 0;
+  bool spindle_wait = false;  // a dwell stop that also waits for the spindles to be at speed
   uint32_t inputs_done = 0;  // input moves finished once this piece is passed
   uint32_t epoch = 0;
   StopKind stop = StopKind::None;

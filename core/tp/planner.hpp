@@ -61,6 +61,10 @@ struct SegmentParams {
   double tolerance = 0;        // G64 P: largest allowed deviation at a blend (0: as fast as possible)
   double naive_cam_tolerance = 0;  // G64 Q: collinear-segment merge tolerance
   bool feed_override_allowed = true;  // M50/M51 off for this segment when false
+  // On a dwell: the path stops there and holds, after the dwell time, until
+  // CycleInputs::spindles_at_speed (LinuxCNC's wait for spindle.N.at-speed
+  // before a feed move that follows a spindle start or speed change).
+  bool wait_spindle_at_speed = false;
 };
 
 struct CycleInputs {
@@ -68,6 +72,7 @@ struct CycleInputs {
   double rapid_scale = 1.0;  // rapid override, for Traverse segments
   double max_velocity = 1e300;  // max-velocity override, units/s
   bool probe_input = false;
+  bool spindles_at_speed = true;  // every spindle's spindle.N.at-speed
 };
 
 struct CycleOutputs {
@@ -81,6 +86,7 @@ struct CycleOutputs {
   bool done = true;         // queue empty and at rest
   bool probe_tripped = false;
   Pose probed_position;     // valid when probe_tripped
+  bool waiting_for_spindle = false;  // held at a wait_spindle_at_speed dwell for spindles_at_speed
 };
 
 class TrajectoryPlanner {

@@ -2,7 +2,8 @@
 # cncd on configs/sim-modbus: the spindle is a Delta VFD simulated by
 # cnc-modbus-sim on Modbus TCP loopback, started by the HAL file.
 #  - a program with M3 S12000, cuts, M4 S6000 and M5 runs to its end; while
-#    it cuts the VFD reports the commanded speed and at-speed;
+#    it cuts the VFD reports the commanded speed and at-speed; the first
+#    feed move after M3 waits for spindle.0.at-speed (cnc status says so);
 #  - the drive panel of `cnc status` lists the VFD;
 #  - the VFD simulator killed while the spindle runs: the spindle faults
 #    for lost communication, motion is disabled and the message channel
@@ -39,6 +40,15 @@ cnc --timeout 60 home all || fail "home all"
 cnc mode auto || fail "mode auto"
 cnc open "$work/cfg/nc_files/spindle.ngc" || fail "open"
 cnc run || fail "run"
+# G1 Z-1 right after M3 S12000 waits for the VFD's at-speed (netted to
+# spindle.0.at-speed): the status says so while the drive ramps up.
+seen_wait=""
+for _ in $(seq 200); do
+  if cnc status | grep -q "waiting for spindle 0 at speed"; then seen_wait=1; break; fi
+  sleep 0.02
+done
+[ -n "$seen_wait" ] || fail "the feed move after M3 S12000 did not wait for spindle 0 at speed"
+echo "ok   G1 after M3 S12000 waits for spindle 0 at speed"
 seen_speed=""
 for _ in $(seq 300); do
   rpm="$(halcmd getp modbus.0.vfd.01.speed-fb)"

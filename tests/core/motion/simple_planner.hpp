@@ -54,12 +54,14 @@ class SimplePlanner : public tp::TrajectoryPlanner {
   void run_cycle(const tp::CycleInputs& in, tp::CycleOutputs& out) noexcept override {
     const double dt = cfg_.cycle_time_s;
     out.probe_tripped = false;
+    out.waiting_for_spindle = false;
     if (!active_ && count_ > 0 && !aborting_) start_front();
     if (active_) {
       Seg& s = q_[head_];
       if (s.kind == Seg::Dwell) {
         if (!paused_) s.dwell -= dt;
-        if (s.dwell <= 0) finish_front();
+        out.waiting_for_spindle = s.dwell <= 0 && s.p.wait_spindle_at_speed && !in.spindles_at_speed && !aborting_;
+        if (s.dwell <= 0 && !out.waiting_for_spindle) finish_front();
       } else {
         const double scale = s.p.type == tp::MotionType::Traverse ? in.rapid_scale : in.feed_scale;
         double v = std::min({s.p.feed * scale, s.p.max_velocity > 0 ? s.p.max_velocity : 1e300, in.max_velocity,
@@ -89,7 +91,10 @@ class SimplePlanner : public tp::TrajectoryPlanner {
         out.path_velocity = std::fabs(s_.velocity());
       }
     } else if (aborting_) {
+      // An abort while a dwell ended: nothing queued behind it runs.
+      count_ = 0;
       aborting_ = false;
+      end_ = pos_;
     }
     out.position = pos_;
     out.move_end = active_ ? q_[head_].end : pos_;

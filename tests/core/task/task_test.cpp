@@ -218,6 +218,30 @@ TEST(TaskProgram, RunsToTheEndWithToolSpindleAndCoolant) {
   EXPECT_NE(m.log.find("program finished"), std::string::npos);
 }
 
+// A feed move after M3 waits for spindle.0.at-speed; past
+// [SPINDLE_0]AT_SPEED_TIMEOUT the program is aborted naming the spindle.
+TEST(TaskProgram, SpindleAtSpeedTimeoutAbortsTheProgramNamingTheSpindle) {
+  TaskMachine m({{"SPINDLE_0", "AT_SPEED_TIMEOUT", "0.2"}}, "setp spindle.0.at-speed FALSE\n");
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("p.ngc", "G0 X10 Y0 Z0\nM3 S1000\nG1 X50 F3000\nM2\n"), "open");
+  m.ok(m.send(CommandType::TaskPlanRun, 0), "run");
+  bool saw_wait = false;
+  ASSERT_TRUE(m.run_until([&] {
+    saw_wait = saw_wait || m.status().motion.spindle_wait == 0;
+    return !m.program_running();
+  }, 20000));
+  EXPECT_TRUE(saw_wait);
+  const std::string errors = m.errors();
+  EXPECT_NE(errors.find("program aborted at line 3: spindle 0 did not reach speed within 0.2 s "
+                        "([SPINDLE_0]AT_SPEED_TIMEOUT; spindle.0.at-speed stayed FALSE)"),
+            std::string::npos)
+      << errors;
+  m.step(10);
+  EXPECT_NEAR(m.status().motion.position[0], 10, 1e-9);  // the feed move never started
+  EXPECT_FALSE(m.status().spindles[0].enabled);           // the abort stopped the spindle
+}
+
 TEST(TaskProgram, PauseHoldsResumeFinishes) {
   TaskMachine m;
   m.power_up_and_home();
