@@ -38,7 +38,13 @@ TEST(Cia402SimMill, MachineOnIsDoneWhenEveryDriveFollowsAndHomingMayStartAtOnce)
   }
   // No pause for the drives: homing (X, Y by their drives, Z by motion on
   // the drive's switch and index) right after "on".
+  const std::string missed0 = mill.hal().get_value("canopen.0.pdo-missed");
+  const std::string missed1 = mill.hal().get_value("canopen.1.pdo-missed");
   const auto home = mill.send(ipc::CommandType::JointHome, -1);
   EXPECT_EQ(home.first, ipc::CommandState::Done) << home.second;
   EXPECT_EQ(mill.errors(), "");
+  // In simulated time (no host load), every TPDO answered its SYNC in time
+  // on both buses while the three axes homed: the plan fits.
+  EXPECT_EQ(mill.hal().get_value("canopen.0.pdo-missed"), missed0);
+  EXPECT_EQ(mill.hal().get_value("canopen.1.pdo-missed"), missed1);
 }
