@@ -133,9 +133,9 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
   health_ = link_.health(config_.address);
   fb.link_ok = health_.operational && !health_.lost;
   if (!fb.link_ok && link_was_ok_) {
-    post(true, "lost the drive on %s (heartbeat lost, reset, or no longer operational)", link_.name().c_str());
+    post(true, "lost the drive on %s (%s)", link_.name().c_str(), link_.loss_causes());
     // The status (and the task's message when motion stops) says why.
-    fault_text_.format("lost on %s (heartbeat lost, reset, or no longer operational)", link_.name().c_str());
+    fault_text_.format("lost on %s (%s)", link_.name().c_str(), link_.loss_causes());
   }
   link_was_ok_ = fb.link_ok;
 

@@ -57,6 +57,10 @@ class DriveLink {
 
   // Name of the bus for messages ("canopen.0").
   virtual const std::string& name() const noexcept = 0;
+  // What makes a drive "lost" on this bus, in its own words, for the
+  // message when it happens ("heartbeat lost, reset, or no longer
+  // operational" on CANopen).
+  virtual const char* loss_causes() const noexcept { return "no longer in the cyclic exchange"; }
   // Drive "address" is the node-ID on CANopen, the ring position on EtherCAT.
   virtual bool has_device(int address) const noexcept = 0;
 

@@ -56,6 +56,7 @@ Result run(int axes, int64_t cycle_ns, can::Stuffing stuffing, double seconds) {
   c.interface = "virtual:bench";
   c.cycle_ns = cycle_ns;
   c.max_bus_load = 10.0;  // measure overloaded buses too
+  c.max_cycle_load = 10.0;
   c.boot_timeout_ns = 1'000'000'000;
   c.pdo_miss_limit = 0;
   for (int i = 1; i <= axes; ++i) {
@@ -116,7 +117,7 @@ int main() {
               "real bit stream). 'fresh' = cycles in which every TPDO answered the last SYNC in time.\n\n");
   for (int64_t cycle : {1'000'000, 2'000'000}) {
     std::printf("%s (cycle %lld us)\n", cycle == 1'000'000 ? "1 kHz" : "500 Hz", static_cast<long long>(cycle / 1000));
-    std::printf("  axes | calc nominal | calc worst | virtual bus worst | virtual bus exact | fresh  | TPDOs late | fits 80 %%\n");
+    std::printf("  axes | calc nominal | calc worst | calc busiest cycle | virtual bus worst | virtual bus exact | fresh  | TPDOs late | fits\n");
     int capacity = 0;
     for (int axes = 1; axes <= 8; ++axes) {
       BusConfig c;
@@ -134,13 +135,13 @@ int main() {
       const can::BusLoad calc = c.load();
       const Result worst = run(axes, cycle, can::Stuffing::WorstCase, 1.0);
       const Result exact = run(axes, cycle, can::Stuffing::Exact, 1.0);
-      const bool fits = calc.worst_case() <= 0.8;
+      const bool fits = c.load_problem().empty();
       if (fits && worst.missed == 0) capacity = axes;
-      std::printf("  %4d | %10.1f %% | %8.1f %% | %15.1f %% | %15.1f %% | %5.1f%% | %10u | %s\n", axes,
-                  calc.nominal() * 100, calc.worst_case() * 100, worst.load * 100, exact.load * 100,
+      std::printf("  %4d | %10.1f %% | %8.1f %% | %16.1f %% | %15.1f %% | %15.1f %% | %5.1f%% | %10u | %s\n", axes,
+                  calc.nominal() * 100, calc.worst_case() * 100, calc.worst_cycle() * 100, worst.load * 100, exact.load * 100,
                   worst.pdo_ok * 100, worst.missed, fits ? "yes" : "no");
     }
-    std::printf("  -> %d CSP axes within 80 %% (worst case) with every TPDO in time\n\n", capacity);
+    std::printf("  -> %d CSP axes within the budgets (80 %% average, 90 %% busiest cycle) with every TPDO in time\n\n", capacity);
   }
   std::printf("Reference table (canopen.md §8), axes per bus, nominal / worst case, from axes_per_bus():\n");
   std::printf("  %-28s | %-13s | %-13s | %-13s | %-13s\n", "PDOs per axis", "1 kHz 100 %", "1 kHz 80 %", "500 Hz 100 %",

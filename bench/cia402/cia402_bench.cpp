@@ -139,22 +139,22 @@ int main(int argc, char** argv) {
   std::vector<Probe> motion_fe, drive_fe, times;
   for (int j = 0; j < 3; ++j) {
     motion_fe.push_back({"joint." + std::to_string(j) + ".f-error", {}});
-    char d[48];
-    std::snprintf(d, sizeof d, "cia402.0.drive.%02d.following-error", j);
-    drive_fe.push_back({d, {}});
+    // X and Y on canopen.0 (cia402.0), Z on canopen.1 beside the spindle.
+    static const char* const kDrive[] = {"cia402.0.drive.00", "cia402.0.drive.01", "cia402.1.drive.01"};
+    drive_fe.push_back({std::string(kDrive[j]) + ".following-error", {}});
   }
   for (const char* f : {"cia402.0.read", "cia402.0.write", "cia402.1.read", "cia402.1.write", "canopen.0.read",
-                        "canopen.0.write", "cia402-sim.0.update", "motion-controller"}) {
+                        "canopen.0.write", "canopen.1.read", "canopen.1.write", "cia402-sim.0.update", "cia402-sim.1.update",
+                        "motion-controller"}) {
     times.push_back({f, {}});
   }
-  // A TPDO that missed its SYNC (the bus is ~75 % loaded; node 3's TPDO1
-  // has the lowest priority of the three) leaves last cycle's position in
+  // A TPDO that missed its SYNC leaves last cycle's position in
   // the input image: the drive layer's error is then one cycle of motion
   // too large. Such samples are counted and kept apart.
   std::vector<Probe> drive_fe_fresh, sim_fe;
   for (int j = 0; j < 3; ++j) {
     char d[48];
-    std::snprintf(d, sizeof d, "cia402-sim.0.node.%02d.following-error", j + 1);
+    std::snprintf(d, sizeof d, "cia402-sim.%d.node.%02d.following-error", j < 2 ? 0 : 1, j + 1);
     sim_fe.push_back({d, {}});
   }
   std::vector<double> missed_before(3, 0);
@@ -169,7 +169,7 @@ int main(int argc, char** argv) {
       const double fe = value(hal, drive_fe[j].name);
       drive_fe[j].s.v.push_back(fe);
       char pin[48];
-      std::snprintf(pin, sizeof pin, "canopen.0.node.%02zu.pdo-missed", j + 1);
+      std::snprintf(pin, sizeof pin, "canopen.%d.node.%02zu.pdo-missed", j < 2 ? 0 : 1, j + 1);
       const double missed = value(hal, pin);
       if (missed != missed_before[j]) ++stale[j];
       else drive_fe_fresh[j].s.v.push_back(fe);

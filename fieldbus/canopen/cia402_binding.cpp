@@ -21,6 +21,7 @@ class CanopenLink final : public cia402::DriveLink {
   explicit CanopenLink(Master& m) : m_(m) {}
 
   const std::string& name() const noexcept override { return m_.name(); }
+  const char* loss_causes() const noexcept override { return "heartbeat lost, reset, or no longer operational"; }
   bool has_device(int address) const noexcept override {
     return address >= 1 && address <= 127 && m_.config().node(static_cast<uint8_t>(address)) != nullptr;
   }

@@ -72,6 +72,7 @@ struct Bus {
   hal::S32Pin bus_state;
   hal::Param<int32_t> delay;
   hal::Param<double> planned_load;
+  hal::Param<double> planned_cycle_load;
   std::vector<NodePins> nodes;
   std::vector<ObjectPin> inputs, outputs;
 
@@ -169,6 +170,7 @@ class CanopenComponent : public hal::Component {
           throw hal::HalError(e.what());
         }
         b->planned_load.set(c.load().worst_case());
+        b->planned_cycle_load.set(c.load().worst_cycle());
       }
     }
     for (auto& b : buses_) {
@@ -197,6 +199,8 @@ class CanopenComponent : public hal::Component {
     b.bus_state = make_pin<int32_t>(name + ".bus-state", PinDir::Out);
     b.delay = make_param<int32_t>(name + ".transport-delay", hal::ParamDir::RO, Master::transport_delay_cycles());
     b.planned_load = make_param<double>(name + ".planned-load", hal::ParamDir::RO, b.master->config().load().worst_case());
+    b.planned_cycle_load =
+        make_param<double>(name + ".planned-cycle-load", hal::ParamDir::RO, b.master->config().load().worst_cycle());
     const Master& m = *b.master;
     for (std::size_t i = 0; i < m.node_count(); ++i) {
       const NodeConfig& c = m.config().nodes[i];

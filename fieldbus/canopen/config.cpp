@@ -218,24 +218,112 @@ const NodeConfig* BusConfig::node(uint8_t id) const noexcept {
   return nullptr;
 }
 
+namespace {
+
+bool is_event_transmission(uint8_t t) noexcept { return t >= 253; }
+
+// The bus-load plan's interval of an event-driven TPDO: the longer of its
+// inhibit time and the declared interval; 0 when nothing bounds it.
+int64_t event_interval_ns(const PdoConfig& p) noexcept {
+  return std::max<int64_t>(int64_t{p.inhibit_100us} * 100'000, int64_t{p.plan_interval_us} * 1000);
+}
+
+}  // namespace
+
 std::vector<can::ScheduledFrame> BusConfig::schedule() const {
   std::vector<can::ScheduledFrame> out;
-  out.push_back({"SYNC", sync_overflow ? 1u : 0u, false, 1, 0});
+  auto sync_frame = [](std::string label, uint32_t bytes, uint32_t cob) {
+    can::ScheduledFrame f;
+    f.label = std::move(label);
+    f.data_bytes = bytes;
+    f.cob_id = cob;
+    return f;
+  };
+  auto sporadic = [](std::string label, uint32_t bytes, uint32_t cob, int64_t interval_ns) {
+    can::ScheduledFrame f;
+    f.label = std::move(label);
+    f.data_bytes = bytes;
+    f.cob_id = cob;
+    f.period_ns = interval_ns;
+    return f;
+  };
+  out.push_back(sync_frame("SYNC", sync_overflow ? 1u : 0u, sync_cob_id & 0x7FF));
+  uint8_t lowest_id = 127;
   for (const auto& n : nodes) {
-    for (const auto& p : n.rpdos) out.push_back({n.label() + " RPDO" + std::to_string(p.number), p.bytes(), false, 1, 0});
+    lowest_id = std::min(lowest_id, n.id);
+    // The master sends every RPDO every cycle.
+    for (const auto& p : n.rpdos) {
+      const uint32_t cob = p.cob_id ? (p.cob_id & 0x7FF) : default_pdo_cob(false, p.number, n.id);
+      out.push_back(sync_frame(n.label() + " RPDO" + std::to_string(p.number), p.bytes(), cob));
+    }
     for (const auto& p : n.tpdos) {
-      can::ScheduledFrame f{n.label() + " TPDO" + std::to_string(p.number), p.bytes(), false, 1, 0};
-      if (p.transmission >= 1 && p.transmission <= kTransmissionSyncMax) f.every_n_cycles = p.transmission;
-      else if (!is_sync_transmission(p.transmission) && p.event_ms > 0) f.period_ns = int64_t{p.event_ms} * 1'000'000;
+      const uint32_t cob = p.cob_id ? (p.cob_id & 0x7FF) : default_pdo_cob(true, p.number, n.id);
+      const std::string label = n.label() + " TPDO" + std::to_string(p.number);
+      if (is_event_transmission(p.transmission)) {
+        // Unbounded ones are refused by validate(); plan them every cycle.
+        const int64_t interval = event_interval_ns(p);
+        out.push_back(sporadic(label, p.bytes(), cob, interval > 0 ? interval : cycle_ns));
+        continue;
+      }
+      can::ScheduledFrame f = sync_frame(label, p.bytes(), cob);
+      if (p.transmission >= 1) f.every_n_cycles = p.transmission;
+      // The SYNC counter fixes the phase when its overflow is a multiple of
+      // the divider: sent at counter == SYNC_START, then every n-th.
+      if (f.every_n_cycles > 1 && sync_overflow > 0 && p.sync_start > 0 && sync_overflow % f.every_n_cycles == 0) {
+        f.slot = static_cast<int32_t>((p.sync_start - 1u) % f.every_n_cycles);
+      }
       out.push_back(f);
     }
-    if (n.heartbeat_ms > 0) out.push_back({n.label() + " heartbeat", 1, false, 1, int64_t{n.heartbeat_ms} * 1'000'000});
+    if (n.heartbeat_ms > 0) {
+      out.push_back(sporadic(n.label() + " heartbeat", 1, cob::heartbeat(n.id), int64_t{n.heartbeat_ms} * 1'000'000));
+    }
   }
-  if (master_heartbeat_ms > 0) out.push_back({"master heartbeat", 1, false, 1, int64_t{master_heartbeat_ms} * 1'000'000});
+  if (master_heartbeat_ms > 0) {
+    out.push_back(sporadic("master heartbeat", 1, cob::heartbeat(master_node_id), int64_t{master_heartbeat_ms} * 1'000'000));
+  }
+  // Allowances: EMCY (8 bytes, at the highest EMCY priority of the bus) and
+  // SDO (8 bytes, below every PDO).
+  if (plan_emcy_frames > 0 && !nodes.empty()) {
+    can::ScheduledFrame f = sync_frame("EMCY allowance", 8, cob::emcy(lowest_id));
+    f.per_cycle = plan_emcy_frames;
+    out.push_back(f);
+  }
+  if (plan_sdo_frames > 0 && !nodes.empty()) {
+    can::ScheduledFrame f = sync_frame("SDO allowance", 8, cob::sdo_response(lowest_id));
+    f.per_cycle = plan_sdo_frames;
+    out.push_back(f);
+  }
   return out;
 }
 
 can::BusLoad BusConfig::load() const { return can::compute_bus_load(schedule(), cycle_ns, bitrate); }
+
+std::string BusConfig::load_problem() const {
+  const can::BusLoad l = load();
+  std::string out;
+  char buf[400];
+  if (l.worst_case() > max_bus_load) {
+    std::snprintf(buf, sizeof buf,
+                  "average load %.1f %% in the worst case (%.1f %% nominal) exceeds the budget of %.0f %% (MAX_BUS_LOAD)",
+                  l.worst_case() * 100, l.nominal() * 100, max_bus_load * 100);
+    out = buf;
+  }
+  if (l.worst_cycle() > max_cycle_load) {
+    const can::SlotLoad& s = l.slots[l.worst_slot];
+    std::snprintf(buf, sizeof buf,
+                  "%scycle slot %u of %zu needs %.0f bit times (%.0f synchronous + %.0f higher-priority events and "
+                  "allowances + %.0f blocking), %.1f %% of the SYNC period, above the budget of %.0f %% (MAX_CYCLE_LOAD)",
+                  out.empty() ? "" : "; ", s.slot, l.slots.size(), s.total(), s.synchronous_bits, s.interference_bits,
+                  s.blocking_bits, l.worst_cycle() * 100, max_cycle_load * 100);
+    out += buf;
+  }
+  if (out.empty()) return out;
+  std::snprintf(buf, sizeof buf,
+                " (SYNC period %lld us, %u kbit/s): use fewer or shorter PDOs, inhibit times on event PDOs, "
+                "SYNC_START phases, a longer period or a second bus",
+                static_cast<long long>(cycle_ns / 1000), bitrate / 1000);
+  return out + buf;
+}
 
 void BusConfig::validate() const {
   auto fail = [&](const std::string& what) { throw std::runtime_error(name + ": " + what); };
@@ -270,6 +358,12 @@ void BusConfig::validate() const {
         if (p.map.size() > 64) fail(what + ": more than 64 mapped objects");
         if (p.total_bits() > 64) fail(what + ": " + std::to_string(p.total_bits()) + " bits mapped, a classic CAN PDO holds 64");
         if (!is_valid_transmission(p.transmission, tpdo)) fail(what + ": transmission type " + std::to_string(p.transmission) + " is reserved or not allowed");
+        if (tpdo && is_event_transmission(p.transmission) && event_interval_ns(p) == 0) {
+          const std::string k = "TPDO" + std::to_string(p.number);
+          fail(what + ": event-driven (transmission " + std::to_string(p.transmission) +
+               ") with nothing bounding its rate, the bus load cannot be planned: give " + k +
+               "_INHIBIT_100US (the device enforces it) or " + k + "_MIN_INTERVAL_US (what the application guarantees)");
+        }
         const uint32_t id = p.cob_id ? (p.cob_id & 0x7FF) : default_pdo_cob(tpdo, p.number, n.id);
         if (id == 0) fail(what + ": PDOs above 4 need a COB_ID");
         claim(id, what);
@@ -292,15 +386,8 @@ void BusConfig::validate() const {
       }
     }
   }
-  const can::BusLoad l = load();
-  if (l.worst_case() > max_bus_load) {
-    char buf[256];
-    std::snprintf(buf, sizeof buf,
-                  "bus load %.1f %% in the worst case (%.1f %% nominal) exceeds the budget of %.0f %% "
-                  "(SYNC period %lld us, %u kbit/s): use fewer or shorter PDOs, a longer period or a second bus",
-                  l.worst_case() * 100, l.nominal() * 100, max_bus_load * 100, static_cast<long long>(cycle_ns / 1000),
-                  bitrate / 1000);
-    fail(buf);
+  if (const std::string problem = load_problem(); !problem.empty() && !load_override) {
+    fail("bus load: " + problem + "; LOAD_OVERRIDE = YES runs it anyway, with a warning");
   }
 }
 
@@ -373,6 +460,10 @@ BusConfig load_bus_config(const ini::IniFile& ini, const std::string& section, c
   c.reset_nodes = ini.get_bool(section, "RESET_NODES", true);
   c.start_all = ini.get_bool(section, "START_ALL_NODES", false);
   c.max_bus_load = ini.get_double(section, "MAX_BUS_LOAD", 80, {1, 100}) / 100.0;
+  c.max_cycle_load = ini.get_double(section, "MAX_CYCLE_LOAD", 90, {1, 100}) / 100.0;
+  c.plan_emcy_frames = static_cast<uint32_t>(ini.get_int(section, "EMCY_FRAMES_PER_CYCLE", 1, {0, 127}));
+  c.plan_sdo_frames = static_cast<uint32_t>(ini.get_int(section, "SDO_FRAMES_PER_CYCLE", 2, {0, 100}));
+  c.load_override = ini.get_bool(section, "LOAD_OVERRIDE", false);
   c.pdo_miss_limit = static_cast<uint32_t>(ini.get_int(section, "PDO_MISS_LIMIT", 3, {0, 1000}));
 
   std::vector<std::pair<uint8_t, const ini::Entry*>> ids;
@@ -455,12 +546,14 @@ BusConfig load_bus_config(const ini::IniFile& ini, const std::string& section, c
         const int64_t event = key_int("EVENT_MS", p ? p->event_ms : 0, 0, 65535);
         const int64_t inhibit = tpdo ? key_int("INHIBIT_100US", p ? p->inhibit_100us : 0, 0, 65535) : 0;
         const int64_t start = tpdo ? key_int("SYNC_START", p ? p->sync_start : 0, 0, 240) : 0;
+        const int64_t plan_interval = tpdo ? key_int("MIN_INTERVAL_US", 0, 0, 60'000'000) : 0;
         if (!p) continue;
         p->transmission = static_cast<uint8_t>(transmission);
         p->cob_id = static_cast<uint32_t>(cob);
         p->event_ms = static_cast<uint16_t>(event);
         p->inhibit_100us = static_cast<uint16_t>(inhibit);
         p->sync_start = static_cast<uint8_t>(start);
+        p->plan_interval_us = static_cast<uint32_t>(plan_interval);
         (tpdo ? n.tpdos : n.rpdos).push_back(*p);
         (tpdo ? n.tpdo_kinds : n.rpdo_kinds).push_back(kinds);
       }

@@ -71,18 +71,29 @@ struct BusConfig {
   int64_t boot_timeout_ns = 5'000'000'000;
   bool reset_nodes = true;                 // NMT reset communication before the boot
   bool start_all = false;                  // one broadcast NMT start instead of one per node
-  double max_bus_load = 0.8;               // worst-case budget
+  double max_bus_load = 0.8;               // budget of the average load (worst-case stuffing)
+  double max_cycle_load = 0.9;             // budget of the busiest cycle slot, share of the SYNC period
+  uint32_t plan_emcy_frames = 1;           // EMCY frames the plan allows in any cycle
+  uint32_t plan_sdo_frames = 2;            // SDO frames the plan allows in any cycle
+  bool load_override = false;              // a plan above a budget only warns (LOAD_OVERRIDE = YES)
   uint32_t pdo_miss_limit = 3;             // consecutive missed TPDOs that fault a node; 0: never
   std::vector<NodeConfig> nodes;
   std::string origin;                      // "[CANOPEN]" of file:line
 
-  // The frames one SYNC period carries (SYNC, RPDOs, TPDOs) and the
-  // heartbeats, for the load calculator.
+  // Every frame the configuration lets onto the bus, at its highest rate,
+  // for the load calculator (can/bus_load.hpp): SYNC, RPDOs and synchronous
+  // TPDOs (in their slot when SYNC_COUNTER_OVERFLOW and SYNC_START fix it),
+  // event-driven TPDOs at their inhibit time or declared interval,
+  // heartbeats, the EMCY and SDO allowances.
   std::vector<can::ScheduledFrame> schedule() const;
   can::BusLoad load() const;
+  // What exceeds a budget ("" when the plan fits): the average load above
+  // MAX_BUS_LOAD or the busiest slot above MAX_CYCLE_LOAD, with figures.
+  std::string load_problem() const;
   // Throws std::runtime_error naming the node and what is wrong (duplicate
   // IDs, PDO longer than 8 bytes, a mapping the EDS refuses, COB-ID
-  // collisions, load above the budget, ...).
+  // collisions, an event-driven TPDO without a bound on its rate, load
+  // above a budget unless load_override, ...).
   void validate() const;
   const NodeConfig* node(uint8_t id) const noexcept;
 };

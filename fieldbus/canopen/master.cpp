@@ -163,8 +163,10 @@ void Master::build_steps(NodeRt& n) {
       for (unsigned number = 1; number <= 4; ++number) {
         if (std::any_of(list.begin(), list.end(), [&](const PdoConfig& p) { return p.number == number; })) continue;
         const uint16_t comm = tpdo ? tpdo_comm_index(number) : rpdo_comm_index(number);
+        // Read back like every other write: the invalid bit must stick (a
+        // device may keep a PDO it cannot switch off and still answer OK).
         write({comm, 1}, u32_bytes(default_pdo_cob(tpdo, number, c.id) | cob::kPdoInvalid),
-              std::string(kind) + std::to_string(number) + " off (not configured)", false, 0xFFFFFFFF, true);
+              std::string(kind) + std::to_string(number) + " off (not configured)", true, cob::kPdoInvalid, true);
       }
     }
     for (const auto& p : list) {
@@ -284,15 +286,30 @@ void Master::poll(int64_t now_ns) {
     acyclic_port_->send(can::Frame::make(cob::heartbeat(config_.master_node_id), {state}));
     next_heartbeat_ns_ = now_ns + int64_t{config_.master_heartbeat_ms} * 1'000'000;
   }
-  // Heartbeat consumer.
+  // Heartbeat consumer. A heartbeat lost while nothing at all came from
+  // the bus and the interface refused frames is the interface's fault, not
+  // the node's: said once, with the count, before the nodes' messages.
   for (const auto& np : nodes_) {
     NodeRt& n = *np;
     const uint16_t timeout = n.cfg.consumer_timeout_ms();
     if (!n.monitor || timeout == 0 || n.hb_lost.load()) continue;
     if (now_ns - n.last_hb_ns > int64_t{timeout} * 1'000'000) {
+      const uint32_t refused = send_errors_.load(std::memory_order_relaxed) - send_errors_at_rx_;
+      // The interface refuses every frame now (a stopped queue, a link
+      // down, no other node to acknowledge), not one refusal in passing.
+      const bool silent = consecutive_send_errors_.load(std::memory_order_relaxed) >= 3 && refused > 0;
+      if (silent && !silence_reported_) {
+        silence_reported_ = true;
+        const auto last = static_cast<can::SendStatus>(last_send_error_.load(std::memory_order_relaxed));
+        message(true, config_.name,
+                "CAN interface " + cyclic_port_->name() + " is down or disconnected: nothing received for " +
+                    std::to_string((now_ns - last_rx_ns_) / 1'000'000) + " ms and " + std::to_string(refused) +
+                    " frames refused by it (last: " + can::to_string(last) + "); every node's heartbeat is lost");
+      }
       n.hb_lost.store(true);
       set_fault(n, "heartbeat lost: nothing heard for " + std::to_string(timeout) +
-                       " ms (power, cable, termination or bus-off?)");
+                       (silence_reported_ ? " ms (the interface is down, see above)"
+                                          : " ms (power, cable, termination or bus-off?)"));
     }
   }
 }
@@ -304,7 +321,14 @@ void Master::set_fault(NodeRt& n, const std::string& why) {
 }
 
 void Master::handle_frame(const can::Frame& f, int64_t now_ns) {
-  if (f.is_error() || f.is_extended()) return;
+  if (f.is_error()) return;
+  last_rx_ns_ = f.timestamp_ns > 0 && f.timestamp_ns <= now_ns ? f.timestamp_ns : now_ns;
+  send_errors_at_rx_ = send_errors_.load(std::memory_order_relaxed);
+  if (silence_reported_) {
+    silence_reported_ = false;
+    message(false, config_.name, "CAN interface " + cyclic_port_->name() + ": frames received again");
+  }
+  if (f.is_extended()) return;
   const uint32_t id = f.id;
   if (id > cob::kHeartbeatBase && id <= cob::kHeartbeatBase + kMaxNodeId) {
     if (f.is_remote() || f.len < 1) return;

@@ -236,6 +236,14 @@ class Master {
   std::atomic<bool> heartbeat_in_cycle_{false};  // set by the first cyclic_write, never cleared
   int64_t next_cyclic_heartbeat_ns_ = 0;
   std::atomic<bool> interface_down_{false};
+  std::atomic<uint32_t> send_errors_{0};       // cyclic_.send_errors for the acyclic thread
+  std::atomic<uint8_t> last_send_error_{0};    // SendStatus of the last refused send
+  std::atomic<uint32_t> consecutive_send_errors_{0};  // refused sends since the last accepted one
+  // acyclic: when any frame from the bus came last, the send errors then,
+  // and whether the interface's silence has been reported.
+  int64_t last_rx_ns_ = 0;
+  uint32_t send_errors_at_rx_ = 0;
+  bool silence_reported_ = false;
   uint64_t last_read_serial_ = 0;
   uint64_t last_read_cycle_ = 0;  // cycle_ (write_process_data calls) at the previous read
   std::atomic<bool> sync_stalled_{false};

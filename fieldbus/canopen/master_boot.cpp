@@ -24,6 +24,11 @@ void Master::begin_boot() {
     boot_error_.clear();
   }
   boot_state_.store(BootState::Running, std::memory_order_release);
+  // A plan above its budget runs only with LOAD_OVERRIDE, and says so at
+  // every boot, as an error message: TPDOs may arrive late.
+  if (const std::string problem = config_.load_problem(); !problem.empty()) {
+    message(true, config_.name, "LOAD_OVERRIDE: running a bus plan that does not fit: " + problem);
+  }
   post([this](int64_t now) {
     booting_ = true;
     start_sent_ = false;
@@ -94,13 +99,12 @@ void Master::boot_node(NodeRt& n, int64_t now_ns) {
         const Step& st = n.steps[n.step];
         const std::string obj = addr_text(st.addr);
         if (!r.ok()) {
-          if (st.kind == Step::Kind::Write && st.may_be_missing &&
+          if (st.kind != Step::Kind::Expect && st.may_be_missing &&
               (r.abort_code == abort_code::kNoObject || r.abort_code == abort_code::kNoSubIndex)) {
             ++n.step;
             return;
           }
-          char code[200];
-          std::snprintf(code, sizeof code, "0x%08X %s", r.abort_code, sdo_abort_text(r.abort_code));
+          const std::string code = r.abort_text();
           if (n.step == 0 && r.abort_code == abort_code::kTimeout && r.aborted_by_client) {
             node_failed(n, "not found: no answer to SDO upload " + obj + " (device type) within " +
                                std::to_string(config_.sdo_timeout_ns / 1'000'000) + " ms");
@@ -195,9 +199,12 @@ void Master::run_boot(int64_t now_ns) {
     std::size_t up = 0;
     for (const auto& n : nodes_) up += n->phase == Phase::Done;
     const can::BusLoad l = config_.load();
-    char text[200];
-    std::snprintf(text, sizeof text, "%zu of %zu nodes operational in %.0f ms; planned bus load %.1f %% (worst case)", up,
-                  nodes_.size(), static_cast<double>(now_ns - boot_started_ns_) / 1e6, l.worst_case() * 100);
+    char text[240];
+    std::snprintf(text, sizeof text,
+                  "%zu of %zu nodes operational in %.0f ms; planned bus load %.1f %% on average, busiest cycle %.1f %% "
+                  "(worst case)",
+                  up, nodes_.size(), static_cast<double>(now_ns - boot_started_ns_) / 1e6, l.worst_case() * 100,
+                  l.worst_cycle() * 100);
     message(false, config_.name, text);
     cyclic_enabled_.store(true, std::memory_order_release);
     {

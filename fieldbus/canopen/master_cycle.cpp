@@ -191,8 +191,14 @@ bool Master::cyclic_send(const can::Frame& f) noexcept {
       }
     }
   }
-  if (st == can::SendStatus::Ok) return true;
+  if (st == can::SendStatus::Ok) {
+    consecutive_send_errors_.store(0, std::memory_order_relaxed);
+    return true;
+  }
+  consecutive_send_errors_.store(consecutive_send_errors_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
   ++cyclic_.send_errors;
+  send_errors_.store(cyclic_.send_errors, std::memory_order_relaxed);
+  last_send_error_.store(static_cast<uint8_t>(st), std::memory_order_relaxed);
   return false;
 }
 

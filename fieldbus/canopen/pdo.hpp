@@ -49,6 +49,10 @@ struct PdoConfig {
   uint16_t inhibit_100us = 0;     // TPDO only
   uint16_t event_ms = 0;          // TPDO: send period; RPDO: reception deadline
   uint8_t sync_start = 0;         // TPDO only
+  // Event-driven TPDO, for the bus-load plan only (not sent to the device):
+  // the shortest interval between two transmissions the application
+  // guarantees, when it is longer than the inhibit time. 0: none declared.
+  uint32_t plan_interval_us = 0;
   std::vector<PdoMapEntry> map;
   uint32_t total_bits() const noexcept;
   uint32_t bytes() const noexcept { return (total_bits() + 7) / 8; }

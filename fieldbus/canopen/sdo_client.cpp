@@ -19,15 +19,25 @@ const char* to_string(SdoMode m) noexcept {
   return "?";
 }
 
+std::string SdoResult::abort_text() const {
+  char buf[200];
+  std::snprintf(buf, sizeof buf, "0x%08X %s", abort_code, sdo_abort_text(abort_code));
+  std::string out = buf;
+  if (answered_for) {
+    char a[16];
+    out += std::string(": the node answered for ") + format(*answered_for, a, sizeof a);
+  }
+  return out;
+}
+
 std::string SdoResult::message() const {
   char a[16];
   char buf[320];
   if (ok()) {
     std::snprintf(buf, sizeof buf, "SDO %s %s done", upload ? "upload" : "download", format(addr, a, sizeof a));
   } else {
-    std::snprintf(buf, sizeof buf, "SDO %s %s aborted by the %s: 0x%08X %s", upload ? "upload" : "download",
-                  format(addr, a, sizeof a), aborted_by_client ? "master" : "device", abort_code,
-                  sdo_abort_text(abort_code));
+    std::snprintf(buf, sizeof buf, "SDO %s %s aborted by the %s: %s", upload ? "upload" : "download",
+                  format(addr, a, sizeof a), aborted_by_client ? "master" : "device", abort_text().c_str());
   }
   return buf;
 }
@@ -49,7 +59,7 @@ void SdoClient::download(ObjectAddress a, std::vector<uint8_t> data, Done done, 
 
 void SdoClient::send(const uint8_t (&b)[8]) { transport_.send(can::Frame::make(request_cob_, b, 8)); }
 
-void SdoClient::fail(uint32_t code, bool by_client) {
+void SdoClient::fail(uint32_t code, bool by_client, std::optional<ObjectAddress> answered_for) {
   if (by_client) {
     uint8_t b[8] = {0x80};
     put_le<uint16_t>(b + 1, active_.addr.index);
@@ -62,6 +72,7 @@ void SdoClient::fail(uint32_t code, bool by_client) {
   r.upload = active_.upload;
   r.abort_code = code;
   r.aborted_by_client = by_client;
+  r.answered_for = answered_for;
   state_ = State::Idle;
   Done done = std::move(active_.done);
   if (done) done(r);
@@ -225,7 +236,7 @@ bool SdoClient::on_frame(const can::Frame& f, int64_t now_ns) {
   const ObjectAddress addr{get_le<uint16_t>(d + 1), d[3]};
   auto multiplexer_ok = [&] {
     if (addr == active_.addr) return true;
-    fail(abort_code::kGeneral, true);
+    fail(abort_code::kGeneral, true, addr);
     return false;
   };
   switch (state_) {

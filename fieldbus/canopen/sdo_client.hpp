@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,7 +27,13 @@ struct SdoResult {
   uint32_t abort_code = 0;     // 0 = success
   bool aborted_by_client = false;  // we aborted (timeout, protocol error), else the server did
   std::vector<uint8_t> data;   // uploads
+  // Set when the master aborted because the node's reply named another
+  // object (multiplexer mismatch): the object it answered for.
+  std::optional<ObjectAddress> answered_for;
   bool ok() const noexcept { return abort_code == 0; }
+  // "0x06020000 object does not exist in the object dictionary", or with
+  // answered_for "0x08000000 general error: the node answered for 0x1017:00"
+  std::string abort_text() const;
   // "SDO upload 0x1018:01 aborted by the server: 0x06020000 object does not exist in the object dictionary"
   std::string message() const;
 
@@ -98,7 +105,7 @@ class SdoClient {
 
   void start(int64_t now_ns);
   void send(const uint8_t (&b)[8]);
-  void fail(uint32_t code, bool by_client);
+  void fail(uint32_t code, bool by_client, std::optional<ObjectAddress> answered_for = std::nullopt);
   void finish();
   void send_download_segment();
   void send_block_segments();

@@ -282,6 +282,7 @@ void SlaveNode::boot(int64_t now_ns) noexcept {
   state_ = NmtState::Initialising;
   sdo_.reset();
   emcy_queued_ = 0;
+  active_emcy_code_ = 0;
   guard_toggle_ = false;
   sync_length_reported_ = false;
   heartbeat_ms_ = 0;  // restart the heartbeat timer
@@ -587,6 +588,12 @@ void SlaveNode::send_emcy_now(const Emcy& e, int64_t now_ns) noexcept {
 }
 
 void SlaveNode::emcy(uint16_t code, uint8_t error_register_bits, const uint8_t* vendor5) noexcept {
+  // One error event, one EMCY (CiA 301 7.2.7.1: sent when an error
+  // occurs): the same code again while it is still active (no error reset
+  // since) is the same error reported by a second part of the device, e.g.
+  // the heartbeat consumer and the application's fault reaction.
+  if (code != 0 && code == active_emcy_code_) return;
+  active_emcy_code_ = code;
   uint8_t reg = od_.get<uint8_t>({0x1001, 0});
   reg = static_cast<uint8_t>(reg | error_register_bits | (code != 0 ? kErrRegGeneric : 0));
   od_.set<uint8_t>({0x1001, 0}, reg);
@@ -614,6 +621,7 @@ void SlaveNode::emcy(uint16_t code, uint8_t error_register_bits, const uint8_t* 
 }
 
 void SlaveNode::clear_emcy(uint8_t error_register_bits) noexcept {
+  active_emcy_code_ = 0;
   uint8_t reg = od_.get<uint8_t>({0x1001, 0});
   reg = static_cast<uint8_t>(reg & ~error_register_bits);
   if ((reg & ~kErrRegGeneric) == 0) reg = 0;

@@ -167,6 +167,7 @@ class SlaveNode {
   int64_t next_heartbeat_ns_ = 0;
   uint32_t emcy_cob_ = 0;
   uint16_t emcy_inhibit_100us_ = 0;
+  uint16_t active_emcy_code_ = 0;  // last EMCY code sent, until clear_emcy
   int64_t last_emcy_ns_ = -1;
   std::array<Emcy, 8> emcy_queue_{};
   std::size_t emcy_queued_ = 0;

@@ -10,6 +10,11 @@ class EthercatLink final : public cia402::DriveLink {
   explicit EthercatLink(Master& m) : m_(m) {}
 
   const std::string& name() const noexcept override { return m_.name(); }
+  // h.lost below is the bus's fault: the safe stop after MISS_LIMIT cycles
+  // without valid process data, or a slave that left OP.
+  const char* loss_causes() const noexcept override {
+    return "process data lost (frames lost or working-counter errors) or a slave left OP";
+  }
   bool has_device(int a) const noexcept override {
     if (a < 1) return false;
     if (m_.slave_count() > 0) return static_cast<std::size_t>(a) <= m_.slave_count();  // scanned

@@ -133,6 +133,28 @@ struct SlaveInfo {
 
 enum class BusPhase : uint8_t { Down, SafeOp, Op, Fault };
 
+// A slave controller's error counters, registers 0x0300-0x0313 (each an
+// 8-bit counter that stops at 255; any write clears them): per port the
+// invalid frames (CRC or framing) and physical-layer RX errors it
+// received, the frames that arrived already marked bad by a slave before
+// it (forwarded RX errors) and the link losses; the processing unit's and
+// the PDI's errors. A corrupted frame shows here at the port it entered,
+// while the master only sees a lost frame or a wrong working counter.
+struct EscErrorCounters {
+  static constexpr uint16_t kBytes = 0x14;
+  std::array<uint8_t, 4> invalid_frames{}, rx_errors{}, forwarded{}, lost_links{};
+  uint8_t processing_unit = 0, pdi = 0;
+  bool read = false;  // false until the first read answered
+
+  static EscErrorCounters decode(const uint8_t* r) noexcept;
+  bool any() const noexcept;
+  // "port 0: 3 invalid frames, 1 RX error; port 1: 1 lost link", only what
+  // is not 0 ("" when nothing is).
+  std::string text() const;
+  // What grew from `before` to this, in the same words.
+  std::string growth_since(const EscErrorCounters& before) const;
+};
+
 // Counters of the cyclic exchange (servo thread writes, anyone reads).
 // Frame round-trip times, 1 us bins up to 10 ms (benchmarks; no allocation).
 struct RoundTripHistogram {
@@ -249,6 +271,12 @@ class Master {
   uint16_t slave_al_code(unsigned position) const noexcept;
   uint16_t slave_emcy_code(unsigned position) const noexcept;
   uint32_t slave_emcy_count(unsigned position) const noexcept;
+  // The error counters of every slave (index position - 1) as last read:
+  // cleared at start-up, read by the worker every second and at a fault.
+  std::vector<EscErrorCounters> error_counters() const;
+  // Reads them now (through the worker once it runs; not from the servo
+  // thread), posts what grew since the last read and returns them.
+  std::vector<EscErrorCounters> read_error_counters();
   const CyclicCounters& counters() const noexcept { return counters_; }
   const PhaseLock& phase_lock() const noexcept { return lock_; }
   void reset_lock_stats() noexcept { lock_.reset_stats(); }
@@ -278,11 +306,17 @@ class Master {
     uint8_t mailbox_counter = 0;
   };
 
+  mutable std::mutex error_counters_mutex_;
+  std::vector<EscErrorCounters> error_counters_;  // per slave, as last read
+
   [[noreturn]] void fail(const std::string& what) const;
   [[noreturn]] void fail_slave(const SlaveInfo& s, const std::string& what) const;
   uint16_t fprd(const SlaveInfo& s, uint16_t ado, uint8_t* data, uint16_t len);
   uint16_t fpwr(const SlaveInfo& s, uint16_t ado, const uint8_t* data, uint16_t len);
   void must_write(const SlaveInfo& s, uint16_t ado, const uint8_t* data, uint16_t len, const char* what);
+  void clear_error_counters();
+  // Reads the first `up_to` slaves' counters on this thread and posts what grew.
+  void update_error_counters(std::size_t up_to = SIZE_MAX);
   std::vector<uint8_t> read_sii(const SlaveInfo& s);
   void request_state(SlaveInfo& s, AlState to);
   void configure_mailbox(SlaveInfo& s);

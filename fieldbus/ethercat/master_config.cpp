@@ -495,6 +495,7 @@ void Master::start_up() {
   configure_dc();
   prepare_cyclic();
   for (SlaveInfo& s : slaves_) request_state(s, AlState::SafeOp);
+  clear_error_counters();  // what start-up and earlier runs left is not this run's
   drain(*cyclic_link_);  // start-up replies the cyclic socket saw too
   good_cycles_.store(0);
   phase_.store(BusPhase::SafeOp, std::memory_order_release);

@@ -66,6 +66,104 @@ void Master::worker_go_op() {
   }
 }
 
+// ------------------------------------------------------------ ESC error counters
+
+EscErrorCounters EscErrorCounters::decode(const uint8_t* r) noexcept {
+  EscErrorCounters c;
+  for (unsigned p = 0; p < 4; ++p) {
+    c.invalid_frames[p] = r[2 * p];
+    c.rx_errors[p] = r[2 * p + 1];
+    c.forwarded[p] = r[0x08 + p];
+    c.lost_links[p] = r[0x10 + p];
+  }
+  c.processing_unit = r[0x0C];
+  c.pdi = r[0x0D];
+  c.read = true;
+  return c;
+}
+
+bool EscErrorCounters::any() const noexcept { return !text().empty(); }
+
+namespace {
+
+std::string counters_text(const EscErrorCounters& now, const EscErrorCounters* before) {
+  auto grown = [&](uint8_t a, uint8_t b) -> unsigned { return a >= b ? a - b : a; };  // cleared since: all new
+  std::string out;
+  for (unsigned p = 0; p < 4; ++p) {
+    std::string port;
+    auto add = [&](unsigned n, const char* one, const char* many) {
+      if (n == 0) return;
+      port += (port.empty() ? "" : ", ") + std::to_string(n) + " " + (n == 1 ? one : many);
+    };
+    add(grown(now.invalid_frames[p], before ? before->invalid_frames[p] : 0), "invalid frame", "invalid frames");
+    add(grown(now.rx_errors[p], before ? before->rx_errors[p] : 0), "RX error", "RX errors");
+    add(grown(now.forwarded[p], before ? before->forwarded[p] : 0), "forwarded error", "forwarded errors");
+    add(grown(now.lost_links[p], before ? before->lost_links[p] : 0), "lost link", "lost links");
+    if (!port.empty()) out += (out.empty() ? "" : "; ") + ("port " + std::to_string(p) + ": ") + port;
+  }
+  const unsigned pu = grown(now.processing_unit, before ? before->processing_unit : 0);
+  const unsigned pdi = grown(now.pdi, before ? before->pdi : 0);
+  if (pu) out += (out.empty() ? "" : "; ") + std::to_string(pu) + " processing-unit error" + (pu == 1 ? "" : "s");
+  if (pdi) out += (out.empty() ? "" : "; ") + std::to_string(pdi) + " PDI error" + (pdi == 1 ? "" : "s");
+  return out;
+}
+
+}  // namespace
+
+std::string EscErrorCounters::text() const { return counters_text(*this, nullptr); }
+std::string EscErrorCounters::growth_since(const EscErrorCounters& before) const {
+  return counters_text(*this, before.read ? &before : nullptr);
+}
+
+std::vector<EscErrorCounters> Master::error_counters() const {
+  std::lock_guard lock(error_counters_mutex_);
+  return error_counters_;
+}
+
+std::vector<EscErrorCounters> Master::read_error_counters() {
+  (void)run_on_worker([this] {
+    update_error_counters();
+    return SdoResult{true, 0, {}, {}};
+  });
+  return error_counters();
+}
+
+void Master::update_error_counters(std::size_t up_to) {
+  std::vector<std::pair<unsigned, EscErrorCounters>> now;
+  for (const SlaveInfo& s : slaves_) {
+    if (s.position > up_to) break;
+    uint8_t r[EscErrorCounters::kBytes] = {};
+    if (fprd(s, reg::kRxErrors, r, sizeof r) != 1) continue;
+    now.emplace_back(s.position, EscErrorCounters::decode(r));
+  }
+  std::vector<std::string> grew;
+  {
+    std::lock_guard lock(error_counters_mutex_);
+    error_counters_.resize(slaves_.size());
+    for (const auto& [position, c] : now) {
+      EscErrorCounters& stored = error_counters_[position - 1];
+      const std::string g = c.growth_since(stored);
+      if (!g.empty()) grew.push_back(slave_label(position) + ": " + g);
+      stored = c;
+    }
+  }
+  for (const std::string& g : grew) {
+    post(false, "error counters " + g +
+                    " (an invalid frame or RX error counts at the port it entered: the cable or connector there, "
+                    "or the slave before it)");
+  }
+}
+
+void Master::clear_error_counters() {
+  const uint8_t zero[EscErrorCounters::kBytes] = {};
+  for (const SlaveInfo& s : slaves_) {
+    (void)fpwr(s, reg::kRxErrors, zero, 0x0E);         // 0x0300-0x030D
+    (void)fpwr(s, reg::kRxErrors + 0x10, zero, 4);     // lost-link counters 0x0310-0x0313
+  }
+  std::lock_guard lock(error_counters_mutex_);
+  error_counters_.assign(slaves_.size(), EscErrorCounters{});
+}
+
 void Master::worker_report_fault() {
   fault_reported_ = true;
   const bool al = al_changed_.load();
@@ -106,6 +204,13 @@ void Master::worker_report_fault() {
         text += fmt(" with AL status code 0x%04X %s", get16(st + 4), al_status_text(get16(st + 4)));
       }
     }
+  }
+  // Where frames were corrupted, if the slaves' counters saw it.
+  if (count && *count > 0) update_error_counters(*count);
+  const std::vector<EscErrorCounters> counters = error_counters();
+  for (std::size_t k = 0; k < counters.size(); ++k) {
+    if (!counters[k].any()) continue;
+    text += fmt("; %s error counters: %s", slave_label(static_cast<unsigned>(k + 1)).c_str(), counters[k].text().c_str());
   }
   {
     std::lock_guard lock(fault_mutex_);
@@ -188,7 +293,7 @@ void Master::run_queued_jobs() {
 
 void Master::worker_loop() {
   worker_id_ = std::this_thread::get_id();
-  int64_t next_emcy = 0;
+  int64_t next_emcy = 0, next_counters = 0;
   bool op_tried = false;
   while (!stop_.load()) {
     run_queued_jobs();
@@ -211,6 +316,10 @@ void Master::worker_loop() {
     if (now >= next_emcy && (ph == BusPhase::SafeOp || ph == BusPhase::Op)) {
       next_emcy = now + 20'000'000;
       worker_poll_emergencies();
+    }
+    if (now >= next_counters && (ph == BusPhase::SafeOp || ph == BusPhase::Op)) {
+      next_counters = now + 1'000'000'000;
+      update_error_counters();
     }
     std::unique_lock lock(jobs_mutex_);
     jobs_cv_.wait_for(lock, std::chrono::milliseconds(1), [this] { return !jobs_.empty() || stop_.load(); });

@@ -302,6 +302,7 @@ void CoeDrive::reply(Esc& esc, const uint8_t* sdo, std::size_t n, CoeService ser
   h.counter = counter_;
   h.encode(m);
   put16(m + 6, coe_header(service));
+  last_reply_service_ = service;
   std::memcpy(m + 8, sdo, std::min<std::size_t>(n, sizeof m - 8));
   esc.post_mailbox(m, kMailboxHeader + len);
 }
@@ -312,7 +313,9 @@ void CoeDrive::abort(Esc& esc, uint16_t index, uint8_t sub, uint32_t code) {
   put16(s + 1, index);
   s[3] = sub;
   put32(s + 4, code);
-  reply(esc, s, 8);
+  // IEC 61158-6-12 (Abort SDO Transfer): the abort travels as an SDO
+  // *request* (CoE service 2), from either side; masters match on it.
+  reply(esc, s, 8, CoeService::SdoRequest);
 }
 
 void CoeDrive::on_mailbox(const uint8_t* data, std::size_t size, Esc& esc, int64_t now_ns) {

@@ -47,6 +47,9 @@ class CoeDrive final : public SlaveApplication {
   uint64_t sdo_requests() const noexcept { return sdo_requests_; }
 
   // SlaveApplication
+  // The CoE service of the last SDO reply posted (tests: aborts are
+  // service 2, SDO request, as IEC 61158-6-12 defines them).
+  CoeService last_reply_service() const noexcept { return last_reply_service_; }
   void on_mailbox(const uint8_t* data, std::size_t size, Esc& esc, int64_t now_ns) override;
   uint16_t check_transition(AlState from, AlState to, const Esc& esc) override;
   void on_state(AlState from, AlState to, int64_t now_ns) override;
@@ -82,6 +85,7 @@ class CoeDrive final : public SlaveApplication {
   uint32_t finish_download(const uint8_t* data, std::size_t n);
   void info_reply(Esc& esc, uint8_t opcode, const std::vector<uint8_t>& payload);
   void reply(Esc& esc, const uint8_t* sdo, std::size_t n, CoeService service = CoeService::SdoResponse);
+  CoeService last_reply_service_ = CoeService::SdoResponse;
   void abort(Esc& esc, uint16_t index, uint8_t sub, uint32_t code);
   uint32_t build_map(uint16_t assign, std::vector<MapItem>& out, unsigned& bits) const;
   uint32_t check_mapping_write(const canopen::OdEntry& e, const uint8_t* d, std::size_t n) const;

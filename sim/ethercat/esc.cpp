@@ -372,4 +372,16 @@ uint16_t Esc::execute_logical(DatagramRef& d, int64_t now_ns) noexcept {
   return static_cast<uint16_t>((read_hit ? 1 : 0) + (write_hit ? 2 : 0));
 }
 
+void Esc::inject_invalid_frames(unsigned port, unsigned n) noexcept {
+  if (port > 3) return;
+  uint8_t& c = mem_[reg::kRxErrors + 2 * port];
+  c = static_cast<uint8_t>(std::min<unsigned>(255, c + n));
+}
+
+void Esc::inject_lost_link(unsigned port) noexcept {
+  if (port > 3) return;
+  uint8_t& c = mem_[reg::kRxErrors + 0x10 + port];
+  c = static_cast<uint8_t>(std::min<unsigned>(255, c + 1u));
+}
+
 }  // namespace cnc::ethercat::sim

@@ -100,6 +100,10 @@ class Esc {
   int64_t system_time(int64_t t_ns) const noexcept;
   int64_t system_time_difference() const noexcept { return last_diff_ns_; }
 
+  // Fault injection: `n` corrupted frames received at `port` (0..3), as
+  // the error counters 0x0300-0x0313 count them (8 bits, stop at 255).
+  void inject_invalid_frames(unsigned port, unsigned n) noexcept;
+  void inject_lost_link(unsigned port) noexcept;
   // Fault injection: refuse the transition into `s` with `code` (0: accept).
   void refuse_state(AlState s, uint16_t code) noexcept { refuse_state_ = s, refuse_code_ = code; }
   uint64_t watchdog_expiries() const noexcept { return wd_expired_; }

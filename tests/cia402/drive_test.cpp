@@ -561,6 +561,8 @@ SERVO_PERIOD = 1000000
 INTERFACE = virtual:rig
 NODE = 1 2
 MASTER_HEARTBEAT_MS = 20
+EMCY_FRAMES_PER_CYCLE = 0
+SDO_FRAMES_PER_CYCLE = 0
 [CIA402]
 BUS = canopen.0
 DRIVE = 0
@@ -745,6 +747,25 @@ TEST(Cia402Drive, WhenTheServoCycleStopsTheDrivesStopWithinTheirHeartbeatTimeout
   EXPECT_EQ(rig.sim().error_code(), err::kHeartbeat);
   EXPECT_EQ(rig.host().at(0).node().counters().heartbeats_lost, 1u);
   EXPECT_EQ(rig.master().node_status(1).emcy_code, err::kHeartbeat) << "EMCY 0x8130 reached the master";
+}
+
+// One loss of the master's heartbeat is one error event: one EMCY 0x8130
+// (the heartbeat consumer's), not a second one when the drive's fault
+// reaction reports the same code, and one message at the master.
+TEST(Cia402Drive, OneLossOfTheMastersHeartbeatGivesOneEmcy) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) { ini.set("CIA402_SIM_NODE_1", "SYNC_TIMEOUT_MS", "10000"); });
+  rig.configure();
+  ASSERT_TRUE(rig.enable());
+  rig.cycles(100, [](Rig&) {});
+  const auto sent_before = rig.host().at(0).node().counters().emcys;
+  const uint32_t heard_before = rig.master().node_status(1).emcy_count;
+  rig.mute_bus(true);
+  const int64_t stopped_cycle = rig.now();
+  while (rig.now() - stopped_cycle < 500'000'000) rig.step();
+  ASSERT_EQ(rig.sim().state(), State::Fault);
+  EXPECT_EQ(rig.sim().error_code(), err::kHeartbeat);
+  EXPECT_EQ(rig.host().at(0).node().counters().emcys - sent_before, 1u);
+  EXPECT_EQ(rig.master().node_status(1).emcy_count - heard_before, 1u);
 }
 
 // The reaction is the drive's 0x6007: here a quick stop instead of a fault.

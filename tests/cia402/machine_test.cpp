@@ -35,7 +35,7 @@ std::string machine_ini(const std::string& bus, double drive_window_mm, double f
          "\nNODE = 1\nMASTER_HEARTBEAT_MS = 100\nPDO_MISS_LIMIT = 0\n"
          "[CANOPEN_NODE_1]\nNAME = x-axis\nHEARTBEAT_MS = 100\nHEARTBEAT_TIMEOUT_MS = 5000\n"
          "RPDO1 = 0x6040:0:u16 0x607A:0:s32\nTPDO1 = 0x6041:0:u16 0x6064:0:s32\n"
-         "TPDO2 = 0x6061:0:s8 0x603F:0:u16\nTPDO2_TRANSMISSION = 255\nTPDO2_EVENT_MS = 100\n"
+         "TPDO2 = 0x6061:0:s8 0x603F:0:u16\nTPDO2_TRANSMISSION = 255\nTPDO2_INHIBIT_100US = 10\nTPDO2_EVENT_MS = 100\n"
          "[CIA402]\nBUS = canopen.0\nDRIVE = 0\n"
          "[CIA402_DRIVE_0]\nADDRESS = 1\nNAME = x-axis\nJOINT = 0\nENCODER_COUNTS = 10000\nSCREW_LEAD = 5\n"
          "FERROR_WINDOW = " +

@@ -43,6 +43,12 @@ NODE = 1
 MASTER_HEARTBEAT_MS = 20
 PDO_MISS_LIMIT = 3
 MAX_BUS_LOAD = 100
+# Everything synchronous on one axis: 920 bit times per cycle. The rig has
+# no EMCY or SDO allowance in its plan (a cycle with an EMCY or SDO frame
+# may see a TPDO late, which PDO_MISS_LIMIT = 3 tolerates).
+MAX_CYCLE_LOAD = 100
+EMCY_FRAMES_PER_CYCLE = 0
+SDO_FRAMES_PER_CYCLE = 0
 
 [CANOPEN_NODE_1]
 NAME = x-axis
@@ -242,6 +248,7 @@ class Rig {
    public:
     SteppedLink(Rig& rig, std::unique_ptr<DriveLink> inner) : rig_(rig), inner_(std::move(inner)) {}
     const std::string& name() const noexcept override { return inner_->name(); }
+    const char* loss_causes() const noexcept override { return inner_->loss_causes(); }
     bool has_device(int a) const noexcept override { return inner_->has_device(a); }
     Slot output(int a, Object o) const noexcept override { return inner_->output(a, o); }
     Slot input(int a, Object o) const noexcept override { return inner_->input(a, o); }

@@ -23,20 +23,28 @@ TEST(Cia402SimMill, MachineOnIsDoneWhenEveryDriveFollowsAndHomingMayStartAtOnce)
   mill.pace = canopen::test::acyclic_pacer(mill.hal());
   mill.step(100);
   ASSERT_EQ(mill.send(ipc::CommandType::TaskSetState, 2).first, ipc::CommandState::Done) << mill.errors();
-  for (const char* drive : {"00", "01", "02"}) {
-    EXPECT_EQ(mill.hal().get_value(std::string("cia402.0.drive.") + drive + ".enabled"), "FALSE");
+  // X and Y on canopen.0 (cia402.0), Z on canopen.1 beside the spindle.
+  const char* const axes[] = {"cia402.0.drive.00", "cia402.0.drive.01", "cia402.1.drive.01"};
+  for (const char* drive : axes) {
+    EXPECT_EQ(mill.hal().get_value(std::string(drive) + ".enabled"), "FALSE");
   }
   const double asked = mill.seconds();
   const auto on = mill.send(ipc::CommandType::TaskSetState, 4);
   ASSERT_EQ(on.first, ipc::CommandState::Done) << on.second << mill.errors();
   // Answered in the cycle the last drive began to follow, not before.
   EXPECT_GT(mill.seconds() - asked, 0.002);
-  for (const char* drive : {"00", "01", "02"}) {
-    EXPECT_EQ(mill.hal().get_value(std::string("cia402.0.drive.") + drive + ".enabled"), "TRUE") << "drive " << drive;
+  for (const char* drive : axes) {
+    EXPECT_EQ(mill.hal().get_value(std::string(drive) + ".enabled"), "TRUE") << drive;
   }
   // No pause for the drives: homing (X, Y by their drives, Z by motion on
   // the drive's switch and index) right after "on".
+  const std::string missed0 = mill.hal().get_value("canopen.0.pdo-missed");
+  const std::string missed1 = mill.hal().get_value("canopen.1.pdo-missed");
   const auto home = mill.send(ipc::CommandType::JointHome, -1);
   EXPECT_EQ(home.first, ipc::CommandState::Done) << home.second;
   EXPECT_EQ(mill.errors(), "");
+  // In simulated time (no host load), every TPDO answered its SYNC in time
+  // on both buses while the three axes homed: the plan fits.
+  EXPECT_EQ(mill.hal().get_value("canopen.0.pdo-missed"), missed0);
+  EXPECT_EQ(mill.hal().get_value("canopen.1.pdo-missed"), missed1);
 }

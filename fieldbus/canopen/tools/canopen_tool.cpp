@@ -48,20 +48,50 @@ void drain_messages(MessageQueue& q) {
 }
 
 int cmd_load(const BusConfig& c) {
-  std::printf("%s on %s: SYNC period %lld us, %u kbit/s, budget %.0f %% (worst case)\n", c.name.c_str(),
-              c.interface.c_str(), static_cast<long long>(c.cycle_ns / 1000), c.bitrate / 1000, c.max_bus_load * 100);
-  std::printf("  %-32s %5s %10s %13s %11s\n", "frame", "bytes", "per cycle", "nominal bits", "worst bits");
-  for (const auto& f : c.schedule()) {
-    const double per = f.period_ns > 0 ? static_cast<double>(c.cycle_ns) / static_cast<double>(f.period_ns)
-                                       : 1.0 / std::max<uint32_t>(1, f.every_n_cycles);
-    std::printf("  %-32s %5u %10.3f %13.1f %11.1f\n", f.label.c_str(), f.data_bytes, per,
-                per * can::nominal_frame_bits(f.extended, f.data_bytes),
-                per * can::worst_case_frame_bits(f.extended, f.data_bytes));
+  std::printf("%s on %s: SYNC period %lld us, %u kbit/s, budgets %.0f %% average (MAX_BUS_LOAD), %.0f %% of the "
+              "busiest cycle (MAX_CYCLE_LOAD)\n",
+              c.name.c_str(), c.interface.c_str(), static_cast<long long>(c.cycle_ns / 1000), c.bitrate / 1000,
+              c.max_bus_load * 100, c.max_cycle_load * 100);
+  std::printf("  %-30s %5s %6s %-11s %-16s %9s %9s %10s %9s\n", "frame", "COB", "bytes", "class", "rate",
+              "avg/cycle", "max/cycle", "worst bits", "avg bits");
+  const auto frames = c.schedule();
+  for (const auto& f : frames) {
+    char rate[32];
+    switch (f.frame_class()) {
+      case can::FrameClass::Synchronous:
+        if (f.every_n_cycles <= 1) std::snprintf(rate, sizeof rate, "every cycle");
+        else if (f.slot >= 0) std::snprintf(rate, sizeof rate, "1/%u, slot %d", f.every_n_cycles, f.slot);
+        else std::snprintf(rate, sizeof rate, "1/%u, any slot", f.every_n_cycles);
+        break;
+      case can::FrameClass::Sporadic:
+        std::snprintf(rate, sizeof rate, "<= 1 per %.1f ms", static_cast<double>(f.period_ns) / 1e6);
+        break;
+      case can::FrameClass::Allowance: std::snprintf(rate, sizeof rate, "%u per cycle", f.per_cycle); break;
+    }
+    const double bits = can::worst_case_frame_bits(f.extended, f.data_bytes);
+    std::printf("  %-30s 0x%03X %6u %-11s %-16s %9.3f %9u %10.0f %9.1f\n", f.label.c_str(), f.cob_id, f.data_bytes,
+                can::to_string(f.frame_class()), rate, f.average_per_cycle(c.cycle_ns), f.max_per_cycle(c.cycle_ns), bits,
+                f.average_per_cycle(c.cycle_ns) * bits);
   }
   const can::BusLoad l = c.load();
-  std::printf("  %-32s %5s %10s %13.1f %11.1f  of %.0f bit times\n", "total", "", "", l.nominal_bits_per_cycle,
-              l.worst_bits_per_cycle, l.cycle_bits);
-  std::printf("load: %.1f %% nominal, %.1f %% worst case\n", l.nominal() * 100, l.worst_case() * 100);
+  std::printf("average: %.1f bits per cycle nominal, %.1f worst case of %.0f bit times: %.1f %% nominal, %.1f %% worst case\n",
+              l.nominal_bits_per_cycle, l.worst_bits_per_cycle, l.cycle_bits, l.nominal() * 100, l.worst_case() * 100);
+  std::printf("per cycle slot (worst-case stuffing; synchronous frames, higher-priority events and allowances, one\n"
+              "lower-priority frame already on the wire):\n");
+  std::printf("  %5s %12s %13s %9s %7s %7s\n", "slot", "synchronous", "interference", "blocking", "total", "cycle");
+  for (const auto& s : l.slots) {
+    std::printf("  %5u %12.0f %13.0f %9.0f %7.0f %6.1f%%%s\n", s.slot, s.synchronous_bits, s.interference_bits,
+                s.blocking_bits, s.total(), s.total() / l.cycle_bits * 100,
+                &s == &l.slots[l.worst_slot] ? "  <- busiest" : "");
+  }
+  std::printf("load: %.1f %% nominal, %.1f %% worst case on average; busiest cycle %.1f %%\n", l.nominal() * 100,
+              l.worst_case() * 100, l.worst_cycle() * 100);
+  const std::string problem = c.load_problem();
+  if (!problem.empty()) {
+    std::printf("%s: %s\n", c.load_override ? "WARNING (LOAD_OVERRIDE)" : "REFUSED", problem.c_str());
+    return c.load_override ? 0 : 1;
+  }
+  std::printf("fits\n");
   return 0;
 }
 

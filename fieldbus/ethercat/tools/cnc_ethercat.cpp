@@ -204,6 +204,21 @@ int run(const Options& o) {
   double max_ferror = 0;
   bool ok = true;
   std::string failure;
+  // Every end of the run (a fault, a failed stage, the time is up) goes
+  // through `stopping`: the cycle runs on with the drives disabled, which
+  // quick-stops them (0x605A), until none is enabled or 1 s passed; then
+  // the slaves are put back to INIT (release), not left in OP.
+  bool stopping = false;
+  int64_t stop_start = 0;
+  auto stop_because = [&](std::string why, int64_t at) {
+    if (stopping) return;
+    if (!why.empty()) {
+      failure = std::move(why);
+      ok = false;
+    }
+    stopping = true;
+    stop_start = at;
+  };
   for (;;) {
     sleep_until(next);
     const int64_t wake = now_ns();
@@ -221,7 +236,7 @@ int run(const Options& o) {
     const double t = stage == Stage::Run ? static_cast<double>(wake - run_start) * 1e-9 : 0.0;
     for (std::size_t i = 0; i < group.size(); ++i) {
       cia402::DriveCommand& c = group.command(i);
-      c.enable = stage == Stage::Enable || stage == Stage::Run;
+      c.enable = !stopping && (stage == Stage::Enable || stage == Stage::Run);
       c.pos_cmd = o.move && stage == Stage::Run ? 10.0 * std::sin(2 * M_PI * 0.5 * t) : 0.0;
       if (stage == Stage::Run && t > 0.5) {
         max_ferror = std::max(max_ferror, std::abs(group.feedback(i).pos_fb - c.pos_cmd));
@@ -232,11 +247,19 @@ int run(const Options& o) {
     next += o.cycle_ns + m.take_phase_adjust();
     if (next < now_ns() - 10 * o.cycle_ns) next = now_ns();  // far behind: rejoin the grid
 
+    if (stopping) {
+      bool moving = false;
+      for (std::size_t i = 0; i < group.size(); ++i) {
+        const cia402::State st = group.feedback(i).state;
+        moving = moving || st == cia402::State::OperationEnabled || st == cia402::State::QuickStopActive;
+      }
+      if (!moving || wake - stop_start > 1'000'000'000) break;
+      continue;
+    }
     if (m.has_fault()) {
-      for (int i = 0; i < 1500 && m.fault_text().empty(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(2));
-      failure = m.fault_text();
-      ok = false;
-      break;
+      stop_because("bus fault", wake);  // the text comes from the worker, below
+      std::fprintf(stderr, "cnc-ethercat: bus fault: quick stop of the drives\n");
+      continue;
     }
     if (stage == Stage::WaitOp && m.is_operational()) {
       stage = Stage::Configure;
@@ -250,9 +273,8 @@ int run(const Options& o) {
       });
     } else if (stage == Stage::Configure && configured) {
       if (!config_error.empty()) {
-        failure = config_error;
-        ok = false;
-        break;
+        stop_because(config_error, wake);
+        continue;
       }
       stage = Stage::Enable;
       enable_start = wake;
@@ -265,16 +287,16 @@ int run(const Options& o) {
         m.reset_lock_stats();
         bad_at_run = m.counters().frames_lost + m.counters().frames_late + m.counters().wkc_errors;
       } else if (wake - enable_start > 5'000'000'000) {
-        failure = "drives did not enable within 5 s";
-        ok = false;
-        break;
+        stop_because("drives did not enable within 5 s", wake);
       }
     } else if (stage == Stage::WaitOp && wake - start > 10'000'000'000) {
-      failure = "bus did not reach OP within 10 s";
-      ok = false;
-      break;
+      stop_because("bus did not reach OP within 10 s", wake);
     }
-    if (stage == Stage::Run && wake - run_start > duration) break;
+    if (stage == Stage::Run && wake - run_start > duration) stop_because("", wake);
+  }
+  if (m.has_fault()) {
+    for (int i = 0; i < 1500 && m.fault_text().empty(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    if (failure == "bus fault" && !m.fault_text().empty()) failure = m.fault_text();
   }
   if (configurer.joinable()) configurer.join();
   const CyclicCounters& c = m.counters();
@@ -309,7 +331,16 @@ int run(const Options& o) {
                 static_cast<long long>(o.cycle_ns / 10 / 1000), c.dc_sync_diff_ns.load());
   }
   if (o.move) std::printf("largest following difference (command - feedback incl. transport delay): %.3f mm\n", max_ferror);
-  m.stop();
+  // Per slave and port: where corrupted frames entered (0x0300-0x0313).
+  const std::vector<EscErrorCounters> counters = m.read_error_counters();
+  bool any = false;
+  for (std::size_t i = 0; i < counters.size(); ++i) {
+    if (!counters[i].any()) continue;
+    any = true;
+    std::printf("error counters of %s: %s\n", m.slave_label(static_cast<unsigned>(i + 1)).c_str(), counters[i].text().c_str());
+  }
+  if (!any) std::printf("slave error counters: all 0\n");
+  m.release();  // the slaves to INIT: no slave stays in OP without a master
   if (!o.expect_fault.empty()) {
     if (!ok && failure.find(o.expect_fault) != std::string::npos) {
       std::printf("expected fault reported: %s\n", failure.c_str());

@@ -115,3 +115,71 @@ TEST(BusLoad, ScheduleWithDividersAndPeriodicFrames) {
   const BusLoad slow = compute_bus_load(plan, 1'000'000, 500'000);
   EXPECT_NEAR(slow.worst_case(), 2 * l.worst_case(), 1e-12);
 }
+
+// The 47 bits of a standard frame without data already end with the 3-bit
+// intermission (SOF 1, identifier 11, RTR, IDE, r0, DLC 4, CRC 15, CRC
+// delimiter, ACK 2, EOF 7 = 44, + 3): a plan adds nothing per frame.
+TEST(BusLoad, AFrameCountsItsIntermissionOnce) {
+  EXPECT_EQ(nominal_frame_bits(false, 0), 1u + 11 + 1 + 1 + 1 + 4 + 15 + 1 + 2 + 7 + 3);
+  EXPECT_EQ(worst_case_frame_bits(false, 8), 111u + (34 + 64 - 1) / 4);
+  const BusLoad l = compute_bus_load({{"SYNC", 0, false, 1, 0}}, 1'000'000, 1'000'000);
+  EXPECT_DOUBLE_EQ(l.worst_bits_per_cycle, 55);
+  ASSERT_EQ(l.slots.size(), 1u);
+  EXPECT_DOUBLE_EQ(l.slots[0].total(), 55);
+}
+
+namespace {
+ScheduledFrame sync_frame(const char* label, uint32_t bytes, uint32_t cob, uint32_t every = 1, int32_t slot = -1) {
+  ScheduledFrame f;
+  f.label = label;
+  f.data_bytes = bytes;
+  f.cob_id = cob;
+  f.every_n_cycles = every;
+  f.slot = slot;
+  return f;
+}
+ScheduledFrame sporadic(const char* label, uint32_t bytes, uint32_t cob, int64_t interval_ns) {
+  ScheduledFrame f = sync_frame(label, bytes, cob);
+  f.period_ns = interval_ns;
+  return f;
+}
+}  // namespace
+
+// Three TPDOs sent every 20th SYNC with no known phase all land in the
+// planned cycle; with known phases each has its own slot.
+TEST(BusLoad, DividedFramesWithoutAKnownPhaseCoincideInTheWorstSlot) {
+  std::vector<ScheduledFrame> plan = {sync_frame("SYNC", 0, 0x80)};
+  for (uint32_t n = 1; n <= 3; ++n) plan.push_back(sync_frame("TPDO4", 8, 0x480 + n, 20));
+  BusLoad l = compute_bus_load(plan, 1'000'000, 1'000'000);
+  ASSERT_EQ(l.slots.size(), 1u);
+  EXPECT_DOUBLE_EQ(l.slots[0].synchronous_bits, 55 + 3 * 135);
+  EXPECT_DOUBLE_EQ(l.worst_bits_per_cycle, 55 + 3 * 135 / 20.0);
+  for (int32_t i = 0; i < 3; ++i) plan[static_cast<std::size_t>(i) + 1].slot = i * 7;
+  l = compute_bus_load(plan, 1'000'000, 1'000'000);
+  ASSERT_EQ(l.slots.size(), 20u);
+  EXPECT_DOUBLE_EQ(l.slots[0].synchronous_bits, 55 + 135);
+  EXPECT_DOUBLE_EQ(l.slots[7].synchronous_bits, 55 + 135);
+  EXPECT_DOUBLE_EQ(l.slots[1].synchronous_bits, 55);
+  EXPECT_DOUBLE_EQ(l.worst_cycle(), (55 + 135) / 1000.0);
+}
+
+// Sporadic frames and allowances with a higher priority than the slot's
+// last synchronous frame count as often as they fit in a cycle; of the
+// lower-priority ones only the longest counts, once (no pre-emption).
+TEST(BusLoad, HigherPriorityEventsInterfereLowerPriorityOnesBlockOnce) {
+  std::vector<ScheduledFrame> plan = {sync_frame("SYNC", 0, 0x80), sync_frame("RPDO1", 6, 0x201),
+                                      sync_frame("TPDO1", 6, 0x181)};
+  plan.push_back(sporadic("TPDO2 (inhibit 0.4 ms)", 4, 0x101, 400'000));  // above the RPDO: 3 per 1 ms
+  plan.push_back(sporadic("TPDO3", 8, 0x381, 1'000'000));                 // below
+  plan.push_back(sporadic("heartbeat", 1, 0x701, 100'000'000));           // below
+  ScheduledFrame emcy = sync_frame("EMCY", 8, 0x81);
+  emcy.per_cycle = 1;
+  plan.push_back(emcy);
+  const BusLoad l = compute_bus_load(plan, 1'000'000, 1'000'000);
+  ASSERT_EQ(l.slots.size(), 1u);
+  EXPECT_DOUBLE_EQ(l.slots[0].synchronous_bits, 55 + 2 * 115);
+  EXPECT_DOUBLE_EQ(l.slots[0].interference_bits, 3 * 95 + 135);
+  EXPECT_DOUBLE_EQ(l.slots[0].blocking_bits, 135);
+  // Average: the event PDOs at their intervals, the allowance not.
+  EXPECT_DOUBLE_EQ(l.worst_bits_per_cycle, 55 + 2 * 115 + 95 * 2.5 + 135 + 65 / 100.0);
+}

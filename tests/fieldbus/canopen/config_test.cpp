@@ -27,6 +27,8 @@ INTERFACE = socketcan:can0
 BITRATE = 500000
 SYNC_COUNTER_OVERFLOW = 16
 MASTER_NODE_ID = 100
+MAX_CYCLE_LOAD = 95
+SDO_FRAMES_PER_CYCLE = 1
 NODE = 1 2
 [CANOPEN_NODE_1]
 NAME = x-axis
@@ -38,6 +40,7 @@ RPDO1 = 0x6040:0:u16 0x607A:0:s32
 TPDO1 = 0x6041:0:u16 0x6064:0:s32
 TPDO2 = 0x606C:0:s32 pad8 0x6061:0:s8 pad16
 TPDO2_TRANSMISSION = 4
+TPDO2_SYNC_START = 3
 SDO = 0x6060:0:s8 8
 SDO = 0x1008:0:str x drive
 [CANOPEN_NODE_2]
@@ -78,7 +81,7 @@ TEST(CanopenConfig, LoadsTheBusAndItsNodes) {
   ASSERT_EQ(x.sdo.size(), 2u);
   EXPECT_EQ(x.sdo[0].addr, (ObjectAddress{0x6060, 0}));
   EXPECT_EQ(x.sdo[0].data, (std::vector<uint8_t>{8}));
-  EXPECT_EQ(x.sdo[0].origin, "machine.ini:19");
+  EXPECT_EQ(x.sdo[0].origin, "machine.ini:22");
   EXPECT_EQ(std::string(x.sdo[1].data.begin(), x.sdo[1].data.end()), "x drive");
   const NodeConfig& y = c.nodes[1];
   EXPECT_FALSE(y.mandatory);
@@ -91,6 +94,17 @@ TEST(CanopenConfig, LoadsTheBusAndItsNodes) {
   const can::BusLoad l = c.load();
   EXPECT_NEAR(l.worst_bits_per_cycle, 65 + 4 * 115 + 135 / 4.0 + 65 * (2 / 50.0 + 2 * 2 / 100.0), 1e-9);
   EXPECT_NEAR(l.worst_case(), l.worst_bits_per_cycle / 1000.0, 1e-12);
+  // Per slot: the SYNC counter (16, a multiple of 4) and SYNC start 3 put
+  // TPDO2 in the third of four slots; EMCY allowance (135) interferes, one
+  // SDO frame (135) blocks.
+  EXPECT_DOUBLE_EQ(c.max_cycle_load, 0.95);
+  EXPECT_EQ(c.plan_sdo_frames, 1u);
+  EXPECT_EQ(c.plan_emcy_frames, 1u);
+  ASSERT_EQ(l.slots.size(), 4u);
+  EXPECT_DOUBLE_EQ(l.slots[2].synchronous_bits, 65 + 4 * 115 + 135);
+  EXPECT_DOUBLE_EQ(l.slots[0].synchronous_bits, 65 + 4 * 115);
+  EXPECT_EQ(l.worst_slot, 2u);
+  EXPECT_DOUBLE_EQ(l.slots[2].total(), 65 + 4 * 115 + 135 + 135 + 135);
 }
 
 TEST(CanopenConfig, ErrorsNameTheFileLineAndKey) {
@@ -116,21 +130,115 @@ TEST(CanopenConfig, ErrorsNameTheFileLineAndKey) {
             "machine.ini:2: [CANOPEN]INTERFACE: canopen.0: COB-ID 0x183 used by both node 3 RPDO1 and node 3 TPDO1");
 }
 
-TEST(CanopenConfig, BusLoadAboveTheBudgetIsRefused) {
-  std::string text = "[CANOPEN]\nINTERFACE = virtual:x\nSYNC_PERIOD_US = 1000\nNODE = 1 2 3 4 5\n";
-  for (int i = 1; i <= 5; ++i) {
+namespace {
+std::string csp_axes(int n, const std::string& bus_extra = "") {
+  std::string text = "[CANOPEN]\nINTERFACE = virtual:x\nSYNC_PERIOD_US = 1000\nNODE =";
+  for (int i = 1; i <= n; ++i) text += " " + std::to_string(i);
+  text += "\n" + bus_extra;
+  for (int i = 1; i <= n; ++i) {
     text += "[CANOPEN_NODE_" + std::to_string(i) + "]\nRPDO1 = 0x6040:0:u16 0x607A:0:s32\nTPDO1 = 0x6041:0:u16 0x6064:0:s32\n";
   }
-  EXPECT_EQ(error_of(text),
-            "machine.ini:2: [CANOPEN]INTERFACE: canopen.0: bus load 120.9 % in the worst case (100.0 % nominal) exceeds "
-            "the budget of 80 % (SYNC period 1000 us, 1000 kbit/s): use fewer or shorter PDOs, a longer period or a "
-            "second bus");
-  // Three such axes fit (the reference: 3 CSP axes at 1 kHz with margin).
-  std::string three = "[CANOPEN]\nINTERFACE = virtual:x\nSYNC_PERIOD_US = 1000\nNODE = 1 2 3\n";
-  for (int i = 1; i <= 3; ++i) {
-    three += "[CANOPEN_NODE_" + std::to_string(i) + "]\nRPDO1 = 0x6040:0:u16 0x607A:0:s32\nTPDO1 = 0x6041:0:u16 0x6064:0:s32\n";
+  return text;
+}
+}  // namespace
+
+// The busiest cycle of 3 CSP axes at 1 kHz: SYNC 55 + 6 x 115 (RPDO1,
+// TPDO1) = 745 synchronous bits, the EMCY allowance (135, it wins
+// arbitration against the PDOs), one 8-byte SDO frame on the wire (135):
+// 1015 bit times, more than the 1 ms cycle. Two axes: 785 (78.5 %).
+TEST(CanopenConfig, ABusWhoseBusiestCycleDoesNotFitIsRefused) {
+  EXPECT_EQ(error_of(csp_axes(3)),
+            "machine.ini:2: [CANOPEN]INTERFACE: canopen.0: bus load: cycle slot 0 of 1 needs 1015 bit times (745 "
+            "synchronous + 135 higher-priority events and allowances + 135 blocking), 101.5 % of the SYNC period, above "
+            "the budget of 90 % (MAX_CYCLE_LOAD) (SYNC period 1000 us, 1000 kbit/s): use fewer or shorter PDOs, "
+            "inhibit times on event PDOs, SYNC_START phases, a longer period or a second bus; LOAD_OVERRIDE = YES runs "
+            "it anyway, with a warning");
+  EXPECT_EQ(error_of(csp_axes(2)), "(no error)");
+  const auto ini = cnc::ini::IniFile::parse(csp_axes(2), "machine.ini");
+  const BusConfig two = load_bus_config(ini, "CANOPEN", "canopen.0");
+  EXPECT_NEAR(two.load().worst_cycle(), 0.785, 1e-12);
+  // Average: SYNC + 4 x 115 + 3 heartbeats (65 bits every 100 ms).
+  EXPECT_NEAR(two.load().worst_bits_per_cycle, 55 + 4 * 115 + 3 * 65 / 100.0, 1e-9);
+}
+
+TEST(CanopenConfig, TheAverageLoadOfEventPdosAtTheirInhibitTimeIsChecked) {
+  // Two axes, each with three 8-byte event TPDOs at a 1 ms inhibit time:
+  // 135 bits per cycle each on average, 515 + 6 x 135 + 2 = 1327 bits,
+  // refused (their busiest cycle still fits: they only block once).
+  std::string text = csp_axes(2);
+  for (int i = 1; i <= 2; ++i) {
+    const std::string sec = "[CANOPEN_NODE_" + std::to_string(i) + "]\n";
+    std::string add;
+    for (int p = 2; p <= 4; ++p) {
+      const std::string k = "TPDO" + std::to_string(p);
+      add += k + " = 0x606C:0:s32 0x60FD:0:u32\n" + k + "_TRANSMISSION = 255\n" + k + "_INHIBIT_100US = 10\n";
+    }
+    text.insert(text.find(sec) + sec.size(), add);
   }
-  EXPECT_EQ(error_of(three), "(no error)");
+  const std::string e = error_of(text);
+  EXPECT_NE(e.find("bus load: average load 132.7 % in the worst case"), std::string::npos) << e;
+  EXPECT_NE(e.find("(MAX_BUS_LOAD)"), std::string::npos) << e;
+  // At a 10 ms inhibit time: 515 + 6 x 13.5 + 2 = 598 bits, accepted.
+  std::string slow = text;
+  for (std::size_t at; (at = slow.find("_INHIBIT_100US = 10\n")) != std::string::npos;) {
+    slow.replace(at, 20, "_INHIBIT_100US = 100\n");
+  }
+  EXPECT_EQ(error_of(slow), "(no error)");
+}
+
+TEST(CanopenConfig, AnEventPdoWithNothingBoundingItsRateIsRefused) {
+  std::string text = csp_axes(1) + "TPDO2 = 0x60FD:0:u32\nTPDO2_TRANSMISSION = 255\nTPDO2_EVENT_MS = 100\n";
+  EXPECT_EQ(error_of(text),
+            "machine.ini:2: [CANOPEN]INTERFACE: canopen.0: node 1 TPDO2: event-driven (transmission 255) with nothing "
+            "bounding its rate, the bus load cannot be planned: give TPDO2_INHIBIT_100US (the device enforces it) or "
+            "TPDO2_MIN_INTERVAL_US (what the application guarantees)");
+  // A declared interval plans it.
+  const auto ini = cnc::ini::IniFile::parse(text + "TPDO2_MIN_INTERVAL_US = 5000\n", "machine.ini");
+  const BusConfig c = load_bus_config(ini, "CANOPEN", "canopen.0");
+  EXPECT_EQ(c.nodes[0].tpdos[1].plan_interval_us, 5000u);
+  EXPECT_NEAR(c.load().worst_bits_per_cycle, 55 + 2 * 115 + 95 / 5.0 + 2 * 65 / 100.0, 1e-9);
+}
+
+// Synchronous PDOs sent every n-th SYNC coincide in one cycle unless the
+// SYNC counter and SYNC_START fix their phases.
+TEST(CanopenConfig, SyncStartPhasesSpreadDividedPdosOverTheSlots) {
+  std::string text = csp_axes(2, "SYNC_COUNTER_OVERFLOW = 20\nLOAD_OVERRIDE = YES\n");
+  for (int i = 1; i <= 2; ++i) {
+    const std::string sec = "[CANOPEN_NODE_" + std::to_string(i) + "]\n";
+    text.insert(text.find(sec) + sec.size(), "TPDO4 = 0x606C:0:s32 0x6077:0:s16 0x603F:0:u16\nTPDO4_TRANSMISSION = 20\n");
+  }
+  auto ini = cnc::ini::IniFile::parse(text, "machine.ini");
+  BusConfig c = load_bus_config(ini, "CANOPEN", "canopen.0", 1'000'000);
+  ASSERT_EQ(c.load().slots.size(), 1u);  // no phase known: both in the one planned slot
+  const double together = c.load().worst_cycle();
+  c.nodes[0].tpdos[1].sync_start = 1;
+  c.nodes[1].tpdos[1].sync_start = 11;
+  const can::BusLoad spread = c.load();
+  ASSERT_EQ(spread.slots.size(), 20u);
+  EXPECT_EQ(spread.slots[0].synchronous_bits, 65 + 4 * 115 + 135);
+  EXPECT_EQ(spread.slots[10].synchronous_bits, 65 + 4 * 115 + 135);
+  EXPECT_EQ(spread.slots[1].synchronous_bits, 65 + 4 * 115);
+  EXPECT_LT(spread.worst_cycle(), together);
+}
+
+TEST(CanopenConfig, LoadOverrideRunsAPlanAboveItsBudgetAndSaysSo) {
+  const auto ini = cnc::ini::IniFile::parse(csp_axes(3, "LOAD_OVERRIDE = YES\n"), "machine.ini");
+  const BusConfig c = load_bus_config(ini, "CANOPEN", "canopen.0");
+  EXPECT_TRUE(c.load_override);
+  EXPECT_NE(c.load_problem().find("101.5 % of the SYNC period"), std::string::npos) << c.load_problem();
+}
+
+// configs/sim at 1 kHz: both buses within their budgets with margin.
+TEST(CanopenConfig, TheSimulatedMillFitsItsBusesAtOneKilohertz) {
+  const auto ini = cnc::ini::IniFile::load(cnc::testing::source_dir() / "configs/sim/sim.ini");
+  for (const char* section : {"CANOPEN", "CANOPEN_1"}) {
+    const BusConfig c = load_bus_config(ini, section, section, 1'000'000);
+    const can::BusLoad l = c.load();
+    EXPECT_LT(l.worst_case(), 0.70) << section;
+    EXPECT_LT(l.worst_cycle(), 0.80) << section;
+    EXPECT_EQ(c.load_problem(), "") << section;
+    EXPECT_FALSE(c.load_override) << section;
+  }
 }
 
 TEST(CanopenConfig, DcfSuppliesMappingValuesAndIdentity) {

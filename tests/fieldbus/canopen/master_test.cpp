@@ -298,6 +298,21 @@ TEST_F(MasterTest, VerificationCatchesADeviceThatChangesAValue) {
             "failed: the device has 0x01 after 0x05 was written");
 }
 
+// The writes that switch unused PDOs off are read back too: a device that
+// answers OK but keeps the PDO on (its invalid bit does not stick) stops
+// the start-up instead of sending frames the plan does not know.
+TEST_F(MasterTest, AnUnusedPdoThatDoesNotSwitchOffStopsTheStartUp) {
+  EchoDevice a(sim, 3);
+  a.od.set_after_write({0x1802, 1}, [&](const OdEntry&) {
+    a.od.set<uint32_t>({0x1802, 1}, a.od.get<uint32_t>({0x1802, 1}) & ~cob::kPdoInvalid);
+  });
+  make_master(config({csp_node(3, "x-axis")}));
+  EXPECT_EQ(boot(), BootState::Failed);
+  EXPECT_EQ(master->boot_error(),
+            "canopen.0: start-up stopped: node 3 (x-axis): verification of 0x1802:01 (TPDO3 off (not configured)) "
+            "failed: the device has 0x00000383 after 0x80000383 was written");
+}
+
 TEST_F(MasterTest, HeartbeatLossIsDetectedWithinItsTimeout) {
   EchoDevice a(sim, 3);
   NodeConfig n = csp_node(3, "x-axis");
@@ -450,7 +465,7 @@ class DownableTransport final : public can::Transport {
  public:
   explicit DownableTransport(std::unique_ptr<can::Transport> inner) : inner_(std::move(inner)) {}
   const std::string& name() const noexcept override { return name_; }
-  can::SendStatus send(const can::Frame& f) noexcept override { return down ? can::SendStatus::Down : inner_->send(f); }
+  can::SendStatus send(const can::Frame& f) noexcept override { return down ? refusal : inner_->send(f); }
   bool receive(can::Frame& out) noexcept override { return !down && inner_->receive(out); }
   bool wait(int64_t timeout_ns) noexcept override { return inner_->wait(timeout_ns); }
   void set_filters(std::span<const can::Filter> filters) override { inner_->set_filters(filters); }
@@ -459,6 +474,7 @@ class DownableTransport final : public can::Transport {
   can::TransportStats stats() const noexcept override { return inner_->stats(); }
   int64_t now_ns() const noexcept override { return inner_->now_ns(); }
   bool down = false;
+  can::SendStatus refusal = can::SendStatus::Down;
 
  private:
   std::unique_ptr<can::Transport> inner_;
@@ -496,6 +512,51 @@ TEST_F(MasterTest, AnInterfaceTakenDownIsReportedAsSuch) {
   EXPECT_FALSE(master->cyclic_status().interface_down);
   errors();
   EXPECT_NE(std::find(texts.begin(), texts.end(), "CAN interface can7 is up again"), texts.end());
+}
+
+// A driver that only refuses frames (ENOBUFS: the queue of a stopped
+// interface) and delivers nothing: the heartbeats of all nodes time out.
+// The interface is named once, with the count of refused frames, before
+// the nodes' messages, which point to it.
+TEST_F(MasterTest, ASilentInterfaceIsReportedOnceWithItsSendErrorsBeforeTheNodesHeartbeats) {
+  EchoDevice a(sim, 3), b(sim, 4);
+  auto cyc = std::make_unique<DownableTransport>(sim.port("master-cyclic"));
+  auto acy = std::make_unique<DownableTransport>(sim.port("master-acyclic"));
+  DownableTransport* cyclic = cyc.get();
+  DownableTransport* acyclic = acy.get();
+  NodeConfig n3 = csp_node(3, "x-axis"), n4 = csp_node(4, "y-axis");
+  for (NodeConfig* n : {&n3, &n4}) {
+    n->heartbeat_ms = 20;
+    n->heartbeat_timeout_ms = 50;
+  }
+  BusConfig c = config({n3, n4});
+  c.pdo_miss_limit = 0;  // only the heartbeats speak
+  master = std::make_unique<Master>(c, std::move(cyc), std::move(acy), &messages);
+  sim.actors.push_back([this](int64_t now) {
+    master->poll(now);
+    if (now % 1'000'000 == 0) {
+      master->cyclic_read(now);
+      master->cyclic_write(now);
+    }
+  });
+  ASSERT_EQ(boot(), BootState::Succeeded) << master->boot_error();
+  sim.run_for(10'000'000);
+  EXPECT_TRUE(errors().empty());
+  for (DownableTransport* t : {cyclic, acyclic}) {
+    t->refusal = can::SendStatus::WouldBlock;
+    t->down = true;
+  }
+  sim.run_for(200'000'000);
+  const auto e = errors();
+  ASSERT_EQ(e.size(), 3u) << ::testing::PrintToString(e);
+  EXPECT_EQ(e[0].rfind("CAN interface can7 is down or disconnected: nothing received for ", 0), 0u) << e[0];
+  EXPECT_NE(e[0].find(" frames refused by it (last: "), std::string::npos) << e[0];
+  EXPECT_EQ(std::count_if(e.begin(), e.end(), [](const std::string& m) { return m.find("CAN interface") != std::string::npos; }), 1);
+  EXPECT_NE(e[1].find("heartbeat lost: nothing heard for 50 ms (the interface is down, see above)"), std::string::npos) << e[1];
+  for (DownableTransport* t : {cyclic, acyclic}) t->down = false;
+  sim.run_for(100'000'000);
+  errors();
+  EXPECT_NE(std::find(texts.begin(), texts.end(), "CAN interface can7: frames received again"), texts.end());
 }
 
 // The acyclic thread (heartbeat consumer, SDO timeouts) keeps the bus's

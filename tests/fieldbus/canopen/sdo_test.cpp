@@ -491,6 +491,22 @@ TEST_F(SdoClientScripted, UnexpectedResponsesAndMultiplexers) {
   EXPECT_EQ(run([&](SdoClient::Done d) { client->upload({0x1000, 0}, d); }).abort_code, abort_code::kGeneral);
 }
 
+// A reply for another object is aborted with the general error (CiA 301
+// has no better code), and the result names the object the node answered
+// for, so that the message says what went wrong.
+TEST_F(SdoClientScripted, AReplyForTheWrongObjectNamesTheObjectTheNodeAnsweredFor) {
+  script = [&](const can::Frame& f) {
+    if (f.data[0] == 0x2B) answer({0x60, 0x17, 0x10, 0x00});  // acknowledges 0x1017:00 instead of 0x1016:01
+  };
+  const SdoResult r = run([&](SdoClient::Done d) { client->download({0x1016, 1}, {0x10, 0x00}, d); });
+  EXPECT_EQ(r.abort_code, abort_code::kGeneral);
+  EXPECT_EQ(client_abort(), abort_code::kGeneral);
+  ASSERT_TRUE(r.answered_for);
+  EXPECT_EQ(*r.answered_for, (ObjectAddress{0x1017, 0}));
+  EXPECT_EQ(r.message(),
+            "SDO download 0x1016:01 aborted by the master: 0x08000000 general error: the node answered for 0x1017:00");
+}
+
 TEST_F(SdoClientScripted, BlockDownloadAcknowledgementBeyondWhatWasSent) {
   script = [&](const can::Frame& f) {
     if (f.data[0] == 0xC6) answer({0xA4, 0x05, 0x20, 0x00, 2});

@@ -74,6 +74,17 @@ TEST(EthercatCoe, AbortsAreDecoded) {
   EXPECT_TRUE(bus.master->sdo_download(1, 0x6060, 0, {8}).ok);
 }
 
+// IEC 61158-6-12 sends "Abort SDO Transfer" as CoE service 2 (SDO
+// request); replies are service 3. Masters other than ours may accept
+// nothing else.
+TEST(EthercatCoe, TheSimulatedDriveSendsAbortsAsCoeService2) {
+  test::Bus bus(1);
+  ASSERT_TRUE(bus.master->sdo_upload(1, 0x1018, 1).ok);
+  EXPECT_EQ(bus.segment->drive(0)->last_reply_service(), CoeService::SdoResponse);
+  EXPECT_EQ(bus.master->sdo_upload(1, 0x6FFF, 0).abort_code, 0x06020000u);
+  EXPECT_EQ(bus.segment->drive(0)->last_reply_service(), CoeService::SdoRequest);
+}
+
 TEST(EthercatCoe, CompleteAccessBothWays) {
   test::Bus bus(1, {}, false);
   bus.master->to_preop();  // mapping objects are writable in PREOP only

@@ -315,6 +315,73 @@ TEST(EthercatMaster, WhenFramesStopTheDrivesStopWithinTheirWatchdogTime) {
   }
 }
 
+// A drive lost on EtherCAT is reported in EtherCAT's terms: there is no
+// heartbeat on this bus, the loss is the master's safe stop.
+TEST(EthercatMaster, ALostDriveIsReportedInEthercatTermsNotCanopenOnes) {
+  Bus bus(1);
+  auto link = make_cia402_link(*bus.master);
+  cia402::GroupConfig gc;
+  gc.name = "cia402.0";
+  gc.bus = bus.master->name();
+  cia402::DriveEntry e;
+  e.config.name = "axis-0";
+  e.config.source = "cia402.0.drive.00";
+  e.config.address = 1;
+  e.config.scaling.counts_per_unit = 1000;
+  gc.drives.push_back(e);
+  cia402::DriveGroup group(gc, *link, &bus.messages);
+  ASSERT_TRUE(bus.reach_op()) << bus.drain_messages();
+  std::thread cfg([&] { group.configure(); });
+  bus.run_until([] { return false; }, 300);
+  cfg.join();
+  auto app = [&] {
+    group.read(bus.time.load());
+    group.command(0).enable = true;
+    group.write(bus.time.load());
+  };
+  ASSERT_TRUE(bus.run_until([&] { return group.feedback(0).enabled; }, 5000, app)) << bus.drain_messages();
+  bus.drain_messages();
+  bus.segment->drop_frames(1'000'000);
+  ASSERT_TRUE(bus.run_until([&] { return bus.master->has_fault(); }, 100, app));
+  for (int i = 0; i < 3; ++i) bus.cycle(app);
+  const std::string m = bus.drain_messages();
+  EXPECT_THAT(m, HasSubstr("lost the drive on " + bus.master->name() +
+                           " (process data lost (frames lost or working-counter errors) or a slave left OP)"));
+  EXPECT_THAT(m, ::testing::Not(HasSubstr("heartbeat")));
+}
+
+// The slaves' error counters (0x0300-0x0313) are cleared at start-up,
+// read per port, and what grows is reported naming slave and port; a safe
+// stop's message carries them.
+TEST(EthercatMaster, SlaveErrorCountersAreReadAndReportedPerPort) {
+  Bus bus(3, {}, false);
+  bus.segment->slave(1).inject_invalid_frames(0, 9);  // before start-up: cleared by it
+  bus.start_up();
+  ASSERT_TRUE(bus.reach_op()) << bus.drain_messages();
+  auto c = bus.master->read_error_counters();
+  ASSERT_EQ(c.size(), 3u);
+  EXPECT_FALSE(c[1].any()) << c[1].text();
+  bus.drain_messages();
+  bus.segment->slave(1).inject_invalid_frames(0, 3);
+  bus.segment->slave(2).inject_lost_link(1);
+  c = bus.master->read_error_counters();
+  EXPECT_EQ(c[1].invalid_frames[0], 3);
+  EXPECT_EQ(c[1].text(), "port 0: 3 invalid frames");
+  EXPECT_EQ(c[2].text(), "port 1: 1 lost link");
+  EXPECT_FALSE(c[0].any());
+  const std::string m = bus.drain_messages();
+  EXPECT_THAT(m, HasSubstr("error counters slave 2 (drive-2): port 0: 3 invalid frames (an invalid frame"));
+  EXPECT_THAT(m, HasSubstr("error counters slave 3 (drive-3): port 1: 1 lost link"));
+  // Only growth is reported again.
+  bus.segment->slave(1).inject_invalid_frames(0, 1);
+  bus.master->read_error_counters();
+  EXPECT_THAT(bus.drain_messages(), HasSubstr("slave 2 (drive-2): port 0: 1 invalid frame ("));
+  // The safe stop names them (of the slaves still reached).
+  bus.segment->break_after(2);
+  ASSERT_TRUE(bus.run_until([&] { return !bus.master->fault_text().empty(); }, 2000));
+  EXPECT_THAT(bus.master->fault_text(), HasSubstr("slave 2 (drive-2) error counters: port 0: 4 invalid frames"));
+}
+
 TEST(EthercatMaster, SlaveRefusingSafeOpStopsStartUp) {
   Bus bus(3, {}, false);
   bus.segment->slave(1).refuse_state(AlState::SafeOp, al::kSyncError);
