@@ -66,6 +66,9 @@ struct SimBus {
   std::vector<NodePins> pins;
   int64_t origin_ns = 0;                    // CLOCK_MONOTONIC at bus time 0 (real-time clock)
   std::atomic<int> mode{kRealTime};         // set once by the servo thread's first update()
+  // [section]STEPPER: a servo thread on its own clock leaves the periods to
+  // the stepper thread (true) or simulates them inline (false).
+  bool stepper_when_periodic = true;
   std::atomic<int64_t> requested_ns{0};     // bus time asked for since then (servo thread)
   std::atomic<int64_t> done_ns{0};          // of it, simulated
   std::atomic<uint64_t> late{0};            // periods asked for before the previous was simulated
@@ -251,7 +254,7 @@ class Stepper {
 void SimBus::update(const rt::CycleInfo& info) noexcept {
   int m = mode.load(std::memory_order_relaxed);
   if (m == kRealTime) {
-    m = info.periodic ? kStepper : kInline;
+    m = info.periodic && stepper_when_periodic ? kStepper : kInline;
     mode.store(m, std::memory_order_release);
     if (m == kInline) {
       // Take the bus over from the stepper's real-time clock: its pass ends
@@ -303,6 +306,19 @@ class SimComponent : public hal::Component, public ipc::ControllerService {
           ctx.ini->fail(ctx.ini->find_entry(section, "CLOCK"), "CLOCK = SERVO needs a virtual:<bus> INTERFACE");
         }
         open_servo_clocked(*bus, cfg, section);
+        // The stepper only helps when it is scheduled at once: with
+        // SCHED_FIFO (one below the servo thread). Under normal scheduling a
+        // stepper preempted half-way through a period leaves the drives'
+        // feedback cycles behind (following errors on a loaded host); the
+        // servo thread then simulates inline, as a stall it shares.
+        const std::string stepper = to_upper(ctx.ini->get_string(section, "STEPPER", "AUTO"));
+        if (stepper == "AUTO") {
+          bus->stepper_when_periodic = rt::prepare_process().fifo_scheduling;
+        } else if (stepper == "THREAD" || stepper == "INLINE") {
+          bus->stepper_when_periodic = stepper == "THREAD";
+        } else {
+          ctx.ini->fail(ctx.ini->find_entry(section, "STEPPER"), "expected AUTO, THREAD or INLINE");
+        }
       } else if (clock == "REALTIME") {
         try {
           bus->transport = can::open_transport(cfg.interface);

@@ -27,7 +27,7 @@ class SimStepper : public ::testing::Test {
   void SetUp() override {
     bus_name = cnc::testing::unique_name("stepper");
     ini = ini::IniFile::parse("[CIA402_SIM]\nINTERFACE = virtual:" + bus_name +
-                                  "\nCLOCK = SERVO\nNODE = 1\n[CIA402_SIM_NODE_1]\nNAME = x\nENCODER_COUNTS = 10000\n"
+                                  "\nCLOCK = SERVO\nSTEPPER = THREAD\nNODE = 1\n[CIA402_SIM_NODE_1]\nNAME = x\nENCODER_COUNTS = 10000\n"
                                   "SCREW_LEAD = 5\n",
                               "sim.ini");
     hal::register_core_components(registry);
