@@ -201,6 +201,31 @@ void Interpreter::State::comp_arc(int g, const Pose& end, double c1, double c2, 
   const double R = len(p1 - c);
   // tool inside the arc when the comp side faces the centre
   const bool inside = (rotation > 0) == left;
+  // The arc the tool follows to `to` about `centre`, and the state after it
+  // (tangent and curvature at the programmed end `p1`).
+  auto arc_move = [&](const V2& to, const V2& centre) {
+    CompMove m;
+    m.kind = CompMove::Arc;
+    m.line = current_line;
+    m.end = end;
+    m.end[a1] = to.x;
+    m.end[a2] = to.y;
+    m.first_end = to.x;
+    m.second_end = to.y;
+    m.center1 = centre.x;
+    m.center2 = centre.y;
+    m.rotation = rotation;
+    m.axis_end = end[a3];
+    return m;
+  };
+  auto after_arc = [&](const V2& tangent_center, const Pose& tool_end) {
+    const V2 t1 = arc_tangent(tangent_center, p1, rotation);
+    last_tangent_x = t1.x;
+    last_tangent_y = t1.y;
+    last_curvature = rotation > 0 ? 1 / R : -1 / R;
+    comp_program_pos = end;
+    pos = tool_end;
+  };
   if (cutter_first_move) {
     // Entry arc (LinuxCNC 2.9): from where the tool is to the offset end
     // point, about a centre moved along the radius through that end until
@@ -216,27 +241,11 @@ void Interpreter::State::comp_arc(int g, const Pose& end, double c1, double c2, 
     const V2 w = c - tool;
     const double k = (tr * tr - dot(w, w)) / (2 * (dot(w, u) + tr));
     c = c + u * k;
-    CompMove m;
-    m.kind = CompMove::Arc;
-    m.line = current_line;
-    m.end = end;
-    m.end[a1] = e.x;
-    m.end[a2] = e.y;
-    m.first_end = e.x;
-    m.second_end = e.y;
-    m.center1 = c.x;
-    m.center2 = c.y;
-    m.rotation = rotation;
-    m.axis_end = end[a3];
+    const CompMove m = arc_move(e, c);
     comp_flush();
     hold_move(m);
-    const V2 t1 = arc_tangent(V2{c1, c2}, p1, rotation);
-    last_tangent_x = t1.x;
-    last_tangent_y = t1.y;
-    last_curvature = rotation > 0 ? 1 / R : -1 / R;
     cutter_first_move = false;
-    comp_program_pos = end;
-    pos = m.end;
+    after_arc(V2{c1, c2}, m.end);
     return;
   }
   // A centre-format arc's two radii may differ within the tolerance: the
@@ -251,25 +260,9 @@ void Interpreter::State::comp_arc(int g, const Pose& end, double c1, double c2, 
   const V2 e = c + unit(p1 - c) * tr;
   const V2 t0 = arc_tangent(c, p0, rotation);
   comp_corner(V2Ref{s.x, s.y}, V2Ref{t0.x, t0.y}, true, V2Ref{c.x, c.y}, tr_start, rotation);
-  CompMove m;
-  m.kind = CompMove::Arc;
-  m.line = current_line;
-  m.end = end;
-  m.end[a1] = e.x;
-  m.end[a2] = e.y;
-  m.first_end = e.x;
-  m.second_end = e.y;
-  m.center1 = c.x;
-  m.center2 = c.y;
-  m.rotation = rotation;
-  m.axis_end = end[a3];
+  const CompMove m = arc_move(e, c);
   hold_move(m);
-  const V2 t1 = arc_tangent(c, p1, rotation);
-  last_tangent_x = t1.x;
-  last_tangent_y = t1.y;
-  last_curvature = rotation > 0 ? 1 / R : -1 / R;
-  comp_program_pos = end;
-  pos = m.end;
+  after_arc(c, m.end);
 }
 
 // Joins the held-back move to a new one starting (offset) at `start` with
