@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "core/util/kind_registry.hpp"
 #include "core/util/strings.hpp"
 #include "core/util/time.hpp"
 #include "fieldbus/can/socketcan.hpp"
@@ -26,30 +27,14 @@ const char* to_string(SendStatus s) noexcept {
 }
 
 namespace {
-struct Kind {
-  std::string name;
-  TransportOpener open;
-};
-std::mutex& kinds_mutex() {
-  static std::mutex m;
-  return m;
-}
-std::vector<Kind>& kinds() {
-  static std::vector<Kind> k;
+KindRegistry<TransportOpener>& kinds() {
+  static KindRegistry<TransportOpener> k;
   return k;
 }
 }  // namespace
 
 void register_transport_kind(const std::string& kind, TransportOpener opener) {
-  std::lock_guard<std::mutex> lock(kinds_mutex());
-  const std::string name = to_lower(kind);
-  for (Kind& k : kinds()) {
-    if (k.name == name) {
-      k.open = opener;
-      return;
-    }
-  }
-  kinds().push_back({name, opener});
+  kinds().add(to_lower(kind), opener);
 }
 
 std::unique_ptr<Transport> open_transport(std::string_view spec) {
@@ -73,14 +58,7 @@ std::unique_ptr<Transport> open_transport(std::string_view spec) {
   std::vector<std::string> options;
   for (std::size_t i = 1; i < parts.size(); ++i) options.emplace_back(trim(parts[i]));
   std::string known = "socketcan";
-  TransportOpener opener = nullptr;
-  {
-    std::lock_guard<std::mutex> lock(kinds_mutex());
-    for (const Kind& k : kinds()) {
-      if (k.name == kind) opener = k.open;
-      known += ", " + k.name;
-    }
-  }
+  const TransportOpener opener = kinds().find(kind, known);
   if (opener) return opener(spec, name, options);
   throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": unknown kind \"" + kind + "\" (this controller has: " +
                            known + (kind == "virtual" ? "; the simulated bus comes with the simulators, sim/)" : ")"));
