@@ -12,19 +12,8 @@
 set -euo pipefail
 bin="$1"
 config="$2"
-work="$(mktemp -d /var/tmp/cnc-limits-test.XXXXXX)"
-daemon=""
-cleanup() {
-  if [ -n "$daemon" ]; then kill "$daemon" 2>/dev/null || true; wait "$daemon" 2>/dev/null || true; fi
-  rm -rf "$work"
-}
-trap cleanup EXIT
-cp -r "$config" "$work/sim"
-export CNC_INSTANCE="limitstest-$$"
-export CNC_NO_REALTIME=1
-"$bin/cncd" "$work/sim/sim.ini" 2>"$work/cncd.log" &
-daemon=$!
-cnc() { "$bin/cnc" "$@"; }
+# shellcheck source=cncd_on_copy.sh
+source "$(dirname "${BASH_SOURCE[0]}")/cncd_on_copy.sh" limits
 fail() { echo "FAIL: $*"; echo "--- messages"; cnc messages --all 2>/dev/null | tail -20 || true; echo "--- log"; tail -30 "$work/cncd.log"; exit 1; }
 json() { cnc status --json | python3 -c "import json,sys; s=json.load(sys.stdin); print($1)"; }
 

@@ -9,19 +9,8 @@
 set -euo pipefail
 bin="$1"
 config="$2"
-work="$(mktemp -d /var/tmp/cnc-axes-test.XXXXXX)"
-daemon=""
-cleanup() {
-  if [ -n "$daemon" ]; then kill "$daemon" 2>/dev/null || true; wait "$daemon" 2>/dev/null || true; fi
-  rm -rf "$work"
-}
-trap cleanup EXIT
-cp -r "$config" "$work/sim"
-export CNC_INSTANCE="axestest-$$"
-export CNC_NO_REALTIME=1
-"$bin/cncd" "$work/sim/sim.ini" 2>"$work/cncd.log" &
-daemon=$!
-cnc() { "$bin/cnc" "$@"; }
+# shellcheck source=cncd_on_copy.sh
+source "$(dirname "${BASH_SOURCE[0]}")/cncd_on_copy.sh" axes
 fail() { echo "FAIL: $*"; echo "--- messages"; cnc messages 2>/dev/null | tail -20 || true; echo "--- log"; tail -30 "$work/cncd.log"; exit 1; }
 position() { cnc status --json | python3 -c "import json,sys; p=json.load(sys.stdin)['motion']['position']; print('%.3f %.3f %.3f' % tuple(p[:3]))"; }
 # Runs `G0 X$1` (G54, X offset 20) as a program and checks that it ends at
