@@ -131,13 +131,27 @@ void Drive::explain_fault(uint16_t code, const char* how) noexcept {
 void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexcept {
   (void)now;
   health_ = link_.health(config_.address);
-  fb.link_ok = health_.operational && !health_.lost;
-  if (!fb.link_ok && link_was_ok_) {
+  const bool up = health_.operational && !health_.lost;
+  // The stale-feedback budget: consecutive cycles whose inputs did not
+  // answer the last cycle, while the bus still counts the drive as up.
+  if (!up || health_.inputs_fresh) stale_cycles_ = 0;
+  else if (stale_cycles_ < kStaleCountMax) ++stale_cycles_;
+  const bool stale_out = config_.stale_limit > 0 && stale_cycles_ > config_.stale_limit;
+  fb.link_ok = up && !stale_out;
+  // Each new reason is said once: stale inputs often come first (a drive
+  // that died stops answering at once), the bus's verdict (heartbeat, state)
+  // follows and replaces it.
+  const LinkDown down = !up ? LinkDown::Lost : stale_out ? LinkDown::Stale : LinkDown::No;
+  if (down != link_down_ && down == LinkDown::Stale) {
+    post(true, "no fresh feedback for %d cycles on %s (STALE_LIMIT = %d): the drive's inputs stopped arriving, "
+         "the axis stops", stale_cycles_, link_.name().c_str(), config_.stale_limit);
+    fault_text_.format("feedback stale for %d cycles on %s", stale_cycles_, link_.name().c_str());
+  } else if (down != link_down_ && down == LinkDown::Lost && link_down_ != LinkDown::Start) {
     post(true, "lost the drive on %s (%s)", link_.name().c_str(), link_.loss_causes());
     // The status (and the task's message when motion stops) says why.
     fault_text_.format("lost on %s (%s)", link_.name().c_str(), link_.loss_causes());
   }
-  link_was_ok_ = fb.link_ok;
+  if (down != LinkDown::Lost || link_down_ != LinkDown::Start) link_down_ = down;
 
   prev_state_ = state_;
   statusword_ = read_slot<uint16_t>(slots_.statusword);
@@ -151,7 +165,20 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
 
   const int32_t raw = read_slot<int32_t>(slots_.position_actual);
   const int64_t pos = position_.update(raw);
-  fb.pos_fb = config_.scaling.to_units(pos);
+  // Within the stale budget the position shown is the demand the sample
+  // would belong to less the last measured lag (the drive is assumed to
+  // keep following as it did), so one late frame neither freezes the
+  // feedback of a moving axis nor trips a following error; past the budget
+  // the link is not ok (above) and the axis stops.
+  const bool operating = state_ == State::OperationEnabled;
+  if (health_.inputs_fresh && operating) {
+    fresh_lag_ = target_history_[1] - pos;
+    have_fresh_lag_ = true;
+  } else if (!operating) {
+    have_fresh_lag_ = false;
+  }
+  const int64_t shown = stale_cycles_ > 0 && operating && have_fresh_lag_ ? target_history_[1] - fresh_lag_ : pos;
+  fb.pos_fb = config_.scaling.to_units(shown);
   if (slots_.velocity_actual) {
     fb.vel_fb = config_.scaling.to_units_rate(static_cast<double>(read_slot<int32_t>(slots_.velocity_actual)));
   } else if (health_.inputs_fresh && have_prev_position_) {
@@ -167,7 +194,7 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
   } else {
     // The target of two cycles ago is the demand this sample belongs to
     // (one cycle of transport, one of interpolation in the drive).
-    fb.ferror = state_ == State::OperationEnabled ? config_.scaling.to_units(target_history_[1] - pos) : 0.0;
+    fb.ferror = operating ? config_.scaling.to_units(target_history_[1] - shown) : 0.0;
   }
   fb.torque = slots_.torque_actual ? read_slot<int16_t>(slots_.torque_actual) * 0.1 * config_.scaling.direction : 0.0;
   if (slots_.modes_display) {

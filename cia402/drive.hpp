@@ -67,6 +67,10 @@ struct DriveConfig {
   double standstill_velocity = 0.01;  // units/s: below this a mode switch is safe
   bool probe = true;                  // arm touch probe 1 (probe input) when mapped
   int probe_hold_cycles = 2;          // a latch stays visible at least this long
+  // Consecutive cycles of stale inputs (the bus's inputs_fresh false) after
+  // which the link counts as not ok and the axis stops; 0 = only the bus's
+  // own limit (PDO_MISS_LIMIT, MISS_LIMIT). [CIA402]STALE_LIMIT.
+  int stale_limit = 3;
 };
 
 // What the machine asks of the drive this cycle (HAL pins or a test).
@@ -184,10 +188,16 @@ class Drive {
   uint16_t error_code_ = 0;
   bool error_code_known_ = false;
   uint16_t probe_status_ = 0;
-  bool link_was_ok_ = false;
+  // Why the link is not ok: Start until it first came up (no message).
+  enum class LinkDown : uint8_t { Start, No, Stale, Lost };
+  LinkDown link_down_ = LinkDown::Start;
   double vel_fb_ = 0;
   bool invalid_reported_ = false;
   LinkHealth health_;
+  static constexpr int kStaleCountMax = 1'000'000;
+  int stale_cycles_ = 0;               // consecutive cycles of stale inputs
+  int64_t fresh_lag_ = 0;              // counts: demand minus position at the last fresh sample
+  bool have_fresh_lag_ = false;
 
   // outputs and history
   uint16_t controlword_ = 0;

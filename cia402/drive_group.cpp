@@ -79,6 +79,7 @@ GroupConfig load_group_config(const ini::IniFile& ini, const std::string& sectio
   if (!ini.has_section(section)) ini.fail(nullptr, "no [" + section + "] section (the drives of cia402)");
   g.bus = ini.get_string(section, "BUS", "canopen.0");
   g.watchdog_cycles = static_cast<int>(ini.get_int(section, "WATCHDOG_CYCLES", 3, {1, 1000}));
+  const int stale_limit = static_cast<int>(ini.get_int(section, "STALE_LIMIT", 3, {0, 1000}));
   std::set<int> numbers, addresses;
   for (const ini::Entry* e : ini.find_all_entries(section, "DRIVE")) {
     for (const std::string& w : split_blanks(e->value)) {
@@ -88,6 +89,7 @@ GroupConfig load_group_config(const ini::IniFile& ini, const std::string& sectio
       const std::string ds = section + "_DRIVE_" + std::to_string(*v);
       if (!ini.has_section(ds)) ini.fail(e, "drive " + w + " has no [" + ds + "] section");
       DriveEntry d{static_cast<int>(*v), load_drive(ini, ds, name, static_cast<int>(*v))};
+      d.config.stale_limit = stale_limit;
       if (!addresses.insert(d.config.address).second) {
         ini.fail(ini.find_entry(ds, "ADDRESS"), "address " + std::to_string(d.config.address) + " used by two drives");
       }

@@ -611,7 +611,10 @@ TEST(Cia402Drive, ALostDriveIsReported) {
   EXPECT_EQ(rig.host().inject("drive 1 dead", 0, false), "");
   ASSERT_TRUE(rig.cycle_until([&] { return !rig.fb().link_ok; }, 500));
   EXPECT_TRUE(rig.fb().amp_fault);
-  EXPECT_TRUE(rig.has_message("x-axis: lost the drive on canopen.0"));
+  // Its inputs stop at once: the stale budget (STALE_LIMIT, 3) stops the
+  // axis first; the bus's heartbeat verdict follows and is said too.
+  EXPECT_TRUE(rig.has_message("x-axis: no fresh feedback for 4 cycles on canopen.0 (STALE_LIMIT = 3)"));
+  EXPECT_TRUE(rig.cycle_until([&] { return rig.has_message("x-axis: lost the drive on canopen.0"); }, 500));
 }
 
 // A drive that vanishes from the bus says so in its status: the task quotes
@@ -626,6 +629,9 @@ TEST(Cia402Drive, ALostDriveSaysSoInItsFaultText) {
   EXPECT_STREQ(rig.group().drive(0).fault_text(), "");
   EXPECT_EQ(rig.host().inject("drive 1 dead", 0, false), "");
   ASSERT_TRUE(rig.cycle_until([&] { return !rig.fb().link_ok; }, 500));
+  EXPECT_STREQ(rig.group().drive(0).fault_text(), "feedback stale for 4 cycles on canopen.0");
+  EXPECT_TRUE(rig.cycle_until(
+      [&] { return std::string(rig.group().drive(0).fault_text()).rfind("lost on", 0) == 0; }, 500));
   rig.cycles(20);
   EXPECT_STREQ(rig.group().drive(0).fault_text(),
                "lost on canopen.0 (heartbeat lost, reset, or no longer operational)");

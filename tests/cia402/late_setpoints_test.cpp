@@ -24,11 +24,13 @@ namespace {
 
 constexpr double kCountsPerMm = 2000;
 
-// The VM test's cycle and drives: 10 ms, 200 us plant steps, 100 Hz
+// The VM test's cycle and drives (tests/cia402/vm): 10 ms, 200 us plant steps, 100 Hz
 // velocity loop, generous timeouts, a 5 mm following-error window.
 void vm_like(ini::IniFile& ini) {
   ini.set("EMCMOT", "SERVO_PERIOD", "10000000");
   ini.set("CANOPEN", "PDO_MISS_LIMIT", "0");
+  // The VM's stalls are ridden through: no stale-feedback budget either.
+  ini.set("CIA402", "STALE_LIMIT", "0");
   ini.set("CANOPEN_NODE_1", "HEARTBEAT_TIMEOUT_MS", "60000");
   ini.set("CANOPEN_NODE_1", "MASTER_HEARTBEAT_TIMEOUT_MS", "60000");
   ini.set("CIA402_DRIVE_0", "FERROR_WINDOW", "5");

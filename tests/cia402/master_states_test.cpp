@@ -36,7 +36,7 @@ class FakeLink final : public DriveLink {
   LinkHealth health(int) const noexcept override {
     LinkHealth h;
     h.operational = true;
-    h.inputs_fresh = true;
+    h.inputs_fresh = fresh;
     return h;
   }
   int request_read(int, Object) noexcept override { return -1; }
@@ -53,6 +53,7 @@ class FakeLink final : public DriveLink {
   uint16_t controlword() const { return read_slot<uint16_t>(find(false, obj::kControlword)); }
   int32_t target() const { return read_slot<int32_t>(find(false, obj::kTargetPosition)); }
   int8_t mode() const { return read_slot<int8_t>(find(false, obj::kModes)); }
+  bool fresh = true;  // the bus says this cycle's inputs answered the last one
 
  private:
   void place(bool in, Object o, uint16_t byte, uint8_t bits) {
@@ -70,9 +71,10 @@ class FakeLink final : public DriveLink {
 };
 
 struct Master {
-  Master() : drive(config(), link, &messages) {}
-  static DriveConfig config() {
+  explicit Master(int stale_limit = 3) : drive(config(stale_limit), link, &messages) {}
+  static DriveConfig config(int stale_limit = 3) {
     DriveConfig c;
+    c.stale_limit = stale_limit;
     c.name = "x-axis";
     c.source = "cia402.0.drive.00";
     c.address = 1;
@@ -210,4 +212,70 @@ TEST(Cia402MasterStates, WritesTheConfiguredModeAndWaitsForItsDisplay) {
   m.drive.read(m.t, m.cmd, m.fb);
   m.drive.write(m.t, m.cmd, m.fb);
   EXPECT_FALSE(m.fb.switching_mode);
+}
+
+namespace {
+
+// A drive at operation enabled, following the demand 20 increments a cycle
+// a few cycles behind (the transport and the drive's interpolation), as a
+// CSP drive does.
+struct Moving : Master {
+  explicit Moving(int stale_limit) : Master(stale_limit) {
+    cmd.enable = true;
+    cycle(kSod);
+    cycle(kRtso);
+    cycle(kSo);
+    for (int i = 0; i < 10; ++i) step(true);
+  }
+  // One cycle: the demand moves on; a fresh sample follows it, a stale one
+  // repeats the last.
+  void step(bool fresh) {
+    link.fresh = fresh;
+    if (fresh) reported = demand_two_ago - 10;
+    demand_two_ago = demand_one_ago;
+    demand_one_ago = target_counts;
+    target_counts += 20;
+    cmd.pos_cmd = target_counts / 2000.0;
+    cycle(kOe, static_cast<int32_t>(reported));
+  }
+  int64_t target_counts = 0, demand_one_ago = 0, demand_two_ago = 0, reported = 0;
+};
+
+}  // namespace
+
+TEST(Cia402MasterStates, StaleInputsWithinTheBudgetShowTheDemandLessTheLastLag) {
+  Moving m(3);
+  const double fresh_ferror = m.fb.ferror;
+  EXPECT_GT(fresh_ferror, 0.0);
+  for (int i = 0; i < 3; ++i) {
+    const double before = m.fb.pos_fb;
+    m.step(false);
+    EXPECT_TRUE(m.fb.link_ok) << "stale cycle " << i + 1 << " is within STALE_LIMIT = 3";
+    EXPECT_FALSE(m.fb.amp_fault);
+    EXPECT_NEAR(m.fb.pos_fb - before, 20 / 2000.0, 1e-9) << "the feedback of a moving axis is not frozen";
+    EXPECT_NEAR(m.fb.ferror, fresh_ferror, 1e-9) << "no following error grows from stale samples";
+  }
+  m.step(true);
+  EXPECT_TRUE(m.fb.link_ok);
+  EXPECT_FALSE(m.has_message("no fresh feedback"));
+}
+
+TEST(Cia402MasterStates, StaleInputsPastTheBudgetStopTheAxisSayingWhy) {
+  Moving m(3);
+  for (int i = 0; i < 3; ++i) m.step(false);
+  ASSERT_TRUE(m.fb.link_ok);
+  m.step(false);
+  EXPECT_FALSE(m.fb.link_ok) << "a fourth stale cycle is past STALE_LIMIT = 3";
+  EXPECT_TRUE(m.fb.amp_fault) << "motion sees the amplifier fault and stops";
+  EXPECT_TRUE(m.has_message("no fresh feedback for 4 cycles on fake (STALE_LIMIT = 3)"));
+  EXPECT_NE(std::string(m.drive.fault_text()).find("feedback stale for 4 cycles on fake"), std::string::npos);
+  m.step(true);
+  EXPECT_TRUE(m.fb.link_ok) << "fresh inputs make the link ok again (motion needs a new enable)";
+}
+
+TEST(Cia402MasterStates, StaleLimitZeroLeavesTheBudgetToTheBus) {
+  Moving m(0);
+  for (int i = 0; i < 50; ++i) m.step(false);
+  EXPECT_TRUE(m.fb.link_ok);
+  EXPECT_FALSE(m.has_message("no fresh feedback"));
 }

@@ -19,6 +19,7 @@
 #include "fieldbus/ethercat/components.hpp"
 #include "fieldbus/ethercat/config.hpp"
 #include "fieldbus/ethercat/master.hpp"
+#include "sim/ethercat/segment.hpp"
 #include "sim/register.hpp"
 #include "tests/support/testing.hpp"
 
@@ -27,55 +28,46 @@ using ::testing::HasSubstr;
 
 namespace {
 
-std::string machine_ini(const std::string& seg) {
+std::string machine_ini(const std::string& seg, const std::string& bus_keys = "MISS_LIMIT = 0\n",
+                        const std::string& cia402_keys = "") {
   return "[EMCMOT]\nSERVO_PERIOD = 1000000\n"
-         "[ETHERCAT]\nINTERFACE = sim:" + seg + "\nSLAVE = 1 2\nMISS_LIMIT = 0\n"
+         "[ETHERCAT]\nINTERFACE = sim:" + seg + "\nSLAVE = 1 2\n" + bus_keys +
          "[ETHERCAT_SLAVE_1]\nNAME = x-axis\nVENDOR_ID = 0x00000CC1\n"
          "[ETHERCAT_SLAVE_2]\nNAME = y-axis\nSDO = 0x6065:0:u32 20000\n"
          "RXPDO = 0x6040:0:u16 0x607A:0:s32 0x6060:0:s8\nTXPDO = 0x6041:0:u16 0x6064:0:s32 0x6061:0:s8 0x606C:0:s32\n"
-         "[CIA402]\nBUS = ethercat.0\nDRIVE = 0 1\n"
+         "[CIA402]\nBUS = ethercat.0\nDRIVE = 0 1\n" + cia402_keys +
          "[CIA402_DRIVE_0]\nADDRESS = 1\nNAME = x-axis\nENCODER_COUNTS = 10000\nSCREW_LEAD = 5\n"
          "[CIA402_DRIVE_1]\nADDRESS = 2\nNAME = y-axis\nENCODER_COUNTS = 10000\nSCREW_LEAD = 5\n";
 }
 
-}  // namespace
-
-TEST(EthercatComponent, LoadrtRunsCia402DrivesOverTheSimulatedBus) {
-  const std::string seg = cnc::testing::unique_name("ecathal");
-  const auto ini = ini::IniFile::parse(machine_ini(seg), "machine.ini");
-  hal::Hal hal;
-  hal::ComponentRegistry registry;
-  hal::register_core_components(registry);
-  canopen::register_components(registry);
-  ethercat::register_components(registry);
-  cia402::register_components(registry);
-  sim::register_components(registry);
-  MessageQueue messages;
-  hal::CommandInterpreter halcmd(hal, registry, &ini, &messages);
-  halcmd.run_text(
-      "loadrt threads name1=servo-thread period1=1000000\n"
-      "loadrt ethercat_sim name=" + seg + " drives=2\n"
-      "loadrt ethercat\n"
-      "loadrt cia402\n"
-      "addf ethercat.0.read servo-thread\n"
-      "addf cia402.0.read servo-thread\n"
-      "addf cia402.0.write servo-thread\n"
-      "addf ethercat.0.write servo-thread\n",
-      "test.hal");
-  for (hal::Component* c : hal.components()) c->on_ready();  // start-up to SAFEOP, drive configuration
-  ethercat::Master* m = ethercat::find_master(hal, "ethercat.0");
-  ASSERT_NE(m, nullptr);
-  EXPECT_EQ(m->slave_count(), 2u);
-  EXPECT_TRUE(m->output(2, 0x607A, 0));
-  EXPECT_TRUE(m->input(2, 0x606C, 0));   // the configured mapping
-  EXPECT_FALSE(m->input(1, 0x606C, 0));  // SII default
-  EXPECT_EQ(m->sdo_upload(2, 0x6065, 0).data, (std::vector<uint8_t>{0x20, 0x4E, 0, 0}));
-
-  hal::Thread* servo = hal.find_thread("servo-thread");
-  ASSERT_NE(servo, nullptr);
-  rt::CycleInfo info;
-  info.period_ns = 1'000'000;
-  auto cycles = [&](int n, const std::function<bool()>& until) {
+// ethercat_sim, ethercat and cia402 in one HAL with a servo thread run by
+// hand on the real clock (the simulated segment answers in-process).
+struct SimMachine {
+  explicit SimMachine(const std::string& seg_name, const std::string& ini_text)
+      : seg(seg_name), ini(ini::IniFile::parse(ini_text, "machine.ini")) {
+    hal::register_core_components(registry);
+    canopen::register_components(registry);
+    ethercat::register_components(registry);
+    cia402::register_components(registry);
+    sim::register_components(registry);
+    halcmd = std::make_unique<hal::CommandInterpreter>(hal, registry, &ini, &messages);
+    halcmd->run_text(
+        "loadrt threads name1=servo-thread period1=1000000\n"
+        "loadrt ethercat_sim name=" + seg + " drives=2\n"
+        "loadrt ethercat\n"
+        "loadrt cia402\n"
+        "addf ethercat.0.read servo-thread\n"
+        "addf cia402.0.read servo-thread\n"
+        "addf cia402.0.write servo-thread\n"
+        "addf ethercat.0.write servo-thread\n",
+        "test.hal");
+    for (hal::Component* c : hal.components()) c->on_ready();  // start-up to SAFEOP, drive configuration
+    servo = hal.find_thread("servo-thread");
+    info.period_ns = 1'000'000;
+  }
+  ~SimMachine() { hal.clear(); }
+  // Runs up to n cycles, 0.5 ms apart, until `until` holds.
+  bool cycles(int n, const std::function<bool()>& until) {
     for (int i = 0; i < n; ++i) {
       info.now_ns = monotonic_ns();
       servo->run_cycle(info);
@@ -84,27 +76,63 @@ TEST(EthercatComponent, LoadrtRunsCia402DrivesOverTheSimulatedBus) {
       if (until && until()) return true;
     }
     return false;
-  };
-  ASSERT_TRUE(cycles(5000, [&] { return hal.get_value("ethercat.0.ready") == "TRUE"; }));
+  }
+  bool enable_both() {
+    if (!cycles(5000, [&] { return hal.get_value("ethercat.0.ready") == "TRUE"; })) return false;
+    hal.set_value("cia402.0.drive.00.enable", "TRUE");
+    hal.set_value("cia402.0.drive.01.enable", "TRUE");
+    return cycles(5000, [&] {
+      return hal.get_value("cia402.0.drive.00.enabled") == "TRUE" && hal.get_value("cia402.0.drive.01.enabled") == "TRUE";
+    });
+  }
+  bool has_message(const std::string& part) {
+    Message m;
+    while (messages.pop(m)) log += std::string(m.text.c_str()) + "\n";
+    return log.find(part) != std::string::npos;
+  }
+
+  std::string seg;
+  ini::IniFile ini;
+  hal::Hal hal;
+  hal::ComponentRegistry registry;
+  MessageQueue messages;
+  std::unique_ptr<hal::CommandInterpreter> halcmd;
+  hal::Thread* servo = nullptr;
+  rt::CycleInfo info;
+  std::string log;
+};
+
+}  // namespace
+
+TEST(EthercatComponent, LoadrtRunsCia402DrivesOverTheSimulatedBus) {
+  const std::string seg = cnc::testing::unique_name("ecathal");
+  SimMachine sm(seg, machine_ini(seg));
+  auto& hal = sm.hal;
+  ethercat::Master* m = ethercat::find_master(hal, "ethercat.0");
+  ASSERT_NE(m, nullptr);
+  EXPECT_EQ(m->slave_count(), 2u);
+  EXPECT_TRUE(m->output(2, 0x607A, 0));
+  EXPECT_TRUE(m->input(2, 0x606C, 0));   // the configured mapping
+  EXPECT_FALSE(m->input(1, 0x606C, 0));  // SII default
+  EXPECT_EQ(m->sdo_upload(2, 0x6065, 0).data, (std::vector<uint8_t>{0x20, 0x4E, 0, 0}));
+
+  ASSERT_NE(sm.servo, nullptr);
+  ASSERT_TRUE(sm.cycles(5000, [&] { return hal.get_value("ethercat.0.ready") == "TRUE"; }));
   EXPECT_EQ(hal.get_value("ethercat.0.slave.02.al-state"), "8");
   EXPECT_EQ(hal.get_value("ethercat.0.slave.02.operational"), "TRUE");
-  hal.set_value("cia402.0.drive.00.enable", "TRUE");
-  hal.set_value("cia402.0.drive.01.enable", "TRUE");
-  ASSERT_TRUE(cycles(5000, [&] {
-    return hal.get_value("cia402.0.drive.00.enabled") == "TRUE" && hal.get_value("cia402.0.drive.01.enabled") == "TRUE";
-  }));
+  ASSERT_TRUE(sm.enable_both());
   hal.set_value("cia402.0.drive.01.pos-cmd", "0.5");  // a small step, within the drive's following window
-  EXPECT_TRUE(cycles(5000, [&] { return std::abs(std::stod(hal.get_value("cia402.0.drive.01.pos-fb")) - 0.5) < 0.001; }))
+  EXPECT_TRUE(sm.cycles(5000, [&] { return std::abs(std::stod(hal.get_value("cia402.0.drive.01.pos-fb")) - 0.5) < 0.001; }))
       << hal.get_value("cia402.0.drive.01.pos-fb");
   {
     // The servo thread's functions (bus read, drives, bus write) never allocate.
     uint64_t allocations = 0;
     for (int i = 0; i < 300; ++i) {
-      info.now_ns = monotonic_ns();
+      sm.info.now_ns = monotonic_ns();
       cnc::testing::ScopedAllocationCheck check;
-      servo->run_cycle(info);
+      sm.servo->run_cycle(sm.info);
       allocations += check.allocations();
-      ++info.cycle;
+      ++sm.info.cycle;
       std::this_thread::sleep_for(std::chrono::microseconds(500));
     }
     if (cnc::testing::AllocationCounter::available()) {
@@ -114,7 +142,34 @@ TEST(EthercatComponent, LoadrtRunsCia402DrivesOverTheSimulatedBus) {
   EXPECT_EQ(hal.get_value("ethercat.0.fault"), "FALSE");
   EXPECT_EQ(hal.get_value("ethercat.0.working-counter"), "6");
   EXPECT_NE(hal.get_value("ethercat.0.cycles"), "0");
-  hal.clear();
+}
+
+// The stale-feedback budget on EtherCAT: with the bus's own limit set high
+// (MISS_LIMIT = 100, as a test host needs), lost frames stop the drives
+// after [CIA402]STALE_LIMIT cycles, long before the bus's safe stop; a
+// loss within the budget is ridden through.
+TEST(EthercatComponent, LostFramesStopTheDrivesAfterStaleLimitCyclesNotMissLimit) {
+  const std::string seg = cnc::testing::unique_name("ecatstale");
+  SimMachine sm(seg, machine_ini(seg, "MISS_LIMIT = 100\n", "STALE_LIMIT = 5\n"));
+  ASSERT_TRUE(sm.enable_both());
+  auto segment = ethercat::sim::find_segment(seg);
+  ASSERT_TRUE(segment);
+  auto& hal = sm.hal;
+  segment->drop_frames(4);  // within the budget
+  sm.cycles(20, {});
+  EXPECT_EQ(hal.get_value("cia402.0.drive.00.link-ok"), "TRUE");
+  EXPECT_EQ(hal.get_value("cia402.0.drive.00.amp-fault"), "FALSE");
+  EXPECT_FALSE(sm.has_message("no fresh feedback"));
+
+  segment->drop_frames(1'000'000);
+  int cycles = 0;
+  ASSERT_TRUE(sm.cycles(200, [&] { return ++cycles, hal.get_value("cia402.0.drive.00.link-ok") == "FALSE"; }));
+  EXPECT_LE(cycles, 5 + 2) << "stopped after STALE_LIMIT stale cycles (one more to see the first loss)";
+  EXPECT_EQ(hal.get_value("ethercat.0.fault"), "FALSE") << "the bus's MISS_LIMIT (100) has not run out yet";
+  EXPECT_EQ(hal.get_value("cia402.0.drive.00.amp-fault"), "TRUE");
+  EXPECT_EQ(hal.get_value("cia402.0.drive.01.amp-fault"), "TRUE");
+  EXPECT_TRUE(sm.has_message("no fresh feedback for 6 cycles on ethercat.0 (STALE_LIMIT = 5)"));
+  segment->drop_frames(0);
 }
 
 TEST(EthercatComponent, CiaDriveOnAMissingBusNamesIt) {
