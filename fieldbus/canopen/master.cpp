@@ -66,6 +66,7 @@ void Master::init() {
     n->cfg = c;
     SdoClientOptions o;
     o.timeout_ns = config_.sdo_timeout_ns;
+    o.pacer = &sdo_pacer_;
     n->sdo = std::make_unique<SdoClient>(*acyclic_port_, c.id, o);
     char src[48];
     std::snprintf(src, sizeof src, "%s.node.%02u", config_.name.c_str(), c.id);

@@ -118,6 +118,9 @@ class Master {
   void nmt(NmtCommand command, uint8_t node);
 
   // SDO from any non-realtime thread; `done` runs in the acyclic thread.
+  // SDO request frames that waited for a later cycle to stay inside the
+  // plan's SDO share (acyclic thread's count; read it when the bus is idle).
+  uint64_t sdo_frames_deferred() const noexcept { return sdo_pacer_.deferred(); }
   void sdo_upload(uint8_t node, ObjectAddress a, SdoClient::Done done, SdoMode mode = SdoMode::Auto);
   void sdo_download(uint8_t node, ObjectAddress a, std::vector<uint8_t> data, SdoClient::Done done,
                     SdoMode mode = SdoMode::Auto);
@@ -202,6 +205,9 @@ class Master {
   MessageQueue* messages_;
   std::unique_ptr<can::Transport> cyclic_port_;
   std::unique_ptr<can::Transport> acyclic_port_;
+  // The SDO share of the bus-load plan, for every node's SDO client:
+  // SDO_FRAMES_PER_CYCLE / 2 requests a cycle (0: unpaced).
+  SdoPacer sdo_pacer_{config_.cycle_ns, (config_.plan_sdo_frames + 1) / 2};
   std::vector<std::unique_ptr<NodeRt>> nodes_;
 
   // acyclic

@@ -104,7 +104,11 @@ void Master::cyclic_read(int64_t now_ns) noexcept {
     }
     if (t.type == 0 || t.type > kTransmissionSyncMax) continue;
     const bool missing = t.ever ? serial - t.received_serial >= t.type : serial > static_cast<uint64_t>(t.type) + 1;
-    if (missing) {
+    if (missing && no_sync) {
+      // No SYNC since the last read (refused, or write() not running): the
+      // TPDO is still the one missing for the last SYNC, not a new miss.
+      fresh = false;
+    } else if (missing) {
       fresh = false;
       ++t.consecutive_missed;
       ++cyclic_.pdo_missed;

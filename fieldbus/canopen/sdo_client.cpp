@@ -57,9 +57,23 @@ void SdoClient::download(ObjectAddress a, std::vector<uint8_t> data, Done done, 
   queue_.push_back(Request{a, false, mode, std::move(data), std::move(done)});
 }
 
-void SdoClient::send(const uint8_t (&b)[8]) { transport_.send(can::Frame::make(request_cob_, b, 8)); }
+void SdoClient::send(const uint8_t (&b)[8]) {
+  out_.push_back(can::Frame::make(request_cob_, b, 8));
+  flush();
+  if (!out_.empty() && options_.pacer) options_.pacer->count_deferred();
+}
+
+void SdoClient::flush() {
+  while (!out_.empty()) {
+    if (options_.pacer && !options_.pacer->available(now_ns_)) return;  // a later cycle (poll)
+    if (transport_.send(out_.front()) != can::SendStatus::Ok) return;   // queue full or down: poll retries
+    if (options_.pacer) options_.pacer->consume();
+    out_.pop_front();
+  }
+}
 
 void SdoClient::fail(uint32_t code, bool by_client, std::optional<ObjectAddress> answered_for) {
+  out_.clear();  // what the server never saw of this transfer
   if (by_client) {
     uint8_t b[8] = {0x80};
     put_le<uint16_t>(b + 1, active_.addr.index);
@@ -163,13 +177,15 @@ void SdoClient::send_download_segment() {
 }
 
 void SdoClient::send_block_segments() {
+  // The whole block is queued; flush() sends it at the transport's and the
+  // pacer's pace.
   const std::size_t size = active_.data.size();
-  while (state_ == State::BlockDownloadSend && seq_ < block_size_) {
+  while (seq_ < block_size_) {
     const std::size_t n = std::min<std::size_t>(7, size - send_pos_);
     const bool last = send_pos_ + n >= size;
     uint8_t b[8] = {static_cast<uint8_t>((last ? 0x80 : 0) | (seq_ + 1))};
     std::memcpy(b + 1, active_.data.data() + send_pos_, n);
-    if (transport_.send(can::Frame::make(request_cob_, b, 8)) != can::SendStatus::Ok) return;  // resume in poll()
+    send(b);
     ++seq_;
     send_pos_ += n;
     if (last) break;
@@ -304,6 +320,7 @@ bool SdoClient::on_frame(const can::Frame& f, int64_t now_ns) {
         return true;
       }
       block_size_ = d[2];
+      out_.clear();  // segments past the acknowledged one are sent again
       send_pos_ = pos_;
       seq_ = 0;
       state_ = State::BlockDownloadSend;
@@ -355,6 +372,7 @@ bool SdoClient::on_frame(const can::Frame& f, int64_t now_ns) {
 
 void SdoClient::poll(int64_t now_ns) {
   now_ns_ = now_ns;
+  flush();
   if (state_ == State::BlockDownloadSend) send_block_segments();
   if (state_ != State::Idle && now_ns >= deadline_ns_) fail(abort_code::kTimeout, true);
   if (state_ == State::Idle) start(now_ns);

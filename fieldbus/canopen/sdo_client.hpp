@@ -45,12 +45,45 @@ struct SdoResult {
   }
 };
 
+// A bus-wide budget of SDO request frames per cycle, shared by a master's
+// SDO clients, so that SDO traffic stays inside the share the bus-load
+// plan gives it (SDO_FRAMES_PER_CYCLE: a request and its response, so
+// half of them are the master's). Frames beyond the budget wait for a
+// later cycle in the client's queue. Acyclic thread only.
+class SdoPacer {
+ public:
+  // requests_per_cycle 0: unpaced.
+  SdoPacer(int64_t cycle_ns, uint32_t requests_per_cycle) noexcept
+      : cycle_ns_(cycle_ns > 0 ? cycle_ns : 1'000'000), per_cycle_(requests_per_cycle) {}
+  bool available(int64_t now_ns) noexcept {
+    if (per_cycle_ == 0) return true;
+    const int64_t w = now_ns / cycle_ns_;
+    if (w != window_) {
+      window_ = w;
+      used_ = 0;
+    }
+    return used_ < per_cycle_;
+  }
+  void consume() noexcept { ++used_; }
+  uint32_t requests_per_cycle() const noexcept { return per_cycle_; }
+  uint64_t deferred() const noexcept { return deferred_; }
+  void count_deferred() noexcept { ++deferred_; }
+
+ private:
+  int64_t cycle_ns_;
+  uint32_t per_cycle_;
+  int64_t window_ = -1;
+  uint32_t used_ = 0;
+  uint64_t deferred_ = 0;
+};
+
 struct SdoClientOptions {
   int64_t timeout_ns = 500'000'000;
   std::size_t block_threshold = 64;  // Auto downloads longer than this use block transfer
   uint8_t block_size = 127;          // offered for block uploads
   uint8_t protocol_switch_threshold = 0;  // block upload: server may answer normally at or below this size
   bool crc = true;                   // block transfers with CRC
+  SdoPacer* pacer = nullptr;         // the bus's SDO budget (none: unpaced)
 };
 
 class SdoClient {
@@ -105,6 +138,8 @@ class SdoClient {
 
   void start(int64_t now_ns);
   void send(const uint8_t (&b)[8]);
+  // Sends queued request frames as far as the transport and the pacer allow.
+  void flush();
   void fail(uint32_t code, bool by_client, std::optional<ObjectAddress> answered_for = std::nullopt);
   void finish();
   void send_download_segment();
@@ -116,6 +151,7 @@ class SdoClient {
   uint32_t request_cob_, response_cob_;
   SdoClientOptions options_;
   std::deque<Request> queue_;
+  std::deque<can::Frame> out_;  // request frames of the active transfer not sent yet
   Request active_;
   State state_ = State::Idle;
   int64_t deadline_ns_ = 0;

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <map>
 #include <numeric>
 #include <optional>
 
@@ -551,4 +552,33 @@ TEST_F(SdoClientScripted, QueuedTransfersRunInOrderAndCancelTogether) {
   client->cancel_all(abort_code::kGeneral, sim.now());
   EXPECT_EQ(codes, (std::vector<uint32_t>(3, abort_code::kGeneral)));
   EXPECT_TRUE(client->idle());
+}
+
+// The bus-load plan gives SDO a share of every cycle (SDO_FRAMES_PER_CYCLE,
+// a request and its response); a block download would otherwise put a
+// sub-block of 127 frames on the bus at once.
+TEST_F(SdoTest, APacedClientSendsNoMoreRequestsPerCycleThanItsShare) {
+  auto most_requests_in_one_ms = [&] {
+    std::map<int64_t, int> per_cycle;
+    int most = 0;
+    for (const can::Frame& f : requests()) most = std::max(most, ++per_cycle[f.timestamp_ns / 1'000'000]);
+    return most;
+  };
+  const auto data = pattern(300, 5);
+  ASSERT_TRUE(download({0x2005, 0}, data, SdoMode::Block).ok());
+  EXPECT_GT(most_requests_in_one_ms(), 5) << "unpaced, a sub-block goes out at the bus's pace (8 frames a ms)";
+
+  SdoPacer pacer(1'000'000, 1);
+  SdoClientOptions o;
+  o.pacer = &pacer;
+  client = std::make_unique<SdoClient>(*master_port, kNode, o);
+  sim.log.clear();
+  const SdoResult r = download({0x2005, 0}, pattern(300, 9), SdoMode::Block);
+  ASSERT_TRUE(r.ok()) << r.message();
+  const OdEntry* e = od.find({0x2005, 0});
+  ASSERT_EQ(e->size, 300u);
+  EXPECT_EQ(od.data(*e)[299], pattern(300, 9)[299]);
+  EXPECT_EQ(most_requests_in_one_ms(), 1);
+  EXPECT_GT(pacer.deferred(), 40u);
+  EXPECT_TRUE(upload({0x2003, 0}).ok()) << "expedited transfers pass at one request a cycle";
 }
