@@ -1,6 +1,9 @@
 // ecat-sim: simulated CiA 402 drives in a line behind an Ethernet interface
 // (a real NIC or one end of a veth pair), answering EtherCAT frames like
 // ESCs would, with optional fault injection once the drives are in OP.
+// Every change of a slave's AL state and of a drive's CiA 402 state is
+// printed ("ecat-sim: slave 2 OP -> INIT", "ecat-sim: drive 2 operation
+// enabled -> quick stop active"), so tests can see how a master left them.
 //
 //   ecat-sim --iface ecs --drives 3 [--fault break:2|drop|wkc|refuse:<n>:<state>|sdo-abort:<n>:<index>]
 //            [--fault-after-ms 1000] [--seconds 0]
@@ -13,8 +16,10 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <vector>
 
 #include "fieldbus/ethercat/link.hpp"
+#include "fieldbus/ethercat/protocol.hpp"
 #include "sim/ethercat/segment.hpp"
 
 using namespace cnc::ethercat;
@@ -103,6 +108,26 @@ int main(int argc, char** argv) {
   int64_t all_op_since = -1, last_poll = 0;
   bool injected = false;
   uint64_t frames = 0;
+  std::vector<AlState> al_seen(seg->size(), AlState::Init);
+  std::vector<cnc::cia402::State> drive_seen(seg->size(), cnc::cia402::State::NotReadyToSwitchOn);
+  auto report_changes = [&] {
+    for (std::size_t i = 0; i < seg->size(); ++i) {
+      const AlState al = seg->slave(i).state();
+      if (al != al_seen[i]) {
+        std::fprintf(stderr, "ecat-sim: slave %zu %s -> %s\n", i + 1, al_state_name(static_cast<uint8_t>(al_seen[i])),
+                     al_state_name(static_cast<uint8_t>(al)));
+        al_seen[i] = al;
+      }
+      if (sim::CoeDrive* d = seg->drive(i)) {
+        const cnc::cia402::State st = d->model().state();
+        if (st != drive_seen[i]) {
+          std::fprintf(stderr, "ecat-sim: drive %zu %s -> %s\n", i + 1, cnc::cia402::to_string(drive_seen[i]),
+                       cnc::cia402::to_string(st));
+          drive_seen[i] = st;
+        }
+      }
+    }
+  };
   while (!g_stop) {
     const int64_t t = now_ns();
     if (seconds > 0 && t - start > seconds * 1'000'000'000) break;
@@ -115,6 +140,7 @@ int main(int argc, char** argv) {
     if (t2 - last_poll > 500'000) {
       seg->poll();
       last_poll = t2;
+      report_changes();
       bool all_op = true;
       for (std::size_t i = 0; i < seg->size(); ++i) all_op = all_op && seg->slave(i).state() == AlState::Op;
       if (all_op && all_op_since < 0) all_op_since = t2;

@@ -12,10 +12,12 @@
 // DC lock offset. Exit status 0 when everything held (or the expected fault
 // was reported), 1 otherwise, 2 for usage errors.
 #include <sched.h>
+#include <signal.h>
 #include <sys/mman.h>
 #include <time.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -147,6 +149,11 @@ struct Options {
   std::string expect_fault;
 };
 
+// Ctrl-C or SIGTERM during `run`: the same exit path as the end of the time
+// (drives quick-stopped, slaves to INIT), never an abrupt end in OP.
+std::atomic<bool> g_interrupted{false};
+void on_interrupt(int) { g_interrupted.store(true); }
+
 int run(const Options& o) {
   MasterConfig cfg;
   cfg.interface = o.iface;
@@ -189,6 +196,13 @@ int run(const Options& o) {
   const bool locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
   std::fprintf(stderr, "cnc-ethercat: cycle %lld us, %s scheduling%s\n", static_cast<long long>(o.cycle_ns / 1000),
                fifo ? "SCHED_FIFO" : "normal", locked ? ", memory locked" : "");
+
+  struct sigaction sa{};
+  sa.sa_handler = on_interrupt;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  bool interrupted = false;
 
   enum class Stage { WaitOp, Configure, Enable, Run } stage = Stage::WaitOp;
   std::thread configurer;
@@ -254,6 +268,12 @@ int run(const Options& o) {
         moving = moving || st == cia402::State::OperationEnabled || st == cia402::State::QuickStopActive;
       }
       if (!moving || wake - stop_start > 1'000'000'000) break;
+      continue;
+    }
+    if (g_interrupted.load() && !interrupted) {
+      interrupted = true;
+      std::fprintf(stderr, "cnc-ethercat: interrupted: quick stop of the drives, slaves to INIT\n");
+      stop_because("", wake);
       continue;
     }
     if (m.has_fault()) {

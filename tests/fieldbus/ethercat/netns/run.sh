@@ -7,6 +7,7 @@
 #
 #   run.sh CASE ECAT_SIM CNC_ETHERCAT
 #   CASE: scan | bringup | cable-break | lost-frames | wrong-wkc | refused-state | sdo-abort
+#         | exit | interrupt
 set -eu
 case_name=$1
 sim=$2
@@ -14,10 +15,11 @@ tool=$3
 ns="cnc-ecat-$$"
 simpid=""
 out=$(mktemp)
+simout=$(mktemp)
 cleanup() {
   if [ -n "$simpid" ]; then kill "$simpid" 2>/dev/null || true; wait "$simpid" 2>/dev/null || true; fi
   ip netns del "$ns" 2>/dev/null || true
-  rm -f "$out"
+  rm -f "$out" "$simout"
 }
 trap cleanup EXIT INT TERM
 
@@ -30,7 +32,7 @@ ip -n "$ns" link set ecm up
 ip -n "$ns" link set ecs up
 
 start_sim() {
-  ip netns exec "$ns" "$sim" --iface ecs --drives 3 --seconds 120 "$@" &
+  ip netns exec "$ns" "$sim" --iface ecs --drives 3 --seconds 120 "$@" 2>"$simout" &
   simpid=$!
   sleep 0.3
 }
@@ -42,6 +44,23 @@ master() {
 }
 expect() {
   grep -qF -- "$1" "$out" || { echo "FAILED: output lacks: $1"; exit 1; }
+}
+# How the master left the drives, as the simulated slaves saw it: every
+# slave's last AL state INIT, every drive out of "operation enabled" (the
+# master quick-stops them; a drive at rest passes quick stop active within
+# one of the simulator's polls) and not enabled again.
+expect_left_safely() {
+  sleep 0.5  # the simulator prints changes every 0.5 ms; let it see the last
+  cat "$simout"
+  for k in 1 2 3; do
+    last=$(grep "^ecat-sim: slave $k " "$simout" | tail -n 1)
+    case "$last" in *"-> INIT") ;; *) echo "FAILED: slave $k left in: $last"; exit 1 ;; esac
+    grep -q "^ecat-sim: drive $k operation enabled -> " "$simout" \
+      || { echo "FAILED: drive $k was never enabled and stopped"; exit 1; }
+    last=$(grep "^ecat-sim: drive $k " "$simout" | tail -n 1)
+    case "$last" in *"-> switch on disabled" | *"-> ready to switch on" | *"-> switched on") ;;
+      *) echo "FAILED: drive $k left in: $last"; exit 1 ;; esac
+  done
 }
 
 case "$case_name" in
@@ -89,6 +108,31 @@ case "$case_name" in
     start_sim --fault sdo-abort:2:0x1C12
     master run raw:ecm --expect-fault \
       "slave 2 (drive-2): writing 0x1C12:00 = 0x00 (RxPDO assignment cleared) refused: aborted by the slave: 0x06090030"
+    ;;
+  exit)
+    # The end of the time: drives quick-stopped, slaves back to INIT.
+    start_sim
+    master run raw:ecm --cycle-us 1000 --seconds 2 --move --miss-limit 200
+    expect "OK"
+    expect_left_safely
+    ;;
+  interrupt)
+    # Ctrl-C in the middle of a run takes the same exit path.
+    start_sim
+    ip netns exec "$ns" "$tool" run raw:ecm --cycle-us 1000 --seconds 60 --move --miss-limit 200 >"$out" 2>&1 &
+    toolpid=$!
+    for _i in $(seq 1 150); do
+      [ "$(grep -c -- '-> operation enabled' "$simout")" -ge 3 ] && break
+      sleep 0.1
+    done
+    sleep 0.5
+    kill -INT "$toolpid"
+    rc=0
+    wait "$toolpid" || rc=$?
+    cat "$out"
+    [ "$rc" -eq 0 ] || { echo "FAILED: cnc-ethercat run ended with $rc after Ctrl-C"; exit 1; }
+    expect "interrupted: quick stop of the drives, slaves to INIT"
+    expect_left_safely
     ;;
   *)
     echo "unknown case $case_name"
