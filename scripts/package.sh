@@ -26,8 +26,11 @@ command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -
 if [ ! -f "$build/CMakeCache.txt" ]; then
   cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "${launcher[@]}"
 fi
-# The packages install under /usr whatever the build folder was set up with.
-cmake "$build" -DCMAKE_INSTALL_PREFIX=/usr >/dev/null
+# The packages install under /usr whatever the build folder was set up with
+# (the default of a new build folder; configured again only when not).
+if ! grep -qx 'CMAKE_INSTALL_PREFIX:PATH=/usr' "$build/CMakeCache.txt"; then
+  cmake "$build" -DCMAKE_INSTALL_PREFIX=/usr -UCMAKE_INSTALL_LIBDIR >/dev/null
+fi
 # Only what the packages hold: the programs, their manual pages.
 targets=(cncd cnc halcmd cnc-rs274 cnc-canopen cnc-ethercat cnc-comp cnc-cia402-sim ecat-sim cnc-modbus-sim
          cnc-canopen-node cnc_man_pages cnc_deb_changelog)

@@ -3,7 +3,8 @@
 # packages (scripts/package.sh) into a clean Debian 12 root made with
 # mmdebstrap, then, as an ordinary user of the group cnc, copies the
 # installed sim configuration with cnc-config and runs the demo program on
-# it with the installed cncd and cnc, as scripts/demo.sh does. Needs root
+# it with the installed cncd and cnc, as scripts/demo.sh does; the Modbus
+# sample loads too (loadusr finds cnc-modbus-sim among the helpers). Needs root
 # (mmdebstrap --mode=root, chroot, mount) and the Debian archive.
 #   install_debian12.sh SOURCE BUILD
 set -euo pipefail
@@ -48,6 +49,9 @@ cd "$HOME"
 cnc-config list
 cnc-config copy sim
 cnc-config check sim
+# loadusr finds the simulators' processes in /usr/lib/<triplet>/cnc.
+cnc-config copy sim-modbus
+cnc-config check sim-modbus
 ini="$HOME/cnc/configs/sim/sim.ini"
 # The segment and sockets go to the group cnc (docs/install.md).
 sed -i 's/^\[EMC\]$/[EMC]\nOPERATOR_GROUP = cnc/' "$ini"
