@@ -1,14 +1,24 @@
 // cnc-hmi: the Qt operator screen. Usage:
 //   cnc-hmi [--instance NAME] [--geometry WxH] [--fullscreen] [--comma]
-//           [--quit-after-startup] [--screenshot FILE] MACHINE.ini
+//           [--quit-after-startup] [--screenshot FILE] [MACHINE.ini]
+// Without MACHINE.ini it opens the configuration picker: a dialog listing
+// what `cnc-config list` lists; the choice is run by `cnc-config run`,
+// which starts the controller and this screen on it (docs/install.md).
 // It reads the INI file, connects to the controller of the instance
 // (default $CNC_INSTANCE or "default") through the shared segment and
 // shows its status; it starts without a controller and connects when one
 // comes up.
 #include <QApplication>
+#include <QFileInfo>
+#include <QInputDialog>
+#include <QMessageBox>
+#include <QProcess>
 #include <QScreen>
 #include <QTimer>
+#include <unistd.h>
+
 #include <cstdio>
+#include <cerrno>
 #include <cstring>
 #include <functional>
 #include <string>
@@ -52,8 +62,49 @@ class FirstPaint : public QObject {
 int usage(bool asked = false) {
   std::fprintf(asked ? stdout : stderr,
                "usage: cnc-hmi [--instance NAME] [--geometry WxH] [--fullscreen] [--comma]\n"
-               "               [--quit-after-startup] [--screenshot FILE] MACHINE.ini\n");
+               "               [--quit-after-startup] [--screenshot FILE] [MACHINE.ini]\n"
+               "  Without MACHINE.ini: a dialog to pick a configuration (cnc-config).\n");
   return asked ? 0 : 2;
+}
+
+// cnc-config beside this program (build/bin, /usr/bin), else on PATH.
+QString cnc_config_program() {
+  const QString beside = QCoreApplication::applicationDirPath() + "/cnc-config";
+  return QFileInfo(beside).isExecutable() ? beside : QString("cnc-config");
+}
+
+// The picker: the configurations `cnc-config list --names` prints (lines
+// "NAME KIND INI"), one chosen in a dialog and handed to `cnc-config run`,
+// which copies a sample first and starts the controller and the screen.
+// Returns only when nothing was run (the exit status).
+int pick_configuration() {
+  const QString program = cnc_config_program();
+  QProcess list;
+  list.start(program, {"list", "--names"});
+  if (!list.waitForFinished(10000) || list.exitStatus() != QProcess::NormalExit || list.exitCode() != 0) {
+    const QString why = list.error() == QProcess::FailedToStart
+                            ? program + " did not start (is the package cnc installed?)"
+                            : QString::fromLocal8Bit(list.readAllStandardError()).trimmed();
+    QMessageBox::critical(nullptr, "cnc-hmi", "No configuration to choose from: " + why);
+    return 1;
+  }
+  QStringList items, names;
+  for (const QString& line : QString::fromLocal8Bit(list.readAllStandardOutput()).split('\n', Qt::SkipEmptyParts)) {
+    const QStringList f = line.split(' ');
+    if (f.size() < 3) continue;
+    names << f[0];
+    items << f[0] + (f[1] == "sample" ? "   (sample: copied to ~/cnc/configs first)" : "   (yours)");
+  }
+  bool ok = false;
+  const QString chosen = QInputDialog::getItem(nullptr, "cnc-hmi: choose a machine configuration",
+                                               "Configurations (yours in ~/cnc/configs, then the samples):", items,
+                                               0, false, &ok);
+  if (!ok) return 0;
+  const std::string name = names[static_cast<int>(items.indexOf(chosen))].toStdString();
+  const std::string prog = program.toStdString();
+  ::execlp(prog.c_str(), prog.c_str(), "run", name.c_str(), static_cast<char*>(nullptr));
+  QMessageBox::critical(nullptr, "cnc-hmi", QString("cannot run ") + program + ": " + std::strerror(errno));
+  return 1;
 }
 
 }  // namespace
@@ -79,9 +130,9 @@ int main(int argc, char** argv) {
       return usage();
     }
   }
-  if (ini_path.empty()) return usage();
-
   QApplication app(argc, argv);
+  if (ini_path.empty()) return pick_configuration();
+
   QApplication::setStyle("Fusion");
   app.setStyleSheet(kStyle);
   cnc::hmi::HmiConfig config;

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Sets up, builds and runs every test (all labels: unit, vm, netns, gui,
+# Sets up, builds and runs every test (all labels: unit, vm, netns, gui, package,
 # slow). Extra arguments go to ctest, e.g. `scripts/test.sh -L unit` or
 # `scripts/test.sh -LE vm`.
 set -euo pipefail

@@ -415,7 +415,16 @@ std::filesystem::path CommandInterpreter::loadusr_program(const std::string& nam
   }
   std::error_code ec;
   const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) dirs.push_back(self.parent_path());
+  if (!ec) {
+    dirs.push_back(self.parent_path());
+#ifdef CNC_HELPERS_FROM_BIN
+    // Installed (docs/install.md): the helper programs (the simulators'
+    // processes) are in /usr/lib/<triplet>/cnc, beside /usr/bin's cncd.
+    if (fs::is_directory(self.parent_path() / CNC_HELPERS_FROM_BIN, ec)) {
+      dirs.push_back(self.parent_path() / CNC_HELPERS_FROM_BIN);
+    }
+#endif
+  }
   std::string allowed;
   for (auto& d : dirs) {
     d = fs::weakly_canonical(d, ec);

@@ -2,7 +2,10 @@
 
 #include <linux/can.h>
 #include <linux/can/error.h>
+#include <linux/can/netlink.h>
 #include <linux/can/raw.h>
+#include <linux/netlink.h>
+#include <linux/rtnetlink.h>
 #include <net/if.h>
 #include <poll.h>
 #include <sys/ioctl.h>
@@ -11,6 +14,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <stdexcept>
 #include <system_error>
 #include <vector>
 
@@ -45,7 +49,72 @@ void from_kernel_id(canid_t id, Frame& f) noexcept {
   if (id & CAN_RTR_FLAG) f.flags |= kRemote;
 }
 
+// The attribute of `type` among the rtattrs in [data, data + len), or null.
+const rtattr* find_attribute(const uint8_t* data, std::size_t len, unsigned short type) noexcept {
+  std::size_t off = 0;
+  while (off + sizeof(rtattr) <= len) {
+    rtattr a;
+    std::memcpy(&a, data + off, sizeof a);
+    if (a.rta_len < sizeof(rtattr) || off + a.rta_len > len) return nullptr;
+    if ((a.rta_type & NLA_TYPE_MASK) == type) return reinterpret_cast<const rtattr*>(data + off);
+    off += RTA_ALIGN(a.rta_len);
+  }
+  return nullptr;
+}
+
+std::string bring_up_hint(const std::string& ifname, uint32_t bitrate) {
+  return "bring it up at the bus's bitrate: sudo cnc-can-up MACHINE.ini, or sudo cnc-can-up " + ifname + " " +
+         std::to_string(bitrate ? bitrate : 1000000) + " (docs/install.md, \"CAN interfaces\")";
+}
+
 }  // namespace
+
+uint32_t can_bitrate_in_link_message(std::span<const uint8_t> m) noexcept {
+  const std::size_t head = NLMSG_LENGTH(sizeof(ifinfomsg));
+  if (m.size() < head) return 0;
+  nlmsghdr h;
+  std::memcpy(&h, m.data(), sizeof h);
+  if (h.nlmsg_type != RTM_NEWLINK || h.nlmsg_len < head || h.nlmsg_len > m.size()) return 0;
+  const uint8_t* attrs = m.data() + NLMSG_ALIGN(head);
+  const std::size_t attrs_len = h.nlmsg_len - NLMSG_ALIGN(head);
+  const rtattr* info = find_attribute(attrs, attrs_len, IFLA_LINKINFO);
+  if (!info) return 0;
+  const auto* info_data = reinterpret_cast<const uint8_t*>(RTA_DATA(info));
+  const rtattr* data = find_attribute(info_data, RTA_PAYLOAD(info), IFLA_INFO_DATA);
+  if (!data) return 0;
+  const rtattr* timing =
+      find_attribute(reinterpret_cast<const uint8_t*>(RTA_DATA(data)), RTA_PAYLOAD(data), IFLA_CAN_BITTIMING);
+  if (!timing || RTA_PAYLOAD(timing) < sizeof(can_bittiming)) return 0;
+  can_bittiming bt;
+  std::memcpy(&bt, RTA_DATA(timing), sizeof bt);
+  return bt.bitrate;
+}
+
+uint32_t read_can_bitrate(unsigned ifindex) noexcept {
+  const int s = ::socket(AF_NETLINK, SOCK_RAW | SOCK_CLOEXEC, NETLINK_ROUTE);
+  if (s < 0) return 0;
+  struct {
+    nlmsghdr h;
+    ifinfomsg i;
+  } req{};
+  req.h.nlmsg_len = NLMSG_LENGTH(sizeof(ifinfomsg));
+  req.h.nlmsg_type = RTM_GETLINK;
+  req.h.nlmsg_flags = NLM_F_REQUEST;
+  req.h.nlmsg_seq = 1;
+  req.i.ifi_family = AF_UNSPEC;
+  req.i.ifi_index = static_cast<int>(ifindex);
+  uint32_t bitrate = 0;
+  if (::send(s, &req, req.h.nlmsg_len, 0) == static_cast<ssize_t>(req.h.nlmsg_len)) {
+    std::vector<uint8_t> buf(16384);
+    pollfd p{s, POLLIN, 0};
+    if (::poll(&p, 1, 1000) > 0) {
+      const ssize_t n = ::recv(s, buf.data(), buf.size(), 0);
+      if (n > 0) bitrate = can_bitrate_in_link_message({buf.data(), static_cast<std::size_t>(n)});
+    }
+  }
+  ::close(s);
+  return bitrate;
+}
 
 bool SocketCanTransport::available() noexcept {
   const int s = ::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
@@ -65,6 +134,20 @@ SocketCanTransport::SocketCanTransport(const std::string& ifname, SocketCanOptio
   try {
     const unsigned index = ::if_nametoindex(ifname.c_str());
     if (index == 0) fail(ifname, "no such interface");
+    // An interface that is down or at another bitrate than the bus is
+    // configured for would only show as missing devices: say what it is.
+    ifreq ifr{};
+    std::memcpy(ifr.ifr_name, ifname.c_str(), ifname.size() + 1);
+    if (::ioctl(fd_, SIOCGIFFLAGS, &ifr) == 0 && !(ifr.ifr_flags & IFF_UP)) {
+      throw std::runtime_error("SocketCAN " + ifname + ": the interface is down: " +
+                               bring_up_hint(ifname, options_.expected_bitrate));
+    }
+    bitrate_ = read_can_bitrate(index);
+    if (options_.expected_bitrate != 0 && bitrate_ != 0 && bitrate_ != options_.expected_bitrate) {
+      throw std::runtime_error("SocketCAN " + ifname + ": the interface runs at " + std::to_string(bitrate_) +
+                               " bit/s, the configuration says " + std::to_string(options_.expected_bitrate) +
+                               " (BITRATE): " + bring_up_hint(ifname, options_.expected_bitrate));
+    }
     if (options_.fd) {
       const int on = 1;
       if (::setsockopt(fd_, SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &on, sizeof on) < 0) fail(ifname, "CAN_RAW_FD_FRAMES");

@@ -6,6 +6,8 @@
 #pragma once
 
 #include <atomic>
+#include <cstdint>
+#include <span>
 #include <string>
 
 #include "fieldbus/can/transport.hpp"
@@ -17,11 +19,25 @@ struct SocketCanOptions {
   bool error_reports = true;    // receive error frames (all classes)
   bool receive_own = false;     // receive our own transmissions (CAN_RAW_RECV_OWN_MSGS)
   int receive_buffer_bytes = 0; // SO_RCVBUF; 0 = kernel default
+  // The configuration's bitrate (spec option bitrate=N): an interface the
+  // kernel reports at another bitrate is refused, naming both. 0 = not
+  // checked. Interfaces without bit timing (vcan) are never refused.
+  uint32_t expected_bitrate = 0;
 };
+
+// The bitrate in an rtnetlink RTM_NEWLINK message (nlmsghdr, ifinfomsg,
+// then IFLA_LINKINFO > IFLA_INFO_DATA > IFLA_CAN_BITTIMING), 0 when it has
+// none (vcan, not a CAN interface, a truncated message).
+uint32_t can_bitrate_in_link_message(std::span<const uint8_t> message) noexcept;
+// Asks the kernel (rtnetlink RTM_GETLINK) for the interface's bitrate; 0
+// when it has none or cannot be asked.
+uint32_t read_can_bitrate(unsigned ifindex) noexcept;
 
 class SocketCanTransport final : public Transport {
  public:
-  // Throws std::system_error naming the interface and the failing call.
+  // Throws std::system_error naming the interface and the failing call,
+  // and std::runtime_error for an interface that is down or at another
+  // bitrate than options.expected_bitrate (saying how to bring it up).
   explicit SocketCanTransport(const std::string& ifname, SocketCanOptions options = {});
   ~SocketCanTransport() override;
   SocketCanTransport(const SocketCanTransport&) = delete;

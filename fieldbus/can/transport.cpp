@@ -51,7 +51,14 @@ std::unique_ptr<Transport> open_transport(std::string_view spec) {
     for (std::size_t i = 1; i < parts.size(); ++i) {
       const auto opt = trim(parts[i]);
       if (opt == "fd") o.fd = true;
-      else throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": unknown option \"" + std::string(opt) + "\"");
+      else if (opt.rfind("bitrate=", 0) == 0) {
+        const auto v = parse_uint(opt.substr(8));
+        if (!v || *v == 0 || *v > 10'000'000) {
+          throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": bitrate \"" + std::string(opt.substr(8)) +
+                                   "\" is not a bitrate in bit/s");
+        }
+        o.expected_bitrate = static_cast<uint32_t>(*v);
+      } else throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": unknown option \"" + std::string(opt) + "\"");
     }
     return std::make_unique<SocketCanTransport>(name, o);
   }

@@ -32,8 +32,11 @@ using namespace master_detail;
 namespace {
 // An in-process bus runs at the configured bit rate unless the interface
 // names one itself ("virtual:sim,bitrate=500000").
+// The bus's bitrate goes with the interface: a virtual bus is made at it,
+// a SocketCAN interface at another bitrate is refused (can::open_transport).
 std::string transport_spec(const BusConfig& c) {
-  if (c.interface.rfind("virtual:", 0) == 0 && c.interface.find("bitrate=") == std::string::npos) {
+  if ((c.interface.rfind("virtual:", 0) == 0 || c.interface.rfind("socketcan:", 0) == 0) &&
+      c.interface.find("bitrate=") == std::string::npos) {
     return c.interface + ",bitrate=" + std::to_string(c.bitrate);
   }
   return c.interface;

@@ -380,8 +380,11 @@ def tail(text, n=30):
 
 def run_sh(b, args, ids, index):
     box = Sandbox(args.source, args.bin)
+    # The programs on PATH as when installed (docs/install.md), and the
+    # sandbox as the home folder: cnc-config copies into ~/cnc/configs.
     env = dict(os.environ, CNC_NO_REALTIME="1", CNC_INSTANCE=f"doc{os.getpid()}x{index}",
-               QT_QPA_PLATFORM="offscreen")
+               QT_QPA_PLATFORM="offscreen", HOME=box.root,
+               PATH=os.path.join(box.root, "build", "bin") + os.pathsep + os.environ.get("PATH", ""))
     background = []  # (command, Popen, log path)
     timeout = float(option(b, "timeout", "120"))
     try:

@@ -196,6 +196,23 @@ TEST(SocketCan, InterfaceDownIsReported) {
   EXPECT_EQ(t.send(Frame::make(0x1, {})), SendStatus::Ok);
 }
 
+TEST(SocketCan, OpeningADownInterfaceSaysHowToBringItUp) {
+  REQUIRE_VCAN();
+  if (::if_nametoindex("vcan1") == 0 || ::getuid() != 0) GTEST_SKIP() << "needs vcan1 and root";
+  ASSERT_EQ(std::system("ip link set vcan1 down"), 0);
+  try {
+    SocketCanTransport t("vcan1", SocketCanOptions{.expected_bitrate = 500000});
+    ADD_FAILURE() << "opened a down interface";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("SocketCAN vcan1: the interface is down"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("cnc-can-up vcan1 500000"), std::string::npos) << e.what();
+  }
+  ASSERT_EQ(std::system("ip link set vcan1 up"), 0);
+  // vcan has no bit timing: any configured bitrate is accepted.
+  SocketCanTransport up("vcan1", SocketCanOptions{.expected_bitrate = 500000});
+  EXPECT_EQ(up.bitrate(), 0u);
+}
+
 TEST(SocketCan, OpeningAMissingInterfaceSaysWhich) {
   if (!SocketCanTransport::available()) GTEST_SKIP() << "no AF_CAN";
   try {
