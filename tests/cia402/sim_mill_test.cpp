@@ -48,9 +48,8 @@ TEST(Cia402SimMill, MachineOnIsDoneWhenEveryDriveFollowsAndHomingMayStartAtOnce)
   // TPDOs missed while the three axes homed, printed, not asserted: the
   // master's acyclic thread runs on the real clock beside the simulated
   // one, so the count varies from run to run. Since the master paces its
-  // SDO requests to the plan's share, about half the runs see 0 and the
-  // others 13, all on node 2 (Y) of canopen.0; the cause of those is not
-  // found yet (docs/canopen.md).
+  // SDO requests to the plan's share, runs see 0, 13 or 33, on node 2 (Y)
+  // of canopen.0; the cause is not found yet (docs/canopen.md).
   std::cout << "TPDOs missed while homing: canopen.0 " << missed0 << " -> "
             << mill.hal().get_value("canopen.0.pdo-missed") << ", canopen.1 " << missed1 << " -> "
             << mill.hal().get_value("canopen.1.pdo-missed") << "\n";
