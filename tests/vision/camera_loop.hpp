@@ -63,7 +63,7 @@ inline comp::CameraCycleOptions camera_loop_options() {
 // The same cycle measured by the table's true position.
 inline comp::Measurement perfect_cycle(vision::sim::PlantAxis& axis, const comp::CameraCycleOptions& o) {
   comp::Measurement m;
-  m.axis = "X";
+  m.axis.assign(1, o.cycle.axis);
   const auto t = comp::iso_targets(o.cycle);
   const auto at = [&](double x, int run, int dir) {
     axis.move_to(x);
