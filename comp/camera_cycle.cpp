@@ -4,6 +4,9 @@
 #include <cstdio>
 #include <optional>
 
+#include "comp/iso230.hpp"
+#include "core/util/atomic_file.hpp"
+
 namespace cnc::comp {
 
 CameraCycleResult run_camera_cycle(Positioner& axis, vision::FrameSource& camera, const CameraCycleOptions& o) {
@@ -45,6 +48,11 @@ CameraCycleResult run_camera_cycle(Positioner& axis, vision::FrameSource& camera
     r.measurement.points.push_back(p);
     return "";
   };
+  // A camera known to be missing stops the cycle before anything moves.
+  if (std::string e = camera.check(); !e.empty()) {
+    r.error = "before the first move: " + e;
+    return r;
+  }
   const double lo = t.front() - o.cycle.overshoot_mm, hi = t.back() + o.cycle.overshoot_mm;
   if (std::string e = axis.move_to(lo); !e.empty()) {
     r.error = "approach: " + e;
@@ -73,6 +81,25 @@ CameraCycleResult run_camera_cycle(Positioner& axis, vision::FrameSource& camera
     }
   }
   return r;
+}
+
+int report_camera_cycle(const CameraCycleResult& r, const std::string& out) {
+  write_file_atomically(out, format_measurement(r.measurement));
+  std::printf("%zu of %d points measured (worst reading sigma %.4f px), written to %s\n", r.measurement.points.size(),
+              r.planned, r.worst_sigma_px, out.c_str());
+  if (!r.measurement.points.empty()) {
+    try {
+      const Iso230Result iso = evaluate_iso230(r.measurement);
+      std::printf("ISO 230-2: A %.2f um, E %.2f um, B %.2f um, R %.2f um\n", iso.A, iso.E, iso.B, iso.R);
+    } catch (const std::exception& e) {
+      std::printf("no ISO 230-2 figures: %s\n", e.what());
+    }
+  }
+  if (!r.error.empty()) {
+    std::fprintf(stderr, "the cycle stopped: %s\n", r.error.c_str());
+    return 1;
+  }
+  return 0;
 }
 
 }  // namespace cnc::comp

@@ -8,7 +8,8 @@
 // times); the result is an ordinary Measurement for the existing ISO
 // evaluation, fit, report and tables.
 //
-// Bad input stops the cycle and keeps what it measured: a camera that
+// Bad input stops the cycle and keeps what it measured: a camera known
+// to be missing (FrameSource::check) before anything moves; one that
 // gives no frame (not there, disconnected), an image the reader refuses
 // (no scale, blurred, badly exposed), a move that fails. The reason names
 // the target, run and direction. Offline.
@@ -51,5 +52,11 @@ struct CameraCycleResult {
 };
 
 CameraCycleResult run_camera_cycle(Positioner& axis, vision::FrameSource& camera, const CameraCycleOptions& o);
+
+// What the tools do with a result: the measurement written to `out` (also
+// a partial one), a summary printed (points, ISO 230-2 A, E, B when the
+// data allow), the reason on stderr when the cycle stopped. Returns the
+// exit status: 0 when the whole cycle ran, 1 otherwise.
+int report_camera_cycle(const CameraCycleResult& r, const std::string& out);
 
 }  // namespace cnc::comp

@@ -28,6 +28,9 @@ class FrameSource {
  public:
   virtual ~FrameSource() = default;
   virtual Frame grab() = 0;
+  // Why the source cannot deliver, when that is known before a grab (a
+  // camera that did not open, a missing folder); "" otherwise.
+  virtual std::string check() const { return ""; }
   // What the source is, for messages ("camera /dev/video0", "folder shots/").
   virtual std::string name() const = 0;
 };
@@ -46,7 +49,7 @@ class VideoCaptureSource : public FrameSource {
   explicit VideoCaptureSource(const CameraSettings& s);
   Frame grab() override;
   std::string name() const override { return "camera " + s_.device; }
-  const std::string& error() const noexcept { return open_error_; }
+  std::string check() const override { return open_error_; }
 
  private:
   CameraSettings s_;
@@ -61,6 +64,7 @@ class ImageSource : public FrameSource {
   explicit ImageSource(const std::filesystem::path& path);
   Frame grab() override;
   std::string name() const override;
+  std::string check() const override { return error_; }
   std::size_t size() const noexcept { return files_.size(); }
 
  private:

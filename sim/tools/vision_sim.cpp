@@ -5,6 +5,13 @@
 //          [--noise GREY] [--gradient F] [--vignetting F] [--k1 K] [--width W] [--height H] [--seed N] [--blank]
 //   marker --out FILE --x MM --y MM [--angle DEG] --spindle X,Y --offset DX,DY --um-per-px UM [--rotation DEG]
 //          [--id N] [--side MM] [--blur PX] [--noise GREY] [--seed N]
+//   camera-cycle --min MM --max MM --out FILE.csv [--axis X] [--targets N] [--runs N] [--dwell S] [--feed MM/MIN]
+//          [--pin NAME] [--disconnect-after N] [--blank] [-i INSTANCE]
+//          the ISO 230-2 cycle on a running controller (cnc-comp camera's
+//          positioner) measured by the simulated camera, which renders the
+//          glass scale at the value of the HAL pin NAME (default: the
+//          simulated X drive's true table position,
+//          cia402-sim.0.node.01.table-position)
 #include <cstdio>
 #include <cstring>
 #include <map>
@@ -12,7 +19,12 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "comp/ipc_positioner.hpp"
+#include "core/ipc/admin.hpp"
+#include "core/ipc/client.hpp"
+#include "core/ipc/segment.hpp"
 #include "core/util/strings.hpp"
+#include "sim/vision/camera.hpp"
 #include "sim/vision/renderer.hpp"
 
 using namespace cnc;
@@ -27,7 +39,9 @@ namespace {
                "         [--blur PX] [--noise GREY] [--gradient F] [--vignetting F] [--k1 K] [--width W] [--height H]\n"
                "         [--seed N] [--blank]\n"
                "       cnc-vision-sim marker --out FILE --x MM --y MM [--angle DEG] --spindle X,Y --offset DX,DY\n"
-               "         --um-per-px UM [--rotation DEG] [--id N] [--side MM] [--blur PX] [--noise GREY] [--seed N]\n",
+               "         --um-per-px UM [--rotation DEG] [--id N] [--side MM] [--blur PX] [--noise GREY] [--seed N]\n"
+               "       cnc-vision-sim camera-cycle --min MM --max MM --out FILE.csv [--axis X] [--targets N] [--runs N]\n"
+               "         [--dwell S] [--feed MM/MIN] [--pin NAME] [--disconnect-after N] [--blank] [-i INSTANCE]\n",
                why.c_str());
   std::exit(2);
 }
@@ -67,6 +81,48 @@ void imaging(const Opts& o, Imaging& m) {
   m.seed = static_cast<uint64_t>(o.num("seed", 1));
 }
 
+// The ISO cycle through the running controller, seen by the simulated camera.
+int camera_cycle(const Opts& o) {
+  comp::CameraCycleOptions c;
+  c.cycle.x_min = o.num("min", 0, true);
+  c.cycle.x_max = o.num("max", 0, true);
+  const std::string axis = o.has("axis") ? o.v.at("axis") : "X";
+  if (axis.size() != 1) usage("--axis: one letter");
+  c.cycle.axis = axis[0];
+  c.cycle.targets = static_cast<int>(o.num("targets", 0));
+  c.cycle.runs = static_cast<int>(o.num("runs", 5));
+  c.cycle.dwell_s = o.num("dwell", 0.2);
+  c.cycle.feed_mm_min = o.num("feed", 3000);
+  ScaleScene scene;
+  scene.imaging.width = 320;
+  scene.imaging.height = 240;
+  scene.imaging.blur_px = 1.2;
+  scene.imaging.gradient = 0.2;
+  scene.imaging.vignetting = 0.15;
+  scene.angle_deg = 1.5;
+  scene.blank = o.has("blank");
+  c.scale.pitch_mm = scene.pitch_mm;
+  c.scale.um_per_px = scene.um_per_px;
+  c.scale_at_zero_mm = 10;
+  const std::string instance = o.has("instance") ? o.v.at("instance") : ipc::default_instance();
+  const std::string pin = o.has("pin") ? o.v.at("pin") : "cia402-sim.0.node.01.table-position";
+  ipc::Client client(instance);
+  ipc::AdminClient hal(instance);
+  std::string pin_error;
+  SimulatedScaleCamera camera(
+      scene,
+      [&]() {
+        const ipc::AdminReply r = hal.request("getp " + pin);
+        const auto v = r.ok ? parse_double(trim(r.text)) : std::nullopt;
+        if (!v) throw std::runtime_error("getp " + pin + ": " + r.text);
+        return *v;
+      },
+      c.scale_at_zero_mm);
+  if (o.has("disconnect-after")) camera.disconnect_after(static_cast<int>(o.num("disconnect-after", 0)));
+  comp::IpcPositioner positioner(client, c.cycle.axis, c.cycle.feed_mm_min);
+  return comp::report_camera_cycle(comp::run_camera_cycle(positioner, camera, c), o.v.at("out"));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -75,6 +131,10 @@ int main(int argc, char** argv) {
   Opts o;
   for (int i = 2; i < argc; ++i) {
     const std::string s = argv[i];
+    if (s == "-i" && i + 1 < argc) {
+      o.v["instance"] = argv[++i];
+      continue;
+    }
     if (s == "--blank") {
       o.v["blank"] = "1";
       continue;
@@ -84,6 +144,14 @@ int main(int argc, char** argv) {
   }
   if (!o.has("out")) usage("--out FILE is needed");
   const std::string out = o.v["out"];
+  if (cmd == "camera-cycle") {
+    try {
+      return camera_cycle(o);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "cnc-vision-sim: %s\n", e.what());
+      return 1;
+    }
+  }
   cv::Mat img;
   if (cmd == "scale") {
     ScaleScene s;

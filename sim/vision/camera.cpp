@@ -10,9 +10,14 @@ Frame SimulatedScaleCamera::grab() {
     f.error = name() + ": no frame (the camera stopped delivering images: disconnected?)";
     return f;
   }
-  ++frames_;
   ScaleScene s = scene_;
-  s.centre_mm = zero_ + sign_ * position_();
+  try {
+    s.centre_mm = zero_ + sign_ * position_();
+  } catch (const std::exception& e) {
+    f.error = name() + ": no position of the table (" + e.what() + ")";
+    return f;
+  }
+  ++frames_;
   s.imaging.seed = scene_.imaging.seed + static_cast<uint64_t>(frames_);
   f.image = render_scale(s);
   return f;

@@ -61,12 +61,35 @@ TEST(CameraCycle, AnImageWithoutAScaleStopsTheCycleWithTheReaderReason) {
   EXPECT_NE(r.error.find("target 5.000, run 1 up: simulated camera: no scale in view"), std::string::npos) << r.error;
 }
 
-TEST(CameraCycle, NoCameraStopsAtTheFirstTarget) {
+TEST(CameraCycle, NoCameraStopsTheCycleBeforeAnythingMoves) {
   Rig rig;
   vision::CameraSettings s;
   s.device = "/dev/video-not-there";
   vision::VideoCaptureSource none(s);
   const auto r = comp::run_camera_cycle(rig.axis, none, rig.o);
   EXPECT_TRUE(r.measurement.points.empty());
-  EXPECT_NE(r.error.find("camera /dev/video-not-there: no such device"), std::string::npos) << r.error;
+  EXPECT_EQ(r.error,
+            "before the first move: camera /dev/video-not-there: no such device (is the camera plugged in? ls "
+            "/dev/video*)");
+  EXPECT_EQ(rig.axis.seconds(), 0) << "the axis moved";
+}
+
+namespace {
+// A move that fails half-way through the cycle (a following error, the
+// machine switched off).
+struct FailingAxis : comp::Positioner {
+  comp::Positioner& inner;
+  int moves_left;
+  FailingAxis(comp::Positioner& p, int n) : inner(p), moves_left(n) {}
+  std::string move_to(double x) override { return moves_left-- > 0 ? inner.move_to(x) : "the machine is off or in E-stop"; }
+  void settle(double s) override { inner.settle(s); }
+};
+}  // namespace
+
+TEST(CameraCycle, AFailingMoveStopsTheCycleNamingTheTargetAndKeepsWhatItMeasured) {
+  Rig rig;
+  FailingAxis axis(rig.axis, 4);  // the approach and three targets
+  const auto r = comp::run_camera_cycle(axis, rig.camera, rig.o);
+  EXPECT_EQ(r.measurement.points.size(), 3u);
+  EXPECT_NE(r.error.find("run 1 up: move: the machine is off or in E-stop"), std::string::npos) << r.error;
 }
