@@ -93,3 +93,23 @@ TEST(VisionTool, AMissingMarkerIsNamed) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.text.find("marker 7 not in view (seen: 3)"), std::string::npos) << r.text;
 }
+
+TEST(VisionTool, CncCompCameraNamesAMissingCameraBeforeItNeedsTheController) {
+  cnc::testing::TempDir dir;
+  const std::string out = (dir.path() / "camera.csv").string();
+  const auto r = run("cnc-comp", "camera --min 5 --max 45 --out " + out +
+                                     " --camera /dev/video-not-there --pitch 0.1 --um-per-px 2.5 -i vision-tool-test-none");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.text.find("cnc-comp: camera /dev/video-not-there: no such device"), std::string::npos) << r.text;
+  EXPECT_EQ(r.text.find("controller not running"), std::string::npos) << r.text;
+}
+
+TEST(VisionTool, CncCompCameraWithoutAControllerSaysSo) {
+  cnc::testing::TempDir dir;
+  const std::string img = (dir.path() / "scale.png").string();
+  ASSERT_EQ(run("cnc-vision-sim", "scale --at 10 --out " + img).code, 0);
+  const auto r = run("cnc-comp", "camera --min 5 --max 45 --out " + (dir.path() / "c.csv").string() + " --camera " +
+                                     img + " --pitch 0.1 --um-per-px 2.5 -i vision-tool-test-none");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.text.find("controller not running"), std::string::npos) << r.text;
+}
