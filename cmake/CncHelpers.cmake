@@ -198,7 +198,7 @@ endfunction()
 function(cnc_check_product_links)
   set(products cnc halcmd cnc-hmi)
   foreach(dir IN ITEMS core/util core/ini core/rt core/hal core/ipc core/tooltable kinematics core/tp core/interp
-                       core/motion cia402 fieldbus/can fieldbus/canopen fieldbus/ethercat fieldbus/modbus comp core/io core/task
+                       core/motion cia402 fieldbus/can fieldbus/canopen fieldbus/ethercat fieldbus/modbus vision comp core/io core/task
                        core/daemon core/cli hmi)
     if(EXISTS ${PROJECT_SOURCE_DIR}/${dir}/CMakeLists.txt)
       get_directory_property(targets DIRECTORY ${PROJECT_SOURCE_DIR}/${dir} BUILDSYSTEM_TARGETS)

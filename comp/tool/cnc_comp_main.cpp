@@ -3,6 +3,8 @@
 //   compare  two measurements' figures side by side (before / after)
 //   fit      the error model, compensation tables, exports, report and plots
 //   cycle    the measurement programs (ISO 230-2 cycle, periodic runs)
+//   camera   the ISO cycle on the running controller, measured by a camera
+//            reading a glass scale (built with OpenCV's aruco module)
 //   load     hands a COMP_FILE to a running controller (JOINT_LOAD_COMP)
 //   synth    a synthetic measurement with known errors (demonstrations)
 // See docs/compensation.md. Files are written atomically.
@@ -19,6 +21,10 @@
 #include <vector>
 
 #include "comp/cycle.hpp"
+#ifdef CNC_HAVE_CAMERA
+#include "comp/camera_cycle.hpp"
+#include "comp/ipc_positioner.hpp"
+#endif
 #include "comp/exports.hpp"
 #include "comp/fit.hpp"
 #include "comp/iso230.hpp"
@@ -54,6 +60,10 @@ const char* kUsage =
     "  cycle   --min MM --max MM --out FILE.ngc [--axis X] [--targets N] [--runs 5] [--overshoot MM]\n"
     "          [--dwell S] [--feed MM/MIN] [--seed N] [--output N] [--lead MM --periodic-out FILE.ngc]\n"
     "          [--places N] [--leads N] [--steps-per-lead N] [--periodic-runs N]\n"
+    "  camera  --min MM --max MM --out FILE.csv --camera SOURCE --pitch MM --um-per-px UM [--axis X]\n"
+    "          [--targets N] [--runs 5] [--overshoot MM] [--dwell S] [--feed MM/MIN] [--seed N]\n"
+    "          [--scale-at-zero MM] [--sign 1|-1] [--frames N] [--width W --height H --exposure E]\n"
+    "          [-i INSTANCE] [--timeout S]\n"
     "  load    --joint N FILE [--type 0|1] [-i INSTANCE] [--timeout S]\n"
     "  synth   --out FILE.csv [--seed N] [--periodic-out FILE.csv] [--no-temperature]\n";
 
@@ -313,11 +323,10 @@ int cmd_fit(const Args& a) {
   return 0;
 }
 
-int cmd_cycle(const Args& a) {
-  check_known(a, {"min", "max", "out", "axis", "targets", "runs", "overshoot", "dwell", "feed", "seed", "output", "lead",
-                  "periodic-out", "places", "leads", "steps-per-lead", "periodic-runs"});
+// The ISO cycle's options, shared by `cycle` and `camera`.
+CycleOptions cycle_options(const Args& a, const char* command) {
   CycleOptions o;
-  if (!a.get("min") || !a.get("max")) throw Usage("cycle needs --min and --max (the first and last target)");
+  if (!a.get("min") || !a.get("max")) throw Usage(std::string(command) + " needs --min and --max (the first and last target)");
   o.x_min = a.number("min", 0);
   o.x_max = a.number("max", 0);
   const std::string axis = a.text("axis", "X");
@@ -329,6 +338,13 @@ int cmd_cycle(const Args& a) {
   o.dwell_s = a.number("dwell", o.dwell_s);
   o.feed_mm_min = a.number("feed", o.feed_mm_min);
   o.seed = static_cast<uint64_t>(a.integer("seed", 1));
+  return o;
+}
+
+int cmd_cycle(const Args& a) {
+  check_known(a, {"min", "max", "out", "axis", "targets", "runs", "overshoot", "dwell", "feed", "seed", "output", "lead",
+                  "periodic-out", "places", "leads", "steps-per-lead", "periodic-runs"});
+  CycleOptions o = cycle_options(a, "cycle");
   o.digital_out = a.integer("output", 0);
   o.lead_mm = a.number("lead", o.lead_mm);
   o.periodic_places = a.integer("places", o.periodic_places);
@@ -342,6 +358,40 @@ int cmd_cycle(const Args& a) {
   std::printf("wrote %s (%zu targets)\n", out->c_str(), iso_targets(o).size());
   return 0;
 }
+
+#ifdef CNC_HAVE_CAMERA
+// The ISO cycle on the running controller with a camera reading a glass
+// scale as the measurement source (docs/vision.md). What was measured is
+// written also when the cycle stops.
+int cmd_camera(const Args& a) {
+  check_known(a, {"min", "max", "out", "axis", "targets", "runs", "overshoot", "dwell", "feed", "seed", "camera",
+                  "pitch", "um-per-px", "scale-at-zero", "sign", "frames", "width", "height", "exposure", "instance",
+                  "timeout"});
+  CameraCycleOptions o;
+  o.cycle = cycle_options(a, "camera");
+  const auto out = a.get("out");
+  if (!out) throw Usage("camera needs --out FILE.csv");
+  const auto source = a.get("camera");
+  if (!source) throw Usage("camera needs --camera SOURCE (/dev/videoN, an image folder)");
+  if (!a.get("pitch") || !a.get("um-per-px")) throw Usage("camera needs --pitch MM and --um-per-px UM");
+  o.scale.pitch_mm = a.number("pitch", 0);
+  o.scale.um_per_px = a.number("um-per-px", 0);
+  o.scale_at_zero_mm = a.number("scale-at-zero", 0);
+  o.sign = a.integer("sign", 1);
+  if (o.sign != 1 && o.sign != -1) throw Usage("--sign: 1 or -1");
+  o.frames = a.integer("frames", 1);
+  vision::CameraSettings cs;
+  cs.width = a.integer("width", 0);
+  cs.height = a.integer("height", 0);
+  cs.exposure = a.number("exposure", 0);
+  auto camera = vision::open_source(*source, cs);
+  if (std::string e = camera->check(); !e.empty()) throw std::runtime_error(e);
+  ipc::Client client(a.text("instance", ipc::default_instance()));
+  IpcPositioner axis(client, o.cycle.axis, o.cycle.feed_mm_min, a.number("timeout", 120));
+  const CameraCycleResult r = run_camera_cycle(axis, *camera, o);
+  return report_camera_cycle(r, *out);
+}
+#endif
 
 int cmd_load(const Args& a) {
   check_known(a, {"joint", "type", "instance", "timeout"});
@@ -406,6 +456,9 @@ int main(int argc, char** argv) {
     if (cmd == "cycle") return cmd_cycle(a);
     if (cmd == "load") return cmd_load(a);
     if (cmd == "synth") return cmd_synth(a);
+#ifdef CNC_HAVE_CAMERA
+    if (cmd == "camera") return cmd_camera(a);
+#endif
     throw Usage("unknown command '" + cmd + "'");
   } catch (const Usage& e) {
     std::fprintf(stderr, "cnc-comp: %s\n%s", e.what(), kUsage);
