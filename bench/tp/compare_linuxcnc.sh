@@ -6,7 +6,8 @@
 #   bench/tp/compare_linuxcnc.sh [BUILD_DIR]
 #
 # Writes the benchmark's generated programs as G-code (bench_tp
-# --write-ngc), adds LinuxCNC's own 3D_Chips.ngc, runs each through
+# --write-ngc), adds LinuxCNC's own 3D_Chips.ngc and CAM-style programs
+# from ../shared/tools/linuxcnc/gen_gcode.py, runs each through
 # bench_tp (our planner, checked sample by sample) and through
 # ../shared/tools/linuxcnc/b_sim_motion_time.sh (LinuxCNC's headless
 # simulated machine; its planned motion time), and prints the traverse
@@ -15,14 +16,14 @@
 #
 # LinuxCNC (Debian package linuxcnc-uspace) is a yardstick for this script
 # only, never a dependency of the project. It runs in real time: the whole
-# comparison takes about as long as the programs (~3 minutes).
+# comparison takes about as long as the programs (~12 minutes).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build="$root/build"
 for a in "$@"; do
   case "$a" in
     -h | --help)
-      sed -n '2,18p' "$0"
+      sed -n '2,19p' "$0"
       exit 0
       ;;
     *) build="$a" ;;
@@ -50,8 +51,26 @@ work=$(mktemp -d /tmp/tp-compare.XXXXXX)
 chmod 755 "$work"  # LinuxCNC runs as an unprivileged user
 trap 'rm -rf "$work"' EXIT
 
-# Ours: the generated programs plus 3D_Chips, LC profile at 1 ms.
-"$bench" --quick --write-ngc "$work" --ngc "$chips" >"$work/ours.txt"
+# CAM-style programs (issue 20): dense spiral polylines with small
+# direction changes, a zig-zag raster of 1 mm moves with 90 degree corners,
+# a serpentine of 1 mm lines and G2/G3 half circles; F6000, G64 P0.01.
+gen="$tools/gen_gcode.py"
+cam=()
+if [[ -f "$gen" ]]; then
+  python3 "$gen" --mode poly --lines 20000 --seg 0.2 --feed 6000 --g64 0.01 >"$work/cam_spiral_0.2.ngc"
+  python3 "$gen" --mode poly --lines 20000 --seg 0.05 --feed 6000 --g64 0.01 >"$work/cam_spiral_0.05.ngc"
+  python3 "$gen" --mode lines --lines 2000 --seg 1 --feed 6000 --g64 0.01 >"$work/cam_zigzag_1.ngc"
+  python3 "$gen" --mode mixed --lines 2000 --seg 1 --feed 6000 --g64 0.01 >"$work/cam_mixed_1.ngc"
+  cam=("$work"/cam_*.ngc)
+else
+  echo "compare_linuxcnc: $gen not found: CAM-style programs left out" >&2
+fi
+ngc_args=(--ngc "$chips")
+for f in "${cam[@]}"; do ngc_args+=(--ngc "$f"); done
+
+# Ours: the generated programs, 3D_Chips and the CAM-style programs, LC
+# profile at 1 ms.
+"$bench" --quick --write-ngc "$work" "${ngc_args[@]}" >"$work/ours.txt"
 chmod 644 "$work"/*.ngc
 # "name  LC  1000 ok  time ..." : the name is the first 34 columns.
 ours_time() {
@@ -67,6 +86,10 @@ for f in "$work"/tp*.ngc; do
 done
 progs+=("$chips")
 names+=("3D_Chips.ngc")
+for f in "${cam[@]}"; do
+  progs+=("$f")
+  names+=("$(basename "$f")")
+done
 
 echo "running ${#progs[@]} programs on LinuxCNC 2.9 (real time) ..." >&2
 "$sim" -v 100 -a 1000 -p 0.01 -o "$work/lcnc" "${progs[@]}" 2>"$work/lcnc.log" | grep '^RESULT' >"$work/lcnc.txt" || true

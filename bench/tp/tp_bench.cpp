@@ -7,8 +7,16 @@
 // programmed feed, and planner CPU per servo cycle and per queued segment.
 // Also short-segment feed attainment for segment lengths 1 um ... 1 mm.
 //
-//   bench_tp [--quick] [--write-ngc DIR] [--ngc FILE ...]
+//   bench_tp [--quick] [--write-ngc DIR] [--ngc FILE ...] [--only-ngc]
+//            [--limits V,A,J] [--linear V,A,J] [--lookahead N] [--period S]
+//            [--start X,Y,Z]
 //
+// --only-ngc runs only the --ngc programs and prints their end positions;
+// --limits (per-axis X, Y, Z velocity, acceleration, jerk), --linear (the
+// same on the XYZ norm, [TRAJ]MAX_LINEAR_*), --lookahead
+// (segments), --period (s) and --start (where --ngc programs start, the
+// origin by default) set what a configuration would, e.g. to
+// predict what cncd does on it (bench/tp/cncd_program.sh).
 // --write-ngc writes the generated programs as G-code (for the LinuxCNC
 // side-by-side, bench/tp/compare_linuxcnc.sh); --ngc adds programs read
 // through the project's interpreter (e.g. LinuxCNC's 3D_Chips.ngc).
@@ -16,6 +24,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -34,15 +43,30 @@ namespace {
 using namespace cnc;
 using namespace cnc::tp;
 
+// Set by --limits / --lookahead: the "custom" profile and the look-ahead
+// of every profile.
+AxisLimits g_custom{100, 1000, 50000};
+int g_lookahead = 2000;
+// Set by --linear: [TRAJ]MAX_LINEAR_* (limits on the XYZ norm), off by default.
+double g_linear[3] = {0, 0, 0};
+// Set by --start: where --ngc programs start (the machine's position).
+double g_start[3] = {0, 0, 0};
+
 PlannerConfig profile(const std::string& name, double cycle_s) {
   PlannerConfig c;
   c.cycle_time_s = cycle_s;
   AxisLimits l{100, 1000, 50000};  // LC
   if (name == "Mill-S") l = {166.7, 2000, 50000};
   if (name == "Mill-F") l = {500, 5000, 200000};
+  if (name == "custom") l = g_custom;
   for (int i = 0; i < 3; ++i) c.axes[static_cast<std::size_t>(i)] = l;
   c.axis_mask = 0x7;
-  c.lookahead_segments = 2000;
+  c.lookahead_segments = g_lookahead;
+  if (g_linear[0] > 0) {
+    c.max_linear_velocity = g_linear[0];
+    c.max_linear_acceleration = g_linear[1];
+    c.max_linear_jerk = g_linear[2];
+  }
   return c;
 }
 
@@ -281,8 +305,9 @@ bool load_ngc(const std::string& path, Bench& b, double default_tol) {
     std::fprintf(stderr, "%s: %s\n", path.c_str(), e.what());
     return false;
   }
-  // Drop a leading traverse from the origin: LinuxCNC's driver starts
-  // every program at the origin too.
+  // Programs start at the origin (LinuxCNC's driver starts every program
+  // there too), or where --start says.
+  for (int i = 0; i < 3; ++i) b.prog.start[i] = g_start[i];
   return !b.prog.moves.empty();
 }
 
@@ -299,6 +324,8 @@ double mean(const std::vector<double>& v) {
 }
 double vmax(const std::vector<double>& v) { return v.empty() ? 0 : *std::max_element(v.begin(), v.end()); }
 
+bool g_print_end = false;
+
 void run_one(const Bench& b, const std::string& prof, double T) {
   const PlannerConfig cfg = profile(prof, T);
   auto planner = make_planner(cfg, PlannerThreading::Inline);
@@ -312,6 +339,10 @@ void run_one(const Bench& b, const std::string& prof, double T) {
               r.stats.ratio_a, r.stats.ratio_j, r.stats.deviation_ratio, 100 * r.stats.at_feed_fraction,
               mean(r.cycle_ns) / 1e3, pct(r.cycle_ns, 0.99) / 1e3, pct(r.cycle_ns, 0.999) / 1e3, vmax(r.cycle_ns) / 1e3,
               mean(r.add_ns) / 1e3, pct(r.add_ns, 0.999) / 1e3);
+  if (g_print_end) {
+    std::printf("  end position X%.6f Y%.6f Z%.6f, end error %.3g\n", r.last.position[0], r.last.position[1],
+                r.last.position[2], r.stats.end_error);
+  }
   std::fflush(stdout);
 }
 
@@ -321,17 +352,41 @@ int main(int argc, char** argv) {
   bool quick = false;
   std::string write_dir;
   std::vector<std::string> ngc;
+  bool only_ngc = false;
+  double period = 0;
+  bool custom = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--quick") quick = true;
     else if (a == "--write-ngc" && i + 1 < argc) write_dir = argv[++i];
     else if (a == "--ngc" && i + 1 < argc) ngc.push_back(argv[++i]);
+    else if (a == "--only-ngc") only_ngc = true;
+    else if (a == "--lookahead" && i + 1 < argc) g_lookahead = std::atoi(argv[++i]);
+    else if (a == "--period" && i + 1 < argc) period = std::atof(argv[++i]);
+    else if (a == "--limits" && i + 1 < argc &&
+             std::sscanf(argv[++i], "%lf,%lf,%lf", &g_custom.max_velocity, &g_custom.max_acceleration,
+                         &g_custom.max_jerk) == 3) custom = true;
+    else if (a == "--start" && i + 1 < argc &&
+             std::sscanf(argv[++i], "%lf,%lf,%lf", &g_start[0], &g_start[1], &g_start[2]) == 3) {}
+    else if (a == "--linear" && i + 1 < argc &&
+             std::sscanf(argv[++i], "%lf,%lf,%lf", &g_linear[0], &g_linear[1], &g_linear[2]) == 3) {}
     else {
-      std::fprintf(stderr, "usage: bench_tp [--quick] [--write-ngc DIR] [--ngc FILE ...]\n");
+      std::fprintf(stderr,
+                   "usage: bench_tp [--quick] [--write-ngc DIR] [--ngc FILE ...] [--only-ngc]\n"
+                   "                [--limits V,A,J] [--linear V,A,J] [--lookahead N] [--period S] [--start X,Y,Z]\n"
+                   "  --only-ngc: only the --ngc programs (with their end positions), no attainment table\n"
+                   "  --limits: per-axis velocity, acceleration, jerk of X, Y, Z (units/s...) instead of the profiles\n"
+                   "  --linear: limits on the XYZ norm ([TRAJ]MAX_LINEAR_VELOCITY, _ACCELERATION, _JERK)\n");
       return 2;
     }
   }
+  if (g_lookahead < 1 || (period != 0 && !(period > 0))) {
+    std::fprintf(stderr, "bench_tp: --lookahead must be at least 1 and --period positive\n");
+    return 2;
+  }
+  g_print_end = only_ngc;
   std::vector<Bench> progs;
+  if (!only_ngc) {
   progs.push_back(short_lines(0.01, 50, 6000));
   progs.push_back(zigzag(0.1, 0.01, 2000, 6000, 0.01));
   progs.push_back(polygon_circles(10, 0.05, 2, 6000, 0.01));
@@ -339,6 +394,7 @@ int main(int argc, char** argv) {
   progs.push_back(arcs_and_helices(3000, 0.01));
   progs.push_back(corner(TermCond::ExactPath, 0));
   for (double p : {0.001, 0.01, 0.1}) progs.push_back(corner(TermCond::Blend, p));
+  }
   for (const std::string& f : ngc) {
     Bench b;
     if (load_ngc(f, b, 0.01)) progs.push_back(std::move(b));
@@ -359,14 +415,17 @@ int main(int argc, char** argv) {
   std::printf("%-34s %-6s %4s %s %9s  %5s %5s %5s  %6s  %6s  %6s %6s %7s %7s  %6s %7s\n", "program", "limits", "T_us",
               "ok", "time_s", "v/V", "a/A", "j/J", "dev/P", "@feed", "cyc_mn", "p99", "p99.9", "max", "seg_mn",
               "seg999");
-  const std::vector<std::string> profs = quick ? std::vector<std::string>{"LC"} : std::vector<std::string>{"LC", "Mill-S", "Mill-F"};
-  const std::vector<double> periods = quick ? std::vector<double>{0.001} : std::vector<double>{0.001, 0.00025};
+  std::vector<std::string> profs = quick ? std::vector<std::string>{"LC"} : std::vector<std::string>{"LC", "Mill-S", "Mill-F"};
+  std::vector<double> periods = quick ? std::vector<double>{0.001} : std::vector<double>{0.001, 0.00025};
+  if (custom) profs = {"custom"};
+  if (period > 0) periods = {period};
   for (const Bench& b : progs) {
     for (const std::string& pr : profs) {
       for (double T : periods) run_one(b, pr, T);
     }
   }
 
+  if (only_ngc) return 0;
   std::printf("\n== short-segment feed attainment: collinear segments over 100 mm (20 mm for 1 um; F6000 = 100 mm/s, LC limits)\n");
   std::printf("%-10s %5s %10s %10s %9s %12s\n", "segment", "T_us", "mean/F", "peak/F", "@feed", "LinuxCNC cap");
   for (double seg : {0.001, 0.01, 0.1, 1.0}) {

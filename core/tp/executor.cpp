@@ -211,9 +211,11 @@ bool Executor::at_rest() const noexcept {
   return true;
 }
 
-bool Executor::is_idle() const noexcept {
+bool Executor::idle_ingested() const noexcept {
   return in_ == stail_ && pfin_ == ptail_ && out_ == ptail_ && at_rest() && !dwelling_;
 }
+
+bool Executor::is_idle() const noexcept { return idle_ingested() && ptail_ == store_.pieces.published(); }
 
 bool Executor::take_abort_done(uint32_t& epoch) noexcept {
   if (!abort_done_) return false;
@@ -355,7 +357,10 @@ double Executor::ceiling(const Span& sp) const noexcept {
 
 void Executor::ingest() noexcept {
   const uint64_t pub = store_.pieces.published();
-  while (ptail_ < pub) {
+  // At most kIngestPerCycle pieces per cycle: the rest wait in the ring
+  // (the builder may publish thousands at once).
+  for (int budget = kIngestPerCycle; ptail_ < pub && budget > 0; --budget) {
+    ++work_.ingested;
     const Piece& p = piece(ptail_);
     if (p.epoch != epoch_) {
       // Planned before an abort: dropped.
@@ -364,7 +369,7 @@ void Executor::ingest() noexcept {
       ++ptail_;
       continue;
     }
-    if (is_idle() && p.s0 != x_) {
+    if (idle_ingested() && p.s0 != x_) {
       // A path after an abort or a reset starts further along the path
       // parameter; the machine is where it was.
       clear_history(p.s0);
@@ -405,8 +410,8 @@ void Executor::ingest() noexcept {
 // spreads across a stop: the input rests there until the output has
 // caught up).
 void Executor::finalize() noexcept {
-  const uint64_t first_span = stail_;
-  while (pfin_ < ptail_) {
+  spans_added_ = false;
+  for (int budget = kSplitPerCycle; pfin_ < ptail_ && budget > 0; --budget) {
     const Piece& p = piece(pfin_);
     const bool stop_ahead = last_stop_ != UINT64_MAX && last_stop_ >= pfin_ && last_stop_ < ptail_;
     // What may spread onto p from later pieces: lower ceilings within
@@ -416,9 +421,17 @@ void Executor::finalize() noexcept {
     if (!stop_ahead && p.s0 + p.length + horizon > tail_s_) break;
     if (stail_ - sfirst_ + kSpansPerPiece + 2 > smask_ + 1) break;
     make_spans(pfin_);
+    ++work_.split;
     ++pfin_;
   }
-  if (stail_ > first_span) envelope_from(stail_ - 1);
+  // New spans: a walk from the tail.
+  if (spans_added_) envelope_request(false);
+  // The walk is urgent when the spans it has still to raise lie within
+  // about twice a stop from top speed ahead of the input.
+  const double near = v_bound_ * v_bound_ / std::max(a_top_, 1e-9) + v_bound_ * tf_;
+  const bool urgent = (env_active_ && env_k_ < stail_ && span(env_k_).a - x_ < near) ||
+                      (!env_active_ && env_pending_ && final_end() - x_ < near);
+  envelope_work(urgent ? kEnvelopeUrgent : kEnvelopePerCycle);
 }
 
 void Executor::make_spans(uint64_t p) noexcept {
@@ -429,6 +442,7 @@ void Executor::make_spans(uint64_t p) noexcept {
     s.a = s.b = pc.s0;
     s.piece = p;
     s.stop = pc.stop;
+    spans_added_ = true;
     return;
   }
   const double lo = pc.s0;
@@ -573,6 +587,7 @@ void Executor::make_spans(uint64_t p) noexcept {
       }
     }
     span(stail_++) = sub[i];
+    spans_added_ = true;
   }
   // Only whole short pieces join (cuts near long pieces' ends stay).
   merge_ok_ = ns == 1 && hi - lo < 0.25 * kMergeSpan;
@@ -582,15 +597,55 @@ void Executor::make_spans(uint64_t p) noexcept {
 // the input can still brake (at each span's `alpha`) within every ceiling
 // ahead and come to rest at the end of the spans. Recomputed backward from
 // `last` while it changes.
-void Executor::envelope_from(uint64_t last) noexcept {
-  for (uint64_t k = last + 1; k-- > in_;) {
+//
+// The walk is spread over cycles (envelope_work, a bounded number of spans
+// per cycle): spans not yet walked keep the values of an earlier, shorter
+// published path, which are lower (appending spans only relaxes the stop at
+// the end), so the input under them stays safe, only slower until the walk
+// has passed. A span never walked yet has an envelope of zero.
+void Executor::envelope_request(bool full) noexcept {
+  if (env_active_) {
+    // One walk at a time: restarting at the tail on every new piece could
+    // keep a long walk from ever reaching the input.
+    env_pending_ = true;
+    env_pending_full_ = env_pending_full_ || full;
+    return;
+  }
+  if (stail_ <= in_) return;
+  env_active_ = true;
+  env_k_ = stail_ - 1;
+  // A walk may end where a span's values do not change, but never on the
+  // newest span (it may be new or grown), nor anywhere when the ceilings
+  // changed everywhere (overrides).
+  env_floor_ = full ? 0 : stail_ - 1;
+}
+
+void Executor::envelope_work(int budget) noexcept {
+  while (budget-- > 0) {
+    if (!env_active_) {
+      if (!env_pending_) return;
+      env_pending_ = false;
+      const bool full = env_pending_full_;
+      env_pending_full_ = false;
+      envelope_request(full);
+      if (!env_active_) return;
+    }
+    const uint64_t k = env_k_;
+    if (k < in_ || k >= stail_) {
+      env_active_ = false;
+      continue;
+    }
     const double w_end = (k + 1 >= stail_) ? 0.0 : span(k + 1).w_start;
     const bool known = span(k).enveloped;
     const double before = span(k).w_start;
     const double before_end = span(k).w_end;
     envelope_span(k, w_end);
-    if (known && k < last && span(k).w_start == before && span(k).w_end == before_end) break;
-    if (k == 0) break;
+    ++work_.enveloped;
+    if ((known && k < env_floor_ && span(k).w_start == before && span(k).w_end == before_end) || k == in_ || k == 0) {
+      env_active_ = false;
+      continue;
+    }
+    --env_k_;
   }
 }
 
@@ -1047,6 +1102,7 @@ void Executor::finish_abort() noexcept {
   store_.verts.release_upto(store_.verts.published());
   last_stop_ = UINT64_MAX;
   stop_head_ = stop_tail_;
+  env_active_ = env_pending_ = env_pending_full_ = false;
   ++epoch_;
   abort_done_ = true;
   aborting_ = false;
@@ -1111,6 +1167,7 @@ double Executor::stop_distance() const noexcept {
 
 void Executor::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
   ++cycles_;
+  work_ = CycleWork{};
   ingest();
   const double kf = std::max(0.0, in.feed_scale);
   const double kr = std::max(0.0, in.rapid_scale);
@@ -1118,7 +1175,11 @@ void Executor::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
     if (kf < env_feed_ || kr < env_rapid_) recovering_ = true;
     env_feed_ = kf;
     env_rapid_ = kr;
-    for (uint64_t k = stail_; k-- > in_;) envelope_span(k, (k + 1 >= stail_) ? 0.0 : span(k + 1).w_start);
+    // Every ceiling changed: a walk over the whole queue, spread over
+    // cycles like any other (until it has passed, spans ahead keep the
+    // envelope of the previous overrides: within the machine's limits and
+    // the published path, above a lowered feed for a moment).
+    envelope_request(true);
   }
   if (!probe_tripped_ && in.probe_input && out_ < ptail_ && piece(out_).probe && !aborting_) {
     probe_tripped_ = true;

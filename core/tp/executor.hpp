@@ -72,6 +72,21 @@ class Executor {
   uint64_t overruns() const noexcept { return overruns_; }
   int filter_length() const noexcept { return n_; }
 
+  // The servo-thread work of the last run_cycle() in its unbounded parts
+  // (tests): pieces taken in, pieces split into spans and envelope spans
+  // computed. Each is at most its per-cycle bound below whatever the
+  // program, except the envelope of a merged span grown in place (one per
+  // split piece at most).
+  struct CycleWork {
+    int ingested = 0, split = 0, enveloped = 0;
+  };
+  const CycleWork& cycle_work() const noexcept { return work_; }
+  static constexpr int kIngestPerCycle = 128;
+  static constexpr int kSplitPerCycle = 64;
+  static constexpr int kEnvelopePerCycle = 6;
+  // Envelope spans per cycle while the walk is near the input.
+  static constexpr int kEnvelopeUrgent = 24;
+
   // Position on the smoothed path at global position s (tests: dense
   // evaluation of the path that is being executed). Only for s within the
   // ingested pieces; false otherwise.
@@ -88,7 +103,9 @@ class Executor {
   void ingest() noexcept;
   void finalize() noexcept;
   void make_spans(uint64_t p) noexcept;
-  void envelope_from(uint64_t last) noexcept;
+  void envelope_request(bool full) noexcept;
+  void envelope_work(int budget) noexcept;
+  bool idle_ingested() const noexcept;
   void envelope_span(uint64_t k, double w_end) noexcept;
   double accel_limit(uint64_t piece, double lo, double hi, double u) const noexcept;
   double range_min(uint64_t from, double lo, double hi, int channel) const noexcept;
@@ -149,6 +166,14 @@ class Executor {
   uint64_t in_ = 0;
   uint64_t stail_ = 0;
   uint32_t epoch_ = 0;
+  // The envelope's backward walk under way: next span, and below which
+  // it may stop where nothing changes.
+  bool spans_added_ = false;       // make_spans added spans this cycle
+  bool env_active_ = false;
+  bool env_pending_ = false;       // another walk from the tail is due
+  bool env_pending_full_ = false;  // and it must reach the input
+  uint64_t env_k_ = 0;
+  uint64_t env_floor_ = 0;
   bool merge_ok_ = false;  // the newest span is a whole short piece
   bool recovering_ = false;  // an override dropped; braking to meet it
 
@@ -178,6 +203,7 @@ class Executor {
   uint64_t completed_ = 0;
   uint64_t overruns_ = 0;
   uint64_t cycles_ = 0;
+  CycleWork work_;
 };
 
 }  // namespace cnc::tp

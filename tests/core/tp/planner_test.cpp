@@ -625,6 +625,41 @@ TEST(TpControls, DwellHoldsInPlaceForItsTime) {
 
 // --- realtime discipline ----------------------------------------------------
 
+// The servo thread's share of planning is bounded per cycle whatever the
+// program: a deep queue of short curved moves arriving at once (a spiral
+// polyline, G64 P0.01, 600 moves of 0.2 mm, all queued in the first
+// cycles) once made one cycle take in, split and envelope the whole queue
+// (the envelope's backward walk over every span). Counted, not timed.
+TEST(TpRealtime, ServoCycleWorkIsBoundedWhateverTheQueue) {
+  PlannerConfig cfg = profile("lc", 0.001);
+  cfg.lookahead_segments = 1000;
+  Program prog;
+  const SegmentParams p = feed_params(100, 0.01);
+  double theta = 0;
+  for (int i = 0; i < 600; ++i) {
+    const double r = 5 + 0.5 / (2 * std::numbers::pi) * theta;
+    theta += 0.2 / r;
+    prog.moves.push_back(line_to(r * std::cos(theta), r * std::sin(theta), 0, p));
+  }
+  prog.start = pose(5, 0, 0);
+  Executor::CycleWork most;
+  RunOptions opt;
+  opt.flush_at_end = true;
+  opt.moves_per_cycle = 1 << 20;
+  opt.before_cycle = [&](uint64_t, TrajectoryPlanner& planner, CycleInputs&) {
+    const Executor::CycleWork& w = dynamic_cast<LookaheadPlanner&>(planner).executor().cycle_work();
+    most.ingested = std::max(most.ingested, w.ingested);
+    most.split = std::max(most.split, w.split);
+    most.enveloped = std::max(most.enveloped, w.enveloped);
+  };
+  const RunResult r = run(cfg, prog, opt);
+  expect_clean(r);
+  EXPECT_LE(most.ingested, Executor::kIngestPerCycle);
+  EXPECT_LE(most.split, Executor::kSplitPerCycle);
+  EXPECT_LE(most.enveloped, Executor::kEnvelopeUrgent);
+  EXPECT_GT(most.enveloped, 0);
+}
+
 TEST(TpRealtime, ServoThreadCallsNeverAllocate) {
   if (!testing::AllocationCounter::available()) GTEST_SKIP() << "allocation counter off in sanitizer builds";
   const PlannerConfig cfg = profile("mill-s", 0.00025);

@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# One program through the real controller: cncd on a copy of configs/sim
+# (no realtime scheduling), power on, home, run PROGRAM in auto mode, and
+# print its wall time from `cnc run` to the end of `cnc wait-program` and
+# the servo thread's figures (cycles, overruns, longest overrun streak,
+# execution time max). For the planner's servo-cycle cost under the daemon
+# and for comparing the time with what bench_tp predicts (docs/tp.md).
+#
+#   bench/tp/cncd_program.sh PROGRAM.ngc [BUILD_DIR]
+#
+# The sim's machine envelope is X -1..300, Y -1..200, Z -120..1: a program
+# around the origin needs an offset (the script does not add one).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/../.." && pwd)
+prog="${1:?usage: cncd_program.sh PROGRAM.ngc [BUILD_DIR]}"
+bin="${2:-$root/build}/bin"
+config="$root/configs/sim"
+prog=$(cd "$(dirname "$prog")" && pwd)/$(basename "$prog")
+source "$root/tests/system/cncd_on_copy.sh" tpbench
+fail() { echo "cncd_program: $*" >&2; tail -20 "$work/cncd.log" >&2; exit 1; }
+cnc --timeout 30 wait-ready || fail "controller did not start"
+cnc estop-reset || fail "estop-reset"
+cnc on || fail "machine on"
+cnc --timeout 120 home all || fail "home all"
+cnc mode auto || fail "mode auto"
+cnc open "$prog" || fail "open $prog"
+before=$(cnc status --json)
+t0=$(date +%s.%N)
+cnc run || fail "run"
+cnc --timeout 3000 wait-program >"$work/progress.txt" || fail "program: $(tail -3 "$work/progress.txt")"
+t1=$(date +%s.%N)
+after=$(cnc status --json)
+/usr/bin/python3 - "$before" "$after" "$t0" "$t1" <<'PY'
+import json, sys
+b, a = json.loads(sys.argv[1]), json.loads(sys.argv[2])
+t0, t1 = float(sys.argv[3]), float(sys.argv[4])
+def servo(s):
+    return [t for t in s["threads"] if t["name"] == "servo-thread"][0]
+sb, sa = servo(b), servo(a)
+cycles = sa["cycles"] - sb["cycles"]
+over = sa["overruns"] - sb["overruns"]
+print(f"program wall time {t1 - t0:.3f} s (from `cnc run` to the end of `cnc wait-program`)")
+print(f"servo thread: {cycles} cycles, {over} overruns ({100.0 * over / max(cycles, 1):.2f} %), "
+      f"longest streak {sa['longest_streak']}, exec max {sa['exec_max_ns'] / 1e3:.1f} us, "
+      f"product exec max {sa['product_exec_max_ns'] / 1e3:.1f} us, "
+      f"latency p99.9 {sa['latency_p999_ns'] / 1e3:.1f} us")
+print("end position", [round(x, 6) for x in a["motion"]["position"][:3]])
+PY
+cnc shutdown >/dev/null 2>&1 || true
