@@ -17,7 +17,7 @@ bin="$root/build/bin"
 pin=()
 if [ "$(nproc)" -ge 2 ] && command -v taskset >/dev/null; then pin=(taskset -c 1); fi
 
-names=(rt motion tp interp kinematics canopen comp cia402 ethercat modbus)
+names=(rt motion tp interp kinematics canopen comp cia402 ethercat modbus vision)
 run_one() {
   case "$1" in
     rt)         "${pin[@]}" "$bin/bench_rt_jitter" 10 1000000 ;;
@@ -31,6 +31,7 @@ run_one() {
     cia402)     "$bin/cia402_bench" ;;
     ethercat)   "$bin/ethercat_bench" ;;
     modbus)     "$bin/modbus_bench" 4 ;;
+    vision)     "$bin/vision_bench" ;;
     *) echo "unknown benchmark '$1' (known: ${names[*]})" >&2; return 2 ;;
   esac
 }
@@ -40,7 +41,7 @@ binary_of() {
     interp) echo interp_bench ;; kinematics) echo kinematics_bench ;;
     canopen) echo canopen_bus_load ;; comp) echo comp_bench ;;
     cia402) echo cia402_bench ;; ethercat) echo ethercat_bench ;;
-    modbus) echo modbus_bench ;;
+    modbus) echo modbus_bench ;; vision) echo vision_bench ;;
   esac
 }
 
