@@ -139,8 +139,9 @@ int main(int argc, char** argv) {
   while (!g_stop) {
     if (!client && std::chrono::steady_clock::now() >= next_try) {
       try {
+        // Messages posted from now on: older ones were seen before the
+        // controller went away, or belong to its previous run.
         client = std::make_unique<ipc::Client>(instance);
-        client->rewind_messages();
         backoff = std::chrono::milliseconds(250);
         std::fprintf(stderr, "cnc-mtconnect: connected to the controller (instance \"%s\")\n", instance.c_str());
       } catch (const std::exception&) {

@@ -86,6 +86,22 @@ def test_mdi_moves_the_machine(controller):
     assert s.task_mode == cnc.MODE_MDI
 
 
+def test_bad_gcode_raises_the_interpreters_reason_and_posts_an_error(controller):
+    e = cnc.error_channel(controller.instance)
+    c = cnc.command(controller.instance)
+    c.mode(cnc.MODE_MDI)
+    with pytest.raises(cnc.error, match="Two g codes used from same modal group"):
+        c.mdi("G0 X1 G2")
+    found = []
+    def error_seen():
+        m = e.poll()
+        if m and m[0] == cnc.NML_ERROR:
+            found.append(m[1])
+        return found
+    wait_for(error_seen, what="the interpreter's error on the error channel")
+    assert "Two g codes" in found[0]
+
+
 def test_overrides_and_spindle(controller):
     c = cnc.command(controller.instance)
     c.feedrate(0.5)
@@ -133,7 +149,7 @@ def test_program_runs_to_its_end(controller):
         s.poll()
         lines.add(s.current_line)
         return s.interp_state == cnc.INTERP_IDLE and s.inpos
-    wait_for(lambda: (s.poll(), s.interp_state != cnc.INTERP_IDLE)[1] or done(), what="program start")
+    wait_for(lambda: (s.poll(), s.interp_state != cnc.INTERP_IDLE)[1], what="program start")
     wait_for(done, timeout=120, what="program end")
     # G54 offset of the configuration plus the program's last XY.
     g5x = s.g5x_offset
