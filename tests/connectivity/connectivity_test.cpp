@@ -106,6 +106,8 @@ TEST(MtconnectAgent, TheControllerGoingAwayMakesEverythingUnavailable) {
 TEST(MqttCommands, AWrongOrMissingTokenIsRefused) {
   const std::set<std::string> allowed = {"on"};
   EXPECT_THROW(mqtt::parse_command(R"({"command":"on","token":"nope"})", "secret", allowed), std::invalid_argument);
+  EXPECT_THROW(mqtt::parse_command(R"({"command":"on","token":"secreT"})", "secret", allowed), std::invalid_argument);
+  EXPECT_NO_THROW(mqtt::parse_command(R"({"command":"on","token":"secret"})", "secret", allowed));
   EXPECT_THROW(mqtt::parse_command(R"({"command":"on"})", "secret", allowed), std::invalid_argument);
   // No token configured: nothing is ever accepted.
   EXPECT_THROW(mqtt::parse_command(R"({"command":"on","token":""})", "", allowed), std::invalid_argument);
