@@ -21,6 +21,7 @@
 #include "core/cli/status_format.hpp"
 #include "core/ipc/client.hpp"
 #include "core/ipc/command_check.hpp"
+#include "core/ipc/operator_commands.hpp"
 #include "core/util/pose.hpp"
 #include "core/util/strings.hpp"
 #include "core/util/time.hpp"
@@ -145,24 +146,21 @@ int send_home(const Context& c, const Command& cmd) {
 
 Command cmd_of(CommandType t) { return ipc::make_command(t); }
 
-Command with_i(CommandType t, int a, int b = 0) {
-  Command c = cmd_of(t);
-  c.i[0] = a;
-  c.i[1] = b;
-  return c;
-}
-
-Command with_d(CommandType t, double d) {
-  Command c = cmd_of(t);
-  c.d[0] = d;
-  return c;
-}
-
 Command with_text(CommandType t, const std::string& text) {
   Command c = cmd_of(t);
   if (text.size() > decltype(c.text)::capacity()) fail_usage("text longer than " + std::to_string(decltype(c.text)::capacity()) + " characters");
   c.text.assign(text);
   return c;
+}
+
+// A command with text from the command line: too long a text is a usage
+// error naming it.
+Command checked(Command (*build)(const std::string&), const std::string& text) {
+  try {
+    return build(text);
+  } catch (const std::invalid_argument& e) {
+    fail_usage(e.what());
+  }
 }
 
 std::string join_args(const Context& c, std::size_t from = 0) {
@@ -172,14 +170,13 @@ std::string join_args(const Context& c, std::size_t from = 0) {
 }
 
 // "x".."w" -> axis (teleop jog), a number -> joint (free jog).
-void target(const std::string& s, Command& cmd) {
-  if (s.size() == 1 && axis_index(s[0]) >= 0) {
-    cmd.i[0] = axis_index(s[0]);
-    cmd.i[1] = 0;
-    return;
-  }
-  cmd.i[0] = integer(s, "joint", 0, kMaxJoints - 1);
-  cmd.i[1] = 1;
+struct Target {
+  int index;
+  bool joint;
+};
+Target target(const std::string& s) {
+  if (s.size() == 1 && axis_index(s[0]) >= 0) return {axis_index(s[0]), false};
+  return {integer(s, "joint", 0, kMaxJoints - 1), true};
 }
 
 int joint_or_all(const std::string& s) { return s == "all" ? -1 : integer(s, "joint", 0, kMaxJoints - 1); }
@@ -207,7 +204,7 @@ int cmd_estop(const Context& c) {
   uint32_t serial = 0;
   std::string not_told;
   try {
-    if (!client.try_send(with_i(CommandType::TaskSetState, 1), serial)) not_told = "its command queue is full";
+    if (!client.try_send(ipc::commands::set_state(ipc::TaskState::Estop), serial)) not_told = "its command queue is full";
   } catch (const ipc::ClientError& e) {
     not_told = e.what();
   }
@@ -387,37 +384,35 @@ std::map<std::string, Entry> commands() {
                    [](Context& c) { return send(c, cmd_of(CommandType::Shutdown)); }};
   m["error"] = {"error TEXT", "post an operator error", [](Context& c) {
                   need_args(c, 1, "error TEXT", SIZE_MAX);
-                  return send(c, with_text(CommandType::OperatorError, join_args(c)));
+                  return send(c, checked(ipc::commands::operator_error, join_args(c)));
                 }};
   m["text"] = {"text TEXT", "post an operator text", [](Context& c) {
                  need_args(c, 1, "text TEXT", SIZE_MAX);
-                 return send(c, with_text(CommandType::OperatorText, join_args(c)));
+                 return send(c, checked(ipc::commands::operator_text, join_args(c)));
                }};
   m["display"] = {"display TEXT", "post an operator display message", [](Context& c) {
                     need_args(c, 1, "display TEXT", SIZE_MAX);
-                    return send(c, with_text(CommandType::OperatorDisplay, join_args(c)));
+                    return send(c, checked(ipc::commands::operator_display, join_args(c)));
                   }};
   m["estop"] = {"estop", "E-stop (acted on in the servo thread, needs no free channel)", cmd_estop};
   m["estop-reset"] = {"estop-reset", "reset the E-stop",
-                      [](Context& c) { return send(c, with_i(CommandType::TaskSetState, 2)); }};
-  m["off"] = {"off", "machine off", [](Context& c) { return send(c, with_i(CommandType::TaskSetState, 3)); }};
-  m["on"] = {"on", "machine on", [](Context& c) { return send(c, with_i(CommandType::TaskSetState, 4)); }};
+                      [](Context& c) { return send(c, ipc::commands::set_state(ipc::TaskState::EstopReset)); }};
+  m["off"] = {"off", "machine off", [](Context& c) { return send(c, ipc::commands::set_state(ipc::TaskState::Off)); }};
+  m["on"] = {"on", "machine on", [](Context& c) { return send(c, ipc::commands::set_state(ipc::TaskState::On)); }};
   m["mode"] = {"mode manual|auto|mdi", "change the task mode", [](Context& c) {
                  need_args(c, 1, "mode manual|auto|mdi");
                  const std::string m = to_lower(c.args[0]);
                  const int v = m == "manual" ? 1 : m == "auto" ? 2 : m == "mdi" ? 3 : 0;
                  if (!v) fail_usage("mode: expected manual, auto or mdi");
-                 return send(c, with_i(CommandType::TaskSetMode, v));
+                 return send(c, ipc::commands::set_mode(static_cast<ipc::TaskMode>(v)));
                }};
   m["mdi"] = {"mdi G-CODE...", "execute one MDI line", [](Context& c) {
                 need_args(c, 1, "mdi G-CODE", SIZE_MAX);
-                Command cmd = with_text(CommandType::TaskPlanExecute, join_args(c));
-                cmd.i[0] = -1;
-                return send(c, cmd);
+                return send(c, checked(ipc::commands::mdi, join_args(c)));
               }};
   m["macro"] = {"macro N", "run [MDI_COMMAND_LIST] macro N", [](Context& c) {
                   need_args(c, 1, "macro N");
-                  return send(c, with_i(CommandType::TaskPlanExecute, integer(c.args[0], "macro", 0, 999)));
+                  return send(c, ipc::commands::macro(integer(c.args[0], "macro", 0, 999)));
                 }};
   m["open"] = {"open FILE", "open a program", [](Context& c) {
                  need_args(c, 1, "open FILE");
@@ -426,103 +421,93 @@ std::map<std::string, Entry> commands() {
                    char cwd[4096];
                    if (::getcwd(cwd, sizeof cwd)) path = std::string(cwd) + "/" + path;
                  }
-                 return send(c, with_text(CommandType::TaskPlanOpen, path));
+                 return send(c, checked(ipc::commands::open, path));
                }};
   m["run"] = {"run [LINE]", "run the open program (from LINE)", [](Context& c) {
                 need_args(c, 0, "run [LINE]", 1);
-                return send(c, with_i(CommandType::TaskPlanRun, c.args.empty() ? 0 : integer(c.args[0], "line")));
+                return send(c, ipc::commands::run(c.args.empty() ? 0 : integer(c.args[0], "line")));
               }};
-  m["pause"] = {"pause", "pause the program", [](Context& c) { return send(c, cmd_of(CommandType::TaskPlanPause)); }};
-  m["resume"] = {"resume", "resume the program", [](Context& c) { return send(c, cmd_of(CommandType::TaskPlanResume)); }};
-  m["step"] = {"step", "execute one block", [](Context& c) { return send(c, cmd_of(CommandType::TaskPlanStep)); }};
-  m["abort"] = {"abort", "abort motion and the program", [](Context& c) { return send(c, cmd_of(CommandType::TaskAbort)); }};
-  m["close"] = {"close", "close the program", [](Context& c) { return send(c, cmd_of(CommandType::TaskPlanClose)); }};
+  m["pause"] = {"pause", "pause the program", [](Context& c) { return send(c, ipc::commands::pause()); }};
+  m["resume"] = {"resume", "resume the program", [](Context& c) { return send(c, ipc::commands::resume()); }};
+  m["step"] = {"step", "execute one block", [](Context& c) { return send(c, ipc::commands::step()); }};
+  m["abort"] = {"abort", "abort motion and the program", [](Context& c) { return send(c, ipc::commands::abort()); }};
+  m["close"] = {"close", "close the program", [](Context& c) { return send(c, ipc::commands::close()); }};
   m["optional-stop"] = {"optional-stop on|off", "M1 stops or not", [](Context& c) {
                           need_args(c, 1, "optional-stop on|off");
-                          return send(c, with_i(CommandType::TaskPlanSetOptionalStop, on_off(c.args[0])));
+                          return send(c, ipc::commands::optional_stop(on_off(c.args[0])));
                         }};
   m["block-delete"] = {"block-delete on|off", "skip lines starting with /", [](Context& c) {
                          need_args(c, 1, "block-delete on|off");
-                         return send(c, with_i(CommandType::TaskPlanSetBlockDelete, on_off(c.args[0])));
+                         return send(c, ipc::commands::block_delete(on_off(c.args[0])));
                        }};
   m["home"] = {"home JOINT|all", "home a joint or all joints", [](Context& c) {
                  need_args(c, 1, "home JOINT|all");
-                 return send_home(c, with_i(CommandType::JointHome, joint_or_all(c.args[0])));
+                 return send_home(c, ipc::commands::home(joint_or_all(c.args[0])));
                }};
   m["unhome"] = {"unhome JOINT|all", "forget a joint's home", [](Context& c) {
                    need_args(c, 1, "unhome JOINT|all");
-                   return send(c, with_i(CommandType::JointUnhome, joint_or_all(c.args[0])));
+                   return send(c, ipc::commands::unhome(joint_or_all(c.args[0])));
                  }};
   m["override-limits"] = {"override-limits", "allow jogging off a limit switch (until the next jog ends)",
-                          [](Context& c) { return send(c, with_i(CommandType::JointOverrideLimits, -1)); }};
+                          [](Context& c) { return send(c, ipc::commands::override_limits()); }};
   m["jog"] = {"jog AXIS|JOINT VELOCITY [DISTANCE]", "jog continuously, or by DISTANCE", [](Context& c) {
                 need_args(c, 2, "jog AXIS|JOINT VELOCITY [DISTANCE]", 3);
-                Command cmd = cmd_of(c.args.size() > 2 ? CommandType::JogIncr : CommandType::JogCont);
-                target(c.args[0], cmd);
-                cmd.d[0] = number(c.args[1], "velocity");
+                const Target t = target(c.args[0]);
+                const double v = number(c.args[1], "velocity");
                 if (c.args.size() > 2) {
-                  cmd.d[1] = number(c.args[2], "distance");
-                  if (cmd.d[0] < 0) {
-                    cmd.d[0] = -cmd.d[0];
-                    cmd.d[1] = -cmd.d[1];
-                  }
+                  return send(c, ipc::commands::jog_increment(t.index, t.joint, v, number(c.args[2], "distance")));
                 }
-                return send(c, cmd);
+                return send(c, ipc::commands::jog_continuous(t.index, t.joint, v));
               }};
   m["jog-to"] = {"jog-to AXIS|JOINT VELOCITY POSITION", "jog to an absolute position", [](Context& c) {
                    need_args(c, 3, "jog-to AXIS|JOINT VELOCITY POSITION");
-                   Command cmd = cmd_of(CommandType::JogAbs);
-                   target(c.args[0], cmd);
-                   cmd.d[0] = number(c.args[1], "velocity");
-                   cmd.d[1] = number(c.args[2], "position");
-                   return send(c, cmd);
+                   const Target t = target(c.args[0]);
+                   return send(c, ipc::commands::jog_absolute(t.index, t.joint, number(c.args[1], "velocity"),
+                                                              number(c.args[2], "position")));
                  }};
   m["jog-stop"] = {"jog-stop AXIS|JOINT", "stop a jog", [](Context& c) {
                      need_args(c, 1, "jog-stop AXIS|JOINT");
-                     Command cmd = cmd_of(CommandType::JogStop);
-                     target(c.args[0], cmd);
-                     return send(c, cmd);
+                     const Target t = target(c.args[0]);
+                     return send(c, ipc::commands::jog_stop(t.index, t.joint));
                    }};
   m["feed-override"] = {"feed-override PERCENT", "feed override", [](Context& c) {
                           need_args(c, 1, "feed-override PERCENT");
-                          return send(c, with_d(CommandType::TrajSetScale, number(c.args[0], "percent", 100 * ipc::kMaxOverrideScale) / 100));
+                          return send(c, ipc::commands::feed_override(number(c.args[0], "percent", 100 * ipc::kMaxOverrideScale) / 100));
                         }};
   m["rapid-override"] = {"rapid-override PERCENT", "rapid override", [](Context& c) {
                            need_args(c, 1, "rapid-override PERCENT");
-                           return send(c, with_d(CommandType::TrajSetRapidScale, number(c.args[0], "percent", 100 * ipc::kMaxOverrideScale) / 100));
+                           return send(c, ipc::commands::rapid_override(number(c.args[0], "percent", 100 * ipc::kMaxOverrideScale) / 100));
                          }};
   m["max-velocity"] = {"max-velocity UNITS_PER_S", "maximum velocity override", [](Context& c) {
                          need_args(c, 1, "max-velocity UNITS_PER_S");
-                         return send(c, with_d(CommandType::TrajSetMaxVelocity, number(c.args[0], "velocity")));
+                         return send(c, ipc::commands::max_velocity(number(c.args[0], "velocity")));
                        }};
   m["spindle-override"] = {"spindle-override PERCENT", "spindle override", [](Context& c) {
                              need_args(c, 1, "spindle-override PERCENT");
-                             return send(c, with_d(CommandType::SpindleOverride, number(c.args[0], "percent", 100 * ipc::kMaxOverrideScale) / 100));
+                             return send(c, ipc::commands::spindle_override(number(c.args[0], "percent", 100 * ipc::kMaxOverrideScale) / 100));
                            }};
   m["spindle"] = {"spindle RPM|off", "start (negative: reverse) or stop spindle 0", [](Context& c) {
                     need_args(c, 1, "spindle RPM|off");
-                    if (c.args[0] == "off") return send(c, with_i(CommandType::SpindleOff, 0));
-                    Command cmd = with_i(CommandType::SpindleOn, 0);
-                    cmd.d[0] = number(c.args[0], "rpm", ipc::kMaxSpindleRpm);
-                    return send(c, cmd);
+                    if (c.args[0] == "off") return send(c, ipc::commands::spindle_off());
+                    return send(c, ipc::commands::spindle_on(number(c.args[0], "rpm", ipc::kMaxSpindleRpm)));
                   }};
   m["flood"] = {"flood on|off", "flood coolant", [](Context& c) {
                   need_args(c, 1, "flood on|off");
-                  return send(c, cmd_of(on_off(c.args[0]) ? CommandType::CoolantFloodOn : CommandType::CoolantFloodOff));
+                  return send(c, ipc::commands::flood(on_off(c.args[0])));
                 }};
   m["mist"] = {"mist on|off", "mist coolant", [](Context& c) {
                  need_args(c, 1, "mist on|off");
-                 return send(c, cmd_of(on_off(c.args[0]) ? CommandType::CoolantMistOn : CommandType::CoolantMistOff));
+                 return send(c, ipc::commands::mist(on_off(c.args[0])));
                }};
   m["lube"] = {"lube on|off", "lubrication", [](Context& c) {
                  need_args(c, 1, "lube on|off");
-                 return send(c, cmd_of(on_off(c.args[0]) ? CommandType::LubeOn : CommandType::LubeOff));
+                 return send(c, ipc::commands::lube(on_off(c.args[0])));
                }};
   m["tool-load-table"] = {"tool-load-table", "re-read the tool table file",
-                          [](Context& c) { return send(c, cmd_of(CommandType::ToolLoadTable)); }};
+                          [](Context& c) { return send(c, ipc::commands::tool_load_table()); }};
   m["tool-set-number"] = {"tool-set-number TOOL", "declare the tool in the spindle (M61)", [](Context& c) {
                             need_args(c, 1, "tool-set-number TOOL");
-                            return send(c, with_i(CommandType::ToolSetNumber, integer(c.args[0], "tool", 0, 99'999'999)));
+                            return send(c, ipc::commands::tool_set_number(integer(c.args[0], "tool", 0, 99'999'999)));
                           }};
   m["set"] = {"set PARAMETER INDEX VALUE", "set a motion parameter (SET_xxx)", [](Context& c) {
                 need_args(c, 3, "set PARAMETER INDEX VALUE");

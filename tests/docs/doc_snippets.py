@@ -203,7 +203,7 @@ def parse_set(b, text):
 
 
 class Sandbox:
-    """A copy of configs/sim (as configs/sim), build/bin linked, in a fresh folder."""
+    """A copy of configs/sim (as configs/sim), build/bin (and build/python) linked, in a fresh folder."""
 
     def __init__(self, source, bindir):
         self.source = source
@@ -212,6 +212,10 @@ class Sandbox:
         shutil.copytree(os.path.join(source, "configs"), os.path.join(self.root, "configs"))
         os.makedirs(os.path.join(self.root, "build"))
         os.symlink(bindir, os.path.join(self.root, "build", "bin"))
+        # The Python module (docs/connectivity.md), when this build has it.
+        python = os.path.join(os.path.dirname(bindir), "python")
+        if os.path.isdir(python):
+            os.symlink(python, os.path.join(self.root, "build", "python"))
         self.sim = os.path.join(self.root, "configs", "sim")
 
     def add_files(self, b):
