@@ -1,4 +1,4 @@
-# Installation and Debian packages (docs/install.md). Four packages, one
+# Installation and Debian packages (docs/install.md). Five packages, one
 # CPack component each:
 #   cnc          the controller: cncd, cnc, halcmd, the bus tools, cnc-rs274,
 #                cnc-config, cnc-can-up, the systemd unit; the simulators'
@@ -9,6 +9,8 @@
 #                OpenCV, which the controller does not)
 #   cnc-configs  the sample configurations (/usr/share/cnc/configs) and the
 #                documentation (/usr/share/doc/cnc-configs)
+#   cnc-connectivity  the Python module cnc, the MTConnect agent and the
+#                MQTT bridge (docs/connectivity.md), when they are built
 # The libraries are static (cnc_library), so nothing of ours is a shared
 # library: dpkg-shlibdeps finds the Debian runtime packages of each program.
 # scripts/package.sh builds them in one command.
@@ -55,6 +57,9 @@ cnc_install_program(cnc-rs274 controller "RS274/NGC interpreter: a program's can
 cnc_install_program(cnc-canopen controller "CANopen bus tool: plans, SDO, NMT, EDS")
 cnc_install_program(cnc-ethercat controller "EtherCAT bus tool: scan, ESI, plans")
 cnc_install_program(cnc-comp comp "screw and error compensation: measurement and fitting")
+cnc_install_program(cnc-vision comp "camera measurement: glass scales, calibration, fiducials")
+cnc_install_program(cnc-mtconnect connectivity "MTConnect agent of the CNC controller")
+cnc_install_program(cnc-mqtt connectivity "MQTT bridge of the CNC controller")
 cnc_install_program(cnc-hmi screen "the Qt operator screen of the CNC controller")
 
 # Scripts: the configuration picker and the CAN interface helper, copied
@@ -96,8 +101,8 @@ install(DIRECTORY ${PROJECT_SOURCE_DIR}/docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR
 
 # Debian's files in each package's /usr/share/doc/<package>: copyright and
 # a changelog (gzip -9n, as Debian policy asks).
-set(CNC_DEB_PACKAGES cnc cnc-screen cnc-comp cnc-configs)
-set(CNC_DEB_COMPONENTS controller screen comp configs)
+set(CNC_DEB_PACKAGES cnc cnc-screen cnc-comp cnc-configs cnc-connectivity)
+set(CNC_DEB_COMPONENTS controller screen comp configs connectivity)
 string(TIMESTAMP CNC_DEB_DATE "%a, %d %b %Y %H:%M:%S +0000" UTC)
 set(changelog ${CMAKE_BINARY_DIR}/deb/changelog)
 file(WRITE ${changelog}
@@ -123,6 +128,9 @@ set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
 set(CPACK_STRIP_FILES TRUE)
 set(CPACK_DEB_COMPONENT_INSTALL ON)
 set(CPACK_COMPONENTS_ALL controller screen comp configs)
+if(TARGET cnc-mtconnect OR TARGET cnc-mqtt OR TARGET cnc_python)
+  list(APPEND CPACK_COMPONENTS_ALL connectivity)
+endif()
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
 set(CPACK_DEBIAN_PACKAGE_SECTION electronics)
@@ -156,7 +164,8 @@ set(CPACK_COMPONENT_COMP_DESCRIPTION
   "fieldbus-first CNC controller: the compensation tool\n"
   "cnc-comp measures a machine's positioning errors (ISO 230-2 cycles, a\n"
   "laser or camera measurement) and fits screw, backlash and error\n"
-  "compensation tables for the controller's compensation components.")
+  "compensation tables for the controller's compensation components;\n"
+  "cnc-vision reads glass scales and fiducials with a camera.")
 
 set(CPACK_DEBIAN_CONFIGS_PACKAGE_NAME cnc-configs)
 set(CPACK_DEBIAN_CONFIGS_PACKAGE_ARCHITECTURE all)
@@ -166,5 +175,13 @@ set(CPACK_COMPONENT_CONFIGS_DESCRIPTION
   "Machine configurations to start from (a simulated mill, CANopen and\n"
   "EtherCAT mills, a gantry, an inch machine, Modbus spindles), copied to\n"
   "~/cnc/configs by cnc-config, and the controller's documentation.")
+
+set(CPACK_DEBIAN_CONNECTIVITY_PACKAGE_NAME cnc-connectivity)
+set(CPACK_DEBIAN_CONNECTIVITY_PACKAGE_DEPENDS "cnc (= ${PROJECT_VERSION}), python3")
+set(CPACK_COMPONENT_CONNECTIVITY_DESCRIPTION
+  "fieldbus-first CNC controller: Python, MTConnect and MQTT\n"
+  "The Python module cnc (shaped like LinuxCNC's linuxcnc module), the\n"
+  "MTConnect agent cnc-mtconnect and the MQTT bridge cnc-mqtt; all listen\n"
+  "on 127.0.0.1 and are read-only unless configured otherwise.")
 
 include(CPack)

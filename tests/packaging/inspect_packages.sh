@@ -22,6 +22,7 @@ contents() { dpkg-deb -c "$1" | awk '{print $6}' | sed 's|^\./|/|'; }
 field() { dpkg-deb -f "$1" "$2"; }
 
 cnc="$(deb cnc)" configs="$(deb cnc-configs)" screen="$(deb cnc-screen)" comp="$(deb cnc-comp)"
+conn="$(deb cnc-connectivity)"
 files="$(contents "$cnc")"
 for prog in cncd cnc halcmd cnc-rs274 cnc-canopen cnc-ethercat cnc-config cnc-can-up; do
   grep -qx "/usr/bin/$prog" <<<"$files" || bad "cnc: no /usr/bin/$prog"
@@ -32,12 +33,21 @@ done
 all="$files"$'\n'"$(contents "$configs")"$'\n'"$(contents "$comp")"
 grep -qx /usr/bin/cnc-comp <<<"$all" || bad "cnc-comp: no /usr/bin/cnc-comp"
 [ -n "$screen" ] && all+=$'\n'"$(contents "$screen")"
+if [ -n "$conn" ]; then
+  cfiles_conn="$(contents "$conn")"
+  all+=$'\n'"$cfiles_conn"
+  for prog in cnc-mtconnect cnc-mqtt; do
+    grep -qx "/usr/bin/$prog" <<<"$cfiles_conn" || bad "cnc-connectivity: no /usr/bin/$prog"
+  done
+  grep -q '^/usr/lib/python3/dist-packages/cnc\..*\.so$' <<<"$cfiles_conn" \
+    || bad "cnc-connectivity: no Python module cnc in /usr/lib/python3/dist-packages"
+fi
 # Every program in /usr/bin has its manual page, which is not empty.
 for prog in $(grep '^/usr/bin/.' <<<"$all" | xargs -n1 basename); do
   grep -qx "/usr/share/man/man1/$prog.1.gz" <<<"$all" || bad "no manual page for $prog"
 done
 grep -q '^/usr/local' <<<"$all" && bad "files under /usr/local"
-for p in cnc cnc-configs cnc-comp ${screen:+cnc-screen}; do
+for p in cnc cnc-configs cnc-comp ${screen:+cnc-screen} ${conn:+cnc-connectivity}; do
   grep -qx "/usr/share/doc/$p/copyright" <<<"$all" || bad "$p: no /usr/share/doc/$p/copyright"
 done
 
