@@ -15,78 +15,20 @@ Command make(CommandType type) {
   return c;
 }
 
-namespace {
-Command with_i(CommandType t, int a, int b = 0) {
-  Command c = make(t);
-  c.i[0] = a;
-  c.i[1] = b;
+Command run_preview(int line) {
+  Command c = make(CommandType::TaskPlanRunPreview);
+  c.i[0] = line;
   return c;
 }
-Command with_d(CommandType t, double d, int i0 = 0) {
-  Command c = make(t);
-  c.d[0] = d;
-  c.i[0] = i0;
-  return c;
-}
-Command with_text(CommandType t, const std::string& text) {
-  Command c = make(t);
-  c.text.assign(text);
-  return c;
-}
-}  // namespace
-
-Command set_state(ipc::TaskState s) { return with_i(CommandType::TaskSetState, static_cast<int>(s)); }
-Command set_mode(ipc::TaskMode m) { return with_i(CommandType::TaskSetMode, static_cast<int>(m)); }
-Command abort() { return make(CommandType::TaskAbort); }
-Command open(const std::string& path) { return with_text(CommandType::TaskPlanOpen, path); }
-Command run(int line) { return with_i(CommandType::TaskPlanRun, line); }
-Command run_preview(int line) { return with_i(CommandType::TaskPlanRunPreview, line); }
-Command pause() { return make(CommandType::TaskPlanPause); }
-Command resume() { return make(CommandType::TaskPlanResume); }
-Command step() { return make(CommandType::TaskPlanStep); }
-Command mdi(const std::string& line) {
-  Command c = with_text(CommandType::TaskPlanExecute, line);
-  c.i[0] = -1;
-  return c;
-}
-Command macro(int index) { return with_i(CommandType::TaskPlanExecute, index); }
-Command optional_stop(bool on) { return with_i(CommandType::TaskPlanSetOptionalStop, on ? 1 : 0); }
-Command block_delete(bool on) { return with_i(CommandType::TaskPlanSetBlockDelete, on ? 1 : 0); }
-Command home(int joint) { return with_i(CommandType::JointHome, joint); }
-Command unhome(int joint) { return with_i(CommandType::JointUnhome, joint); }
-Command feed_override(double ratio) { return with_d(CommandType::TrajSetScale, ratio); }
-Command rapid_override(double ratio) { return with_d(CommandType::TrajSetRapidScale, ratio); }
-Command spindle_override(double ratio, int spindle) { return with_d(CommandType::SpindleOverride, ratio, spindle); }
-Command max_velocity(double v) { return with_d(CommandType::TrajSetMaxVelocity, v); }
-Command spindle_on(double rpm, int spindle) { return with_d(CommandType::SpindleOn, rpm, spindle); }
-Command spindle_off(int spindle) { return with_i(CommandType::SpindleOff, spindle); }
-Command spindle_faster(int spindle) { return with_i(CommandType::SpindleIncrease, spindle); }
-Command spindle_slower(int spindle) { return with_i(CommandType::SpindleDecrease, spindle); }
-Command flood(bool on) { return make(on ? CommandType::CoolantFloodOn : CommandType::CoolantFloodOff); }
-Command mist(bool on) { return make(on ? CommandType::CoolantMistOn : CommandType::CoolantMistOff); }
 
 Command tool_set(const tooltable::Tool& t, bool pocket_given) {
-  Command c = make(CommandType::ToolSetOffset);
-  c.i[0] = t.number;
-  c.i[1] = pocket_given ? t.pocket : -1;
-  c.i[2] = t.orientation;
-  for (int a = 0; a < kNumAxes; ++a) c.d[a] = t.offset[a];
-  c.d[9] = t.diameter;
-  c.d[10] = t.front_angle;
-  c.d[11] = t.back_angle;
-  c.text.assign(t.comment);
-  return c;
+  const std::size_t cap = decltype(Command{}.text)::capacity();
+  const std::string comment = t.comment.size() > cap ? t.comment.substr(0, cap) : t.comment;
+  return ipc::commands::tool_set_offset(t.number, pocket_given ? t.pocket : -1, t.offset, t.diameter, t.front_angle,
+                                        t.back_angle, t.orientation, comment);
 }
-Command tool_delete(int tool) { return with_i(CommandType::ToolDelete, tool); }
-Command tool_reload() { return make(CommandType::ToolLoadTable); }
 
-Command set_work_offset(int index, const Pose& offsets, double rotation_deg) {
-  Command c = make(CommandType::SetWorkOffset);
-  c.i[0] = index;
-  for (int a = 0; a < kNumAxes; ++a) c.d[a] = offsets[a];
-  c.d[9] = rotation_deg;
-  return c;
-}
+Command tool_reload() { return ipc::commands::tool_load_table(); }
 
 }  // namespace commands
 

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "core/ipc/operator_commands.hpp"
 #include "core/ipc/status.hpp"
 #include "core/tooltable/tool_table.hpp"
 
@@ -19,37 +20,18 @@ namespace cnc::hmi {
 class MachineLink;
 
 namespace commands {
+// Every operator command, encoded once for all clients
+// (core/ipc/operator_commands.hpp); those taking text throw
+// std::invalid_argument when it does not fit the channel (callers say so
+// instead of sending a shortened line).
+using namespace ipc::commands;
 ipc::Command make(ipc::CommandType type);
-ipc::Command set_state(ipc::TaskState state);
-ipc::Command set_mode(ipc::TaskMode mode);
-ipc::Command abort();
-ipc::Command open(const std::string& path);
-ipc::Command run(int line = 0);
+// Run from a line with the preview's look (TaskPlanRunPreview).
 ipc::Command run_preview(int line);
-ipc::Command pause();
-ipc::Command resume();
-ipc::Command step();
-ipc::Command mdi(const std::string& line);
-ipc::Command macro(int index);
-ipc::Command optional_stop(bool on);
-ipc::Command block_delete(bool on);
-ipc::Command home(int joint);    // -1: all
-ipc::Command unhome(int joint);  // -1: all
-ipc::Command feed_override(double ratio);
-ipc::Command rapid_override(double ratio);
-ipc::Command spindle_override(double ratio, int spindle = 0);
-ipc::Command max_velocity(double units_per_s);
-ipc::Command spindle_on(double rpm, int spindle = 0);  // negative: reverse
-ipc::Command spindle_off(int spindle = 0);
-ipc::Command spindle_faster(int spindle = 0);
-ipc::Command spindle_slower(int spindle = 0);
-ipc::Command flood(bool on);
-ipc::Command mist(bool on);
+// A tool table row; a comment too long for the channel is shortened (it
+// is only a comment).
 ipc::Command tool_set(const tooltable::Tool& tool, bool pocket_given);
-ipc::Command tool_delete(int tool);
 ipc::Command tool_reload();
-// index 1..9 = G54..G59.3 (with the XY rotation), 0 = G92.
-ipc::Command set_work_offset(int index, const Pose& offsets, double rotation_deg);
 }  // namespace commands
 
 class CommandTracker {

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/ipc/operator_commands.hpp"
+
 namespace cnc::hmi {
 
 JogController::JogController(Sink sink) : sink_(std::move(sink)) { std::fill(std::begin(joint_of_axis_), std::end(joint_of_axis_), -1); }
@@ -148,16 +150,8 @@ bool JogController::press(int axis, int direction, Source source) {
     return false;
   }
   const int dir = direction < 0 ? -1 : 1;
-  ipc::Command c;
-  c.type = inc.continuous ? ipc::CommandType::JogCont : ipc::CommandType::JogIncr;
-  c.i[0] = target;
-  c.i[1] = joint_mode ? 1 : 0;
-  if (inc.continuous) {
-    c.d[0] = dir * velocity;
-  } else {
-    c.d[0] = velocity;
-    c.d[1] = dir * inc.distance;
-  }
+  const ipc::Command c = inc.continuous ? ipc::commands::jog_continuous(target, joint_mode, dir * velocity)
+                                        : ipc::commands::jog_increment(target, joint_mode, dir * velocity, inc.distance);
   // A new increment on an axis replaces the record of the previous one.
   active_.erase(std::remove_if(active_.begin(), active_.end(), [axis](const Active& a) { return a.axis == axis; }),
                 active_.end());
@@ -167,11 +161,7 @@ bool JogController::press(int axis, int direction, Source source) {
 }
 
 ipc::Command JogController::stop_command(const Active& a) const {
-  ipc::Command c;
-  c.type = ipc::CommandType::JogStop;
-  c.i[0] = a.target;
-  c.i[1] = a.joint_mode ? 1 : 0;
-  return c;
+  return ipc::commands::jog_stop(a.target, a.joint_mode);
 }
 
 void JogController::release(int axis, Source source) {

@@ -1,3 +1,5 @@
+#include <stdexcept>
+
 #include "hmi/main_window.hpp"
 
 #include <QApplication>
@@ -503,7 +505,14 @@ void MainWindow::open_program(const QString& path) {
     run_filter(abs, *f);
     return;
   }
-  screen_.send(commands::open(abs.toStdString()), "open " + abs.toStdString(), [this, abs](const ipc::CommandResult& r) {
+  ipc::Command cmd;
+  try {
+    cmd = commands::open(abs.toStdString());
+  } catch (const std::invalid_argument& e) {
+    screen_.log(LogLevel::Error, "open " + abs.toStdString() + ": not sent: " + e.what());
+    return;
+  }
+  screen_.send(cmd, "open " + abs.toStdString(), [this, abs](const ipc::CommandResult& r) {
     if (r.state != ipc::CommandState::Done) return;
     screen_.log(LogLevel::Info, "opened " + abs.toStdString());
     shown_file_ = abs.toStdString();

@@ -12,6 +12,8 @@
 #include <QSpinBox>
 #include <QVBoxLayout>
 
+#include <stdexcept>
+
 #include "hmi/mdi_history.hpp"
 #include "hmi/panels.hpp"
 
@@ -212,8 +214,15 @@ void MdiPage::reload_history() {
 void MdiPage::submit(const QString& text) {
   const std::string line = text.trimmed().toStdString();
   if (line.empty()) return;
+  ipc::Command cmd;
+  try {
+    cmd = commands::mdi(line);
+  } catch (const std::invalid_argument& e) {
+    s_.log(LogLevel::Error, std::string("MDI not sent: ") + e.what());  // the line stays in the field
+    return;
+  }
   input_->clear();
-  s_.send_in_mode(ipc::TaskMode::Mdi, {commands::mdi(line)}, "MDI " + line, [this, line](const ipc::CommandResult& r) {
+  s_.send_in_mode(ipc::TaskMode::Mdi, {cmd}, "MDI " + line, [this, line](const ipc::CommandResult& r) {
     // Only lines the controller executed go into the history.
     if (r.state != ipc::CommandState::Done) return;
     if (!history_.add(line)) s_.log(LogLevel::Warning, "MDI history not saved: " + history_.error());
