@@ -1,8 +1,11 @@
 #include <dlfcn.h>
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <atomic>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <random>
@@ -76,6 +79,17 @@ bool AllocationCounter::available() noexcept { return CNC_ALLOC_WRAPPERS != 0; }
 ScopedAllocationCheck::ScopedAllocationCheck() noexcept : start_(g_allocations.load()) { t_armed = true; }
 ScopedAllocationCheck::~ScopedAllocationCheck() { t_armed = false; }
 uint64_t ScopedAllocationCheck::allocations() const noexcept { return g_allocations.load() - start_; }
+
+CommandOutput run_shell(const std::string& command) {
+  CommandOutput out;
+  FILE* p = ::popen((command + " 2>&1").c_str(), "r");
+  if (!p) return out;
+  std::array<char, 4096> buf;
+  while (std::fgets(buf.data(), buf.size(), p)) out.text += buf.data();
+  const int status = ::pclose(p);
+  out.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return out;
+}
 
 std::string unique_name(const std::string& prefix) {
   static std::atomic<int> counter{0};

@@ -53,4 +53,12 @@ inline std::filesystem::path binary_dir() { return CNC_BINARY_DIR; }
 // A name no other test process uses at the same time (for instances, sockets).
 std::string unique_name(const std::string& prefix);
 
+// What a shell command printed (stdout and stderr together) and its exit
+// status (-1 when it did not exit normally).
+struct CommandOutput {
+  int code = -1;
+  std::string text;
+};
+CommandOutput run_shell(const std::string& command);
+
 }  // namespace cnc::testing

@@ -14,20 +14,12 @@
 
 namespace {
 
-struct Output {
-  int code;
-  std::string text;
-};
+using Output = cnc::testing::CommandOutput;
 
 Output run(const std::string& tool, const std::string& args, const std::string& input = "") {
-  std::string cmd = (cnc::testing::binary_dir() / "bin" / tool).string() + " " + args + " 2>&1";
+  std::string cmd = (cnc::testing::binary_dir() / "bin" / tool).string() + " " + args;
   if (!input.empty()) cmd = "printf '" + input + "' | " + cmd;
-  std::string text;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf;
-  while (std::fgets(buf.data(), buf.size(), p)) text += buf.data();
-  const int status = ::pclose(p);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text};
+  return cnc::testing::run_shell(cmd);
 }
 
 }  // namespace

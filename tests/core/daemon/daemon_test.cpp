@@ -20,19 +20,9 @@ namespace {
 
 std::string bin(const std::string& name) { return (cnc::testing::binary_dir() / "bin" / name).string(); }
 
-struct Output {
-  int code;
-  std::string text;
-};
-
-Output run(const std::string& command) {
-  std::string text;
-  FILE* p = ::popen((command + " 2>&1").c_str(), "r");
-  std::array<char, 4096> buf;
-  while (std::fgets(buf.data(), buf.size(), p)) text += buf.data();
-  const int status = ::pclose(p);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text};
-}
+using Output = cnc::testing::CommandOutput;
+using cnc::testing::run_shell;
+Output run(const std::string& command) { return run_shell(command); }
 
 class Daemon {
  public:
