@@ -4,7 +4,8 @@
 # would, the one-axis program `G0 X..` runs after an MDI move, after a jog,
 # after a program aborted in the middle of a move and after an E-stop and
 # its recovery; each time Y and Z must end where they stood, to the
-# micrometre (they used to travel to machine 0 at rapid).
+# micrometre (they used to travel to machine 0 at rapid). Last, the shipped
+# Park macro with work offsets set.
 #   unnamed_axes_stay.sh BIN_DIR CONFIG_DIR
 set -euo pipefail
 bin="$1"
@@ -65,6 +66,15 @@ run_x_only 150 "$stopped" "after an abort mid-program"
 cnc estop || fail "estop"
 cnc estop-reset && cnc on || fail "recovery"
 run_x_only 100 "$(position)" "after an E-stop and recovery"
+
+# 5. the shipped Park macro goes to its machine position whatever the work
+# offset (G54 is X20 here, G92 added): it moves in machine coordinates.
+cnc mode mdi && cnc --timeout 30 mdi G92 X5 Y5 Z5 || fail "G92"
+cnc --timeout 60 macro 0 || fail "macro 0 (Park)"
+got="$(position)"
+[ "$got" = "280.000 180.000 0.000" ] || fail "Park ended at $got, expected machine 280.000 180.000 0.000"
+echo "ok   Park with G54 and G92 set: $got"
+cnc --timeout 30 mdi G92.1 || fail "G92.1"
 
 cnc shutdown || fail "shutdown"
 wait "$daemon" || fail "cncd exited with an error"

@@ -182,7 +182,7 @@ TEST(TaskMdi, MacrosFromTheMdiCommandList) {
   m.ok(m.mdi("G0 X10 Y10 Z-5"), "move");
   cnc::ipc::Command macro;
   macro.type = CommandType::TaskPlanExecute;
-  macro.i[0] = 0;  // "G0 Z0;G0 X280 Y180, Park"
+  macro.i[0] = 0;  // "G53 G0 Z0;G53 G0 X280 Y180, Park" (configs/sim)
   m.ok(m.send(macro), "macro 0");
   const auto s = m.status();
   EXPECT_NEAR(s.motion.position[0], 280, 1e-9);
