@@ -264,6 +264,9 @@ void Master::thread_main() {
 
 void Master::poll(int64_t now_ns) {
   last_poll_ns_ = now_ns;
+  // The SDO share applies while process data flows; the first boot, before
+  // the cycle starts, has the bus to itself.
+  sdo_pacer_.set_active(cyclic_enabled_.load(std::memory_order_acquire));
   std::vector<std::function<void(int64_t)>> jobs;
   {
     std::lock_guard<std::mutex> lock(post_mutex_);

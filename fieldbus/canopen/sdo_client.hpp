@@ -55,8 +55,10 @@ class SdoPacer {
   // requests_per_cycle 0: unpaced.
   SdoPacer(int64_t cycle_ns, uint32_t requests_per_cycle) noexcept
       : cycle_ns_(cycle_ns > 0 ? cycle_ns : 1'000'000), per_cycle_(requests_per_cycle) {}
+  // Inactive (no cyclic exchange yet), every request may go.
+  void set_active(bool on) noexcept { active_ = on; }
   bool available(int64_t now_ns) noexcept {
-    if (per_cycle_ == 0) return true;
+    if (per_cycle_ == 0 || !active_) return true;
     const int64_t w = now_ns / cycle_ns_;
     if (w != window_) {
       window_ = w;
@@ -75,6 +77,7 @@ class SdoPacer {
   int64_t window_ = -1;
   uint32_t used_ = 0;
   uint64_t deferred_ = 0;
+  bool active_ = true;
 };
 
 struct SdoClientOptions {
