@@ -84,16 +84,28 @@ BusLoad compute_bus_load(const std::vector<ScheduledFrame>& frames, int64_t cycl
     s.slot = k;
     bool any = false;
     uint64_t lowest = 0;  // the lowest-priority synchronous frame of the slot
+    std::vector<int32_t> fifo_groups;  // FIFO controllers with a synchronous frame in this slot
     for (const auto& f : frames) {
       if (f.frame_class() != FrameClass::Synchronous || !in_slot(f, k, phases && f.slot >= 0)) continue;
       s.synchronous_bits += worst_case_frame_bits(f.extended, f.data_bytes);
       lowest = std::max(lowest, priority_key(f));
       any = true;
+      if (f.fifo_group >= 0 && std::find(fifo_groups.begin(), fifo_groups.end(), f.fifo_group) == fifo_groups.end()) {
+        fifo_groups.push_back(f.fifo_group);
+      }
+    }
+    auto queued_ahead = [&](const ScheduledFrame& f) {
+      return f.fifo_group >= 0 && std::find(fifo_groups.begin(), fifo_groups.end(), f.fifo_group) != fifo_groups.end();
+    };
+    // A FIFO controller's synchronous frame goes only after every frame it
+    // queued before, so the slot lasts until the lowest-priority of them won.
+    for (const auto& f : frames) {
+      if (queued_ahead(f)) lowest = std::max(lowest, priority_key(f));
     }
     for (const auto& f : frames) {
       if (f.frame_class() == FrameClass::Synchronous) continue;
       const double bits = worst_case_frame_bits(f.extended, f.data_bytes);
-      if (any && priority_key(f) < lowest) {
+      if (any && (priority_key(f) < lowest || queued_ahead(f))) {
         s.interference_bits += f.max_per_cycle(cycle_ns) * bits;
       } else {
         s.blocking_bits = std::max(s.blocking_bits, bits);

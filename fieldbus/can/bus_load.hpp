@@ -16,7 +16,13 @@
 // the slot's synchronous frames, every sporadic frame or allowance with a
 // higher priority than the slot's lowest-priority synchronous frame as
 // often as it can occur in one cycle, and one lower-priority frame already
-// on the wire (the longest). Frame lengths are the worst case of bit
+// on the wire (the longest). A node whose controller sends in queue order
+// (one FIFO instead of priority-ordered mailboxes) breaks that order: its
+// synchronous TPDO may wait behind every frame the node queued before it,
+// each of which competes at its own, lower, priority. For such a node the
+// slot counts the node's own sporadic frames as interference, and every
+// other sporadic frame or allowance that outranks the node's lowest-priority
+// frame (Davis et al., "CAN with FIFO queues", as a bound). Frame lengths are the worst case of bit
 // stuffing (frame_timing.hpp: 47 + 8 n bits for a standard frame including
 // the 3-bit intermission, plus at most (34 + 8 n - 1) / 4 stuff bits).
 // Configuration tools refuse plans above a budget with it. Non-realtime.
@@ -41,6 +47,7 @@ struct ScheduledFrame {
   int32_t slot = -1;            // synchronous with a known phase: its slot 0..n-1; -1: any slot
   uint32_t per_cycle = 0;       // > 0: an allowance of this many frames in any cycle (EMCY, SDO)
   uint32_t cob_id = 0x7FF;      // identifier, for the arbitration order
+  int32_t fifo_group = -1;      // >= 0: sent by a controller with one FIFO queue (same group, same queue)
 
   FrameClass frame_class() const noexcept {
     if (per_cycle > 0) return FrameClass::Allowance;

@@ -256,6 +256,7 @@ std::vector<can::ScheduledFrame> BusConfig::schedule() const {
       const uint32_t cob = p.cob_id ? (p.cob_id & 0x7FF) : default_pdo_cob(false, p.number, n.id);
       out.push_back(sync_frame(n.label() + " RPDO" + std::to_string(p.number), p.bytes(), cob));
     }
+    const int32_t group = n.tx_fifo ? n.id : -1;  // the node's own frames share one queue
     for (const auto& p : n.tpdos) {
       const uint32_t cob = p.cob_id ? (p.cob_id & 0x7FF) : default_pdo_cob(true, p.number, n.id);
       const std::string label = n.label() + " TPDO" + std::to_string(p.number);
@@ -263,9 +264,11 @@ std::vector<can::ScheduledFrame> BusConfig::schedule() const {
         // Unbounded ones are refused by validate(); plan them every cycle.
         const int64_t interval = event_interval_ns(p);
         out.push_back(sporadic(label, p.bytes(), cob, interval > 0 ? interval : cycle_ns));
+        out.back().fifo_group = group;
         continue;
       }
       can::ScheduledFrame f = sync_frame(label, p.bytes(), cob);
+      f.fifo_group = group;
       if (p.transmission >= 1) f.every_n_cycles = p.transmission;
       // The SYNC counter fixes the phase when its overflow is a multiple of
       // the divider: sent at counter == SYNC_START, then every n-th.
@@ -276,6 +279,7 @@ std::vector<can::ScheduledFrame> BusConfig::schedule() const {
     }
     if (n.heartbeat_ms > 0) {
       out.push_back(sporadic(n.label() + " heartbeat", 1, cob::heartbeat(n.id), int64_t{n.heartbeat_ms} * 1'000'000));
+      out.back().fifo_group = group;
     }
   }
   if (master_heartbeat_ms > 0) {
@@ -513,6 +517,11 @@ BusConfig load_bus_config(const ini::IniFile& ini, const std::string& section, c
     n.heartbeat_timeout_ms = static_cast<uint16_t>(ini.get_int(ns, "HEARTBEAT_TIMEOUT_MS", 0, {0, 65535}));
     n.master_heartbeat_timeout_ms = static_cast<uint16_t>(ini.get_int(ns, "MASTER_HEARTBEAT_TIMEOUT_MS", 0, {0, 65535}));
     n.disable_unused_pdos = ini.get_bool(ns, "DISABLE_UNUSED_PDOS", true);
+    {
+      const std::string order = to_upper(trim(ini.get_string(ns, "TX_QUEUE", "PRIORITY")));
+      if (order != "PRIORITY" && order != "FIFO") ini.fail(ini.find_entry(ns, "TX_QUEUE"), "expected PRIORITY or FIFO");
+      n.tx_fifo = order == "FIFO";
+    }
     n.export_pins = ini.get_bool(ns, "EXPORT_PINS", false);
 
     for (bool tpdo : {false, true}) {

@@ -44,6 +44,11 @@ struct NodeConfig {
   std::vector<PdoConfig> rpdos, tpdos;
   std::vector<std::vector<ValueKind>> rpdo_kinds, tpdo_kinds;  // parallel to the mapping entries
   bool disable_unused_pdos = true;         // PDO 1..4 not configured are switched off
+  // TX_QUEUE: the node's controller sends its pending frames by priority
+  // (several transmit mailboxes, the default) or in the order queued (one
+  // FIFO: the bus-load plan then lets the node's own event PDOs and
+  // heartbeat delay its synchronous TPDOs).
+  bool tx_fifo = false;
   std::vector<SdoWrite> sdo;               // further writes, in order
   std::shared_ptr<const DeviceDescription> eds;
   bool export_pins = false;

@@ -177,7 +177,7 @@ void VirtualBus::run_until(int64_t t) noexcept {
     const VirtualPort* p = ports_[i];
     if (p->restart_at_ns_ >= 0 && p->restart_at_ns_ < next) next = p->restart_at_ns_;
     if (!in_flight_.active && p->staged_count_ > 0) {
-      const int64_t s = std::max(bus_free_ns_, p->staged_[p->staged_head_].enqueue_ns);
+      const int64_t s = std::max(bus_free_ns_, p->earliest_staged_ns());
       if (s < next) next = s;
     }
   }
@@ -197,7 +197,7 @@ bool VirtualBus::start_next(int64_t t) noexcept {
   for (std::size_t i = 0; i < port_count_; ++i) {
     const VirtualPort* p = ports_[i];
     if (p->staged_count_ == 0 || p->engine_state_ == BusState::BusOff) continue;
-    earliest = std::min(earliest, p->staged_[p->staged_head_].enqueue_ns);
+    earliest = std::min(earliest, p->earliest_staged_ns());
   }
   if (earliest == INT64_MAX) return false;
   const int64_t start = std::max(bus_free_ns_, earliest);
@@ -209,8 +209,8 @@ bool VirtualBus::start_next(int64_t t) noexcept {
   for (std::size_t i = 0; i < port_count_; ++i) {
     VirtualPort* p = ports_[i];
     if (p->staged_count_ == 0 || p->engine_state_ == BusState::BusOff) continue;
+    if (!p->head_ready(start)) continue;
     const auto& head = p->staged_[p->staged_head_];
-    if (head.enqueue_ns > start) continue;
     ++contenders;
     const uint64_t key = arbitration_key(head.frame);
     if (!winner || key < best) {
@@ -551,6 +551,44 @@ void VirtualPort::set_error_reports(bool on) {
   bus_->lock();
   error_reports_ = on;
   bus_->unlock();
+}
+
+void VirtualPort::set_tx_order(TxOrder order) {
+  bus_->lock();
+  tx_order_ = order;
+  bus_->unlock();
+}
+
+int64_t VirtualPort::earliest_staged_ns() const noexcept {
+  if (tx_order_ == TxOrder::Fifo || staged_count_ == 0) return staged_count_ ? staged_[staged_head_].enqueue_ns : INT64_MAX;
+  int64_t e = INT64_MAX;
+  for (std::size_t k = 0; k < staged_count_; ++k) e = std::min(e, staged_[(staged_head_ + k) % staged_.size()].enqueue_ns);
+  return e;
+}
+
+bool VirtualPort::head_ready(int64_t start) noexcept {
+  if (tx_order_ == TxOrder::Fifo) return staged_[staged_head_].enqueue_ns <= start;
+  // Mailboxes: of the frames queued by `start`, the one that wins
+  // arbitration goes first; it is rotated to the head (the others keep
+  // their order), where the engine sends and pops it.
+  std::size_t best = staged_.size();
+  uint64_t best_key = 0;
+  for (std::size_t k = 0; k < staged_count_; ++k) {
+    const Pending& q = staged_[(staged_head_ + k) % staged_.size()];
+    if (q.enqueue_ns > start) continue;
+    const uint64_t key = arbitration_key(q.frame);
+    if (best == staged_.size() || key < best_key) {
+      best = k;
+      best_key = key;
+    }
+  }
+  if (best == staged_.size()) return false;
+  const Pending chosen = staged_[(staged_head_ + best) % staged_.size()];
+  for (std::size_t k = best; k > 0; --k) {
+    staged_[(staged_head_ + k) % staged_.size()] = staged_[(staged_head_ + k - 1) % staged_.size()];
+  }
+  staged_[staged_head_] = chosen;
+  return true;
 }
 
 void VirtualPort::set_receive_own(bool on) {

@@ -174,6 +174,12 @@ class VirtualPort final : public Transport {
 
   // Receive this port's own transmissions too (off by default, as SocketCAN).
   void set_receive_own(bool on);
+  // The order in which this controller offers its queued frames to
+  // arbitration: Fifo (one transmit buffer, as SocketCAN's queue; the
+  // default) or Priority (several mailboxes, the pending frame with the
+  // lowest identifier first, as most CANopen devices' controllers).
+  enum class TxOrder : uint8_t { Fifo, Priority };
+  void set_tx_order(TxOrder order);
   // Requests bus-off recovery (as `ip link set canX type can restart`): the
   // controller rejoins after 128 x 11 bit times with cleared counters.
   void restart();
@@ -191,6 +197,10 @@ class VirtualPort final : public Transport {
     int64_t enqueue_ns;
   };
   bool accepts(const Frame& f) const noexcept;
+  // Engine side: the earliest enqueue time among the staged frames, and
+  // (Priority order) moves the best frame queued by `start` to the head.
+  int64_t earliest_staged_ns() const noexcept;
+  bool head_ready(int64_t start) noexcept;
 
   std::shared_ptr<VirtualBus> bus_;
   std::string name_;
@@ -202,6 +212,7 @@ class VirtualPort final : public Transport {
   std::size_t filter_count_ = 0;
   bool error_reports_ = true;
   bool receive_own_ = false;
+  TxOrder tx_order_ = TxOrder::Fifo;
   std::array<Pending, VirtualBus::kQueueDepth> staged_{};
   std::size_t staged_head_ = 0;
   std::size_t staged_count_ = 0;

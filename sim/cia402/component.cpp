@@ -333,8 +333,13 @@ class SimComponent : public hal::Component, public ipc::ControllerService {
       for (const SimNodeConfig& n : cfg.nodes) {
         // On the in-process bus each drive is a controller of its own, as
         // separate devices are: their frames meet in arbitration.
-        if (bus->vbus) bus->host->add(n, bus->vbus->open_port("cia402-sim.node-" + std::to_string(n.node_id)));
-        else bus->host->add(n);
+        if (bus->vbus) {
+          auto port = bus->vbus->open_port("cia402-sim.node-" + std::to_string(n.node_id));
+          port->set_tx_order(cfg.tx_fifo ? can::VirtualPort::TxOrder::Fifo : can::VirtualPort::TxOrder::Priority);
+          bus->host->add(n, std::move(port));
+        } else {
+          bus->host->add(n);
+        }
         char p[48];
         std::snprintf(p, sizeof p, "%s.node.%02u.", prefix.c_str(), n.node_id);
         const std::string s = p;

@@ -96,6 +96,9 @@ SimBusConfig load_sim_config(const ini::IniFile& ini, const std::string& section
   if (!ini.has_section(section)) ini.fail(nullptr, "no [" + section + "] section (the simulated drives)");
   b.interface = ini.require_string(section, "INTERFACE");
   const double step_s = ini.get_double(section, "STEP_US", 20, {1, 1000}) * 1e-6;
+  const std::string order = to_upper(trim(ini.get_string(section, "TX_QUEUE", "PRIORITY")));
+  if (order != "PRIORITY" && order != "FIFO") ini.fail(ini.find_entry(section, "TX_QUEUE"), "expected PRIORITY or FIFO");
+  b.tx_fifo = order == "FIFO";
   std::set<int> ids;
   for (const ini::Entry* e : ini.find_all_entries(section, "NODE")) {
     for (const std::string& w : split_blanks(e->value)) {

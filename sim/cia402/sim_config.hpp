@@ -20,6 +20,11 @@ struct SimBusConfig {
   std::string section = "CIA402_SIM";
   std::string interface;           // virtual:sim, socketcan:vcan0
   std::vector<SimNodeConfig> nodes;
+  // TX_QUEUE: how each simulated drive's controller offers its frames on
+  // the in-process bus: PRIORITY (transmit mailboxes, lowest identifier
+  // first; the default) or FIFO (one queue: a TPDO1 answering SYNC waits
+  // behind the drive's own event PDOs queued before it).
+  bool tx_fifo = false;
 };
 
 // Reads [<section>] (INTERFACE, NODE = ids..., STEP_US) and each

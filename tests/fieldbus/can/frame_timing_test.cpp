@@ -183,3 +183,26 @@ TEST(BusLoad, HigherPriorityEventsInterfereLowerPriorityOnesBlockOnce) {
   // Average: the event PDOs at their intervals, the allowance not.
   EXPECT_DOUBLE_EQ(l.worst_bits_per_cycle, 55 + 2 * 115 + 95 * 2.5 + 135 + 65 / 100.0);
 }
+
+// A node that sends in queue order (one FIFO) delays its synchronous TPDO
+// behind its own event frames, whatever their identifiers: they count as
+// interference, and so does every frame of others that outranks the
+// node's lowest-priority frame. With priority-ordered mailboxes the same
+// event frames block once at most.
+TEST(BusLoad, AFifoNodesOwnEventFramesDelayItsSynchronousTpdo) {
+  std::vector<ScheduledFrame> plan = {sync_frame("SYNC", 0, 0x80), sync_frame("RPDO1", 6, 0x201),
+                                      sync_frame("TPDO1", 6, 0x181)};
+  plan.push_back(sporadic("TPDO3", 8, 0x381, 10'000'000));
+  plan.push_back(sporadic("TPDO4", 8, 0x481, 20'000'000));
+  plan.push_back(sporadic("other node TPDO2", 8, 0x282, 10'000'000));
+  const BusLoad mailboxes = compute_bus_load(plan, 1'000'000, 1'000'000);
+  EXPECT_DOUBLE_EQ(mailboxes.slots[0].interference_bits, 0);
+  EXPECT_DOUBLE_EQ(mailboxes.slots[0].blocking_bits, 135);
+  for (std::size_t i : {2u, 3u, 4u}) plan[i].fifo_group = 1;  // the node's TPDO1, TPDO3, TPDO4
+  const BusLoad fifo = compute_bus_load(plan, 1'000'000, 1'000'000);
+  EXPECT_DOUBLE_EQ(fifo.slots[0].synchronous_bits, 55 + 2 * 115);
+  // Its own TPDO3 and TPDO4, and the other node's 0x282 (it outranks 0x481).
+  EXPECT_DOUBLE_EQ(fifo.slots[0].interference_bits, 3 * 135);
+  EXPECT_DOUBLE_EQ(fifo.slots[0].blocking_bits, 0);
+  EXPECT_GT(fifo.worst_cycle(), mailboxes.worst_cycle());
+}

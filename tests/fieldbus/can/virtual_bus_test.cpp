@@ -81,6 +81,43 @@ TEST(VirtualBus, ArbitrationLetsTheLowestIdentifierGoFirst) {
   EXPECT_EQ(t.bus->stats().arbitration_losses, 2u + 1u);
 }
 
+// A controller with one transmit queue sends in the order queued: a TPDO
+// queued after the node's own event PDO waits for it, although it would
+// win arbitration. With mailboxes (Priority) it goes first.
+TEST(VirtualBus, AFifoControllerSendsInQueueOrderAPriorityOneByIdentifier) {
+  for (const auto order : {VirtualPort::TxOrder::Fifo, VirtualPort::TxOrder::Priority}) {
+    Bus t;
+    t.b->set_tx_order(order);
+    t.b->send(Frame::make(0x481, {1, 2, 3, 4, 5, 6, 7, 8}));  // event TPDO4, queued first
+    t.b->send(Frame::make(0x381, {1, 2, 3, 4, 5, 6, 7, 8}));  // event TPDO3
+    t.b->send(Frame::make(0x181, {1}));                     // TPDO1 answering SYNC
+    t.bus->advance(1'000'000);
+    std::vector<uint32_t> seen;
+    for (const auto& f : drain(*t.a)) seen.push_back(f.id);
+    if (order == VirtualPort::TxOrder::Fifo) {
+      EXPECT_EQ(seen, (std::vector<uint32_t>{0x481, 0x381, 0x181}));
+    } else {
+      EXPECT_EQ(seen, (std::vector<uint32_t>{0x181, 0x381, 0x481}));
+    }
+  }
+}
+
+// Mailboxes choose among the frames queued by the time the bus is free: a
+// higher-priority frame queued later does not hold back an earlier one
+// that could already go.
+TEST(VirtualBus, APriorityControllerSendsWhatIsQueuedWhenTheBusFrees) {
+  Bus t;
+  t.b->set_tx_order(VirtualPort::TxOrder::Priority);
+  t.b->send(Frame::make(0x381, {1}));
+  t.bus->advance(10'000);  // 0x381 on the wire
+  t.b->send(Frame::make(0x182, {1}));
+  t.b->send(Frame::make(0x281, {1}));
+  t.bus->advance(1'000'000);
+  std::vector<uint32_t> seen;
+  for (const auto& f : drain(*t.a)) seen.push_back(f.id);
+  EXPECT_EQ(seen, (std::vector<uint32_t>{0x381, 0x182, 0x281}));
+}
+
 TEST(VirtualBus, StandardBeatsExtendedAndDataBeatsRemoteWithTheSameBase) {
   Bus t;
   Frame ext;

@@ -228,6 +228,42 @@ TEST(CanopenConfig, LoadOverrideRunsAPlanAboveItsBudgetAndSaysSo) {
   EXPECT_NE(c.load_problem().find("101.5 % of the SYNC period"), std::string::npos) << c.load_problem();
 }
 
+// configs/sim's drives send by priority (the simulated drives' TX_QUEUE);
+// had they one FIFO queue each, the event PDOs queued before a TPDO1 would
+// make the busiest cycle far longer than the SYNC period, and the plan
+// says so.
+TEST(CanopenConfig, TheSimulatedMillDoesNotFitItsBusIfItsDrivesSentInQueueOrder) {
+  auto ini = cnc::ini::IniFile::load(cnc::testing::source_dir() / "configs/sim/sim.ini");
+  const double priority = load_bus_config(ini, "CANOPEN", "canopen.0", 1'000'000).load().worst_cycle();
+  ini.set("CANOPEN_NODE_1", "TX_QUEUE", "FIFO");
+  ini.set("CANOPEN_NODE_2", "TX_QUEUE", "FIFO");
+  EXPECT_LT(priority, 0.80);
+  // Refused at start-up: SYNC, RPDO1 and TPDO1 of both (515 bits), each
+  // node's TPDO2-4 and heartbeat queued ahead (2 x 460), and what outranks
+  // the heartbeat 0x702: the EMCY and SDO allowances (405).
+  try {
+    load_bus_config(ini, "CANOPEN", "canopen.0", 1'000'000);
+    ADD_FAILURE() << "FIFO drives accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("needs 1905 bit times (515 synchronous + 1325 higher-priority events and "
+                                         "allowances + 65 blocking), 190.5 % of the SYNC period"),
+              std::string::npos)
+        << e.what();
+  }
+  ini.set("CANOPEN", "LOAD_OVERRIDE", "YES");
+  const BusConfig fifo = load_bus_config(ini, "CANOPEN", "canopen.0", 1'000'000);
+  EXPECT_TRUE(fifo.nodes[0].tx_fifo);
+  EXPECT_NE(fifo.load_problem().find("(MAX_CYCLE_LOAD)"), std::string::npos) << fifo.load_problem();
+  ini.set("CANOPEN_NODE_1", "TX_QUEUE", "MAILBOX");
+  try {
+    load_bus_config(ini, "CANOPEN", "canopen.0", 1'000'000);
+    ADD_FAILURE() << "TX_QUEUE = MAILBOX accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("TX_QUEUE"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("expected PRIORITY or FIFO"), std::string::npos) << e.what();
+  }
+}
+
 // configs/sim at 1 kHz: both buses within their budgets with margin.
 TEST(CanopenConfig, TheSimulatedMillFitsItsBusesAtOneKilohertz) {
   const auto ini = cnc::ini::IniFile::load(cnc::testing::source_dir() / "configs/sim/sim.ini");
