@@ -18,6 +18,7 @@ struct SlavePins {
   unsigned position = 0;
   hal::BitPin operational;
   hal::U32Pin al_state, al_code, emcy_code;
+  std::array<hal::U32Pin, 4> port_rx_errors, port_lost_links;
 };
 
 struct Bus {
@@ -54,6 +55,10 @@ struct Bus {
       s.operational.set(master->is_operational() && st == static_cast<uint8_t>(AlState::Op));
       s.al_code.set(master->slave_al_code(s.position));
       s.emcy_code.set(master->slave_emcy_code(s.position));
+      for (unsigned p = 0; p < 4; ++p) {
+        s.port_rx_errors[p].set(master->slave_port_rx_errors(s.position, p));
+        s.port_lost_links[p].set(master->slave_port_lost_links(s.position, p));
+      }
     }
     ready.set(master->is_operational());
     fault.set(master->has_fault());
@@ -171,6 +176,11 @@ class EthercatComponent : public hal::Component {
       sp.al_state = make_pin<uint32_t>(p + ".al-state", PinDir::Out);
       sp.al_code = make_pin<uint32_t>(p + ".al-code", PinDir::Out);
       sp.emcy_code = make_pin<uint32_t>(p + ".emcy-code", PinDir::Out);
+      for (unsigned port = 0; port < 4; ++port) {
+        const std::string pp = p + ".port-" + std::to_string(port);
+        sp.port_rx_errors[port] = make_pin<uint32_t>(pp + ".rx-errors", PinDir::Out);
+        sp.port_lost_links[port] = make_pin<uint32_t>(pp + ".lost-links", PinDir::Out);
+      }
       b.slaves.push_back(sp);
     }
   }

@@ -135,6 +135,12 @@ uint16_t Master::slave_al_code(unsigned position) const noexcept {
 uint16_t Master::slave_emcy_code(unsigned position) const noexcept {
   return position >= 1 && position <= slaves_.size() ? state_[position - 1].emcy_code.load() : 0;
 }
+uint16_t Master::slave_port_rx_errors(unsigned position, unsigned port) const noexcept {
+  return position >= 1 && position <= slaves_.size() && port < 4 ? state_[position - 1].port_rx_errors[port].load() : 0;
+}
+uint8_t Master::slave_port_lost_links(unsigned position, unsigned port) const noexcept {
+  return position >= 1 && position <= slaves_.size() && port < 4 ? state_[position - 1].port_lost_links[port].load() : 0;
+}
 uint32_t Master::slave_emcy_count(unsigned position) const noexcept {
   return position >= 1 && position <= slaves_.size() ? state_[position - 1].emcy_count.load() : 0;
 }

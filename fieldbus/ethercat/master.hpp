@@ -271,6 +271,10 @@ class Master {
   uint16_t slave_al_code(unsigned position) const noexcept;
   uint16_t slave_emcy_code(unsigned position) const noexcept;
   uint32_t slave_emcy_count(unsigned position) const noexcept;
+  // Port `port` (0-3) of a slave's error counters as last read (below):
+  // invalid frames plus RX errors, and lost links. Servo-thread safe.
+  uint16_t slave_port_rx_errors(unsigned position, unsigned port) const noexcept;
+  uint8_t slave_port_lost_links(unsigned position, unsigned port) const noexcept;
   // The error counters of every slave (index position - 1) as last read:
   // cleared at start-up, read by the worker every second and at a fault.
   std::vector<EscErrorCounters> error_counters() const;
@@ -303,6 +307,9 @@ class Master {
     std::atomic<uint16_t> al_code{0};
     std::atomic<uint16_t> emcy_code{0};
     std::atomic<uint32_t> emcy_count{0};
+    // The ESC error counters as last read, per port, for the HAL pins.
+    std::array<std::atomic<uint16_t>, 4> port_rx_errors{};  // invalid frames + RX errors
+    std::array<std::atomic<uint8_t>, 4> port_lost_links{};
     uint8_t mailbox_counter = 0;
   };
 

@@ -145,6 +145,12 @@ void Master::update_error_counters(std::size_t up_to) {
       const std::string g = c.growth_since(stored);
       if (!g.empty()) grew.push_back(slave_label(position) + ": " + g);
       stored = c;
+      {
+        for (unsigned p = 0; p < 4; ++p) {
+          state_[position - 1].port_rx_errors[p].store(static_cast<uint16_t>(c.invalid_frames[p] + c.rx_errors[p]));
+          state_[position - 1].port_lost_links[p].store(c.lost_links[p]);
+        }
+      }
     }
   }
   for (const std::string& g : grew) {
@@ -159,6 +165,12 @@ void Master::clear_error_counters() {
   for (const SlaveInfo& s : slaves_) {
     (void)fpwr(s, reg::kRxErrors, zero, 0x0E);         // 0x0300-0x030D
     (void)fpwr(s, reg::kRxErrors + 0x10, zero, 4);     // lost-link counters 0x0310-0x0313
+  }
+  for (std::size_t i = 0; i < slaves_.size(); ++i) {
+    for (unsigned p = 0; p < 4; ++p) {
+      state_[i].port_rx_errors[p].store(0);
+      state_[i].port_lost_links[p].store(0);
+    }
   }
   std::lock_guard lock(error_counters_mutex_);
   error_counters_.assign(slaves_.size(), EscErrorCounters{});

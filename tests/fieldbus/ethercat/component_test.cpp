@@ -172,6 +172,31 @@ TEST(EthercatComponent, LostFramesStopTheDrivesAfterStaleLimitCyclesNotMissLimit
   segment->drop_frames(0);
 }
 
+// Without anyone asking, the master's worker reads the slaves' error
+// counters every second on the real clock: what an injected corrupted
+// frame leaves at a port shows on that port's HAL pins and in a message
+// naming slave and port.
+TEST(EthercatComponent, SlaveErrorCountersArePolledAndShownPerPort) {
+  const std::string seg = cnc::testing::unique_name("ecatcounters");
+  SimMachine sm(seg, machine_ini(seg));
+  auto& hal = sm.hal;
+  ASSERT_TRUE(sm.cycles(5000, [&] { return hal.get_value("ethercat.0.ready") == "TRUE"; }));
+  EXPECT_EQ(hal.get_value("ethercat.0.slave.02.port-0.rx-errors"), "0");
+  auto segment = ethercat::sim::find_segment(seg);
+  ASSERT_TRUE(segment);
+  segment->slave(1).inject_invalid_frames(0, 3);
+  segment->slave(0).inject_lost_link(1);
+  // The poll is due within a second; up to 3 s of cycles (0.5 ms sleeps).
+  ASSERT_TRUE(sm.cycles(6000, [&] {
+    return hal.get_value("ethercat.0.slave.02.port-0.rx-errors") == "3" &&
+           hal.get_value("ethercat.0.slave.01.port-1.lost-links") == "1";
+  })) << hal.get_value("ethercat.0.slave.02.port-0.rx-errors") << " " << sm.log;
+  EXPECT_EQ(hal.get_value("ethercat.0.slave.02.port-1.rx-errors"), "0");
+  EXPECT_EQ(hal.get_value("ethercat.0.slave.01.port-0.rx-errors"), "0");
+  EXPECT_TRUE(sm.has_message("error counters slave 2 (y-axis): port 0: 3 invalid frames")) << sm.log;
+  EXPECT_TRUE(sm.has_message("error counters slave 1 (x-axis): port 1: 1 lost link")) << sm.log;
+}
+
 TEST(EthercatComponent, CiaDriveOnAMissingBusNamesIt) {
   const auto ini = ini::IniFile::parse("[CIA402]\nBUS = ethercat.3\nDRIVE = 0\n[CIA402_DRIVE_0]\nADDRESS = 1\nENCODER_COUNTS = 10000\nSCREW_LEAD = 5\n", "m.ini");
   hal::Hal hal;
