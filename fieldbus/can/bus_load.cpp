@@ -88,6 +88,7 @@ BusLoad compute_bus_load(const std::vector<ScheduledFrame>& frames, int64_t cycl
     for (const auto& f : frames) {
       if (f.frame_class() != FrameClass::Synchronous || !in_slot(f, k, phases && f.slot >= 0)) continue;
       s.synchronous_bits += worst_case_frame_bits(f.extended, f.data_bytes);
+      s.response_bits = std::max(s.response_bits, static_cast<double>(f.release_ns) * 1e-9 * bitrate);
       lowest = std::max(lowest, priority_key(f));
       any = true;
       if (f.fifo_group >= 0 && std::find(fifo_groups.begin(), fifo_groups.end(), f.fifo_group) == fifo_groups.end()) {

@@ -48,6 +48,7 @@ struct ScheduledFrame {
   uint32_t per_cycle = 0;       // > 0: an allowance of this many frames in any cycle (EMCY, SDO)
   uint32_t cob_id = 0x7FF;      // identifier, for the arbitration order
   int32_t fifo_group = -1;      // >= 0: sent by a controller with one FIFO queue (same group, same queue)
+  int64_t release_ns = 0;       // synchronous: queued this long after the SYNC (the device's response time)
 
   FrameClass frame_class() const noexcept {
     if (per_cycle > 0) return FrameClass::Allowance;
@@ -65,7 +66,8 @@ struct SlotLoad {
   double synchronous_bits = 0;   // the slot's synchronous frames
   double interference_bits = 0;  // sporadic frames and allowances that win arbitration against them
   double blocking_bits = 0;      // one lower-priority frame already on the wire
-  double total() const noexcept { return synchronous_bits + interference_bits + blocking_bits; }
+  double response_bits = 0;      // the slowest device's SYNC response time, in bit times
+  double total() const noexcept { return synchronous_bits + interference_bits + blocking_bits + response_bits; }
 };
 
 struct BusLoad {

@@ -269,6 +269,7 @@ std::vector<can::ScheduledFrame> BusConfig::schedule() const {
       }
       can::ScheduledFrame f = sync_frame(label, p.bytes(), cob);
       f.fifo_group = group;
+      f.release_ns = int64_t{n.sync_response_us} * 1000;
       if (p.transmission >= 1) f.every_n_cycles = p.transmission;
       // The SYNC counter fixes the phase when its overflow is a multiple of
       // the divider: sent at counter == SYNC_START, then every n-th.
@@ -305,7 +306,7 @@ can::BusLoad BusConfig::load() const { return can::compute_bus_load(schedule(), 
 std::string BusConfig::load_problem() const {
   const can::BusLoad l = load();
   std::string out;
-  char buf[400];
+  char buf[600];
   if (l.worst_case() > max_bus_load) {
     std::snprintf(buf, sizeof buf,
                   "average load %.1f %% in the worst case (%.1f %% nominal) exceeds the budget of %.0f %% (MAX_BUS_LOAD)",
@@ -314,11 +315,17 @@ std::string BusConfig::load_problem() const {
   }
   if (l.worst_cycle() > max_cycle_load) {
     const can::SlotLoad& s = l.slots[l.worst_slot];
+    std::string response;
+    if (s.response_bits > 0) {
+      char r[96];
+      std::snprintf(r, sizeof r, " + %.0f waiting for the slowest device's SYNC response (SYNC_RESPONSE_US)", s.response_bits);
+      response = r;
+    }
     std::snprintf(buf, sizeof buf,
                   "%scycle slot %u of %zu needs %.0f bit times (%.0f synchronous + %.0f higher-priority events and "
-                  "allowances + %.0f blocking), %.1f %% of the SYNC period, above the budget of %.0f %% (MAX_CYCLE_LOAD)",
+                  "allowances + %.0f blocking%s), %.1f %% of the SYNC period, above the budget of %.0f %% (MAX_CYCLE_LOAD)",
                   out.empty() ? "" : "; ", s.slot, l.slots.size(), s.total(), s.synchronous_bits, s.interference_bits,
-                  s.blocking_bits, l.worst_cycle() * 100, max_cycle_load * 100);
+                  s.blocking_bits, response.c_str(), l.worst_cycle() * 100, max_cycle_load * 100);
     out += buf;
   }
   if (out.empty()) return out;
@@ -522,6 +529,7 @@ BusConfig load_bus_config(const ini::IniFile& ini, const std::string& section, c
       if (order != "PRIORITY" && order != "FIFO") ini.fail(ini.find_entry(ns, "TX_QUEUE"), "expected PRIORITY or FIFO");
       n.tx_fifo = order == "FIFO";
     }
+    n.sync_response_us = static_cast<uint32_t>(ini.get_int(ns, "SYNC_RESPONSE_US", 0, {0, 100000}));
     n.export_pins = ini.get_bool(ns, "EXPORT_PINS", false);
 
     for (bool tpdo : {false, true}) {

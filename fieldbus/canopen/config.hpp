@@ -49,6 +49,9 @@ struct NodeConfig {
   // FIFO: the bus-load plan then lets the node's own event PDOs and
   // heartbeat delay its synchronous TPDOs).
   bool tx_fifo = false;
+  // SYNC_RESPONSE_US: how long after a SYNC the device queues its
+  // synchronous TPDOs (its datasheet's processing time); the plan adds it.
+  uint32_t sync_response_us = 0;
   std::vector<SdoWrite> sdo;               // further writes, in order
   std::shared_ptr<const DeviceDescription> eds;
   bool export_pins = false;

@@ -498,7 +498,16 @@ void SlaveNode::handle_sync(const can::Frame& f, int64_t now_ns) noexcept {
   }
   // 3. the application's cycle
   if (on_sync) on_sync(counter, now_ns);
-  // 4. send the sampled inputs
+  // 4. send the sampled inputs, after the device's processing time
+  if (options_.sync_response_ns > 0) {
+    sync_send_at_ns_ = now_ns + options_.sync_response_ns;
+    return;
+  }
+  send_sync_tpdos(now_ns);
+}
+
+void SlaveNode::send_sync_tpdos(int64_t now_ns) noexcept {
+  sync_send_at_ns_ = -1;
   for (auto& p : tpdo_) {
     if (p.valid && p.pending && p.type != kTransmissionRtrSync) {
       p.pending = false;
@@ -533,6 +542,7 @@ void SlaveNode::poll(int64_t now_ns) noexcept {
     send_emcy_now(e, now_ns);
   }
   if (state_ != NmtState::Operational) return;
+  if (sync_send_at_ns_ >= 0 && now_ns >= sync_send_at_ns_) send_sync_tpdos(now_ns);
   // RPDO deadlines and event-driven TPDOs
   for (unsigned n = 0; n < kMaxPdos; ++n) {
     Pdo& p = rpdo_[n];

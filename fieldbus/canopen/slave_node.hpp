@@ -35,6 +35,9 @@ struct SlaveOptions {
   uint8_t tpdo_count = 4;
   SlaveIdentity identity;
   uint16_t heartbeat_ms = 0;   // default of 0x1017
+  // Time from a SYNC's reception until the synchronous TPDOs sampled at
+  // it are queued (a device's processing time; 0: at once).
+  int64_t sync_response_ns = 0;
 };
 
 class SlaveNode {
@@ -146,6 +149,7 @@ class SlaveNode {
   void pack(Pdo& p) noexcept;
   void apply(const Pdo& p) noexcept;
   bool send_tpdo(Pdo& p, int64_t now_ns) noexcept;
+  void send_sync_tpdos(int64_t now_ns) noexcept;
   void send_emcy_now(const Emcy& e, int64_t now_ns) noexcept;
   void check_consumers(int64_t now_ns) noexcept;
 
@@ -156,6 +160,7 @@ class SlaveNode {
   NmtState state_ = NmtState::Initialising;
   bool muted_ = false;
   int64_t now_ns_ = 0;
+  int64_t sync_send_at_ns_ = -1;  // the synchronous TPDOs of the last SYNC go then (sync_response_ns)
 
   std::array<Pdo, kMaxPdos> rpdo_{};
   std::array<Pdo, kMaxPdos> tpdo_{};

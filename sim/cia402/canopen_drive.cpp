@@ -10,6 +10,7 @@ CanopenDrive::CanopenDrive(const SimNodeConfig& config, can::Transport& transpor
   o.node_id = config_.node_id;
   o.identity = config_.identity;
   o.heartbeat_ms = config_.heartbeat_ms;
+  o.sync_response_ns = config_.sync_response_ns;
   o.rpdo_count = 8;
   o.tpdo_count = 8;
   canopen::SlaveNode::add_communication_objects(od_, o);

@@ -21,6 +21,7 @@ struct SimNodeConfig {
   uint8_t node_id = 1;
   canopen::SlaveIdentity identity{0x00020192, 0x00000CC1, 0x00000402, 0x00010000, 0, "cnc simulated servo drive"};
   uint16_t heartbeat_ms = 0;  // default of 0x1017 (the master configures it)
+  int64_t sync_response_ns = 0;  // SYNC_RESPONSE_US: SYNC to the synchronous TPDOs queued
   DriveSimConfig drive;
 };
 

@@ -24,6 +24,7 @@ SimNodeConfig load_node(const ini::IniFile& ini, const std::string& s, int id, d
   n.identity.revision = static_cast<uint32_t>(ini.get_int(s, "REVISION", 0x00010000, {0, 4294967295.0}));
   n.identity.serial = static_cast<uint32_t>(ini.get_int(s, "SERIAL", id, {0, 4294967295.0}));
   n.heartbeat_ms = static_cast<uint16_t>(ini.get_int(s, "HEARTBEAT_MS", 0, {0, 65535}));
+  n.sync_response_ns = ini.get_int(s, "SYNC_RESPONSE_US", 0, {0, 100000}) * 1000;
 
   // Millimetres (linear) or degrees (rotary) in the file; metres or radians here.
   const bool rotary = ini.get_bool(s, "ROTARY", false);

@@ -5,7 +5,10 @@
 // drives follow, so homing sent at once starts against drives that do.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include "cia402/components.hpp"
+#include "core/util/atomic_file.hpp"
 #include "fieldbus/canopen/components.hpp"
 #include "tests/comp/sim_mill.hpp"
 #include "tests/fieldbus/canopen/pace.hpp"
@@ -52,4 +55,68 @@ TEST(Cia402SimMill, MachineOnIsDoneWhenEveryDriveFollowsAndHomingMayStartAtOnce)
   EXPECT_EQ(missed1, "0");
   EXPECT_EQ(mill.hal().get_value("canopen.0.pdo-missed"), "0");
   EXPECT_EQ(mill.hal().get_value("canopen.1.pdo-missed"), "0");
+}
+
+namespace {
+
+// configs/sim copied to `dir` with SYNC_RESPONSE_US set for node 2 (Y):
+// in the simulated drive (`drive_us`: how long it really takes from SYNC
+// to its TPDO1) and in the master's plan (`plan_us`: what the datasheet
+// says); -1 leaves a key out.
+std::filesystem::path sim_with_slow_y(const std::filesystem::path& dir, int drive_us, int plan_us) {
+  std::filesystem::create_directories(dir);
+  std::filesystem::copy(cnc::testing::source_dir() / "configs/sim", dir,
+                        std::filesystem::copy_options::recursive | std::filesystem::copy_options::overwrite_existing);
+  std::string ini = cnc::read_file(dir / "sim.ini");
+  auto add = [&](const std::string& section, int us) {
+    if (us < 0) return;
+    const std::string head = "[" + section + "]\n";
+    const auto at = ini.find(head);
+    ASSERT_NE(at, std::string::npos) << section;
+    ini.insert(at + head.size(), "SYNC_RESPONSE_US = " + std::to_string(us) + "\n");
+  };
+  add("CIA402_SIM_NODE_2", drive_us);
+  add("CANOPEN_NODE_2", plan_us);
+  cnc::write_file_atomically(dir / "sim.ini", ini);
+  return dir;
+}
+
+cnc::testing::SimMill::Registrar fieldbus_components() {
+  return [](hal::ComponentRegistry& r) {
+    canopen::register_components(r);
+    cia402::register_components(r);
+  };
+}
+
+}  // namespace
+
+// The plan's slot model against a drive slow to answer SYNC: declared in
+// the node's section, its response time counts in the busiest cycle.
+// 100 us fits (785 + 100 bit times of 1000, budget 90 %) and the mill runs
+// on and homes without a late TPDO; 900 us is refused at start-up naming
+// the key. (A drive slower than its declaration cannot be caught by the
+// master: its TPDO1 answers the previous SYNC within the next cycle and
+// looks on time, a CANopen TPDO carrying no SYNC counter; docs/canopen.md.)
+TEST(Cia402SimMill, ADriveSlowToAnswerSyncIsPlannedOrRefused) {
+  cnc::testing::TempDir work;
+  {
+    cnc::testing::SimMill mill(sim_with_slow_y(work.path() / "fits", 100, 100), work.path() / "fits-run", "sim.ini",
+                               fieldbus_components());
+    mill.pace = canopen::test::acyclic_pacer(mill.hal());
+    mill.step(100);
+    ASSERT_EQ(mill.send(ipc::CommandType::TaskSetState, 2).first, ipc::CommandState::Done) << mill.errors();
+    ASSERT_EQ(mill.send(ipc::CommandType::TaskSetState, 4).first, ipc::CommandState::Done) << mill.errors();
+    EXPECT_EQ(mill.send(ipc::CommandType::JointHome, -1).first, ipc::CommandState::Done) << mill.errors();
+    EXPECT_EQ(mill.hal().get_value("canopen.0.pdo-missed"), "0");
+    EXPECT_NEAR(std::stod(mill.hal().get_value("canopen.0.planned-cycle-load")), 0.885, 1e-9);
+  }
+  try {
+    cnc::testing::SimMill mill(sim_with_slow_y(work.path() / "refused", 900, 900), work.path() / "refused-run",
+                               "sim.ini", fieldbus_components());
+    ADD_FAILURE() << "a 900 us SYNC response was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("+ 900 waiting for the slowest device's SYNC response (SYNC_RESPONSE_US)"),
+              std::string::npos)
+        << e.what();
+  }
 }

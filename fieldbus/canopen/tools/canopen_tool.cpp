@@ -84,6 +84,10 @@ int cmd_load(const BusConfig& c) {
                 s.blocking_bits, s.total(), s.total() / l.cycle_bits * 100,
                 &s == &l.slots[l.worst_slot] ? "  <- busiest" : "");
   }
+  if (!l.slots.empty() && l.slots[l.worst_slot].response_bits > 0) {
+    std::printf("  (the totals include %.0f bit times waiting for the slowest device's SYNC response, SYNC_RESPONSE_US)\n",
+                l.slots[l.worst_slot].response_bits);
+  }
   std::printf("load: %.1f %% nominal, %.1f %% worst case on average; busiest cycle %.1f %%\n", l.nominal() * 100,
               l.worst_case() * 100, l.worst_cycle() * 100);
   const std::string problem = c.load_problem();

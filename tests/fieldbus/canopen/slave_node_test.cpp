@@ -248,6 +248,32 @@ TEST_F(SlaveTest, TransmissionTypesOfTpdos) {
   EXPECT_LE(ev.size(), 11u);
 }
 
+// A device's processing time (SlaveOptions::sync_response_ns, the
+// simulated drives' SYNC_RESPONSE_US): the TPDO sampled at a SYNC is
+// queued that long after the SYNC's reception, not at once.
+TEST_F(SlaveTest, SynchronousTpdosGoAfterTheDevicesSyncResponseTime) {
+  for (const int64_t response : {int64_t{0}, int64_t{300'000}}) {
+    SlaveOptions o;
+    o.node_id = kNode;
+    o.sync_response_ns = response;
+    node = std::make_unique<SlaveNode>(od, *node_port, o);
+    start();
+    map_pdo(true, 1, {0x60410010}, 1);
+    nmt(NmtCommand::Start);
+    sim.log.clear();
+    sync();
+    const auto s = sim.frames_with_id(0x080);
+    const auto t = sim.frames_with_id(0x180 + kNode);
+    ASSERT_EQ(s.size(), 1u);
+    ASSERT_EQ(t.size(), 1u);
+    // Received at the end of the frames: the TPDO's own 75 bit times
+    // (2 bytes, 1 Mbit/s) after it was queued, plus one 20 us step.
+    const int64_t after_sync = t[0].timestamp_ns - s[0].timestamp_ns;
+    EXPECT_GE(after_sync, response + 60'000) << response;
+    EXPECT_LE(after_sync, response + 120'000) << response;
+  }
+}
+
 TEST_F(SlaveTest, SyncStartValueWaitsForTheCounter) {
   start();
   ASSERT_EQ(write_u8({0x1019, 0}, 10), 0u);
