@@ -220,9 +220,26 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
     const int64_t unwrapped = pos + static_cast<int32_t>(static_cast<uint32_t>(at) - static_cast<uint32_t>(raw));
     return config_.scaling.to_units(unwrapped);
   };
+  // A latch's position counts only from a frame no older than the status
+  // frame that reported the latch (link_.input_sequence); else it waits.
+  auto latch_ready = [&](Probe& p, const Slot& position, bool latched_now) {
+    if (latched_now) {
+      const uint64_t pos_seq = link_.input_sequence(position), status_seq = link_.input_sequence(slots_.probe_status);
+      p.position_pending = pos_seq != 0 && pos_seq < status_seq;
+      p.status_sequence = status_seq;
+      return !p.position_pending;
+    }
+    if (p.position_pending && p.st == Probe::St::Latched && link_.input_sequence(position) > p.status_sequence) {
+      p.position_pending = false;
+      return true;
+    }
+    if (p.st != Probe::St::Latched) p.position_pending = false;
+    return false;
+  };
   const bool level = (probe_status_ & tp::kStatusInputLevel) != 0;
-  bool release = probe1_.st == Probe::St::Latched && probe1_.held >= config_.probe_hold_cycles && !level;
-  if (probe1_.update(config_.probe && !release, probe_status_)) {
+  bool release = probe1_.st == Probe::St::Latched && probe1_.held >= config_.probe_hold_cycles && !level &&
+                 !probe1_.position_pending;
+  if (latch_ready(probe1_, slots_.probe1_rising, probe1_.update(config_.probe && !release, probe_status_))) {
     probe_position_ = latched_units(slots_.probe1_rising);
     ++probe_count_;
   }
@@ -231,7 +248,7 @@ void Drive::read(int64_t now, const DriveCommand& cmd, DriveFeedback& fb) noexce
   fb.probe_count = probe_count_;
   if (!cmd.index_enable) index_armed_ = false;
   else if (probe2_.st == Probe::St::Off && slots_.probe2_rising && slots_.probe_status) index_armed_ = true;
-  if (probe2_.update(index_armed_, probe_status_)) {
+  if (latch_ready(probe2_, slots_.probe2_rising, probe2_.update(index_armed_, probe_status_))) {
     fb.index_found = true;
     fb.index_position = latched_units(slots_.probe2_rising);
     index_armed_ = false;

@@ -153,6 +153,11 @@ class Drive {
     uint16_t bits = 0;     // function bits when armed (already shifted)
     int shift = 0;         // 0 probe 1, 8 probe 2
     int held = 0;          // cycles in Latched
+    // Latched, but the position slot still holds a value from before the
+    // status frame that showed it (another PDO, not yet received): taken
+    // once a frame after `status_sequence` brings it.
+    bool position_pending = false;
+    uint64_t status_sequence = 0;
     // Feed the status; returns true on the latch event.
     bool update(bool want, uint16_t status) noexcept;
     uint16_t function() const noexcept { return (st == St::Arming || st == St::Armed || st == St::Latched) ? bits : 0; }

@@ -69,6 +69,15 @@ class DriveLink {
   // inputs read; an empty slot when the object is not mapped.
   virtual Slot output(int address, Object o) const noexcept = 0;
   virtual Slot input(int address, Object o) const noexcept = 0;
+  // The order in which the frame that last carried an input slot arrived
+  // (larger = later), for values that must come from the same or a later
+  // frame than another (a touch probe's position after the status bit that
+  // says it was latched, which may travel in another, rate-limited PDO).
+  // 0: not known, or every input arrives in one frame (coherent). Servo thread.
+  virtual uint64_t input_sequence(const Slot& s) const noexcept {
+    (void)s;
+    return 0;
+  }
   // Blocking transfers for configuration (never from the servo thread).
   virtual ConfigResult read_wait(int address, Object o, unsigned size) = 0;
   virtual ConfigResult write_wait(int address, Object o, uint64_t value, unsigned size) = 0;

@@ -31,6 +31,7 @@ class CanopenLink final : public cia402::DriveLink {
   Slot input(int a, Object o) const noexcept override {
     return m_.input(static_cast<uint8_t>(a), o.index, o.sub);
   }
+  uint64_t input_sequence(const Slot& s) const noexcept override { return m_.input_sequence(s); }
   ConfigResult read_wait(int a, Object o, unsigned size) override {
     const SdoResult r = m_.sdo_upload_wait(static_cast<uint8_t>(a), addr(o));
     ConfigResult out;

@@ -147,6 +147,10 @@ class Master {
   // Outputs: objects the master writes (RPDO); inputs: objects it reads (TPDO).
   ProcessSlot output(uint8_t node, uint16_t index, uint8_t sub) const noexcept;
   ProcessSlot input(uint8_t node, uint16_t index, uint8_t sub) const noexcept;
+  // The arrival order of the TPDO that last filled an input slot (larger =
+  // later, counted over every TPDO of the bus; 0: never received or not a
+  // TPDO slot). Servo thread, no allocation.
+  uint64_t input_sequence(const ProcessSlot& s) const noexcept;
   // SYNC serial at which this node's inputs were last sampled (servo thread).
   uint64_t inputs_sync_serial(uint8_t node) const noexcept;
 
@@ -236,6 +240,7 @@ class Master {
   std::array<int16_t, 2048> tpdo_by_cob_{};
   CyclicStatus cyclic_;
   uint64_t cycle_ = 0;
+  uint64_t rx_sequence_ = 0;  // TPDOs received so far (servo thread)
   can::BusStateTracker bus_tracker_;
   std::atomic<uint64_t> sync_serial_{0};
   std::atomic<int> bus_state_{0};

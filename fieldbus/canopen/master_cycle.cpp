@@ -50,6 +50,7 @@ void Master::cyclic_read(int64_t now_ns) noexcept {
     }
     std::memcpy(t.image.data(), f.data.data(), t.bytes);
     t.received_serial = serial;
+    t.rx_sequence = ++rx_sequence_;
     t.ever = true;
   }
   cyclic_.rx_overruns = static_cast<uint32_t>(cyclic_port_->stats().rx_overruns);
@@ -225,6 +226,13 @@ ProcessSlot Master::output(uint8_t node, uint16_t index, uint8_t sub) const noex
     }
   }
   return {};
+}
+
+uint64_t Master::input_sequence(const ProcessSlot& s) const noexcept {
+  for (const TpdoRt& t : tpdos_) {
+    if (s.bytes == t.image.data()) return t.rx_sequence;
+  }
+  return 0;
 }
 
 ProcessSlot Master::input(uint8_t node, uint16_t index, uint8_t sub) const noexcept {

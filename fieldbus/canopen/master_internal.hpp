@@ -72,6 +72,7 @@ struct Master::TpdoRt {
   uint8_t type = 1;
   std::array<uint8_t, 8> image{};
   uint64_t received_serial = 0;
+  uint64_t rx_sequence = 0;  // arrival order among the bus's TPDOs (Master::input_sequence)
   bool ever = false;
   uint32_t consecutive_missed = 0;
 };

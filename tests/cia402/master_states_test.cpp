@@ -25,6 +25,10 @@ class FakeLink final : public DriveLink {
     place(true, obj::kPositionActual, 2, 32);
     place(true, obj::kModesDisplay, 6, 8);
     place(true, obj::kErrorCode, 7, 16);
+    // The touch probe, as on configs/sim: status and position in two PDOs.
+    place(false, obj::kTouchProbeFunction, 8, 16);
+    place(true, obj::kTouchProbeStatus, 9, 16);
+    place(true, obj::kTouchProbe1Rising, 16, 32);
   }
   const std::string& name() const noexcept override { return name_; }
   bool has_device(int a) const noexcept override { return a == 1; }
@@ -42,6 +46,12 @@ class FakeLink final : public DriveLink {
   int request_read(int, Object) noexcept override { return -1; }
   int request_write(int, Object, uint32_t, unsigned) noexcept override { return -1; }
   bool poll(int, AcyclicResult&) noexcept override { return false; }
+  // Arrival order: the status (bytes 0-15) and the probe position (16-19)
+  // as two frames, each stamped when the test says it arrived.
+  uint64_t input_sequence(const Slot& s) const noexcept override {
+    return s.bit_offset >= 16 * 8 ? position_frame : status_frame;
+  }
+  uint64_t status_frame = 1, position_frame = 1;
 
   void drive_reports(uint16_t statusword, int32_t position = 0, Mode display = Mode::CyclicSyncPosition,
                      uint16_t error = 0) {
@@ -50,6 +60,9 @@ class FakeLink final : public DriveLink {
     write_slot<int8_t>(find(true, obj::kModesDisplay), static_cast<int8_t>(display));
     write_slot<uint16_t>(find(true, obj::kErrorCode), error);
   }
+  void probe_reports(uint16_t status) { write_slot<uint16_t>(find(true, obj::kTouchProbeStatus), status); }
+  void probe_position(int32_t counts) { write_slot<int32_t>(find(true, obj::kTouchProbe1Rising), counts); }
+  uint16_t probe_function() const { return read_slot<uint16_t>(find(false, obj::kTouchProbeFunction)); }
   uint16_t controlword() const { return read_slot<uint16_t>(find(false, obj::kControlword)); }
   int32_t target() const { return read_slot<int32_t>(find(false, obj::kTargetPosition)); }
   int8_t mode() const { return read_slot<int8_t>(find(false, obj::kModes)); }
@@ -71,8 +84,8 @@ class FakeLink final : public DriveLink {
 };
 
 struct Master {
-  explicit Master(int stale_limit = 3) : drive(config(stale_limit), link, &messages) {}
-  static DriveConfig config(int stale_limit = 3) {
+  explicit Master(int stale_limit = 3, bool probe = false) : drive(config(stale_limit, probe), link, &messages) {}
+  static DriveConfig config(int stale_limit = 3, bool probe = false) {
     DriveConfig c;
     c.stale_limit = stale_limit;
     c.name = "x-axis";
@@ -81,7 +94,7 @@ struct Master {
     c.scaling = Scaling::from_mechanics(10000, 1, 1, 5, false);
     c.enable_timeout_ns = 50'000'000;
     c.fault_reset_holdoff_ns = 100'000'000;
-    c.probe = false;
+    c.probe = probe;
     return c;
   }
   // One cycle with the drive reporting `sw`; returns the controlword sent.
@@ -278,4 +291,47 @@ TEST(Cia402MasterStates, StaleLimitZeroLeavesTheBudgetToTheBus) {
   for (int i = 0; i < 50; ++i) m.step(false);
   EXPECT_TRUE(m.fb.link_ok);
   EXPECT_FALSE(m.has_message("no fresh feedback"));
+}
+
+// A latch's position may travel in another PDO than the status bit that
+// reports it, rate-limited by its inhibit time (configs/sim: 0x60B9 in
+// TPDO2, 0x60BA in TPDO3): the position is taken only from a frame no
+// older than the status frame that showed the latch; meanwhile the probe
+// input is on but no position is reported.
+TEST(Cia402MasterStates, ATouchProbePositionIsTakenOnlyFromAFrameAfterTheLatchStatus) {
+  Master m(3, true);
+  m.link.probe_position(1111);  // an earlier latch's value
+  m.cycle(kSod);
+  EXPECT_EQ(m.link.probe_function() & tp::kEnable, tp::kEnable) << "armed";
+  m.link.probe_reports(tp::kStatusEnabled);
+  m.cycle(kSod);
+  m.cycle(kSod);
+  // The status frame (arrival 10) says: latched. The position slot still
+  // holds the old value from frame 5.
+  m.link.status_frame = 10;
+  m.link.position_frame = 5;
+  m.link.probe_reports(tp::kStatusEnabled | tp::kStatusRisingStored);
+  m.cycle(kSod);
+  EXPECT_TRUE(m.fb.probe_input);
+  EXPECT_EQ(m.fb.probe_count, 0u) << "not from the stale 1111";
+  m.cycle(kSod);
+  EXPECT_EQ(m.fb.probe_count, 0u);
+  // Its PDO arrives (frame 12) with the latched value.
+  m.link.position_frame = 12;
+  m.link.probe_position(25000);
+  m.cycle(kSod);
+  EXPECT_EQ(m.fb.probe_count, 1u);
+  EXPECT_DOUBLE_EQ(m.fb.probe_position, 25000 * 5.0 / 10000);
+  // Status and position in one frame: taken at once.
+  Master same(3, true);
+  same.cycle(kSod);
+  same.link.probe_reports(tp::kStatusEnabled);
+  same.cycle(kSod);
+  same.cycle(kSod);
+  same.link.status_frame = same.link.position_frame = 7;
+  same.link.probe_position(4000);
+  same.link.probe_reports(tp::kStatusEnabled | tp::kStatusRisingStored);
+  same.cycle(kSod);
+  EXPECT_EQ(same.fb.probe_count, 1u);
+  EXPECT_DOUBLE_EQ(same.fb.probe_position, 4000 * 5.0 / 10000);
 }

@@ -252,6 +252,7 @@ class Rig {
     bool has_device(int a) const noexcept override { return inner_->has_device(a); }
     Slot output(int a, Object o) const noexcept override { return inner_->output(a, o); }
     Slot input(int a, Object o) const noexcept override { return inner_->input(a, o); }
+    uint64_t input_sequence(const Slot& s) const noexcept override { return inner_->input_sequence(s); }
     int64_t cycle_ns() const noexcept override { return inner_->cycle_ns(); }
     LinkHealth health(int a) const noexcept override { return inner_->health(a); }
     int request_read(int a, Object o) noexcept override { return inner_->request_read(a, o); }
