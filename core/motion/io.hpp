@@ -25,6 +25,11 @@ struct JointInputs {
   bool neg_lim_sw = false;    // joint.N.neg-lim-sw-in
   bool index_enable = false;  // joint.N.index-enable (I/O: cleared by the feedback device at the index)
   double index_position = 0;  // joint.N.index-position: motor position latched at the index
+  // joint.N.probe-position / probe-count: the motor position a drive's touch
+  // probe latched at the probe input's edge and the number of latches so
+  // far (cia402 drive.NN.probe-position/-count); unconnected: 0, unused.
+  double probe_position = 0;
+  uint32_t probe_count = 0;
   bool is_unlocked = false;   // joint.N.is-unlocked (locking indexer)
   bool drive_home_busy = false;   // joint.N.drive-home-busy
   bool drive_home_done = false;   // joint.N.drive-home-done

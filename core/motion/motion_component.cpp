@@ -10,10 +10,13 @@ using hal::BitPin;
 using hal::FloatPin;
 using hal::PinDir;
 using hal::S32Pin;
+using hal::U32Pin;
 
 struct MotionComponent::JointPins {
   FloatPin motor_pos_cmd, motor_pos_fb, pos_cmd, pos_fb, coarse_pos_cmd, vel_cmd, acc_cmd, f_error, f_error_lim;
   FloatPin motor_offset, backlash_corr, backlash_filt, backlash_vel, free_pos_cmd, free_vel_lim, index_position;
+  FloatPin probe_position;
+  U32Pin probe_count;
   BitPin amp_enable_out, amp_fault_in, amp_ready_in, home_sw_in, pos_lim_sw_in, neg_lim_sw_in, index_enable;
   BitPin active, homed, homing, faulted, f_errored, in_position, free_tp_enable, pos_hard_limit, neg_hard_limit;
   BitPin unlock, is_unlocked, drive_home_start, drive_home_busy, drive_home_done, drive_home_error;
@@ -148,6 +151,8 @@ void MotionComponent::make_pins() {
     p->free_pos_cmd = make_pin<double>(n + "free-pos-cmd", PinDir::Out);
     p->free_vel_lim = make_pin<double>(n + "free-vel-lim", PinDir::Out);
     p->index_position = make_pin<double>(n + "index-position", PinDir::In);
+    p->probe_position = make_pin<double>(n + "probe-position", PinDir::In);
+    p->probe_count = make_pin<uint32_t>(n + "probe-count", PinDir::In);
     p->amp_enable_out = make_pin<bool>(n + "amp-enable-out", PinDir::Out);
     p->amp_fault_in = make_pin<bool>(n + "amp-fault-in", PinDir::In);
     p->amp_ready_in = make_pin<bool>(n + "amp-ready-in", PinDir::In, true);  // unconnected: ready
@@ -432,6 +437,8 @@ void MotionComponent::read_pins() noexcept {
     ji.neg_lim_sw = p.neg_lim_sw_in.get();
     ji.index_enable = p.index_enable.get();
     ji.index_position = p.index_position.get();
+    ji.probe_position = p.probe_position.get();
+    ji.probe_count = p.probe_count.get();
     ji.is_unlocked = p.is_unlocked.get();
     ji.drive_home_busy = p.drive_home_busy.get();
     ji.drive_home_done = p.drive_home_done.get();

@@ -222,6 +222,14 @@ class MotionController {
   tp::CycleOutputs tp_out_{};
   bool probing_ = false, probe_tripped_ = false;
   Pose probed_pos_;
+  // Touch-probe latches of the drives (joint.N.probe-count/-position): the
+  // counts before the trip, the joints whose latch of this probing was
+  // taken and their joint positions, the planner's pose at the trip.
+  std::array<uint32_t, kMaxJoints> probe_count_before_{};
+  uint32_t probe_latched_mask_ = 0;
+  std::array<double, kMaxJoints> probe_latched_joint_{};
+  Pose probe_tp_pos_;
+  void take_probe_latches() noexcept;
   uint64_t probe_serial_ = 0;
   // homing sequence
   int home_sequence_ = -1;            // |sequence| being homed by "home all", -1 none

@@ -242,6 +242,36 @@ void MotionController::run_free(double dt) noexcept {
   }
 }
 
+// The planner trips on the probe input in the cycle it sees it: its pose
+// is the commanded one then, late by the input's transport and off by the
+// following error. A drive whose touch probe latched its encoder at the
+// edge (its probe count advanced since the cycle before the trip) gives
+// that joint exactly; the probed pose is the forward kinematics of the
+// joints at the trip with those replaced. A latch whose position arrives
+// after the trip (another PDO) is taken when it arrives; only the first
+// latch of each joint counts until the next probe move.
+void MotionController::take_probe_latches() noexcept {
+  bool changed = false;
+  for (int j = 0; j < cfg_.num_joints; ++j) {
+    const auto u = static_cast<std::size_t>(j);
+    if ((probe_latched_mask_ >> j) & 1u) continue;
+    if (in_.joints[u].probe_count == probe_count_before_[u]) continue;
+    const Joint& jt = joints_[u];
+    probe_latched_joint_[u] = in_.joints[u].probe_position - jt.motor_offset - jt.backlash_filt - jt.screw_comp;
+    probe_latched_mask_ |= 1u << j;
+    changed = true;
+  }
+  if (!changed || !usable_forward(kins_)) return;
+  double hint[kMaxJoints], q[kMaxJoints];
+  for (int j = 0; j < kMaxJoints; ++j) hint[j] = q[j] = joints_[static_cast<std::size_t>(j)].pos_cmd;
+  if (kins_.inverse(probe_tp_pos_, hint, q) != kin::KinResult::Ok) return;
+  for (int j = 0; j < cfg_.num_joints; ++j) {
+    if ((probe_latched_mask_ >> j) & 1u) q[j] = probe_latched_joint_[static_cast<std::size_t>(j)];
+  }
+  Pose p;
+  if (kins_.forward(q, p) == kin::KinResult::Ok) probed_pos_ = p;
+}
+
 void MotionController::apply_inverse_kinematics() noexcept {
   double hint[kMaxJoints], q[kMaxJoints];
   for (int j = 0; j < kMaxJoints; ++j) hint[j] = q[j] = joints_[static_cast<std::size_t>(j)].pos_cmd;
@@ -289,7 +319,15 @@ void MotionController::run_coord(double dt) noexcept {
   carte_cmd_ = tp_out_.position;
   if (tp_out_.probe_tripped && !probe_tripped_) {
     probe_tripped_ = true;
-    probed_pos_ = tp_out_.probed_position;
+    probed_pos_ = probe_tp_pos_ = tp_out_.probed_position;
+    probe_latched_mask_ = 0;
+  }
+  if (probe_tripped_) {
+    take_probe_latches();
+  } else {
+    for (int j = 0; j < cfg_.num_joints; ++j) {
+      probe_count_before_[static_cast<std::size_t>(j)] = in_.joints[static_cast<std::size_t>(j)].probe_count;
+    }
   }
   // Outputs synchronised with motion (M62-M65, M67) change as the first
   // move queued after them starts (the task numbers segments in order).

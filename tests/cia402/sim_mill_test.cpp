@@ -120,3 +120,34 @@ TEST(Cia402SimMill, ADriveSlowToAnswerSyncIsPlannedOrRefused) {
         << e.what();
   }
 }
+
+// G38.2 on the tool setter of configs/sim, wired to the Z drive's touch
+// probe: the probed Z is the encoder position the drive latched at the
+// contact (joint.2.probe-position/-count), within the table's backlash of
+// where the setter is. (In this simulation the command at the trip cycle
+// is as close: 0.05-0.17 um, because the drive's interpolation lag and
+// the probe input's transport happen to cancel; they need not on a real
+// machine, and the latch does not depend on it.)
+TEST(Cia402SimMill, ProbingTakesTheDrivesLatchedPosition) {
+  cnc::testing::TempDir work;
+  cnc::testing::SimMill mill(cnc::testing::source_dir() / "configs/sim", work.path() / "sim", "sim.ini",
+                             fieldbus_components());
+  mill.pace = canopen::test::acyclic_pacer(mill.hal());
+  mill.step(100);
+  ASSERT_EQ(mill.power_up(), "");
+  mill.step(50);
+  // Machine Z of the table's Z at rest: where the setter (table Z -100) is.
+  const double offset = std::stod(mill.hal().get_value("joint.2.pos-fb")) -
+                        std::stod(mill.hal().get_value("cia402-sim.1.node.03.table-position"));
+  const double contact = -100 + offset;
+  for (const int feed : {600, 100}) {
+    const std::string above = std::to_string(contact + 3);
+    ASSERT_EQ(mill.run_program("probe.ngc",
+                               "G21 G90 G0 Z" + above + "\nG38.2 Z-119 F" + std::to_string(feed) + "\nG0 Z0\nM2\n", 60),
+              "");
+    const ipc::Status& s = mill.status();
+    EXPECT_TRUE(s.motion.probe_tripped);
+    EXPECT_NEAR(s.motion.probed_position[2], contact, 0.004) << "F" << feed;
+  }
+  EXPECT_EQ(mill.hal().get_value("joint.2.probe-count"), "2");
+}

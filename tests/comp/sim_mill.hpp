@@ -188,6 +188,7 @@ class SimMill : private ipc::CommandReporter {
   comp::MeasurementLogger& logger() { return *hal_.find<comp::MeasurementLogger>("complog"); }
   hal::Hal& hal() { return hal_; }
   motion::MotionComponent& motion() { return *motion_; }
+  const ipc::Status& status() const { return *status_; }
   double seconds() const { return static_cast<double>(now_ns_ - kStartNs) * 1e-9; }
   const std::filesystem::path& dir() const { return dir_; }
   // Error messages since the last call.
