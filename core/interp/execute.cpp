@@ -819,6 +819,7 @@ void Interpreter::State::convert_cutter_comp(int g) {
   int orientation = 0;
   if (g == 411 || g == 421) {
     radius = block.get('d') / 2.0;
+    if (block.has_word('l') && plane != Plane::XZ) fail(g == 411 ? "G41.1 with L word, but plane is not G18" : "G42.1 with L word, but plane is not G18");
     orientation = block.has_word('l') ? static_cast<int>(block.get('l')) : 0;
   } else {
     int index = 0;
@@ -839,6 +840,10 @@ void Interpreter::State::convert_cutter_comp(int g) {
     }
     radius = to_program_len(tools.at(index).diameter) / 2.0;
     orientation = tools.at(index).orientation;
+    // A lathe tool's orientation only has a meaning in the lathe plane.
+    if (plane != Plane::XZ && orientation != 0 && orientation != 9) {
+      fail(g == 410 ? "G41 with lathe tool, but plane is not G18" : "G42 with lathe tool, but plane is not G18");
+    }
   }
   if (radius < 0) {
     radius = -radius;
