@@ -806,8 +806,12 @@ void Interpreter::State::convert_cutter_comp(int g) {
     if (cutter_side != 400) {
       comp_flush();
       // The next move must be straight, unless compensation never moved
-      // (a zero radius or no move yet: LinuxCNC 2.9 alike).
+      // (a zero radius or no move yet: LinuxCNC 2.9 alike). From here the
+      // position is the programmed one (LinuxCNC sets its current point to
+      // the programmed point): axes the exit move does not name stay there,
+      // and a tool length offset change before it shifts it.
       comp_exit_move = cutter_radius > 0 && !cutter_first_move;
+      if (comp_exit_move) pos = comp_program_pos;
     }
     if (config.linuxcnc_comments) canon.comment("interpreter: cutter radius compensation off");
     cutter_side = 400;
@@ -1324,7 +1328,9 @@ void Interpreter::State::end_program(bool pallet) {
 
 void Interpreter::State::convert_stop(Status& st) {
   const int m = block.m[kMStop];
-  if (cutter_side != 400 && (m == 0 || m == 1 || m == 60)) comp_flush();
+  // Every stop sends the held-back move first (LinuxCNC 2.9: before M2's
+  // offset and coolant resets too).
+  if (cutter_side != 400) comp_flush();
   switch (m) {
     case 0: canon.program_stop(); break;
     case 1: canon.optional_program_stop(); break;

@@ -614,3 +614,23 @@ TEST(InterpCutterComp, ZeroRadiusCompensatesNothingAndAllowsAnArcAfterG40) {
                      "N..... ARC_FEED(0.0000, 10.0000, 5.0000, 10.0000, 1,")) << r.canon;
   EXPECT_TRUE(has(r, "ARC_FEED(0.0000, 0.0000, -0.0000, 5.0000, -1,")) << r.canon;
 }
+
+TEST(InterpCutterComp, AfterG40TheProgrammedPositionFollowsAToolLengthOffsetChange) {
+  // LinuxCNC's gmoccapy demo: after G40 the current point is the programmed
+  // one, so a new tool length offset (50.8 to 20.32 mm) and the re-read
+  // after M1 move it: Z30 becomes Z60.48 for the next move.
+  const auto r = run("g17 g21 g90\nt3 m6\ng43\ng0 x50 y50 z30\ng41\ng3 x70 y50 z-1 i10 j0 f100\ng0 z30\ng40\n"
+                     "t1 m6\ng43\nm1\ng0 x50 y50\nm2\n",
+                     tool_table("T1 P3 Z0.8 D0.5\nT3 P2 Z2 D0.375\n"));
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "ARC_FEED(65.2375, 50.0000, 57.6188, 50.0000, 1, -1.0000,")) << r.canon;
+  EXPECT_TRUE(has(r, "STRAIGHT_TRAVERSE(50.0000, 50.0000, 60.4800,")) << r.canon;
+}
+
+TEST(InterpCutterComp, ProgramEndSendsTheHeldBackMoveBeforeTheResets) {
+  const auto r = run("g21 g17 g90\nt3 m6\ng0 x50 y50 z30\nm8\ng41 g1 x60 y50 f100\ng1 x60 y60\nm2\n",
+                     tool_table("T3 P3 Z2 D0.375\n"));
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(55.2375, 60.0000, 30.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... SET_G5X_OFFSET(1,")) << r.canon;
+}
