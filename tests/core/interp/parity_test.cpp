@@ -634,3 +634,15 @@ TEST(InterpCutterComp, ProgramEndSendsTheHeldBackMoveBeforeTheResets) {
   EXPECT_TRUE(has(r, "STRAIGHT_FEED(55.2375, 60.0000, 30.0000, 0.0000, 0.0000, 0.0000)\n"
                      "N..... SET_G5X_OFFSET(1,")) << r.canon;
 }
+
+TEST(Rs274Tool, TextCanonTracksItsPositionWithSaicanonsArithmetic) {
+  // rs274's saicanon divides by 25.4 at G20 and adds the old offset before
+  // subtracting the new one; after a probe the interpreter reads that
+  // position back, so its residue shows as -0.0000 (LinuxCNC's x-trim.ngc).
+  const auto r = run("g20\ng92 x0 y0\nf10\ng38.2 z-1.75\ng1 z0.1\nm2\n", [](Rs274Options& o, const cnc::testing::TempDir& d) {
+    o.parameter_file = d.write("p.var", "5210\t1.000000\n5211\t0.125000\n5212\t-0.250000\n5213\t0.500000\n"
+                                        "5220\t1.000000\n5221\t2.000000\n5222\t1.000000\n5223\t-0.500000\n");
+  });
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(0.0000, -0.0000, 0.1000, 0.0000, 0.0000, 0.0000)")) << r.canon;
+}
