@@ -151,6 +151,12 @@ class Canon {
   virtual bool probe_tripped() const = 0;
   virtual double input_value() const = 0;     // result of the last M66 (-1 on timeout)
   virtual Units machine_length_units() const = 0;  // units of the tool table
+  // The machine's length units per millimetre (LinuxCNC's
+  // GET_EXTERNAL_LENGTH_UNITS), when lengths from the machine (tool table)
+  // are to be converted to program units through millimetres as LinuxCNC
+  // does: (value / this) / program units in mm. 0 (the default): convert
+  // by the exact ratio of the two units (same units: the value unchanged).
+  virtual double external_length_units() const { return 0.0; }
   virtual const cnc::tooltable::ToolTable& tool_table() const = 0;
   virtual int tool_in_spindle() const = 0;         // tool number, 0 none
   // Tooldata index the spindle's tool came from, as the machine reports it

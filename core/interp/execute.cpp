@@ -12,6 +12,8 @@ namespace cnc::interp {
 
 namespace {
 double units_per_inch(Units u) { return u == Units::Inch ? 1.0 : (u == Units::Mm ? kMmPerInch : kMmPerInch / 10.0); }
+// LinuxCNC's FROM_PROG_LEN factor: program units to millimetres.
+double mm_per_unit(Units u) { return u == Units::Inch ? kMmPerInch : (u == Units::Cm ? 10.0 : 1.0); }
 
 std::string_view skip_blanks(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
@@ -30,10 +32,14 @@ bool comment_prefix(std::string_view c, std::string_view key, std::string_view& 
 }  // namespace
 
 double Interpreter::State::to_program_len(double machine_len) const {
+  const double ext = canon.external_length_units();
+  if (ext > 0) return (machine_len / ext) / mm_per_unit(units);
   return machine_len * units_per_inch(units) / units_per_inch(canon.machine_length_units());
 }
 
 double Interpreter::State::to_machine_len(double program_len) const {
+  const double ext = canon.external_length_units();
+  if (ext > 0) return (program_len * mm_per_unit(units)) * ext;
   return program_len * units_per_inch(canon.machine_length_units()) / units_per_inch(units);
 }
 
@@ -99,6 +105,7 @@ void Interpreter::State::reset_modal(bool keep_params) {
   cutter_radius = 0;
   comp_exit_move = false;
   queueing.queue().clear();
+  comp_start_valid = false;
   cycle_l = 1;
   frames.clear();
   frames.emplace_back();
@@ -798,7 +805,13 @@ void Interpreter::State::convert_cutter_comp(int g) {
   if (g == 400) {
     if (cutter_side != 400) {
       comp_flush();
-      comp_exit_move = true;
+      // The next move must be straight, unless compensation never moved
+      // (a zero radius or no move yet: LinuxCNC 2.9 alike). From here the
+      // position is the programmed one (LinuxCNC sets its current point to
+      // the programmed point): axes the exit move does not name stay there,
+      // and a tool length offset change before it shifts it.
+      comp_exit_move = cutter_radius > 0 && !cutter_first_move;
+      if (comp_exit_move) pos = comp_program_pos;
     }
     if (config.linuxcnc_comments) canon.comment("interpreter: cutter radius compensation off");
     cutter_side = 400;
@@ -810,6 +823,7 @@ void Interpreter::State::convert_cutter_comp(int g) {
   int orientation = 0;
   if (g == 411 || g == 421) {
     radius = block.get('d') / 2.0;
+    if (block.has_word('l') && plane != Plane::XZ) fail(g == 411 ? "G41.1 with L word, but plane is not G18" : "G42.1 with L word, but plane is not G18");
     orientation = block.has_word('l') ? static_cast<int>(block.get('l')) : 0;
   } else {
     int index = 0;
@@ -830,6 +844,10 @@ void Interpreter::State::convert_cutter_comp(int g) {
     }
     radius = to_program_len(tools.at(index).diameter) / 2.0;
     orientation = tools.at(index).orientation;
+    // A lathe tool's orientation only has a meaning in the lathe plane.
+    if (plane != Plane::XZ && orientation != 0 && orientation != 9) {
+      fail(g == 410 ? "G41 with lathe tool, but plane is not G18" : "G42 with lathe tool, but plane is not G18");
+    }
   }
   if (radius < 0) {
     radius = -radius;
@@ -1310,7 +1328,9 @@ void Interpreter::State::end_program(bool pallet) {
 
 void Interpreter::State::convert_stop(Status& st) {
   const int m = block.m[kMStop];
-  if (cutter_side != 400 && (m == 0 || m == 1 || m == 60)) comp_flush();
+  // Every stop sends the held-back move first (LinuxCNC 2.9: before M2's
+  // offset and coolant resets too).
+  if (cutter_side != 400) comp_flush();
   switch (m) {
     case 0: canon.program_stop(); break;
     case 1: canon.optional_program_stop(); break;

@@ -105,8 +105,10 @@ struct Interpreter::State {
   bool cutter_first_move = true;
   bool comp_exit_move = false;  // G40 ended compensation: the next move must be straight
   Pose comp_program_pos{};
-  double last_tangent_x = 1, last_tangent_y = 0;  // uncompensated (programmed) position under comp
-  double last_curvature = 0;  // of the programmed path at its end: +1/R turning left (G3), -1/R right, 0 a line
+  // Where the held-back move starts in the plane (tool centre), when known:
+  // the gouge checks of a corner compare the move's new end with it.
+  double comp_start1 = 0, comp_start2 = 0;
+  bool comp_start_valid = false;
   // canned cycles
   double cycle_r = 0, cycle_z = 0, cycle_cc = 0;
   int cycle_l = 1;
@@ -260,9 +262,9 @@ struct Interpreter::State {
   void comp_arc(int g, const Pose& end, double c1, double c2, int turns);
   void comp_flush();
   void comp_emit(const CompMove& m);
-  CompMove* held_move();
   void hold_move(const CompMove& m);
-  void comp_corner(V2Ref start, V2Ref t_new, bool new_is_arc, V2Ref center, double tool_r, int rotation);
+  void comp_set_start(double s1, double s2);
+  void comp_move_end(double e1, double e2);
 };
 
 const char* plane_name(Plane p);

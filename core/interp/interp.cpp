@@ -431,6 +431,7 @@ void Interpreter::unwind() {
   s.exec_step = 0;
   s.resume_block = false;
   s.queueing.queue().clear();
+  s.comp_start_valid = false;
 }
 
 std::vector<std::string> Interpreter::call_stack() const {

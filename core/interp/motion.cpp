@@ -96,9 +96,9 @@ Pose Interpreter::State::machine_to_program(const Pose& m) const {
 }
 
 Pose Interpreter::State::find_ends(bool g53) const {
-  // Under compensation, and for the exit move after G40, axes not named
-  // keep their programmed (not the offset tool's) position.
-  const Pose& base = cutter_side != 400 || comp_exit_move ? comp_program_pos : pos;
+  // Under compensation axes not named keep their programmed (not the
+  // offset tool's) position (after G40 the position is the programmed one).
+  const Pose& base = cutter_side != 400 ? comp_program_pos : pos;
   Pose end = base;
   auto word = [&](int i, double& v) {
     if (!((config.axis_mask >> i) & 1u) || !block.has_word(kLetters[i])) return false;

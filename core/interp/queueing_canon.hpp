@@ -222,6 +222,7 @@ class QueueingCanon final : public Canon {
   bool probe_tripped() const override { return real_.probe_tripped(); }
   double input_value() const override { return real_.input_value(); }
   Units machine_length_units() const override { return real_.machine_length_units(); }
+  double external_length_units() const override { return real_.external_length_units(); }
   const cnc::tooltable::ToolTable& tool_table() const override { return real_.tool_table(); }
   int tool_in_spindle() const override { return real_.tool_in_spindle(); }
   int tool_slot() const override { return real_.tool_slot(); }

@@ -171,13 +171,10 @@ struct CompMove {
   enum Kind : uint8_t { Traverse, Feed, Arc } kind = Feed;
   int line = 0;
   Pose end{};
-  double start1 = 0, start2 = 0;  // where it starts in the plane (tool centre)
+  double dir1 = 0, dir2 = 0;        // a line's programmed direction in the plane (not unit)
+  double original_sweep = 0;       // an arc's signed sweep (radians) when held back; 0: not checked
   double first_end = 0, second_end = 0, center1 = 0, center2 = 0, axis_end = 0;
   int rotation = 0;
-};
-
-struct V2Ref {
-  double x = 0, y = 0;
 };
 
 }  // namespace cnc::interp

@@ -145,12 +145,22 @@ ONE_INT(clear_aux_output_bit, "CLEAR_AUX_OUTPUT_BIT")
 void TextCanon::use_length_units(Units u) {
   if (u != units_) {
     const double k = (u == Units::Inch ? 1.0 : 25.4) / (units_ == Units::Inch ? 1.0 : 25.4);
+    // saicanon divides by 25.4 going to inches (multiplies going to mm):
+    // dividing and multiplying by the reciprocal round differently.
+    const bool to_inch = u == Units::Inch && units_ == Units::Mm;
     for (int i = 0; i < kNumAxes; ++i) {
       if (i < 3 || i > 5) {
-        pos_[i] *= k;
-        g5x_[i] *= k;
-        g92_[i] *= k;
-        tlo_[i] *= k;
+        if (to_inch) {
+          pos_[i] /= 25.4;
+          g5x_[i] /= 25.4;
+          g92_[i] /= 25.4;
+          tlo_[i] /= 25.4;
+        } else {
+          pos_[i] *= k;
+          g5x_[i] *= k;
+          g92_[i] *= k;
+          tlo_[i] *= k;
+        }
       }
     }
     units_ = u;
@@ -170,8 +180,9 @@ void TextCanon::select_plane(Plane p) {
 
 void TextCanon::set_g5x_offset(int origin, const Pose& o) {
   // saicanon keeps its position in program coordinates through G5x and G92
-  // changes (not through tool length offset changes).
-  for (int i = 0; i < kNumAxes; ++i) pos_[i] += g5x_[i] - o[i];
+  // changes (not through tool length offset changes), adding the old offset
+  // first: (p + old) - new, which may leave a tiny residue (-0.0000 printed).
+  for (int i = 0; i < kNumAxes; ++i) pos_[i] = pos_[i] + g5x_[i] - o[i];
   g5x_ = o;
   call_ = "SET_G5X_OFFSET(";
   integer(call_, origin);
@@ -182,7 +193,7 @@ void TextCanon::set_g5x_offset(int origin, const Pose& o) {
 }
 
 void TextCanon::set_g92_offset(const Pose& o) {
-  for (int i = 0; i < kNumAxes; ++i) pos_[i] += g92_[i] - o[i];
+  for (int i = 0; i < kNumAxes; ++i) pos_[i] = pos_[i] + g92_[i] - o[i];
   g92_ = o;
   call_ = "SET_G92_OFFSET(";
   six_axes(call_, o);
@@ -302,12 +313,15 @@ void TextCanon::straight_probe(int line, const Pose& end, ProbeKind) {
   segment('P', line, end);
   // saicanon ends a probe move backed off 0.01 inch from the target.
   probe_ = end;
+  // Its arithmetic: XYZ distance, target + backoff * (d / distance).
   Pose stop = end;
-  double d2 = 0;
-  for (int i = 0; i < kNumAxes; ++i) d2 += (end[i] - pos_[i]) * (end[i] - pos_[i]);
-  if (d2 > 0) {
-    const double back = (units_ == Units::Inch ? 0.01 : 0.254) / std::sqrt(d2);
-    for (int i = 0; i < kNumAxes; ++i) stop[i] = end[i] - (end[i] - pos_[i]) * back;
+  const double dx = pos_[0] - end[0], dy = pos_[1] - end[1], dz = pos_[2] - end[2];
+  const double distance = std::sqrt((dx * dx) + (dy * dy) + (dz * dz));
+  if (distance != 0) {
+    const double backoff = units_ == Units::Mm ? 0.254 : 0.01;
+    stop[0] = end[0] + backoff * (dx / distance);
+    stop[1] = end[1] + backoff * (dy / distance);
+    stop[2] = end[2] + backoff * (dz / distance);
   }
   move_to(stop);
 }

@@ -107,6 +107,11 @@ class TextCanon : public Canon {
   bool probe_tripped() const override { return probe_tripped_; }
   double input_value() const override { return input_value_; }
   Units machine_length_units() const override { return machine_units_; }
+  // As rs274's saicanon: inches as its rounded 0.03937007874016 per mm (a
+  // tool radius of 0.03125 in is 0.793749999999995 mm, not 0.79375).
+  double external_length_units() const override {
+    return machine_units_ == Units::Inch ? 0.03937007874016 : machine_units_ == Units::Cm ? 0.1 : 1.0;
+  }
   const cnc::tooltable::ToolTable& tool_table() const override { return tools_; }
   int tool_in_spindle() const override;
   // As rs274's saicanon: index 1 until a tool change says otherwise.

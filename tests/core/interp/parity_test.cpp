@@ -518,3 +518,131 @@ TEST(InterpCutterComp, SharpCornerIntoAnArcWhoseOffsetsDoNotMeetTurnsAroundTheCo
   EXPECT_TRUE(has(r, "STRAIGHT_FEED(-54.3622, -94.4491, 0.0000, 0.0000, 0.0000, 0.0000)\n"
                      "N..... ARC_FEED(-54.6322, -94.8698, -54.5009, -94.6571, 1,")) << r.canon;
 }
+
+// Cutter compensation computed step by step as LinuxCNC 2.9 computes it:
+// the printed output rounds to 4 decimals, so another (equally exact) way
+// of computing lands on the other side of a rounding tie or 1e-4 away.
+
+namespace {
+auto tool_table(const std::string& text) {
+  return [text](Rs274Options& o, const cnc::testing::TempDir& d) { o.tool_table = d.write("t.tbl", text); };
+}
+}  // namespace
+
+TEST(InterpCutterComp, ArcEndOnARoundingTieRoundsAsInLinuxCnc) {
+  // LinuxCNC's cam-nisley: a 0.0625 in tool in a G21 program has the radius
+  // (0.0625 / 0.03937007874016) / 2 (saicanon's inch), the G91 arc's end
+  // moves out by it along the radius's angle: -11.28125 prints -11.2813.
+  const auto r = run("g21 g90 f100\nt1 m6\ng0 x-1.6 y-13.675 z0\ng42 d1\ng1 x-1.6 y-10.475\ng2 x0 y-8.875 i1.6 j0\n"
+                     "g3 y-8.875 j8.875\ng91 g2 y-3.2 j-1.6\ng90 g40 g1 x-5\nm2\n",
+                     tool_table("T1 P1 Z0.5 D0.0625\n"));
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(-0.8063, -10.4750, 0.0000,")) << r.canon;
+  EXPECT_TRUE(has(r, "ARC_FEED(0.0000, -9.6687, 0.0000, -10.4750, -1,")) << r.canon;
+  EXPECT_TRUE(has(r, "ARC_FEED(0.0000, -11.2813, 0.0000, -10.4750, -1,")) << r.canon;
+}
+
+TEST(InterpCutterComp, EntryArcCentreOnARoundingTieRoundsAsInLinuxCnc) {
+  // LinuxCNC's ccomp/mill-zchanges: the entry arc's centre 0.55625 prints
+  // 0.5562 (LinuxCNC finds it along the new end's radius by the half chord
+  // over the cosine of the angle between them).
+  const auto r = run("g20 f60\ng0 x0 y.5 z.25\ng1 x.25 z0\ng41 g2 d2 x.5 y.75 i.25\ng1 x.75\ng40 x1\nm2\n",
+                     tool_table("T1 P1 Z0.5 D0.0625\nT2 P2 Z0.7 D0.125\n"));
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "ARC_FEED(0.5000, 0.8125, 0.5000, 0.5562, -1,")) << r.canon;
+}
+
+TEST(InterpCutterComp, ConcaveCornerIntoAnArcWithDifferentEndRadiusMeetsItsEndCircle) {
+  // LinuxCNC's interp/inside-corners: a concave arc-to-arc corner where the
+  // next arc's start and end radii differ within the tolerance; LinuxCNC
+  // offsets the circle through the arc's end, not through its start.
+  const auto r = run("g20 g0 x0 y0 z0\ng41.1 d-.15 g1 x0.6767 y0.2334 f8\ng1 x0.3359 y0.4419\n"
+                     "g3 x1.2281 y1.3456 i0.2921 j0.6039\ng2 x0.1253 y0.9881 i-0.6093 j0\n"
+                     "g3 x0.7669 y1.4548 i0.2437 j0.3394\ng40 g1 x0 y2\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "ARC_FEED(1.1531, 1.3456, 1.2281, 1.3456, 1, 0.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... ARC_FEED(0.4443, 0.8405, 0.6188, 1.3456, -1,")) << r.canon;
+  EXPECT_TRUE(has(r, "ARC_FEED(0.8383, 1.4777, 0.3690, 1.3275, 1,")) << r.canon;
+}
+
+TEST(InterpCutterComp, NearReversalFromATightArcIntoALineMeetsTheOffsetPaths) {
+  // LinuxCNC's interp/crazy-paths: a line leaving a tight CW arc almost
+  // backwards, tool on the left: a concave corner where the arc's offset
+  // circle meets the line's offset, no arc around the corner.
+  const auto r = run("g21 f100\ng0 x-50 y-100 z0\ng41.1 d.5\ng1 y-102\n"
+                     "g2 i4.980439 j-0.441843 x-40.097651 y-103.322073\ng2 i-0.682919 j-1.106175 x-39.500873 y-104.657107\n"
+                     "g1 x-54.500873 y-94.657107\ng2 i-1.575966 j-2.552711 x-57.872219 y-99.613276\n"
+                     "g40 g1 x-62.872219 y-114.613276\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "ARC_FEED(-39.6395, -104.8651, -39.5009, -104.6571, -1, 0.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STRAIGHT_FEED(-53.1089, -95.8856, 0.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... ARC_FEED(-58.0218, -99.8136, -56.0768, -97.2098, -1,")) << r.canon;
+}
+
+TEST(InterpCutterComp, LatheToolOrientationMovesTheToolOriginOffTheNoseCentre) {
+  // LinuxCNC's ccomp/lathe-comp: orientation 2 (front, tip toward -X -Z):
+  // what the machine positions is the nose centre less the radius in X and Z.
+  const auto r = run("g20 g18 f30\ng0 x.3 z0\nt2 m6\ng43 h2\ng41\ng1 x.1\ng3 x0 z.1 r.1\ng1 z1\ng40\ng0 x.3\nm2\n",
+                     tool_table("T2 P2 Z0 X0 D0.1 Q2\n"));
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(0.0500, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... ARC_FEED(0.0500, 0.0000, 0.0500, 0.0500, 1, 0.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STRAIGHT_FEED(0.0000, 0.0000, 0.9500,")) << r.canon;
+}
+
+TEST(InterpCutterComp, LatheToolOutsideTheLathePlaneIsRefused) {
+  const auto r = run("g17 g41 d2\nm2\n", tool_table("T2 P2 Z0 X0 D0.1 Q2\n"));
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("G41 with lathe tool, but plane is not G18"), std::string::npos) << r.err;
+}
+
+TEST(InterpCutterComp, HeldBackArcWhoseEndAConcaveCornerMovesPastItsStartIsAGouge) {
+  // A short CW arc with the tool outside it, then a line turning back
+  // sharply: the corner would move the arc's end back past its start, so
+  // the arc would sweep almost a full turn (LinuxCNC refuses it).
+  const auto r = run("g21 g0 x-20 y0 z0\ng41.1 d2 g1 x0 y0 f100\ng2 x1 y-0.1 r10\ng1 x-10 y5\ng40 g1 x-20 y20\nm2\n");
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("Arc move in concave corner cannot be reached by the tool without gouging"), std::string::npos) << r.err;
+  EXPECT_FALSE(has(r, "ARC_FEED(")) << r.canon;
+}
+
+TEST(InterpCutterComp, ZeroRadiusCompensatesNothingAndAllowsAnArcAfterG40) {
+  const auto r = run("g21 g0 x0 y0 z0\ng41.1 d0 g1 x10 y0 f100\ng1 x10 y10\ng3 x0 y10 r5\ng40\ng2 x0 y0 r5\nm2\n");
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(10.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STRAIGHT_FEED(10.0000, 10.0000, 0.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... ARC_FEED(0.0000, 10.0000, 5.0000, 10.0000, 1,")) << r.canon;
+  EXPECT_TRUE(has(r, "ARC_FEED(0.0000, 0.0000, -0.0000, 5.0000, -1,")) << r.canon;
+}
+
+TEST(InterpCutterComp, AfterG40TheProgrammedPositionFollowsAToolLengthOffsetChange) {
+  // LinuxCNC's gmoccapy demo: after G40 the current point is the programmed
+  // one, so a new tool length offset (50.8 to 20.32 mm) and the re-read
+  // after M1 move it: Z30 becomes Z60.48 for the next move.
+  const auto r = run("g17 g21 g90\nt3 m6\ng43\ng0 x50 y50 z30\ng41\ng3 x70 y50 z-1 i10 j0 f100\ng0 z30\ng40\n"
+                     "t1 m6\ng43\nm1\ng0 x50 y50\nm2\n",
+                     tool_table("T1 P3 Z0.8 D0.5\nT3 P2 Z2 D0.375\n"));
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "ARC_FEED(65.2375, 50.0000, 57.6188, 50.0000, 1, -1.0000,")) << r.canon;
+  EXPECT_TRUE(has(r, "STRAIGHT_TRAVERSE(50.0000, 50.0000, 60.4800,")) << r.canon;
+}
+
+TEST(InterpCutterComp, ProgramEndSendsTheHeldBackMoveBeforeTheResets) {
+  const auto r = run("g21 g17 g90\nt3 m6\ng0 x50 y50 z30\nm8\ng41 g1 x60 y50 f100\ng1 x60 y60\nm2\n",
+                     tool_table("T3 P3 Z2 D0.375\n"));
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(55.2375, 60.0000, 30.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... SET_G5X_OFFSET(1,")) << r.canon;
+}
+
+TEST(Rs274Tool, TextCanonTracksItsPositionWithSaicanonsArithmetic) {
+  // rs274's saicanon divides by 25.4 at G20 and adds the old offset before
+  // subtracting the new one; after a probe the interpreter reads that
+  // position back, so its residue shows as -0.0000 (LinuxCNC's x-trim.ngc).
+  const auto r = run("g20\ng92 x0 y0\nf10\ng38.2 z-1.75\ng1 z0.1\nm2\n", [](Rs274Options& o, const cnc::testing::TempDir& d) {
+    o.parameter_file = d.write("p.var", "5210\t1.000000\n5211\t0.125000\n5212\t-0.250000\n5213\t0.500000\n"
+                                        "5220\t1.000000\n5221\t2.000000\n5222\t1.000000\n5223\t-0.500000\n");
+  });
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(0.0000, -0.0000, 0.1000, 0.0000, 0.0000, 0.0000)")) << r.canon;
+}
