@@ -168,6 +168,11 @@ std::vector<Component*> Hal::components() const {
   return out;
 }
 
+const PinObj* Hal::find_pin(const std::string& name) const {
+  std::lock_guard lock(mutex_);
+  return pin_locked(name);
+}
+
 PinObj* Hal::pin_locked(const std::string& name) const {
   const auto it = pins_.find(name);
   if (it == pins_.end()) throw HalError("pin \"" + name + "\" does not exist");

@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "core/hal/component.hpp"
+#include "core/hal/scope.hpp"
 #include "core/util/strings.hpp"
 
 namespace cnc::hal {
@@ -619,6 +620,10 @@ void register_panel_components(ComponentRegistry& r) {
         "encoder [num_chan=N|names=a,b]: quadrature/pulse counter from sampled inputs or a counter (counts-in)",
         [](ComponentContext& ctx, const LoadArgs& args) -> std::unique_ptr<Component> {
           return std::make_unique<Encoder>(ctx, args);
+        });
+  r.add("scope", "scope [samples=N]: samples up to 16 pins each cycle of scope.sample (halcmd scope ..., cnc-scope)",
+        [](ComponentContext& ctx, const LoadArgs& args) -> std::unique_ptr<Component> {
+          return std::make_unique<Scope>(ctx, args);
         });
   add_conv<double, int32_t>(r, "float", "s32");
   add_conv<int32_t, double>(r, "s32", "float");
