@@ -125,7 +125,7 @@ void Scope::sample(const rt::CycleInfo& info) noexcept {
   if (s == ScopeCapture::State::Idle || s == ScopeCapture::State::Done) return;
   const int n = active_.load(std::memory_order_acquire);
   if (n == 0) return;
-  period_ns_ = info.period_ns > 0 ? info.period_ns : info.actual_period_ns;
+  period_ns_.store(info.period_ns > 0 ? info.period_ns : info.actual_period_ns, std::memory_order_relaxed);
   double values[ScopeCapture::kMaxChannels];
   for (int i = 0; i < n; ++i) values[i] = as_double(types_[i], pins_[i]->cell.load(std::memory_order_relaxed)->raw());
   capture_.push(values);
@@ -233,7 +233,7 @@ std::string Scope::csv() {
   std::string out = "time_s";
   for (const auto& n : names_) out += "," + n;
   out += "\n";
-  const double period = static_cast<double>(period_ns_) * 1e-9;
+  const double period = static_cast<double>(period_ns_.load(std::memory_order_relaxed)) * 1e-9;
   char buf[64];
   for (std::size_t i = 0; i < rows.size(); ++i) {
     std::snprintf(buf, sizeof buf, "%.6f", (static_cast<double>(i) - static_cast<double>(capture_.pre_samples())) * period);

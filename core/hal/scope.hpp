@@ -41,7 +41,7 @@ class ScopeCapture {
   void push(const double* values) noexcept;
 
   State state() const noexcept { return state_.load(std::memory_order_acquire); }
-  bool forced() const noexcept { return forced_; }  // Auto fired without a trigger
+  bool forced() const noexcept { return forced_.load(std::memory_order_relaxed); }  // Auto fired without a trigger
   // Non-realtime, when Done: the captured rows in time order (the trigger
   // row is `pre` rows in).
   std::vector<std::vector<double>> rows() const;
@@ -64,7 +64,7 @@ class ScopeCapture {
   std::size_t trigger_at_ = 0;    // index (since arm) of the trigger sample
   std::size_t waited_ = 0;
   double previous_ = 0;
-  bool forced_ = false;
+  std::atomic<bool> forced_{false};
   std::atomic<State> state_{State::Idle};
 };
 
@@ -90,7 +90,7 @@ class Scope : public Component {
   Type types_[ScopeCapture::kMaxChannels] = {};
   std::atomic<int> active_{0};
   std::atomic<uint64_t> first_cycle_{0};
-  int64_t period_ns_ = 0;
+  std::atomic<int64_t> period_ns_{0};  // written by the servo thread, read by csv
 };
 
 }  // namespace cnc::hal
