@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <iostream>
 #include <string>
+#include <vector>
 
 #include "core/ipc/admin.hpp"
 #include "core/ipc/segment.hpp"
@@ -21,7 +22,51 @@ void usage() {
                "  Without either: reads commands interactively.\n"
                "  Commands: show [comp|pin|sig|param|funct|thread] [pattern], list, getp, setp,\n"
                "  gets, sets, ptype, stype, net, newsig, delsig, linkpp, linkps, linksp, unlinkp,\n"
-               "  addf, delf, loadrt, loadusr, save, start, stop, source, echo.\n");
+               "  addf, delf, loadrt, loadusr, save, start, stop, source, echo, scope.\n"
+               "  watch [-n SECONDS] [-c COUNT] NAME...: prints the pins', parameters' or signals'\n"
+               "  values every SECONDS (0.5), COUNT times (until Ctrl-C), one line each time.\n");
+}
+
+// `watch`: halmeter's job on a terminal. One getp/gets request per name and
+// line; the controller's values are read as halcmd reads them.
+int watch(cnc::ipc::AdminClient& client, const std::vector<std::string>& args) {
+  double interval = 0.5;
+  long count = -1;
+  std::vector<std::string> names;
+  for (std::size_t k = 0; k < args.size(); ++k) {
+    if ((args[k] == "-n" || args[k] == "-c") && k + 1 < args.size()) {
+      const auto v = cnc::parse_double(args[k + 1]);
+      if (!v || *v <= 0) {
+        std::fprintf(stderr, "halcmd: watch %s %s: expected a positive number\n", args[k].c_str(), args[k + 1].c_str());
+        return 1;
+      }
+      if (args[k] == "-n") interval = *v;
+      else count = static_cast<long>(*v);
+      ++k;
+    } else {
+      names.push_back(args[k]);
+    }
+  }
+  if (names.empty()) {
+    std::fprintf(stderr, "halcmd: usage: watch [-n SECONDS] [-c COUNT] NAME...\n");
+    return 1;
+  }
+  for (long n = 0; count < 0 || n < count; ++n) {
+    if (n > 0) ::usleep(static_cast<useconds_t>(interval * 1e6));
+    std::string line;
+    for (const auto& name : names) {
+      cnc::ipc::AdminReply r = client.request("getp " + name);
+      if (!r.ok) r = client.request("gets " + name);
+      if (!r.ok) {
+        std::fprintf(stderr, "halcmd: watch: %s\n", r.text.c_str());
+        return 1;
+      }
+      line += (line.empty() ? "" : "  ") + name + "=" + std::string(cnc::trim(r.text));
+    }
+    std::printf("%s\n", line.c_str());
+    std::fflush(stdout);
+  }
+  return 0;
 }
 
 // Returns false on error.
@@ -133,6 +178,7 @@ int main(int argc, char** argv) {
         if (w.find_first_of(" \t") != std::string::npos) w = "\"" + w + "\"";
         line += (k > i ? " " : "") + w;
       }
+      if (std::string(argv[i]) == "watch") return watch(client, std::vector<std::string>(argv + i + 1, argv + argc));
       if (std::string(argv[i]) == "source") {
         if (argc - i != 2) {
           std::fprintf(stderr, "halcmd: usage: source <file.hal>\n");

@@ -26,11 +26,17 @@
 #ifdef CNC_HAVE_COMP
 #include "comp/screwcomp_component.hpp"
 #endif
+#ifdef CNC_HAVE_HALUI
+#include "core/halui/halui.hpp"
+#endif
 
 namespace cnc::daemon {
 
 void register_all_components(hal::ComponentRegistry& registry) {
   hal::register_core_components(registry);
+#ifdef CNC_HAVE_HALUI
+  halui::register_components(registry);
+#endif
 #ifdef CNC_HAVE_KINEMATICS
   kin::register_kinematics_components(registry);
 #endif

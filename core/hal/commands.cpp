@@ -1,4 +1,5 @@
 #include "core/hal/commands.hpp"
+#include "core/hal/scope.hpp"
 
 #include <fnmatch.h>
 #include <signal.h>
@@ -284,6 +285,11 @@ std::string CommandInterpreter::dispatch(const std::vector<std::string>& w, Orig
   }
   // Remote components: a client process (the HMI, a panel) owns pins in the
   // controller's HAL and reads/writes them over this channel.
+  if (cmd == "scope") {
+    auto* scope = hal_.find<Scope>("scope");
+    if (!scope) throw HalError("scope: no scope loaded (loadrt scope [samples=N], addf scope.sample servo-thread)");
+    return scope->command(std::vector<std::string>(w.begin() + 1, w.end()));
+  }
   if (cmd == "newcomp") {
     need(w, 2, "newcomp <name>");
     if (auto why = check_name(w[1]); !why.empty()) throw HalError("newcomp: " + why);

@@ -115,6 +115,10 @@ class ComponentRegistry {
 
 // Components every controller has: threads, and the small logic and math
 // blocks HAL files use (and2, or2, not, mux2, sum2, scale, ...).
+// Includes register_panel_components.
 void register_core_components(ComponentRegistry& registry);
+// The panel building blocks (panel_components.cpp, docs/hal.md): mux4,
+// select8, debounce, limit3, pid, toggle, edge, timedelay, conv_*, encoder.
+void register_panel_components(ComponentRegistry& registry);
 
 }  // namespace cnc::hal

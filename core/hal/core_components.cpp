@@ -249,6 +249,7 @@ void register_core_components(ComponentRegistry& r) {
   add_multi<EstopLatch>(r, "estop_latch", "estop-latch",
                         "estop_latch [count=N|names=a,b]: latch a fault until reset (LinuxCNC's estop_latch)");
   add_multi<Siggen>(r, "siggen", "siggen", "siggen [count=N|names=a,b]: sine, cosine, triangle, square, sawtooth");
+  register_panel_components(r);
 }
 
 }  // namespace cnc::hal

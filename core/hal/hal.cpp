@@ -71,7 +71,7 @@ void Hal::check_unique(const std::string& name) const {
 }
 
 PinObj* Hal::create_pin(Component* owner, const std::string& name, Type type, PinDir dir, uint64_t initial) {
-  if (auto why = check_name(name); !why.empty()) throw HalError("pin name: " + why);
+  if (auto why = check_pin_name(name); !why.empty()) throw HalError("pin name: " + why);
   std::lock_guard lock(mutex_);
   check_unique(name);
   auto p = std::make_unique<PinObj>();
@@ -87,7 +87,7 @@ PinObj* Hal::create_pin(Component* owner, const std::string& name, Type type, Pi
 }
 
 ParamObj* Hal::create_param(Component* owner, const std::string& name, Type type, ParamDir dir, uint64_t initial) {
-  if (auto why = check_name(name); !why.empty()) throw HalError("parameter name: " + why);
+  if (auto why = check_pin_name(name); !why.empty()) throw HalError("parameter name: " + why);
   std::lock_guard lock(mutex_);
   check_unique(name);
   auto p = std::make_unique<ParamObj>();
@@ -166,6 +166,11 @@ std::vector<Component*> Hal::components() const {
   std::vector<Component*> out;
   for (const auto& c : components_) out.push_back(c.get());
   return out;
+}
+
+const PinObj* Hal::find_pin(const std::string& name) const {
+  std::lock_guard lock(mutex_);
+  return pin_locked(name);
 }
 
 PinObj* Hal::pin_locked(const std::string& name) const {

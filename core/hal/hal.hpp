@@ -121,6 +121,10 @@ class Hal {
   std::vector<FunctionView> functions() const;
   std::vector<ThreadView> thread_views() const;
   bool has_pin(const std::string& name) const;
+  // The pin object, for readers outside its owner (the scope samples
+  // `cell` in the servo thread); throws HalError when it does not exist.
+  // Pins live as long as their component.
+  const detail::PinObj* find_pin(const std::string& name) const;
   bool has_param(const std::string& name) const;
 
   // Destroys components (on_shutdown is the daemon's job) after threads stop.

@@ -88,7 +88,8 @@ std::optional<uint64_t> parse_value(Type type, std::string_view text) {
 }
 
 namespace {
-std::string check_common(std::string_view name, bool permissive) {
+// permissive: signal names (upper case and '_'); upper: pin names (upper case).
+std::string check_common(std::string_view name, bool permissive, bool upper = false) {
   if (name.empty()) return "a name is needed";
   if (name.size() > kNameMax) {
     return "\"" + std::string(name) + "\" is " + std::to_string(name.size()) + " characters long, at most " +
@@ -96,10 +97,11 @@ std::string check_common(std::string_view name, bool permissive) {
   }
   for (char c : name) {
     const bool ok = (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '.' || c == '-' ||
-                    (permissive && ((c >= 'A' && c <= 'Z') || c == '_'));
+                    ((permissive || upper) && c >= 'A' && c <= 'Z') || (permissive && c == '_');
     if (!ok) {
       return "\"" + std::string(name) + "\" contains '" + std::string(1, c) +
              (permissive ? "': use letters, digits, '_', '-' and '.'"
+              : upper    ? "': use letters and digits, '.' between levels and '-' between words"
                          : "': use lower-case letters and digits, '.' between levels and '-' between words");
     }
   }
@@ -112,5 +114,6 @@ std::string check_common(std::string_view name, bool permissive) {
 
 std::string check_name(std::string_view name) { return check_common(name, false); }
 std::string check_signal_name(std::string_view name) { return check_common(name, true); }
+std::string check_pin_name(std::string_view name) { return check_common(name, false, true); }
 
 }  // namespace cnc::hal

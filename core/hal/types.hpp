@@ -72,6 +72,10 @@ std::optional<uint64_t> parse_value(Type type, std::string_view text);
 // (chapter 2: lower case letters and digits, dots between levels, dashes
 // between words, at most 41 characters); otherwise why not.
 std::string check_name(std::string_view name);
+// Pin and parameter names of components may also use upper-case letters:
+// LinuxCNC's own components do (pid.0.Pgain, pid.0.FF0, encoder.0.phase-A)
+// and panel HAL files name them so.
+std::string check_pin_name(std::string_view name);
 // Signal names are chosen by users in their HAL files: LinuxCNC configs use
 // upper case and underscores there, so those are accepted too.
 std::string check_signal_name(std::string_view name);

@@ -24,7 +24,7 @@ field() { dpkg-deb -f "$1" "$2"; }
 cnc="$(deb cnc)" configs="$(deb cnc-configs)" screen="$(deb cnc-screen)" comp="$(deb cnc-comp)"
 conn="$(deb cnc-connectivity)"
 files="$(contents "$cnc")"
-for prog in cncd cnc halcmd cnc-rs274 cnc-canopen cnc-ethercat cnc-config cnc-can-up; do
+for prog in cncd cnc halcmd cnc-scope cnc-rs274 cnc-canopen cnc-ethercat cnc-config cnc-can-up; do
   grep -qx "/usr/bin/$prog" <<<"$files" || bad "cnc: no /usr/bin/$prog"
 done
 for helper in cnc-cia402-sim ecat-sim cnc-modbus-sim cnc-canopen-node; do

@@ -1,0 +1,324 @@
+#include "core/halui/halui.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cstring>
+#include <cmath>
+#include <cstdio>
+
+#include "core/ini/ini_file.hpp"
+#include "core/ipc/client.hpp"
+#include "core/ipc/operator_commands.hpp"
+#include "core/util/messages.hpp"
+
+namespace cnc::halui {
+
+namespace cmd = ipc::commands;
+using hal::PinDir;
+
+namespace {
+constexpr const char* kAxisLetters = "xyzabcuvw";
+constexpr auto kPollPeriod = std::chrono::milliseconds(10);
+
+std::string two_digits(std::size_t i) {
+  return (i < 10 ? "0" : "") + std::to_string(i);
+}
+}  // namespace
+
+Halui::Edge Halui::edge(const std::string& name) {
+  Edge e;
+  e.pin = make_pin<bool>("halui." + name, PinDir::In);
+  return e;
+}
+
+void Halui::make_override(OverridePins& o, const std::string& p, double default_scale) {
+  o.increase = make_pin<bool>("halui." + p + ".increase", PinDir::In);
+  o.decrease = make_pin<bool>("halui." + p + ".decrease", PinDir::In);
+  o.reset = make_pin<bool>("halui." + p + ".reset", PinDir::In);
+  o.count_enable = make_pin<bool>("halui." + p + ".count-enable", PinDir::In, true);
+  o.direct_value = make_pin<bool>("halui." + p + ".direct-value", PinDir::In);
+  o.counts = make_pin<int32_t>("halui." + p + ".counts", PinDir::In);
+  o.scale = make_pin<double>("halui." + p + ".scale", PinDir::In, default_scale);
+  o.value = make_pin<double>("halui." + p + ".value", PinDir::Out);
+}
+
+Halui::Halui(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(ctx.hal, "halui"), messages_(ctx.messages) {
+  args.allow_only({});
+  std::string coordinates = "XYZ";
+  int joints = -1;
+  if (ctx.ini) {
+    mdi_commands_ = ctx.ini->find_all("HALUI", "MDI_COMMAND");
+    coordinates = ctx.ini->get_string("TRAJ", "COORDINATES", "XYZ");
+    joints = static_cast<int>(ctx.ini->get_int("KINS", "JOINTS", -1, {1.0, static_cast<double>(kMaxJoints)}));
+    default_spindle_speed_ = ctx.ini->get_double("DISPLAY", "DEFAULT_SPINDLE_SPEED", 100.0, {0.0, 1e6});
+    max_feed_override_ = ctx.ini->get_double("DISPLAY", "MAX_FEED_OVERRIDE", 2.0, {0.0, 100.0});
+    max_spindle_override_ = ctx.ini->get_double("DISPLAY", "MAX_SPINDLE_OVERRIDE", 2.0, {0.0, 100.0});
+  }
+  if (mdi_commands_.size() > 64) throw hal::HalError("halui: at most 64 [HALUI]MDI_COMMAND lines");
+  for (const auto& line : mdi_commands_) cmd::check_text(line, "[HALUI]MDI_COMMAND");
+  machine_on_ = edge("machine.on");
+  machine_off_ = edge("machine.off");
+  machine_is_on_ = make_pin<bool>("halui.machine.is-on", PinDir::Out);
+  estop_activate_ = edge("estop.activate");
+  estop_reset_ = edge("estop.reset");
+  estop_is_activated_ = make_pin<bool>("halui.estop.is-activated", PinDir::Out, true);
+  mode_manual_ = edge("mode.manual");
+  mode_auto_ = edge("mode.auto");
+  mode_mdi_ = edge("mode.mdi");
+  mode_is_manual_ = make_pin<bool>("halui.mode.is-manual", PinDir::Out);
+  mode_is_auto_ = make_pin<bool>("halui.mode.is-auto", PinDir::Out);
+  mode_is_mdi_ = make_pin<bool>("halui.mode.is-mdi", PinDir::Out);
+  program_run_ = edge("program.run");
+  program_pause_ = edge("program.pause");
+  program_resume_ = edge("program.resume");
+  program_step_ = edge("program.step");
+  program_stop_ = edge("program.stop");
+  program_is_idle_ = make_pin<bool>("halui.program.is-idle", PinDir::Out);
+  program_is_running_ = make_pin<bool>("halui.program.is-running", PinDir::Out);
+  program_is_paused_ = make_pin<bool>("halui.program.is-paused", PinDir::Out);
+  home_all_ = edge("home-all");
+  spindle_start_ = edge("spindle.0.start");
+  spindle_stop_ = edge("spindle.0.stop");
+  spindle_forward_ = edge("spindle.0.forward");
+  spindle_reverse_ = edge("spindle.0.reverse");
+  spindle_is_on_ = make_pin<bool>("halui.spindle.0.is-on", PinDir::Out);
+  make_override(feed_, "feed-override", 0.1);
+  make_override(rapid_, "rapid-override", 0.1);
+  make_override(spindle_override_, "spindle.0.override", 0.1);
+  jog_speed_ = make_pin<double>("halui.axis.jog-speed", PinDir::In);
+  jog_deadband_ = make_pin<double>("halui.axis.jog-deadband", PinDir::In, 0.2);
+  // Axes by letter from [TRAJ]COORDINATES, once each.
+  std::string seen;
+  for (char c : coordinates) {
+    const char l = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    const char* at = std::strchr(kAxisLetters, l);
+    if (l == ' ' || l == '\t' || !at || l == '\0' || seen.find(l) != std::string::npos) continue;
+    seen += l;
+    AxisPins a;
+    a.index = static_cast<int>(at - kAxisLetters);
+    const std::string p = std::string("halui.axis.") + l;
+    a.plus = make_pin<bool>(p + ".plus", PinDir::In);
+    a.minus = make_pin<bool>(p + ".minus", PinDir::In);
+    a.increment_plus = make_pin<bool>(p + ".increment-plus", PinDir::In);
+    a.increment_minus = make_pin<bool>(p + ".increment-minus", PinDir::In);
+    a.increment = make_pin<double>(p + ".increment", PinDir::In);
+    a.analog = make_pin<double>(p + ".analog", PinDir::In);
+    a.pos_commanded = make_pin<double>(p + ".pos-commanded", PinDir::Out);
+    a.pos_feedback = make_pin<double>(p + ".pos-feedback", PinDir::Out);
+    axes_.push_back(a);
+  }
+  if (joints < 0) joints = static_cast<int>(axes_.size());
+  for (int j = 0; j < joints; ++j) {
+    joint_home_.push_back(edge("joint." + std::to_string(j) + ".home"));
+    joint_is_homed_.push_back(make_pin<bool>("halui.joint." + std::to_string(j) + ".is-homed", PinDir::Out));
+  }
+  for (std::size_t i = 0; i < mdi_commands_.size(); ++i) mdi_.push_back(edge("mdi-command-" + two_digits(i)));
+}
+
+Halui::~Halui() { on_shutdown(); }
+
+void Halui::on_ready() {
+  if (worker_.joinable()) return;
+  worker_ = std::thread([this] { run_worker(); });
+}
+
+void Halui::on_shutdown() {
+  stop_ = true;
+  if (worker_.joinable()) worker_.join();
+}
+
+void Halui::post_error(const std::string& text) {
+  if (messages_) messages_->post(MessageKind::Error, "halui", text);
+  else std::fprintf(stderr, "halui: %s\n", text.c_str());
+}
+
+// Connects (once the controller's threads run: `cncd --check` never
+// starts them, so a check never touches a live instance) and polls.
+void Halui::run_worker() {
+  std::unique_ptr<ipc::Client> client;
+  while (!stop_) {
+    std::this_thread::sleep_for(kPollPeriod);
+    if (!client) {
+      if (!hal().threads_running()) continue;
+      try {
+        auto c = std::make_unique<ipc::Client>();
+        if (!c->controller_ready()) continue;
+        client = std::move(c);
+      } catch (const ipc::ClientError&) {
+        continue;  // the segment is published after the threads start
+      }
+    }
+    try {
+      const ipc::Status s = client->status();
+      poll(s, [&](const ipc::Command& c) {
+        uint32_t serial = 0;
+        if (client->try_send(c, serial)) {
+          in_flight_.push_back(serial);
+          return true;
+        }
+        post_error("command queue full: a panel command was dropped");
+        return false;
+      });
+      for (std::size_t i = 0; i < in_flight_.size();) {
+        const ipc::CommandResult r = client->wait(in_flight_[i], std::chrono::milliseconds(0));
+        if (r.state == ipc::CommandState::Rejected) {
+          post_error(std::string(ipc::to_string(r.type)) + " rejected: " + std::string(r.reason.view()));
+        }
+        if (r.state == ipc::CommandState::Done || r.state == ipc::CommandState::Rejected || in_flight_.size() > 64) {
+          in_flight_.erase(in_flight_.begin() + static_cast<std::ptrdiff_t>(i));
+        } else {
+          ++i;
+        }
+      }
+    } catch (const std::exception& e) {
+      post_error(e.what());
+      client.reset();
+    }
+  }
+}
+
+void Halui::poll_override(OverridePins& o, double current, double max,
+                          const std::function<ipc::Command(double)>& make, const Sender& send) {
+  o.value.set(current);
+  const double scale = o.scale.get();
+  const int32_t counts = o.counts.get();
+  const bool inc = o.increase.get(), dec = o.decrease.get(), rst = o.reset.get();
+  double target = std::nan("");
+  if (!o.primed) {
+    // The first poll takes the inputs as they are: no jump at start.
+    o.primed = true;
+  } else if (o.direct_value.get()) {
+    if (counts != o.last_counts) target = counts * scale;
+  } else if (o.count_enable.get() && counts != o.last_counts) {
+    target = current + static_cast<double>(counts - o.last_counts) * scale;
+  }
+  if (inc && !o.last_increase) target = (std::isnan(target) ? current : target) + scale;
+  if (dec && !o.last_decrease) target = (std::isnan(target) ? current : target) - scale;
+  if (rst && !o.last_reset) target = 1.0;
+  o.last_counts = counts;
+  o.last_increase = inc;
+  o.last_decrease = dec;
+  o.last_reset = rst;
+  if (!std::isnan(target)) send(make(std::clamp(target, 0.0, max)));
+}
+
+void Halui::poll(const ipc::Status& s, const Sender& send) {
+  const ipc::TaskStatus& t = s.task;
+  // Status pins.
+  machine_is_on_.set(t.state == ipc::TaskState::On);
+  estop_is_activated_.set(t.state == ipc::TaskState::Estop);
+  mode_is_manual_.set(t.mode == ipc::TaskMode::Manual);
+  mode_is_auto_.set(t.mode == ipc::TaskMode::Auto);
+  mode_is_mdi_.set(t.mode == ipc::TaskMode::Mdi);
+  program_is_idle_.set(t.interp_state == ipc::InterpState::Idle);
+  program_is_paused_.set(t.mode == ipc::TaskMode::Auto && t.paused);
+  program_is_running_.set(t.mode == ipc::TaskMode::Auto && t.interp_state != ipc::InterpState::Idle && !t.paused);
+  spindle_is_on_.set(s.spindles[0].enabled);
+  for (std::size_t j = 0; j < joint_is_homed_.size(); ++j) joint_is_homed_[j].set(s.joints[j].homed);
+  for (auto& a : axes_) {
+    a.pos_commanded.set(s.motion.position[a.index]);
+    a.pos_feedback.set(s.motion.actual_position[a.index]);
+  }
+
+  // Commands waiting for a mode change halui asked for.
+  for (std::size_t i = 0; i < deferred_.size();) {
+    Deferred& d = deferred_[i];
+    if (t.mode == d.mode) {
+      send(d.command);
+    } else if (--d.polls_left > 0) {
+      ++i;
+      continue;
+    } else {
+      post_error(std::string(ipc::to_string(d.command.type)) + " dropped: the mode did not change to " +
+                 ipc::to_string(d.mode));
+    }
+    deferred_.erase(deferred_.begin() + static_cast<std::ptrdiff_t>(i));
+  }
+  // Commands, in the order a panel means them. `in_mode` sends a command
+  // now when the task is in mode m, else asks for m and sends it after.
+  auto in_mode = [&](ipc::TaskMode m, const ipc::Command& c) {
+    if (t.mode == m && deferred_.empty()) {
+      send(c);
+      return;
+    }
+    if (t.mode != m && (deferred_.empty() || deferred_.back().mode != m)) send(cmd::set_mode(m));
+    deferred_.push_back(Deferred{m, c, 200});
+  };
+  if (estop_activate_.rose()) send(cmd::set_state(ipc::TaskState::Estop));
+  if (estop_reset_.rose()) send(cmd::set_state(ipc::TaskState::EstopReset));
+  if (machine_off_.rose()) send(cmd::set_state(ipc::TaskState::Off));
+  if (machine_on_.rose()) send(cmd::set_state(ipc::TaskState::On));
+  if (mode_manual_.rose()) send(cmd::set_mode(ipc::TaskMode::Manual));
+  if (mode_auto_.rose()) send(cmd::set_mode(ipc::TaskMode::Auto));
+  if (mode_mdi_.rose()) send(cmd::set_mode(ipc::TaskMode::Mdi));
+  if (program_stop_.rose()) send(cmd::abort());
+  if (program_pause_.rose()) send(cmd::pause());
+  if (program_resume_.rose()) send(cmd::resume());
+  if (program_step_.rose()) in_mode(ipc::TaskMode::Auto, cmd::step());
+  if (program_run_.rose()) in_mode(ipc::TaskMode::Auto, cmd::run(0));
+  if (home_all_.rose()) in_mode(ipc::TaskMode::Manual, cmd::home(-1));
+  for (std::size_t j = 0; j < joint_home_.size(); ++j) {
+    if (joint_home_[j].rose()) in_mode(ipc::TaskMode::Manual, cmd::home(static_cast<int>(j)));
+  }
+  const ipc::SpindleStatus& sp = s.spindles[0];
+  const double rpm = sp.speed != 0 ? std::fabs(sp.speed) : default_spindle_speed_;
+  if (spindle_stop_.rose()) send(cmd::spindle_off(0));
+  if (spindle_forward_.rose()) send(cmd::spindle_on(rpm, 0));
+  if (spindle_reverse_.rose()) send(cmd::spindle_on(-rpm, 0));
+  if (spindle_start_.rose()) send(cmd::spindle_on(sp.direction < 0 ? -rpm : rpm, 0));
+  for (std::size_t i = 0; i < mdi_.size(); ++i) {
+    if (mdi_[i].rose()) in_mode(ipc::TaskMode::Mdi, cmd::mdi(mdi_commands_[i]));
+  }
+
+  // Jogs: jog-speed is in units per minute (LinuxCNC's), commands take
+  // units per second.
+  const double speed = std::fabs(jog_speed_.get()) / 60.0;
+  for (auto& a : axes_) {
+    const bool plus = a.plus.get(), minus = a.minus.get();
+    const bool ip = a.increment_plus.get(), im = a.increment_minus.get();
+    if ((plus && !a.last_plus) || (minus && !a.last_minus)) {
+      in_mode(ipc::TaskMode::Manual, cmd::jog_continuous(a.index, false, plus ? speed : -speed));
+    } else if ((!plus && a.last_plus) || (!minus && a.last_minus)) {
+      send(cmd::jog_stop(a.index, false));
+    }
+    if ((ip && !a.last_inc_plus) || (im && !a.last_inc_minus)) {
+      const double inc = std::fabs(a.increment.get());
+      in_mode(ipc::TaskMode::Manual, cmd::jog_increment(a.index, false, speed, ip ? inc : -inc));
+    }
+    a.last_plus = plus;
+    a.last_minus = minus;
+    a.last_inc_plus = ip;
+    a.last_inc_minus = im;
+    // Analog (a joystick, -1..1): a jog at analog x jog-speed outside the
+    // deadband, re-sent when it changes by more than 5 % of full speed.
+    const double v = a.analog.get();
+    if (std::fabs(v) > std::fabs(jog_deadband_.get())) {
+      const double vel = std::clamp(v, -1.0, 1.0) * speed;
+      if (!a.analog_jogging || std::fabs(vel - a.analog_sent) > 0.05 * speed) {
+        in_mode(ipc::TaskMode::Manual, cmd::jog_continuous(a.index, false, vel));
+        a.analog_jogging = true;
+        a.analog_sent = vel;
+      }
+    } else if (a.analog_jogging) {
+      send(cmd::jog_stop(a.index, false));
+      a.analog_jogging = false;
+    }
+  }
+
+  poll_override(feed_, s.motion.feed_scale, max_feed_override_, [](double v) { return cmd::feed_override(v); }, send);
+  poll_override(rapid_, s.motion.rapid_scale, 1.0, [](double v) { return cmd::rapid_override(v); }, send);
+  poll_override(spindle_override_, sp.override_scale, max_spindle_override_,
+                [](double v) { return cmd::spindle_override(v, 0); }, send);
+}
+
+void register_components(hal::ComponentRegistry& r) {
+  r.add("halui",
+        "halui: LinuxCNC's HAL user interface pins (machine, E-stop, modes, program, overrides, jog, home, "
+        "[HALUI]MDI_COMMAND); a non-realtime thread sends their commands",
+        [](hal::ComponentContext& ctx, const hal::LoadArgs& args) -> std::unique_ptr<hal::Component> {
+          return std::make_unique<Halui>(ctx, args);
+        });
+}
+
+}  // namespace cnc::halui

@@ -1,0 +1,113 @@
+// halui: LinuxCNC's HAL user interface as a component of the controller
+// (`loadrt halui`). Its pins live in cncd's HAL like any component's; a
+// non-realtime worker thread (never the servo thread) polls them every
+// 10 ms, turns edges into operator commands sent on a command channel of
+// its own (ipc::Client, the path `cnc` and the screen use) and writes the
+// status pins from the shared status block. docs/hal.md lists the pins.
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "core/hal/component.hpp"
+#include "core/ipc/command.hpp"
+#include "core/ipc/status.hpp"
+
+namespace cnc::halui {
+
+// One override (feed, rapid, spindle.0): LinuxCNC's pin set.
+struct OverridePins {
+  hal::BitPin increase, decrease, count_enable, direct_value, reset;
+  hal::S32Pin counts;
+  hal::FloatPin scale, value;
+  bool last_increase = false, last_decrease = false, last_reset = false, primed = false;
+  int32_t last_counts = 0;
+};
+
+struct AxisPins {
+  int index = 0;  // 0 = X .. 8 = W
+  hal::BitPin plus, minus, increment_plus, increment_minus;
+  hal::FloatPin increment, analog, pos_commanded, pos_feedback;
+  bool last_plus = false, last_minus = false, last_inc_plus = false, last_inc_minus = false;
+  bool analog_jogging = false;
+  double analog_sent = 0;
+};
+
+class Halui : public hal::Component {
+ public:
+  // Sends a command; false when it could not be queued (the reason is
+  // posted by the sender).
+  using Sender = std::function<bool(const ipc::Command&)>;
+
+  Halui(hal::ComponentContext& ctx, const hal::LoadArgs& args);
+  ~Halui() override;
+
+  void on_ready() override;
+  void on_shutdown() override;
+
+  // One poll: edges since the previous poll become commands through
+  // `send`, status pins are written from `status`. The worker calls it
+  // every 10 ms; tests call it directly.
+  void poll(const ipc::Status& status, const Sender& send);
+
+  const std::vector<std::string>& mdi_commands() const noexcept { return mdi_commands_; }
+
+ private:
+  struct Edge {
+    hal::BitPin pin;
+    bool last = false;
+    // TRUE when the pin rose since the last call.
+    bool rose() {
+      const bool now = pin.get();
+      const bool r = now && !last;
+      last = now;
+      return r;
+    }
+  };
+  Edge edge(const std::string& name);
+  void make_override(OverridePins& o, const std::string& prefix, double default_scale);
+  void poll_override(OverridePins& o, double current, double max, const std::function<ipc::Command(double)>& make,
+                     const Sender& send);
+  void run_worker();
+  void post_error(const std::string& text);
+
+  // Commands waiting for the mode halui asked for (MDI after mode MDI, a
+  // jog after mode manual): the task takes a command only in its mode, so
+  // each is sent once the status shows the mode, or dropped with an error
+  // after 2 s.
+  struct Deferred {
+    ipc::TaskMode mode;
+    ipc::Command command;
+    int polls_left;
+  };
+  std::vector<Deferred> deferred_;
+  // Commands sent and not yet Done or Rejected: rejections are posted as
+  // errors naming the pin's command (the operator sees why nothing moved).
+  std::vector<uint32_t> in_flight_;
+  MessageQueue* messages_ = nullptr;
+  std::vector<std::string> mdi_commands_;
+  double default_spindle_speed_ = 100;
+  double max_feed_override_ = 2.0, max_spindle_override_ = 2.0;
+
+  Edge machine_on_, machine_off_, estop_activate_, estop_reset_, mode_manual_, mode_auto_, mode_mdi_;
+  Edge program_run_, program_pause_, program_resume_, program_step_, program_stop_, home_all_;
+  Edge spindle_start_, spindle_stop_, spindle_forward_, spindle_reverse_;
+  std::vector<Edge> joint_home_, mdi_;
+  std::vector<hal::BitPin> joint_is_homed_;
+  hal::BitPin machine_is_on_, estop_is_activated_, mode_is_manual_, mode_is_auto_, mode_is_mdi_;
+  hal::BitPin program_is_idle_, program_is_running_, program_is_paused_, spindle_is_on_;
+  hal::FloatPin jog_speed_, jog_deadband_;
+  OverridePins feed_, rapid_, spindle_override_;
+  std::vector<AxisPins> axes_;
+
+  std::thread worker_;
+  std::atomic<bool> stop_{false};
+};
+
+void register_components(hal::ComponentRegistry& registry);
+
+}  // namespace cnc::halui
