@@ -1,0 +1,110 @@
+#include "commission/controller.hpp"
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <sys/wait.h>
+#include <thread>
+
+#include "commission/steps.hpp"
+
+namespace cnc::commission {
+
+namespace {
+std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+  return q + "'";
+}
+}  // namespace
+
+std::string Controller::run(const std::filesystem::path& program, const std::vector<std::string>& args) const {
+  std::string cmd = quote(program.string());
+  for (const auto& a : args) cmd += " " + quote(a);
+  cmd += " 2>&1";
+  FILE* p = ::popen(cmd.c_str(), "r");
+  if (!p) throw std::runtime_error("cannot run " + program.string());
+  std::string out;
+  std::array<char, 512> buf{};
+  while (std::fgets(buf.data(), buf.size(), p)) out += buf.data();
+  const int st = ::pclose(p);
+  if (!WIFEXITED(st) || WEXITSTATUS(st) != 0) {
+    std::string line = program.filename().string();
+    for (const auto& a : args) line += " " + a;
+    throw std::runtime_error(line + " failed: " + out);
+  }
+  return out;
+}
+
+std::string Controller::cnc(const std::vector<std::string>& args) const { return run(bin_ / "cnc", args); }
+
+double Controller::getp(const std::string& name) const {
+  const std::string out = run(bin_ / "halcmd", {"getp", name});
+  try {
+    return std::stod(out);
+  } catch (const std::exception&) {
+    throw std::runtime_error("halcmd getp " + name + ": not a number: " + out);
+  }
+}
+
+double Controller::motor_position(int joint) const {
+  const auto j = nlohmann::json::parse(cnc({"status", "--json"}));
+  return j.at("joints").at(joint).at("motor_pos_fb").get<double>();
+}
+
+bool Controller::estop_chain_ok() const {
+  const auto j = nlohmann::json::parse(cnc({"status", "--json"}));
+  return j.at("io").value("estop_chain_ok", false);
+}
+
+JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, double velocity) {
+  const double dist = std::copysign(std::min(std::fabs(distance_mm), kMaxTestTravel), distance_mm);
+  const double vel = std::min(std::fabs(velocity), kMaxTestVelocity);
+  if (!(std::fabs(dist) > 0) || !(vel > 0)) throw std::runtime_error("direction test: no travel or no speed given");
+  const std::string joint = std::to_string(a.joint);
+  c.cnc({"estop-reset"});
+  if (!c.estop_chain_ok())
+    throw std::runtime_error(std::string("axis ") + a.letter + ": the E-stop chain is open: close it before a test move");
+  c.cnc({"on"});
+  c.cnc({"mode", "manual"});
+  JogResult r;
+  r.commanded_mm = dist;
+  const double before = c.motor_position(a.joint);
+  const auto limit = std::chrono::duration<double>(2 * std::fabs(dist) / vel + 3.0);
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    c.cnc({"jog", joint, std::to_string(vel), std::to_string(dist)});
+    double last = before;
+    int still = 0;
+    for (;;) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      const double now = c.motor_position(a.joint);
+      if (std::fabs(now - before - dist) < 0.001 && std::fabs(now - last) < 1e-5) {
+        if (++still >= 3) break;
+      } else {
+        still = 0;
+      }
+      last = now;
+      if (std::chrono::steady_clock::now() - start > limit) {
+        c.cnc({"jog-stop", joint});
+        throw std::runtime_error(std::string("axis ") + a.letter + ": the test move did not end within " +
+                                 std::to_string(limit.count()) + " s (moved " + std::to_string(now - before) +
+                                 " mm of " + std::to_string(dist) + "): stopped");
+      }
+    }
+    r.feedback_mm = c.motor_position(a.joint) - before;
+  } catch (...) {
+    try {
+      c.cnc({"off"});
+    } catch (...) {
+    }
+    throw;
+  }
+  c.cnc({"off"});
+  return r;
+}
+
+}  // namespace cnc::commission

@@ -1,0 +1,47 @@
+// The running controller as the commissioning steps see it: the `cnc` and
+// `halcmd` programs of the same build (bin_dir) on the instance of the
+// environment (CNC_INSTANCE), i.e. the shared segment and the halcmd
+// socket. Motions of commissioning go through here, each limited in
+// travel, speed and time; whatever happens, the machine is switched off
+// (drives disabled) at the end, and a failure says why. Non-realtime.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "commission/state.hpp"
+
+namespace cnc::commission {
+
+class Controller {
+ public:
+  explicit Controller(std::filesystem::path bin_dir) : bin_(std::move(bin_dir)) {}
+  // Runs `cnc <args>`; its standard output. Throws std::runtime_error with
+  // the command and its output when it fails.
+  std::string cnc(const std::vector<std::string>& args) const;
+  // `halcmd getp <name>` as a number.
+  double getp(const std::string& name) const;
+  // A joint's motor position feedback (machine units) from the status.
+  double motor_position(int joint) const;
+  bool estop_chain_ok() const;
+
+ private:
+  std::string run(const std::filesystem::path& program, const std::vector<std::string>& args) const;
+  std::filesystem::path bin_;
+};
+
+struct JogResult {
+  double commanded_mm = 0;
+  double feedback_mm = 0;   // motor feedback after - before
+};
+
+// The direction test's motion: joint `a.joint` jogs `distance_mm` (at most
+// kMaxTestTravel, sign = direction) at `velocity` (at most
+// kMaxTestVelocity) in free (joint) mode, switched on for the move and off
+// afterwards, stopped after a time limit (twice the travel time + 3 s).
+// Refuses when the E-stop chain is open. Throws std::runtime_error saying
+// why it stopped.
+JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, double velocity);
+
+}  // namespace cnc::commission
