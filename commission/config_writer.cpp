@@ -39,6 +39,10 @@ std::vector<std::string> lines_of(const std::string& t) {
 
 }  // namespace
 
+long servo_period_ns(std::size_t drives) noexcept {
+  return static_cast<long>(1'000'000 * std::max<std::size_t>(1, (drives + 1) / 2));
+}
+
 std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem::path& dir, const std::string& name) {
   std::vector<const Axis*> axes;
   for (const Axis& a : s.axes)
@@ -75,7 +79,9 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
       << "[DISPLAY]\nTITLE = " << s.machine << "\nPROGRAM_PREFIX = nc_files\n\n"
       << "[TASK]\nTASK = milltask\nCYCLE_TIME = 0.001\n\n"
       << "[RS274NGC]\nPARAMETER_FILE = " << name << ".var\n\n"
-      << "[EMCMOT]\nEMCMOT = motmod\nSERVO_PERIOD = 1000000\nCOMM_TIMEOUT = 1.0\n\n"
+      << "[EMCMOT]\nEMCMOT = motmod\n"
+      << "# Two axis drives per millisecond fit one 1 Mbit/s bus (cnc-canopen load prints the plan).\n"
+      << "SERVO_PERIOD = " << servo_period_ns(axes.size()) << "\nCOMM_TIMEOUT = 1.0\n\n"
       << "[HAL]\nHALFILE = " << name << ".hal\n\n"
       << "[TRAJ]\nCOORDINATES = " << coords << "\nLINEAR_UNITS = mm\nANGULAR_UNITS = degree\n"
       << "MAX_LINEAR_VELOCITY = " << num(max_v) << "\nMAX_LINEAR_ACCELERATION = " << num(max_a) << "\n\n"

@@ -26,6 +26,11 @@ struct GeneratedFile {
 // axis, an axis without scaling), naming what is missing.
 std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem::path& dir, const std::string& name);
 
+// The servo period the written configuration runs at: 1 ms per two axis
+// drives on the one bus (their PDOs at 1 Mbit/s stay inside the bus-load
+// budget of the CANopen master's plan).
+long servo_period_ns(std::size_t drives) noexcept;
+
 // A line difference of `old_text` and `new_text` ("-" removed, "+" added,
 // unchanged lines left out), headed by the file name; "" when equal.
 std::string diff_text(const std::string& file, const std::string& old_text, const std::string& new_text);
