@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -42,19 +43,41 @@ const char* kHelp =
     "  axis L limits --min MM --max MM [--velocity MM/S] [--acceleration MM/S2]\n"
     "      soft limits and the axis' speed and acceleration\n"
     "  axis L direction-test [--distance MM] [--velocity MM/S] [--dial MM] [--bin DIR]\n"
+    "                        [--bring-up DIR]\n"
     "      jog the axis on the running controller (at most 20 mm at 5 mm/s, time-\n"
-    "      limited, switched off afterwards) and compare the drive's feedback\n"
+    "      limited, switched off afterwards) and compare the drive's feedback;\n"
+    "      --bring-up writes the configuration of the state to DIR and runs the\n"
+    "      test on a controller of its own, shut down afterwards\n"
     "  axis L dial MM\n"
     "      the dial indicator's reading of the last test: flips REVERSE, corrects scale\n"
     "  axis L enable|disable\n"
     "      keep the axis in, or leave it out of, the written configuration\n"
     "  include [--ini FILE] [--hal-before-bus FILE] [--hal-after-bus FILE]\n"
     "      files the written configuration keeps (site I/O, a simulated machine)\n"
+    "  bring-up --dir DIR [--name NAME] [--log FILE]\n"
+    "      write the configuration of the state (as write --yes) and start cncd on\n"
+    "      it in the background, waiting until it answers\n"
+    "  shutdown\n"
+    "      stop the running controller (cnc shutdown)\n"
     "  write --dir DIR [--name NAME] [--yes] [--cncd PATH]\n"
     "      generate INI and HAL, show the difference; with --yes write them\n"
     "      (old ones kept as .bak) and check them with cncd --check --strict\n"
     "\n"
     "exit status: 0 done, 1 the step found a problem (nothing written), 2 usage\n";
+
+[[noreturn]] void usage(const std::string& why);
+
+// Writes the state's configuration to `dir` and starts cncd on it.
+std::unique_ptr<ControllerProcess> bring_up_controller(const State& s, const std::filesystem::path& bin,
+                                                       const std::filesystem::path& dir, const std::string& name,
+                                                       const std::filesystem::path& log) {
+  std::filesystem::create_directories(dir);
+  write_config(generate_config(s, dir, name));
+  std::string out;
+  if (check_config(bin / "cncd", dir / (name + ".ini"), out) != 0)
+    throw std::runtime_error("the configuration written to " + dir.string() + " does not pass cncd --check --strict:\n" + out);
+  return std::make_unique<ControllerProcess>(bin, dir / (name + ".ini"), log);
+}
 
 [[noreturn]] void usage(const std::string& why) {
   std::fprintf(stderr, "cnc-commission: %s\n(cnc-commission --help for the commands)\n", why.c_str());
@@ -183,7 +206,7 @@ int cmd_axis(State& s, Args& a) {
   } else if (step == "direction-test") {
     double distance = 5, velocity = 2, dial = 0;
     bool has_dial = false;
-    std::filesystem::path bin = self_dir();
+    std::filesystem::path bin = self_dir(), bring_up;
     while (a.more()) {
       const std::string k = a.next("option");
       if (k == "--distance") distance = number(a.next("mm"), "--distance");
@@ -192,11 +215,15 @@ int cmd_axis(State& s, Args& a) {
         dial = number(a.next("mm"), "--dial");
         has_dial = true;
       } else if (k == "--bin") bin = a.next("folder");
+      else if (k == "--bring-up") bring_up = a.next("folder");
       else usage("direction-test: unknown option " + k);
     }
     Axis* ax = s.axis(letter);
     if (!ax) usage(std::string("axis ") + letter + " has no drive yet");
+    std::unique_ptr<ControllerProcess> own;
+    if (!bring_up.empty()) own = bring_up_controller(s, bin, bring_up, "commission", bring_up / "cncd.log");
     const JogResult r = direction_jog(Controller(bin), *ax, distance, velocity);
+    if (own && own->stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
     std::cout << "axis " << letter << ": commanded " << r.commanded_mm << " mm, drive feedback " << r.feedback_mm
               << " mm; the machine is off again\n";
     std::cout << apply_direction_test(s, letter, r.commanded_mm, r.feedback_mm, dial, has_dial).verdict << "\n";
@@ -215,6 +242,26 @@ int cmd_axis(State& s, Args& a) {
   } else {
     usage("axis: unknown step " + step);
   }
+  return 0;
+}
+
+int cmd_bring_up(State& s, Args& a) {
+  std::filesystem::path dir, log;
+  std::string name = "commission";
+  while (a.more()) {
+    const std::string k = a.next("option");
+    if (k == "--dir") dir = a.next("folder");
+    else if (k == "--name") name = a.next("name");
+    else if (k == "--log") log = a.next("file");
+    else usage("bring-up: unknown option " + k);
+  }
+  if (dir.empty()) usage("bring-up: --dir DIR");
+  if (log.empty()) log = dir / "cncd.log";
+  auto c = bring_up_controller(s, self_dir(), dir, name, log);
+  std::cout << "cncd runs on " << (dir / (name + ".ini")).string() << " (process " << c->pid() << ", log "
+            << log.string() << "); cnc-commission shutdown stops it\n";
+  c->detach();
+  s.log.push_back("controller brought up on " + (dir / (name + ".ini")).string());
   return 0;
 }
 
@@ -295,6 +342,11 @@ int main(int argc, char** argv) {
         else usage("include: unknown option " + k);
       }
     } else if (cmd == "write") rc = cmd_write(s, a);
+    else if (cmd == "bring-up") rc = cmd_bring_up(s, a);
+    else if (cmd == "shutdown") {
+      Controller(self_dir()).cnc({"shutdown"});
+      return 0;
+    }
     else usage("unknown command " + cmd);
     save_state(s, state_file);
     return rc;

@@ -6,10 +6,16 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
+#include <csignal>
+#include <fstream>
+#include <spawn.h>
+#include <sstream>
 #include <sys/wait.h>
 #include <thread>
 
 #include "commission/steps.hpp"
+
+extern char** environ;
 
 namespace cnc::commission {
 
@@ -58,6 +64,54 @@ double Controller::motor_position(int joint) const {
 bool Controller::estop_chain_ok() const {
   const auto j = nlohmann::json::parse(cnc({"status", "--json"}));
   return j.at("io").value("estop_chain_ok", false);
+}
+
+ControllerProcess::ControllerProcess(const std::filesystem::path& bin_dir, const std::filesystem::path& ini,
+                                     const std::filesystem::path& log)
+    : bin_(bin_dir) {
+  const std::string cmd = "exec " + quote((bin_dir / "cncd").string()) + " " + quote(ini.string()) + " > " +
+                          quote(log.string()) + " 2>&1";
+  const char* argv[] = {"/bin/sh", "-c", cmd.c_str(), nullptr};
+  pid_t pid = -1;
+  if (posix_spawn(&pid, "/bin/sh", nullptr, nullptr, const_cast<char**>(argv), environ) != 0)
+    throw std::runtime_error("cannot start " + (bin_dir / "cncd").string());
+  pid_ = pid;
+  try {
+    Controller(bin_dir).cnc({"--timeout", "30", "wait-ready"});
+  } catch (const std::exception&) {
+    stop();
+    std::ifstream in(log);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    std::string text = ss.str();
+    if (text.size() > 2000) text = "..." + text.substr(text.size() - 2000);
+    throw std::runtime_error("cncd on " + ini.string() + " did not come up:\n" + text);
+  }
+}
+
+ControllerProcess::~ControllerProcess() {
+  if (pid_ > 0) stop();
+}
+
+int ControllerProcess::stop() {
+  if (pid_ <= 0) return -1;
+  try {
+    Controller(bin_).cnc({"shutdown"});
+  } catch (const std::exception&) {
+    // Not answering: the signal below stops it.
+  }
+  int status = 0;
+  for (int i = 0; i < 100; ++i) {
+    if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+      pid_ = -1;
+      return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ::kill(pid_, SIGTERM);
+  ::waitpid(pid_, &status, 0);
+  pid_ = -1;
+  return -1;
 }
 
 JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, double velocity) {

@@ -31,6 +31,29 @@ class Controller {
   std::filesystem::path bin_;
 };
 
+// A controller this program brought up itself: `cncd` on `ini` (its
+// output to `log`), on the instance of the environment, waited for until
+// it answers (at most 30 s; else it is stopped and the constructor throws
+// with the end of its log). The destructor shuts it down unless detached.
+class ControllerProcess {
+ public:
+  ControllerProcess(const std::filesystem::path& bin_dir, const std::filesystem::path& ini,
+                    const std::filesystem::path& log);
+  ~ControllerProcess();
+  ControllerProcess(const ControllerProcess&) = delete;
+  ControllerProcess& operator=(const ControllerProcess&) = delete;
+  // `cnc shutdown`, then waits (10 s, then SIGTERM); cncd's exit status,
+  // or -1 when it had to be killed.
+  int stop();
+  // Leaves it running after this object (a command-line bring-up).
+  void detach() noexcept { pid_ = -1; }
+  int pid() const noexcept { return pid_; }
+
+ private:
+  std::filesystem::path bin_;
+  int pid_ = -1;
+};
+
 struct JogResult {
   double commanded_mm = 0;
   double feedback_mm = 0;   // motor feedback after - before

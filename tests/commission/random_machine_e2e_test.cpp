@@ -10,12 +10,9 @@
 
 #include <chrono>
 #include <cmath>
-#include <csignal>
 #include <cstdlib>
 #include <fstream>
 #include <random>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <thread>
 #include <nlohmann/json.hpp>
 
@@ -30,8 +27,6 @@
 #include "sim/cia402/sim_host.hpp"
 #include "tests/support/testing.hpp"
 
-extern char** environ;
-
 namespace cnc::commission {
 namespace {
 
@@ -41,37 +36,6 @@ void write(const std::filesystem::path& p, const std::string& s) {
   std::ofstream out(p);
   out << s;
 }
-
-// cncd as a child process; stopped (shutdown, then SIGTERM) at the end.
-class Daemon {
- public:
-  Daemon(const std::filesystem::path& ini, const std::filesystem::path& log) {
-    const std::string cncd = (testing::binary_dir() / "bin/cncd").string();
-    const std::string cmd = "exec '" + cncd + "' '" + ini.string() + "' > '" + log.string() + "' 2>&1";
-    const char* argv[] = {"/bin/sh", "-c", cmd.c_str(), nullptr};
-    if (posix_spawn(&pid_, "/bin/sh", nullptr, nullptr, const_cast<char**>(argv), environ) != 0) pid_ = -1;
-  }
-  ~Daemon() { stop(); }
-  int stop() {
-    if (pid_ <= 0) return -1;
-    (void)testing::run_shell("'" + (testing::binary_dir() / "bin/cnc").string() + "' shutdown");
-    int status = 0;
-    for (int i = 0; i < 100; ++i) {
-      if (waitpid(pid_, &status, WNOHANG) == pid_) {
-        pid_ = -1;
-        return status;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    kill(pid_, SIGTERM);
-    waitpid(pid_, &status, 0);
-    pid_ = -1;
-    return -1;
-  }
-
- private:
-  pid_t pid_ = -1;
-};
 
 std::string cnc_cmd(const std::string& args) { return "'" + (testing::binary_dir() / "bin/cnc").string() + "' " + args; }
 
@@ -142,8 +106,7 @@ TEST(CommissionRandomMachine, DiscoversDirectionAndScalingAndRunsTheDemoProgram)
     write_config(generate_config(s, dir.path(), "machine"));
     std::string out;
     ASSERT_EQ(check_config(bin / "cncd", dir / "machine.ini", out), 0) << out;
-    Daemon d(dir / "machine.ini", dir / ("cncd-" + std::to_string(round) + ".log"));
-    ASSERT_EQ(testing::run_shell(cnc_cmd("--timeout 30 wait-ready")).code, 0) << log_of(dir / "cncd-0.log");
+    ControllerProcess d(bin, dir / "machine.ini", dir / ("cncd-" + std::to_string(round) + ".log"));
     for (int j = 0; j < 3; ++j) {
       char pin[64];
       std::snprintf(pin, sizeof pin, "cia402-sim.0.node.%02d.table-position", j + 1);
@@ -183,7 +146,7 @@ TEST(CommissionRandomMachine, DiscoversDirectionAndScalingAndRunsTheDemoProgram)
   write_config(generate_config(s, dir.path(), "machine"));
   std::string out;
   ASSERT_EQ(check_config(bin / "cncd", dir / "machine.ini", out), 0) << out;
-  Daemon d(dir / "machine.ini", dir / "cncd-final.log");
+  ControllerProcess d(bin, dir / "machine.ini", dir / "cncd-final.log");
   auto must = [&](const std::string& args, int timeout_s = 30) {
     const auto r = testing::run_shell(cnc_cmd("--timeout " + std::to_string(timeout_s) + " " + args));
     ASSERT_EQ(r.code, 0) << "cnc " << args << ": " << r.text << "\n" << log_of(dir / "cncd-final.log");
