@@ -45,16 +45,15 @@ long servo_period_ns(std::size_t drives) noexcept {
 
 std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem::path& dir, const std::string& name) {
   std::vector<const Axis*> axes;
-  for (const Axis& a : s.axes)
-    if (a.enabled) axes.push_back(&a);
-  if (axes.empty()) throw std::invalid_argument("no enabled axis: assign a drive to an axis first");
+  for (const Axis& a : s.axes) axes.push_back(&a);
+  if (axes.empty()) throw std::invalid_argument("no axis: assign a drive to an axis first");
   std::sort(axes.begin(), axes.end(), [](const Axis* a, const Axis* b) { return a->joint < b->joint; });
   for (std::size_t i = 0; i < axes.size(); ++i) {
     const Axis& a = *axes[i];
     if (a.joint != static_cast<int>(i))
       throw std::invalid_argument(std::string("axis ") + a.letter + " is on joint " + std::to_string(a.joint) +
-                                  ": the enabled axes must use joints 0.." + std::to_string(axes.size() - 1));
-    if (!(a.scaling.counts_per_mm() > 0))
+                                  ": the axes must use joints 0.." + std::to_string(axes.size() - 1));
+    if (a.enabled && !(a.scaling.counts_per_mm() > 0))
       throw std::invalid_argument(std::string("axis ") + a.letter + " has no scaling yet: run its scaling step");
   }
   if (s.interface.empty()) throw std::invalid_argument("no CAN interface in the state: run the bus scan first");
@@ -110,6 +109,7 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
     ini << "[CANOPEN_NODE_" << a->node << "]\nNAME = " << static_cast<char>(std::tolower(a->letter)) << "-axis\n";
     if (n && !n->eds.empty() && !s.eds_dir.empty())
       ini << "# " << (std::filesystem::path(s.eds_dir) / n->eds).string() << " describes this drive\n";
+    if (!a->enabled) ini << "# Disabled for commissioning: it may be missing.\nMANDATORY = NO\n";
     ini << "HEARTBEAT_MS = 100\nHEARTBEAT_TIMEOUT_MS = 3000\nMASTER_HEARTBEAT_TIMEOUT_MS = 2000\n"
            "RPDO1 = 0x6040:0:u16 0x607A:0:s32\nTPDO1 = 0x6041:0:u16 0x6064:0:s32\n"
            "TPDO2 = 0x6061:0:s8 0x60FD:0:u32 0x603F:0:u16\nTPDO2_TRANSMISSION = 255\n"
@@ -118,7 +118,13 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
   ini << "[CIA402]\nBUS = canopen.0\nDRIVE = " << drives << "\nWATCHDOG_CYCLES = 5\nSTALE_LIMIT = 50\n\n";
   for (std::size_t i = 0; i < axes.size(); ++i) {
     const Axis& a = *axes[i];
-    const AxisScaling& sc = a.scaling;
+    AxisScaling sc = a.scaling;
+    if (!(sc.counts_per_mm() > 0)) {  // a disabled axis not scaled yet: any scaling will do
+      sc.encoder_counts = 1000;
+      sc.screw_lead = 1;
+      sc.correction = 1;
+      sc.source = "not scaled yet";
+    }
     // The measured correction is folded into the lead: counts per mm =
     // ENCODER_COUNTS x GEAR_MOTOR_REVS / GEAR_LOAD_REVS / SCREW_LEAD.
     ini << "[CIA402_DRIVE_" << i << "]\n# " << sc.source << "; " << num(sc.counts_per_mm()) << " counts/mm";
@@ -127,7 +133,7 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
         << a.joint << "\nENCODER_COUNTS = " << num(sc.encoder_counts) << "\nGEAR_MOTOR_REVS = "
         << num(sc.gear_motor_revs) << "\nGEAR_LOAD_REVS = " << num(sc.gear_load_revs)
         << "\nSCREW_LEAD = " << num(sc.screw_lead / sc.correction) << "\nREVERSE = " << (sc.reverse ? "YES" : "NO")
-        << "\nPROBE = NO\nFERROR_WINDOW = 1\nFERROR_TIMEOUT_MS = 20\nQUICK_STOP_DECEL = "
+        << "\nPROBE = NO\n" << (a.enabled ? "" : "DISABLED = YES\n") << "FERROR_WINDOW = 1\nFERROR_TIMEOUT_MS = 20\nQUICK_STOP_DECEL = "
         << num(a.max_acceleration * 2) << "\n\n";
   }
   for (const auto& inc : s.ini_includes) ini << "#INCLUDE " << inc << "\n";

@@ -3,8 +3,10 @@
 // drives with their scaling and direction, joints and axes, the I/O
 // controller), shown as a difference against the files there, then written
 // atomically with the old ones kept as <file>.bak, and checked by
-// `cncd --check --strict`. Only enabled axes are written: a machine can be
-// brought up one axis at a time. Non-realtime.
+// `cncd --check --strict`. A disabled axis (Axis::enabled false) is written
+// with its drive DISABLED (the joint follows its command, nothing moves)
+// and its node optional (MANDATORY = NO): a machine can be brought up one
+// axis at a time. Non-realtime.
 #pragma once
 
 #include <filesystem>

@@ -170,3 +170,52 @@ TEST(CommissionRandomMachine, DiscoversDirectionAndScalingAndRunsTheDemoProgram)
 
 }  // namespace
 }  // namespace cnc::commission
+
+namespace cnc::commission {
+namespace {
+
+// Bring-up of part of a machine: Z's drive is disabled in the configuration
+// and missing from the bus; the controller starts, says so, and X moves.
+TEST(CommissionPartialMachine, StartsWithADisabledDriveMissingFromTheBusAndSaysSo) {
+  const auto bin = testing::binary_dir() / "bin";
+  if (!std::filesystem::exists(bin / "cncd") || !std::filesystem::exists(bin / "cnc"))
+    GTEST_SKIP() << "cncd and cnc are not built";
+  testing::TempDir dir;
+  const csim::RandomMachine m = csim::make_random_machine(11, {1}, "virtual:" + testing::unique_name("partial"));
+  write(dir / "sim-machine.ini", csim::sim_ini(m));
+  write(dir / "sim-machine.hal", csim::sim_hal_load());
+  write(dir / "sim-machine-run.hal", csim::sim_hal_run());
+  State s;
+  s.interface = m.interface;
+  for (int id : {1, 2}) {
+    ScannedNode n;
+    n.node_id = id;
+    n.cia402 = true;
+    n.encoder_increments = static_cast<uint32_t>(m.axes[0].encoder_counts);
+    s.nodes.push_back(n);
+  }
+  assign_axis(s, 'X', 0, 1);
+  set_scaling(s, 'X', 5.0);
+  assign_axis(s, 'Z', 1, 2);
+  s.axis('Z')->enabled = false;  // its drive is not wired yet
+  s.ini_includes = {"sim-machine.ini"};
+  s.hal_before_bus = {"sim-machine.hal"};
+  s.hal_after_bus = {"sim-machine-run.hal"};
+  write_config(generate_config(s, dir.path(), "partial"));
+  std::string out;
+  ASSERT_EQ(check_config(bin / "cncd", dir / "partial.ini", out), 0) << out;
+
+  setenv("CNC_INSTANCE", testing::unique_name("partial").c_str(), 1);
+  setenv("CNC_NO_REALTIME", "1", 1);
+  const Controller ctl(bin);
+  ControllerProcess d(bin, dir / "partial.ini", dir / "cncd.log");
+  EXPECT_NE(log_of(dir / "cncd.log").find("DISABLED for commissioning"), std::string::npos) << log_of(dir / "cncd.log");
+  const JogResult x = direction_jog(ctl, *s.axis('X'), 2.0, 2.0);
+  EXPECT_NEAR(x.feedback_mm, 2.0, 0.01);
+  const JogResult z = direction_jog(ctl, *s.axis('Z'), 2.0, 2.0);  // follows its command, moves nothing
+  EXPECT_NEAR(z.feedback_mm, 2.0, 1e-9);
+  EXPECT_EQ(d.stop(), 0) << log_of(dir / "cncd.log");
+}
+
+}  // namespace
+}  // namespace cnc::commission

@@ -50,14 +50,18 @@ TEST(CommissionWriter, GeneratesDrivesWithTheMeasuredScalingAndDirection) {
   EXPECT_NE(files[1].content.find("net z-pos-fb cia402.0.drive.01.pos-fb => joint.1.motor-pos-fb"), std::string::npos);
 }
 
-TEST(CommissionWriter, LeavesDisabledAxesOutAndRefusesGapsInTheJoints) {
+TEST(CommissionWriter, WritesDisabledAxesAsDisabledOptionalDrivesAndRefusesGapsInTheJoints) {
   State s = machine();
   s.axis('Z')->enabled = false;
   testing::TempDir dir;
   const auto files = generate_config(s, dir.path(), "m");
-  EXPECT_EQ(files[0].content.find("[CIA402_DRIVE_1]"), std::string::npos);
-  s.axis('Z')->enabled = true;
-  s.axis('X')->enabled = false;  // Z alone on joint 1: no joint 0
+  const std::string& ini = files[0].content;
+  const auto z = ini.find("[CIA402_DRIVE_1]");
+  ASSERT_NE(z, std::string::npos);
+  EXPECT_NE(ini.find("DISABLED = YES", z), std::string::npos) << ini;
+  EXPECT_EQ(ini.find("DISABLED = YES"), ini.find("DISABLED = YES", z)) << "X is not disabled";
+  EXPECT_NE(ini.find("MANDATORY = NO", ini.find("[CANOPEN_NODE_2]")), std::string::npos);
+  s.axes.erase(s.axes.begin());  // Z alone on joint 1: no joint 0
   EXPECT_THROW(generate_config(s, dir.path(), "m"), std::invalid_argument);
 }
 
