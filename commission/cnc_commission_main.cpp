@@ -34,6 +34,9 @@ const char* kHelp =
     "       [--first ID] [--last ID] [--timeout-ms MS]\n"
     "      scan the CANopen bus (socketcan:can0): identity, name, firmware, CiA 402\n"
     "      modes, faults, encoder and gear objects; match each node with an EDS\n"
+    "  scan-ethercat --interface raw:IF [--esi-dir DIR]\n"
+    "      scan the EtherCAT segment: each slave's SII identity, CoE, DC; match each\n"
+    "      with an ESI file\n"
     "  show\n"
     "      print the state: nodes, axes, scaling, tests\n"
     "  axis L assign --node ID [--joint J] [--gantry-with L2]\n"
@@ -141,9 +144,30 @@ int cmd_scan(State& s, Args& a) {
   return r.ok() ? 0 : 1;
 }
 
+int cmd_scan_ethercat(State& s, Args& a) {
+  std::string spec;
+  while (a.more()) {
+    const std::string k = a.next("option");
+    if (k == "--interface") spec = a.next("interface");
+    else if (k == "--esi-dir") s.esi_dir = a.next("folder");
+    else usage("scan-ethercat: unknown option " + k);
+  }
+  if (spec.empty()) spec = s.ethercat_interface;
+  if (spec.empty()) usage("scan-ethercat: --interface SPEC (e.g. raw:eth0)");
+  const EthercatScanResult r = scan_ethercat(spec, s.esi_dir);
+  for (const auto& n : r.slaves) std::cout << describe(n) << "\n";
+  for (const auto& p : r.problems) std::cout << "problem: " << p << "\n";
+  std::cout << r.slaves.size() << " slave(s) on " << spec << (r.ok() ? ", no problems\n" : ", problems above\n");
+  s.ethercat_interface = spec;
+  s.slaves = r.slaves;
+  s.log.push_back("scan-ethercat " + spec + ": " + std::to_string(r.slaves.size()) + " slave(s)");
+  return r.ok() ? 0 : 1;
+}
+
 void show(const State& s) {
   std::cout << "machine: " << s.machine << "\nbus: " << (s.interface.empty() ? "(not scanned)" : s.interface) << "\n";
   for (const auto& n : s.nodes) std::cout << describe(n) << "\n";
+  for (const auto& n : s.slaves) std::cout << describe(n) << "\n";
   for (const auto& a : s.axes) {
     std::cout << "axis " << a.letter << ": joint " << a.joint << ", node " << a.node << (a.enabled ? "" : ", disabled");
     if (a.scaling.counts_per_mm() > 0)
@@ -329,6 +353,7 @@ int main(int argc, char** argv) {
     State s = load_state(state_file);
     int rc = 0;
     if (cmd == "scan") rc = cmd_scan(s, a);
+    else if (cmd == "scan-ethercat") rc = cmd_scan_ethercat(s, a);
     else if (cmd == "show") {
       show(s);
       return 0;

@@ -7,6 +7,8 @@
 #include <memory>
 
 #include "fieldbus/canopen/eds.hpp"
+#include "fieldbus/ethercat/esi.hpp"
+#include "fieldbus/ethercat/master.hpp"
 #include "fieldbus/canopen/sdo_client.hpp"
 
 namespace cnc::commission {
@@ -253,6 +255,83 @@ ScanResult scan_canopen(can::Transport& bus, const ScanOptions& o) {
                            "its node-ID");
   }
   return r;
+}
+
+bool EthercatScanResult::ok() const noexcept {
+  if (!problems.empty()) return false;
+  for (const auto& s : slaves)
+    if (!s.problems.empty()) return false;
+  return true;
+}
+
+EthercatScanResult scan_ethercat(const std::string& interface, const std::filesystem::path& esi_dir) {
+  EthercatScanResult r;
+  std::vector<ethercat::EsiFile> esis;
+  if (!esi_dir.empty()) {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(esi_dir, ec)) {
+      r.problems.push_back(esi_dir.string() + ": not a folder of ESI files");
+    } else {
+      std::vector<std::filesystem::path> files;
+      for (const auto& e : std::filesystem::directory_iterator(esi_dir, ec))
+        if (e.path().extension() == ".xml") files.push_back(e.path());
+      std::sort(files.begin(), files.end());
+      for (const auto& f : files) {
+        try {
+          esis.push_back(ethercat::load_esi(f));
+        } catch (const std::exception& e) {
+          r.problems.push_back(e.what());
+        }
+      }
+    }
+  }
+  ethercat::MasterConfig cfg;
+  cfg.interface = interface;
+  try {
+    ethercat::Master m(cfg, nullptr);
+    m.scan();
+    for (const ethercat::SlaveInfo& s : m.slaves()) {
+      ScannedSlave n;
+      n.position = s.position;
+      n.vendor_id = s.sii.vendor_id;
+      n.product_code = s.sii.product_code;
+      n.revision = s.sii.revision;
+      n.serial = s.sii.serial;
+      n.name = s.sii.name;
+      n.order = s.sii.order;
+      n.coe = s.sii.has_coe();
+      n.dc = s.has_dc;
+      if (!s.sii.checksum_ok)
+        n.problems.push_back("its SII (EEPROM) checksum is wrong: the identity read may be wrong; ask the maker");
+      if (!esi_dir.empty()) {
+        for (const auto& f : esis) {
+          if (f.vendor_id == n.vendor_id && f.find(n.product_code, n.revision)) {
+            n.esi = std::filesystem::path(f.path).filename().string();
+            break;
+          }
+        }
+        if (n.esi.empty())
+          n.problems.push_back("no ESI file in " + esi_dir.string() + " for vendor " + hex32(n.vendor_id) +
+                               " product " + hex32(n.product_code) + ": get it from the device's maker and put it there");
+      }
+      r.slaves.push_back(n);
+    }
+    m.stop();
+  } catch (const std::exception& e) {
+    r.problems.push_back(interface + ": " + e.what());
+  }
+  return r;
+}
+
+std::string describe(const ScannedSlave& n) {
+  std::string s = "slave " + std::to_string(n.position) + ": " + (n.name.empty() ? "(no name)" : n.name);
+  s += ", vendor " + hex32(n.vendor_id) + " product " + hex32(n.product_code) + " revision " + hex32(n.revision);
+  if (!n.order.empty()) s += ", order " + n.order;
+  s += n.coe ? ", CoE" : ", no mailbox";
+  if (n.dc) s += ", DC";
+  s += n.esi.empty() ? ", no ESI" : ", ESI " + n.esi;
+  for (const auto& p : n.problems) s += "\n  problem: " + p;
+  return s;
 }
 
 std::string describe(const ScannedNode& n) {

@@ -49,6 +49,18 @@ const EdsInfo* match_eds(const std::vector<EdsInfo>& lib, uint32_t vendor, uint3
 
 ScanResult scan_canopen(can::Transport& bus, const ScanOptions& options);
 
+// The EtherCAT segment on `interface` ("raw:eth0"; the simulators'
+// "sim:<segment>"): every slave's SII identity, name, CoE and DC, matched
+// with an ESI file of `esi_dir` by vendor and product code ("" : no
+// matching). A segment that does not answer is a bus-wide problem.
+struct EthercatScanResult {
+  std::vector<ScannedSlave> slaves;
+  std::vector<std::string> problems;
+  bool ok() const noexcept;
+};
+EthercatScanResult scan_ethercat(const std::string& interface, const std::filesystem::path& esi_dir);
+std::string describe(const ScannedSlave& s);
+
 // One line per node and problem, for people ("node 1: cnc simulated servo
 // drive, vendor 0x00000CC1 product 0x00000402 ... CiA 402 (CSP CSV CST HM), EDS servo.eds").
 std::string describe(const ScannedNode& n);

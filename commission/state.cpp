@@ -86,6 +86,28 @@ ScannedNode node_from(const json& j) {
   return n;
 }
 
+json slave_json(const ScannedSlave& n) {
+  return {{"position", n.position}, {"vendor_id", n.vendor_id}, {"product_code", n.product_code},
+          {"revision", n.revision}, {"serial", n.serial}, {"name", n.name}, {"order", n.order},
+          {"coe", n.coe}, {"dc", n.dc}, {"esi", n.esi}, {"problems", n.problems}};
+}
+
+ScannedSlave slave_from(const json& j) {
+  ScannedSlave n;
+  get(j, "position", n.position);
+  get(j, "vendor_id", n.vendor_id);
+  get(j, "product_code", n.product_code);
+  get(j, "revision", n.revision);
+  get(j, "serial", n.serial);
+  get(j, "name", n.name);
+  get(j, "order", n.order);
+  get(j, "coe", n.coe);
+  get(j, "dc", n.dc);
+  get(j, "esi", n.esi);
+  get(j, "problems", n.problems);
+  return n;
+}
+
 json axis_json(const Axis& a) {
   json j = {{"letter", std::string(1, a.letter)}, {"joint", a.joint}, {"node", a.node},
             {"gantry_with", a.gantry_with}, {"min_limit", a.min_limit}, {"max_limit", a.max_limit},
@@ -153,6 +175,10 @@ std::string to_json_text(const State& s) {
   j["eds_dir"] = s.eds_dir;
   j["nodes"] = json::array();
   for (const auto& n : s.nodes) j["nodes"].push_back(node_json(n));
+  j["ethercat_interface"] = s.ethercat_interface;
+  j["esi_dir"] = s.esi_dir;
+  j["slaves"] = json::array();
+  for (const auto& n : s.slaves) j["slaves"].push_back(slave_json(n));
   j["axes"] = json::array();
   for (const auto& a : s.axes) j["axes"].push_back(axis_json(a));
   j["ini_includes"] = s.ini_includes;
@@ -181,6 +207,10 @@ State from_json_text(const std::string& text, const std::string& origin) {
     get(j, "eds_dir", s.eds_dir);
     if (j.contains("nodes"))
       for (const json& n : j["nodes"]) s.nodes.push_back(node_from(n));
+    get(j, "ethercat_interface", s.ethercat_interface);
+    get(j, "esi_dir", s.esi_dir);
+    if (j.contains("slaves"))
+      for (const json& n : j["slaves"]) s.slaves.push_back(slave_from(n));
     if (j.contains("axes"))
       for (const json& a : j["axes"]) s.axes.push_back(axis_from(a, origin));
     get(j, "ini_includes", s.ini_includes);

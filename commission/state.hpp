@@ -32,6 +32,16 @@ struct ScannedNode {
   std::vector<std::string> problems;        // what to check, one sentence each
 };
 
+// One EtherCAT slave as the segment scan found it (its SII).
+struct ScannedSlave {
+  unsigned position = 0;                    // 1-based, in the line
+  uint32_t vendor_id = 0, product_code = 0, revision = 0, serial = 0;
+  std::string name, order;
+  bool coe = false, dc = false;
+  std::string esi;                          // matched ESI file ("" unknown)
+  std::vector<std::string> problems;
+};
+
 // Drive scaling of one axis: encoder increments per motor revolution, gear
 // (motor revolutions per screw revolution, as GEAR_MOTOR_REVS:GEAR_LOAD_REVS)
 // and the screw lead (mm per screw revolution); `correction` multiplies the
@@ -77,6 +87,9 @@ struct State {
   uint32_t bitrate = 1'000'000;
   std::string eds_dir;
   std::vector<ScannedNode> nodes;
+  std::string ethercat_interface;  // "raw:eth0", "sim:<segment>"
+  std::string esi_dir;
+  std::vector<ScannedSlave> slaves;
   std::vector<Axis> axes;
   // What the configuration keeps beside the generated part: INI files
   // included at the end (#INCLUDE), and HAL files sourced before the bus

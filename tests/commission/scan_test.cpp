@@ -9,6 +9,7 @@
 #include "commission/scan.hpp"
 #include "sim/can/virtual_bus.hpp"
 #include "sim/cia402/sim_host.hpp"
+#include "sim/ethercat/segment.hpp"
 #include "tests/support/testing.hpp"
 
 namespace cnc::commission {
@@ -136,6 +137,30 @@ TEST(CommissionScan, AnEmptyBusGivesNoNodes) {
   const ScanResult r = scan_canopen(*b.scanner, o);
   EXPECT_TRUE(r.nodes.empty());
   EXPECT_TRUE(r.ok());
+}
+
+TEST(CommissionScan, FindsEthercatSlavesWithTheirSiiIdentityAndEsi) {
+  auto segment = std::make_shared<ethercat::sim::Segment>();
+  segment->add_drives(2);
+  const std::string name = testing::unique_name("commission-ecat");
+  ethercat::sim::register_sim_link_kind();
+  ethercat::sim::register_segment(name, segment);
+  const EthercatScanResult r = scan_ethercat("sim:" + name, testing::source_dir() / "configs/ethercat-mill/drives");
+  ethercat::sim::unregister_segment(name);
+  ASSERT_EQ(r.slaves.size(), 2u) << (r.problems.empty() ? "" : r.problems[0]);
+  EXPECT_TRUE(r.ok()) << describe(r.slaves[0]);
+  EXPECT_EQ(r.slaves[1].position, 2u);
+  EXPECT_EQ(r.slaves[0].vendor_id, 0xCC1u);
+  EXPECT_EQ(r.slaves[0].product_code, 0x402u);
+  EXPECT_TRUE(r.slaves[0].coe);
+  EXPECT_EQ(r.slaves[0].esi, "servo.xml");
+}
+
+TEST(CommissionScan, AnEthercatSegmentThatCannotBeOpenedIsAProblem) {
+  const EthercatScanResult r = scan_ethercat("sim:" + testing::unique_name("no-such-segment"), "");
+  EXPECT_TRUE(r.slaves.empty());
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_FALSE(r.ok());
 }
 
 }  // namespace
