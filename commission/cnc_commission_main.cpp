@@ -2,6 +2,7 @@
 // scripts, over the commissioning library (docs/commissioning.md). Every
 // subcommand reads the state file, does its step and saves the state.
 #include <cctype>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -335,7 +336,16 @@ int cmd_write(State& s, Args& a) {
 
 }  // namespace
 
+extern "C" void on_signal(int) { request_abort(); }
+
 int main(int argc, char** argv) {
+  // Ctrl-C during a test move: the move stops, the machine goes off, the
+  // step says it was aborted (the state is not changed).
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
   Args a;
   std::filesystem::path state_file = "commission.json";
   for (int i = 1; i < argc; ++i) a.v.push_back(argv[i]);

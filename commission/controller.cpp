@@ -1,6 +1,7 @@
 #include "commission/controller.hpp"
 
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -20,6 +21,7 @@ extern char** environ;
 namespace cnc::commission {
 
 namespace {
+std::atomic<bool> g_abort{false};
 std::string quote(const std::string& s) {
   std::string q = "'";
   for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
@@ -114,11 +116,14 @@ int ControllerProcess::stop() {
   return -1;
 }
 
+void request_abort() noexcept { g_abort.store(true, std::memory_order_relaxed); }
+
 JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, double velocity) {
   const double dist = std::copysign(std::min(std::fabs(distance_mm), kMaxTestTravel), distance_mm);
   const double vel = std::min(std::fabs(velocity), kMaxTestVelocity);
   if (!(std::fabs(dist) > 0) || !(vel > 0)) throw std::runtime_error("direction test: no travel or no speed given");
   const std::string joint = std::to_string(a.joint);
+  g_abort.store(false, std::memory_order_relaxed);
   c.cnc({"estop-reset"});
   if (!c.estop_chain_ok())
     throw std::runtime_error(std::string("axis ") + a.letter + ": the E-stop chain is open: close it before a test move");
@@ -142,6 +147,11 @@ JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, 
         still = 0;
       }
       last = now;
+      if (g_abort.load(std::memory_order_relaxed)) {
+        c.cnc({"jog-stop", joint});
+        throw std::runtime_error(std::string("axis ") + a.letter + ": the test move was aborted (moved " +
+                                 std::to_string(now - before) + " mm of " + std::to_string(dist) + ")");
+      }
       if (std::chrono::steady_clock::now() - start > limit) {
         c.cnc({"jog-stop", joint});
         throw std::runtime_error(std::string("axis ") + a.letter + ": the test move did not end within " +
@@ -150,12 +160,18 @@ JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, 
       }
     }
     r.feedback_mm = c.motor_position(a.joint) - before;
-  } catch (...) {
+  } catch (const std::exception& e) {
+    // Whatever stopped the test, the drives end disabled.
+    std::string off = "; the machine is off again, the drives disabled";
     try {
       c.cnc({"off"});
-    } catch (...) {
+    } catch (const std::exception& e2) {
+      off = "; switching the machine off failed too (" + std::string(e2.what()) + "): press E-stop";
     }
-    throw;
+    std::string why = e.what();
+    if (g_abort.load(std::memory_order_relaxed) && why.find("aborted") == std::string::npos)
+      why = std::string("axis ") + a.letter + ": the test move was aborted (" + why + ")";
+    throw std::runtime_error(why + off);
   }
   c.cnc({"off"});
   return r;

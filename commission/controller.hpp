@@ -54,6 +54,11 @@ class ControllerProcess {
   int pid_ = -1;
 };
 
+// Asks a running commissioning motion to stop (jog stop, machine off, an
+// error saying it was aborted). Async-signal-safe: the command-line program
+// calls it from its SIGINT and SIGTERM handlers.
+void request_abort() noexcept;
+
 struct JogResult {
   double commanded_mm = 0;
   double feedback_mm = 0;   // motor feedback after - before
@@ -64,7 +69,7 @@ struct JogResult {
 // kMaxTestVelocity) in free (joint) mode, switched on for the move and off
 // afterwards, stopped after a time limit (twice the travel time + 3 s).
 // Refuses when the E-stop chain is open. Throws std::runtime_error saying
-// why it stopped.
+// why it stopped (time limit, request_abort(), a failing command).
 JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, double velocity);
 
 }  // namespace cnc::commission

@@ -54,6 +54,25 @@ cc axis X direction-test --distance 10 --velocity 5 --bring-up "$work/m" | grep 
   || fail "direction-test --bring-up"
 cc bring-up --dir "$work/m" | grep -q "cncd runs on" || fail "bring-up"
 pin=cia402-sim.0.node.01.table-position
+# Ctrl-C during a test move: stopped, the machine off (motion and drive
+# disabled), the step says so and changes nothing.
+before="$(cat "$work/state.json")"
+"$bin/cnc-commission" --state "$work/state.json" axis X direction-test --distance 20 --velocity 1 >"$work/out" 2>&1 &
+pid=$!
+sleep 3
+kill -INT $pid
+set +e; wait $pid; rc=$?; set -e
+[ $rc -eq 1 ] || fail "aborted test: status $rc: $(cat "$work/out")"
+grep -q "aborted" "$work/out" || fail "no abort message: $(cat "$work/out")"
+grep -q "the drives disabled" "$work/out" || fail "abort did not switch off: $(cat "$work/out")"
+[ "$before" = "$(cat "$work/state.json")" ] || fail "the aborted test changed the state"
+"$bin/cnc" status --json | python3 -c "
+import json, sys
+s = json.load(sys.stdin)
+assert not s['motion']['enabled'], 'motion still enabled'
+assert s['task']['state'] != 'ON', s['task']['state']
+" || fail "the machine is not off after the abort"
+[ "$("$bin/halcmd" getp cia402.0.drive.00.enabled)" = "FALSE" ] || fail "the drive is still enabled"
 t0="$("$bin/halcmd" getp $pin)"
 cc axis X direction-test --distance 10 --velocity 5 >/dev/null || fail "direction-test"
 sleep 0.2
