@@ -76,6 +76,7 @@ TEST(CommissionRandomMachine, DiscoversDirectionAndScalingAndRunsTheDemoProgram)
     host.start();
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     ScanOptions so;
+    so.timeout_ns = 1'000'000'000;  // the simulator's thread may wait on a loaded host
     so.last = 16;
     so.expected = {1, 2, 3};
     so.eds_dir = testing::source_dir() / "configs/canopen-mill/drives";

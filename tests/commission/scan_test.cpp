@@ -39,11 +39,22 @@ struct Bus {
   }
   void start() {
     host->start();
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));  // boot-up (20 ms init)
+    // The drives' initialisation (20 ms), with room for a loaded host; the
+    // scan's SDO time-out (200 ms) covers a late one too.
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
 };
 
 std::filesystem::path eds_dir() { return testing::source_dir() / "configs/canopen-mill/drives"; }
+
+// The simulated drives run in a thread of their own, which a loaded test
+// host may leave waiting for a while: a generous SDO time-out (a real bus
+// scan uses the default 200 ms).
+ScanOptions options() {
+  ScanOptions o;
+  o.timeout_ns = 1'000'000'000;
+  return o;
+}
 
 TEST(CommissionScan, FindsEveryDriveWithIdentityModesEncoderAndEds) {
   Bus b;
@@ -51,7 +62,7 @@ TEST(CommissionScan, FindsEveryDriveWithIdentityModesEncoderAndEds) {
   b.add(2);
   b.add(7);
   b.start();
-  ScanOptions o;
+  ScanOptions o = options();
   o.eds_dir = eds_dir();
   o.expected = {1, 2, 7};
   const ScanResult r = scan_canopen(*b.scanner, o);
@@ -74,7 +85,7 @@ TEST(CommissionScan, NamesASilentExpectedNode) {
   Bus b;
   b.add(1);
   b.start();
-  ScanOptions o;
+  ScanOptions o = options();
   o.expected = {1, 4};
   o.last = 10;
   const ScanResult r = scan_canopen(*b.scanner, o);
@@ -88,7 +99,7 @@ TEST(CommissionScan, SaysWhenNoEdsDescribesANode) {
   Bus b;
   b.add(3, 0x999);
   b.start();
-  ScanOptions o;
+  ScanOptions o = options();
   o.eds_dir = eds_dir();
   o.last = 5;
   const ScanResult r = scan_canopen(*b.scanner, o);
@@ -104,7 +115,7 @@ TEST(CommissionScan, ReportsTwoDevicesOnOneNodeId) {
   b.add(5, 0x402, 100);
   b.add(5, 0x402, 200);
   b.start();
-  ScanOptions o;
+  ScanOptions o = options();
   o.last = 8;
   const ScanResult r = scan_canopen(*b.scanner, o);
   ASSERT_EQ(r.nodes.size(), 1u);
@@ -118,10 +129,15 @@ TEST(CommissionScan, ReportsADriveInFaultWithItsErrorCode) {
   b.add(2);
   b.start();
   EXPECT_EQ(b.host->inject("drive 2 encoder-loss", 1, true), "");
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  ScanOptions o;
+  ScanOptions o = options();
   o.last = 3;
-  const ScanResult r = scan_canopen(*b.scanner, o);
+  // The drive's fault reaction takes its own time: scan until it shows (a
+  // loaded host may delay the simulator's thread).
+  ScanResult r;
+  for (int i = 0; i < 50; ++i) {
+    r = scan_canopen(*b.scanner, o);
+    if (r.nodes.size() == 1 && r.nodes[0].fault) break;
+  }
   ASSERT_EQ(r.nodes.size(), 1u);
   EXPECT_TRUE(r.nodes[0].fault);
   ASSERT_FALSE(r.nodes[0].problems.empty());
@@ -132,7 +148,7 @@ TEST(CommissionScan, ReportsADriveInFaultWithItsErrorCode) {
 TEST(CommissionScan, AnEmptyBusGivesNoNodes) {
   Bus b;
   b.start();
-  ScanOptions o;
+  ScanOptions o = options();
   o.last = 127;
   const ScanResult r = scan_canopen(*b.scanner, o);
   EXPECT_TRUE(r.nodes.empty());
