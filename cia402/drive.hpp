@@ -66,6 +66,10 @@ struct DriveConfig {
   int64_t quick_stop_timeout_ns = 2'000'000'000;  // QSA -> disable voltage after
   double standstill_velocity = 0.01;  // units/s: below this a mode switch is safe
   bool probe = true;                  // arm touch probe 1 (probe input) when mapped
+  // Commissioning (DISABLED = YES): the drive is never configured or enabled;
+  // its joint follows its command (pos-fb = pos-cmd) so the rest of the
+  // machine runs without it. Said loudly at start-up.
+  bool disabled = false;
   int probe_hold_cycles = 2;          // a latch stays visible at least this long
   // Consecutive cycles of stale inputs (the bus's inputs_fresh false) after
   // which the link counts as not ok and the axis stops; 0 = only the bus's

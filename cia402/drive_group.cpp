@@ -67,6 +67,7 @@ DriveConfig load_drive(const ini::IniFile& ini, const std::string& section, cons
   d.home_return_timeout_ns = ini.get_int(section, "HOME_RETURN_TIMEOUT_MS", 2000, {10, 600'000}) * kMs;
   d.standstill_velocity = ini.get_double(section, "STANDSTILL_VELOCITY", 0.01, {0, 1e9});
   d.probe = ini.get_bool(section, "PROBE", true);
+  d.disabled = ini.get_bool(section, "DISABLED", false);
   return d;
 }
 
@@ -108,6 +109,16 @@ DriveGroup::DriveGroup(GroupConfig config, DriveLink& link, MessageQueue* messag
                                std::to_string(e.config.address) + " is not a device of " + link.name());
     }
     drives_.push_back(std::make_unique<Drive>(e.config, link, messages));
+    if (e.config.disabled) {
+      // Loud: a joint that moves nothing must not go unnoticed.
+      const std::string why = e.config.origin + " " + e.config.source + " (" + e.config.name + ", address " +
+                              std::to_string(e.config.address) +
+                              "): DISABLED for commissioning: the drive is never enabled, its joint follows its "
+                              "command without moving anything";
+      std::fprintf(stderr, "cncd warning [%s] %s\n", config_.name.c_str(), why.c_str());
+      if (messages) messages->postf(MessageKind::Error, config_.name, "%s", why.c_str());
+      continue;
+    }
     drives_.back()->check_mapping();
   }
   commands_.resize(drives_.size());
@@ -116,6 +127,7 @@ DriveGroup::DriveGroup(GroupConfig config, DriveLink& link, MessageQueue* messag
 
 void DriveGroup::configure() {
   for (auto& dp : drives_) {
+    if (dp->config().disabled) continue;
     dp->update_period();
     const DriveConfig& d = dp->config();
     const Scaling& s = d.scaling;
@@ -177,7 +189,19 @@ void DriveGroup::configure() {
 }
 
 void DriveGroup::read(int64_t now_ns) noexcept {
-  for (std::size_t i = 0; i < drives_.size(); ++i) drives_[i]->read(now_ns, commands_[i], feedback_[i]);
+  for (std::size_t i = 0; i < drives_.size(); ++i) {
+    if (drives_[i]->config().disabled) {
+      // Loopback: the joint follows its command, nothing moves.
+      DriveFeedback& f = feedback_[i];
+      f.pos_fb = commands_[i].pos_cmd;
+      f.vel_fb = 0;
+      f.ferror = 0;
+      f.state = State::SwitchOnDisabled;
+      f.index_found = false;
+      continue;
+    }
+    drives_[i]->read(now_ns, commands_[i], feedback_[i]);
+  }
 }
 
 void DriveGroup::write(int64_t now_ns) noexcept {
@@ -206,13 +230,17 @@ void DriveGroup::write(int64_t now_ns) noexcept {
   for (std::size_t i = 0; i < drives_.size(); ++i) {
     commands_[i].inhibit = watchdog_tripped_;
     if (shutdown) commands_[i].enable = false;  // an orderly disable: quick stop, then power off
+    if (drives_[i]->config().disabled) {
+      feedback_[i].enabled = commands_[i].enable && !commands_[i].inhibit;
+      continue;
+    }
     drives_[i]->write(now_ns, commands_[i], feedback_[i]);
   }
 }
 
 bool DriveGroup::is_safe() const noexcept {
   for (const auto& d : drives_) {
-    if (!d->is_safe()) return false;
+    if (!d->config().disabled && !d->is_safe()) return false;
   }
   return true;
 }

@@ -62,6 +62,7 @@ cnc_install_program(cnc-vision comp "camera measurement: glass scales, calibrati
 cnc_install_program(cnc-mtconnect connectivity "MTConnect agent of the CNC controller")
 cnc_install_program(cnc-mqtt connectivity "MQTT bridge of the CNC controller")
 cnc_install_program(cnc-hmi screen "the Qt operator screen of the CNC controller")
+cnc_install_program(cnc-commission controller "commissioning: bus scan, axes, scaling, direction test, configuration")
 
 # Scripts: the configuration picker and the CAN interface helper, copied
 # beside the programs in build/bin too; build/share/cnc/configs points at

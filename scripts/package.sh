@@ -32,7 +32,7 @@ if ! grep -qx 'CMAKE_INSTALL_PREFIX:PATH=/usr' "$build/CMakeCache.txt"; then
   cmake "$build" -DCMAKE_INSTALL_PREFIX=/usr -UCMAKE_INSTALL_LIBDIR >/dev/null
 fi
 # Only what the packages hold: the programs, their manual pages.
-targets=(cncd cnc halcmd cnc-rs274 cnc-canopen cnc-ethercat cnc-comp cnc-cia402-sim ecat-sim cnc-modbus-sim
+targets=(cncd cnc halcmd cnc-rs274 cnc-canopen cnc-ethercat cnc-comp cnc-commission cnc-cia402-sim ecat-sim cnc-modbus-sim
          cnc-canopen-node cnc_man_pages cnc_deb_changelog)
 if grep -q '^cnc-hmi:' <(cmake --build "$build" --target help 2>/dev/null | sed 's/^\([^:]*\):.*/\1:/'); then
   targets+=(cnc-hmi)

@@ -206,7 +206,7 @@ int64_t DriveModel::period_ns() const noexcept {
 int64_t DriveModel::position() const noexcept { return static_cast<int64_t>(measured_); }
 
 double DriveModel::encoder_counts() const noexcept {
-  return encoder_lost_ ? frozen_counts_ : static_cast<double>(plant_.encoder());
+  return encoder_lost_ ? frozen_counts_ : static_cast<double>(motor_sign() * plant_.encoder());
 }
 
 void DriveModel::power_on(int64_t now_ns) noexcept {
@@ -499,7 +499,7 @@ void DriveModel::connection_lost(uint16_t code) noexcept {
 void DriveModel::inject_overcurrent() noexcept { overcurrent_ = true; }
 
 void DriveModel::set_encoder_lost(bool lost) noexcept {
-  if (lost && !encoder_lost_) frozen_counts_ = static_cast<double>(plant_.encoder());
+  if (lost && !encoder_lost_) frozen_counts_ = static_cast<double>(motor_sign() * plant_.encoder());
   encoder_lost_ = lost;
 }
 
@@ -546,11 +546,11 @@ void DriveModel::update_probes(const StepEvents& ev) noexcept {
       double at_counts = 0;
       if (zero_pulse && ev.index) {
         rise = true;
-        at_counts = ev.index_counts;
+        at_counts = motor_sign() * ev.index_counts;
       } else if (!zero_pulse && (ev.probe_rise || ev.probe_fall)) {
         rise = ev.probe_rise;
         fall = ev.probe_fall;
-        at_counts = ev.probe_counts;
+        at_counts = motor_sign() * ev.probe_counts;
       }
       const int32_t value = wrap32(static_cast<int64_t>(std::floor(at_counts)) + offset_);
       if (rise && (bits & tp::kRising)) {
@@ -783,7 +783,7 @@ void DriveModel::step(double dt) noexcept {
     integral_ = 0;
     torque_cmd = 0;
   }
-  last_events_ = plant_.step(dt, torque_cmd, power);
+  last_events_ = plant_.step(dt, motor_sign() * torque_cmd, power);
 
   // Following error: window exceeded for longer than the time-out -> fault.
   ferror_exceeded_ = false;
@@ -804,7 +804,7 @@ void DriveModel::step(double dt) noexcept {
   position_demand_.set(wrap32(static_cast<int64_t>(std::llround(demand_))));
   ferror_actual_.set(wrap32(static_cast<int64_t>(std::llround(demand_ - measured_))));
   velocity_actual_.set(static_cast<int32_t>(std::clamp(velocity_report_, -2.0e9, 2.0e9)));
-  torque_actual_.set(static_cast<int16_t>(std::clamp(plant_.torque() / cfg_.plant.rated_torque * 1000.0, -32768.0, 32767.0)));
+  torque_actual_.set(static_cast<int16_t>(std::clamp(motor_sign() * plant_.torque() / cfg_.plant.rated_torque * 1000.0, -32768.0, 32767.0)));
   uint32_t din = 0;
   if (plant_.neg_limit()) din |= din::kNegativeLimit;
   if (plant_.pos_limit()) din |= din::kPositiveLimit;

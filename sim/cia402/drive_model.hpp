@@ -53,6 +53,13 @@ struct DriveSimConfig {
   uint32_t supported_modes = (1u << 5) | (1u << 7) | (1u << 8) | (1u << 9);  // HM, CSP, CSV, CST
   double ambient_c = 35, warning_c = 80, trip_c = 90;  // temperatures
   double thermal_tau_s = 30, thermal_c_per_a2 = 0.15;
+  // The motor mounted the other way round (or wired with its phases and
+  // encoder swapped): positive increments and torque move the table towards
+  // minus. What commissioning's direction test must find (REVERSE). The
+  // switch inputs stay where the table is; the drive's own hardware-limit
+  // stop then guards the wrong side, so keep limit switches out of such a
+  // machine's simulation.
+  bool motor_reversed = false;
 };
 
 class DriveModel {
@@ -126,7 +133,8 @@ class DriveModel {
   double max_velocity() const noexcept;  // counts/s: 0x607F and 0x6080
   void update_probes(const StepEvents& ev) noexcept;
   void update_statusword() noexcept;
-  double encoder_counts() const noexcept;  // exact counts the drive sees (frozen on encoder loss)
+  double encoder_counts() const noexcept;
+  double motor_sign() const noexcept { return cfg_.motor_reversed ? -1.0 : 1.0; }  // exact counts the drive sees (frozen on encoder loss)
 
   DriveSimConfig cfg_;
   canopen::ObjectDictionary& od_;

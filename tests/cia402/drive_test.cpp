@@ -846,3 +846,21 @@ TEST(Cia402Drive, ServoFunctionsNeverAllocate) {
     EXPECT_EQ(cnc::testing::AllocationCounter::count(), 0u);
   }
 }
+
+// Commissioning one axis at a time: a drive DISABLED in the configuration is
+// never configured or enabled, its joint follows its command (nothing
+// moves), and the group says so.
+TEST(Cia402Drive, ADisabledDriveIsNeverEnabledAndItsPinsLoopBack) {
+  Rig rig(one_axis_ini(), [](ini::IniFile& ini) { ini.set("CIA402_DRIVE_0", "DISABLED", "YES"); });
+  rig.configure();
+  rig.cycles(20);
+  rig.cmd().enable = true;
+  rig.cmd().pos_cmd = 3.0;
+  rig.cycles(50);
+  EXPECT_TRUE(rig.fb().enabled);
+  EXPECT_DOUBLE_EQ(rig.fb().pos_fb, 3.0);
+  EXPECT_FALSE(rig.fb().amp_fault);
+  EXPECT_EQ(rig.sim().state(), State::SwitchOnDisabled);
+  EXPECT_TRUE(rig.group().is_safe());
+  EXPECT_TRUE(rig.has_message("DISABLED for commissioning"));
+}

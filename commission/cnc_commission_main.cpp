@@ -1,0 +1,392 @@
+// cnc-commission: the commissioning steps as subcommands for people and
+// scripts, over the commissioning library (docs/commissioning.md). Every
+// subcommand reads the state file, does its step and saves the state.
+#include <cctype>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "commission/config_writer.hpp"
+#include "commission/controller.hpp"
+#include "commission/scan.hpp"
+#include "commission/state.hpp"
+#include "commission/steps.hpp"
+#include "core/util/strings.hpp"
+#include "fieldbus/can/transport.hpp"
+
+namespace {
+
+using namespace cnc::commission;
+
+const char* kHelp =
+    "usage: cnc-commission [--state FILE] COMMAND ...\n"
+    "Commissioning of a machine's drives, one step at a time; each step keeps\n"
+    "its results in the state file (default commission.json) so that work can\n"
+    "be left and resumed.\n"
+    "\n"
+    "commands:\n"
+    "  scan --interface SPEC [--bitrate BIT/S] [--eds-dir DIR] [--expect ID,ID..]\n"
+    "       [--first ID] [--last ID] [--timeout-ms MS]\n"
+    "      scan the CANopen bus (socketcan:can0): identity, name, firmware, CiA 402\n"
+    "      modes, faults, encoder and gear objects; match each node with an EDS\n"
+    "  scan-ethercat --interface raw:IF [--esi-dir DIR]\n"
+    "      scan the EtherCAT segment: each slave's SII identity, CoE, DC; match each\n"
+    "      with an ESI file\n"
+    "  show\n"
+    "      print the state: nodes, axes, scaling, tests\n"
+    "  axis L assign --node ID [--joint J] [--gantry-with L2]\n"
+    "      drive node ID moves axis L (X Y Z A B C U V W) on joint J\n"
+    "  axis L scaling --lead MM [--counts N] [--gear MOTOR:LOAD]\n"
+    "      screw lead; counts per revolution and gear from the drive unless given\n"
+    "  axis L limits --min MM --max MM [--velocity MM/S] [--acceleration MM/S2]\n"
+    "      soft limits and the axis' speed and acceleration\n"
+    "  axis L direction-test [--distance MM] [--velocity MM/S] [--dial MM] [--bin DIR]\n"
+    "                        [--bring-up DIR]\n"
+    "      jog the axis on the running controller (at most 20 mm at 5 mm/s, time-\n"
+    "      limited, switched off afterwards) and compare the drive's feedback;\n"
+    "      --bring-up writes the configuration of the state to DIR and runs the\n"
+    "      test on a controller of its own, shut down afterwards\n"
+    "  axis L dial MM\n"
+    "      the dial indicator's reading of the last test: flips REVERSE, corrects scale\n"
+    "  axis L enable|disable\n"
+    "      keep the axis in, or leave it out of, the written configuration\n"
+    "  include [--ini FILE] [--hal-before-bus FILE] [--hal-after-bus FILE]\n"
+    "      files the written configuration keeps (site I/O, a simulated machine)\n"
+    "  bring-up --dir DIR [--name NAME] [--log FILE]\n"
+    "      write the configuration of the state (as write --yes) and start cncd on\n"
+    "      it in the background, waiting until it answers\n"
+    "  shutdown\n"
+    "      stop the running controller (cnc shutdown)\n"
+    "  write --dir DIR [--name NAME] [--yes] [--cncd PATH]\n"
+    "      generate INI and HAL, show the difference; with --yes write them\n"
+    "      (old ones kept as .bak) and check them with cncd --check --strict\n"
+    "\n"
+    "exit status: 0 done, 1 the step found a problem (nothing written), 2 usage\n";
+
+[[noreturn]] void usage(const std::string& why);
+
+// Writes the state's configuration to `dir` and starts cncd on it.
+std::unique_ptr<ControllerProcess> bring_up_controller(const State& s, const std::filesystem::path& bin,
+                                                       const std::filesystem::path& dir, const std::string& name,
+                                                       const std::filesystem::path& log) {
+  std::filesystem::create_directories(dir);
+  write_config(generate_config(s, dir, name));
+  std::string out;
+  if (check_config(bin / "cncd", dir / (name + ".ini"), out) != 0)
+    throw std::runtime_error("the configuration written to " + dir.string() + " does not pass cncd --check --strict:\n" + out);
+  return std::make_unique<ControllerProcess>(bin, dir / (name + ".ini"), log);
+}
+
+[[noreturn]] void usage(const std::string& why) {
+  std::fprintf(stderr, "cnc-commission: %s\n(cnc-commission --help for the commands)\n", why.c_str());
+  std::exit(2);
+}
+
+struct Args {
+  std::vector<std::string> v;
+  std::size_t i = 0;
+  bool more() const { return i < v.size(); }
+  std::string next(const char* what) {
+    if (!more()) usage(std::string("missing ") + what);
+    return v[i++];
+  }
+};
+
+double number(const std::string& s, const char* what) {
+  try {
+    std::size_t n = 0;
+    const double d = std::stod(s, &n);
+    if (n != s.size()) throw std::invalid_argument(s);
+    return d;
+  } catch (const std::exception&) {
+    usage(std::string(what) + " \"" + s + "\": expected a number");
+  }
+}
+
+std::filesystem::path self_dir() {
+  std::error_code ec;
+  const auto p = std::filesystem::read_symlink("/proc/self/exe", ec);
+  return ec ? std::filesystem::path(".") : p.parent_path();
+}
+
+int cmd_scan(State& s, Args& a) {
+  ScanOptions o;
+  std::string spec;
+  while (a.more()) {
+    const std::string k = a.next("option");
+    if (k == "--interface") spec = a.next("interface");
+    else if (k == "--bitrate") s.bitrate = static_cast<uint32_t>(number(a.next("bit rate"), "bit rate"));
+    else if (k == "--eds-dir") s.eds_dir = a.next("folder");
+    else if (k == "--first") o.first = static_cast<int>(number(a.next("node-ID"), "--first"));
+    else if (k == "--last") o.last = static_cast<int>(number(a.next("node-ID"), "--last"));
+    else if (k == "--timeout-ms") o.timeout_ns = static_cast<int64_t>(number(a.next("ms"), "--timeout-ms") * 1e6);
+    else if (k == "--expect") {
+      for (const auto& w : cnc::split(a.next("node-IDs"), ','))
+        o.expected.push_back(static_cast<int>(number(w, "--expect")));
+    } else usage("scan: unknown option " + k);
+  }
+  if (spec.empty()) spec = s.interface;
+  if (spec.empty()) usage("scan: --interface SPEC (e.g. socketcan:can0)");
+  o.eds_dir = s.eds_dir;
+  auto bus = cnc::can::open_transport(spec);
+  const ScanResult r = scan_canopen(*bus, o);
+  s.interface = spec;
+  s.nodes = r.nodes;
+  for (const auto& n : r.nodes) std::cout << describe(n) << "\n";
+  for (const auto& p : r.problems) std::cout << "problem: " << p << "\n";
+  std::cout << r.nodes.size() << " node(s) on " << spec << (r.ok() ? ", no problems\n" : ", problems above\n");
+  s.log.push_back("scan " + spec + ": " + std::to_string(r.nodes.size()) + " node(s)");
+  return r.ok() ? 0 : 1;
+}
+
+int cmd_scan_ethercat(State& s, Args& a) {
+  std::string spec;
+  while (a.more()) {
+    const std::string k = a.next("option");
+    if (k == "--interface") spec = a.next("interface");
+    else if (k == "--esi-dir") s.esi_dir = a.next("folder");
+    else usage("scan-ethercat: unknown option " + k);
+  }
+  if (spec.empty()) spec = s.ethercat_interface;
+  if (spec.empty()) usage("scan-ethercat: --interface SPEC (e.g. raw:eth0)");
+  const EthercatScanResult r = scan_ethercat(spec, s.esi_dir);
+  for (const auto& n : r.slaves) std::cout << describe(n) << "\n";
+  for (const auto& p : r.problems) std::cout << "problem: " << p << "\n";
+  std::cout << r.slaves.size() << " slave(s) on " << spec << (r.ok() ? ", no problems\n" : ", problems above\n");
+  s.ethercat_interface = spec;
+  s.slaves = r.slaves;
+  s.log.push_back("scan-ethercat " + spec + ": " + std::to_string(r.slaves.size()) + " slave(s)");
+  return r.ok() ? 0 : 1;
+}
+
+void show(const State& s) {
+  std::cout << "machine: " << s.machine << "\nbus: " << (s.interface.empty() ? "(not scanned)" : s.interface) << "\n";
+  for (const auto& n : s.nodes) std::cout << describe(n) << "\n";
+  for (const auto& n : s.slaves) std::cout << describe(n) << "\n";
+  for (const auto& a : s.axes) {
+    std::cout << "axis " << a.letter << ": joint " << a.joint << ", node " << a.node << (a.enabled ? "" : ", disabled");
+    if (a.scaling.counts_per_mm() > 0)
+      std::cout << ", " << a.scaling.counts_per_mm() << " counts/mm" << (a.scaling.reverse ? ", REVERSE" : "");
+    std::cout << ", limits " << a.min_limit << ".." << a.max_limit << " mm\n";
+    if (a.direction) std::cout << "  direction test: " << a.direction->verdict << "\n";
+  }
+}
+
+int cmd_axis(State& s, Args& a) {
+  const std::string l = a.next("axis letter");
+  if (l.size() != 1) usage("axis \"" + l + "\": expected one letter");
+  const char letter = static_cast<char>(std::toupper(static_cast<unsigned char>(l[0])));
+  const std::string step = a.next("axis step");
+  if (step == "assign") {
+    int node = -1, joint = -1;
+    std::string gantry;
+    while (a.more()) {
+      const std::string k = a.next("option");
+      if (k == "--node") node = static_cast<int>(number(a.next("node-ID"), "--node"));
+      else if (k == "--joint") joint = static_cast<int>(number(a.next("joint"), "--joint"));
+      else if (k == "--gantry-with") gantry = a.next("axis");
+      else usage("assign: unknown option " + k);
+    }
+    if (node < 0) usage("assign: --node ID");
+    if (joint < 0) joint = s.axis(letter) ? s.axis(letter)->joint : static_cast<int>(s.axes.size());
+    const Axis& ax = assign_axis(s, letter, joint, node, gantry);
+    std::cout << "axis " << letter << ": node " << ax.node << " on joint " << ax.joint << "\n";
+    s.log.push_back("axis " + std::string(1, letter) + " assigned to node " + std::to_string(node));
+  } else if (step == "scaling") {
+    double lead = 0, counts = 0, gm = 0, gl = 0;
+    while (a.more()) {
+      const std::string k = a.next("option");
+      if (k == "--lead") lead = number(a.next("lead"), "--lead");
+      else if (k == "--counts") counts = number(a.next("counts"), "--counts");
+      else if (k == "--gear") {
+        const auto w = cnc::split(a.next("gear"), ':');
+        if (w.size() != 2) usage("--gear MOTOR:LOAD, e.g. 3:1");
+        gm = number(w[0], "--gear");
+        gl = number(w[1], "--gear");
+      } else usage("scaling: unknown option " + k);
+    }
+    const double cpm = set_scaling(s, letter, lead, counts, gm, gl);
+    std::cout << "axis " << letter << ": " << cpm << " counts/mm (" << s.axis(letter)->scaling.source << ")\n";
+    s.log.push_back("axis " + std::string(1, letter) + " scaling");
+  } else if (step == "limits") {
+    Axis* ax = s.axis(letter);
+    if (!ax) usage(std::string("axis ") + letter + " has no drive yet");
+    while (a.more()) {
+      const std::string k = a.next("option");
+      if (k == "--min") ax->min_limit = number(a.next("mm"), "--min");
+      else if (k == "--max") ax->max_limit = number(a.next("mm"), "--max");
+      else if (k == "--velocity") ax->max_velocity = number(a.next("mm/s"), "--velocity");
+      else if (k == "--acceleration") ax->max_acceleration = number(a.next("mm/s2"), "--acceleration");
+      else usage("limits: unknown option " + k);
+    }
+    if (!(ax->min_limit < ax->max_limit)) throw std::invalid_argument(std::string("axis ") + letter + ": --min must be below --max");
+    if (!(ax->max_velocity > 0) || !(ax->max_acceleration > 0))
+      throw std::invalid_argument(std::string("axis ") + letter + ": velocity and acceleration must be > 0");
+  } else if (step == "direction-test") {
+    double distance = 5, velocity = 2, dial = 0;
+    bool has_dial = false;
+    std::filesystem::path bin = self_dir(), bring_up;
+    while (a.more()) {
+      const std::string k = a.next("option");
+      if (k == "--distance") distance = number(a.next("mm"), "--distance");
+      else if (k == "--velocity") velocity = number(a.next("mm/s"), "--velocity");
+      else if (k == "--dial") {
+        dial = number(a.next("mm"), "--dial");
+        has_dial = true;
+      } else if (k == "--bin") bin = a.next("folder");
+      else if (k == "--bring-up") bring_up = a.next("folder");
+      else usage("direction-test: unknown option " + k);
+    }
+    Axis* ax = s.axis(letter);
+    if (!ax) usage(std::string("axis ") + letter + " has no drive yet");
+    std::unique_ptr<ControllerProcess> own;
+    if (!bring_up.empty()) own = bring_up_controller(s, bin, bring_up, "commission", bring_up / "cncd.log");
+    const JogResult r = direction_jog(Controller(bin), *ax, distance, velocity);
+    if (own && own->stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
+    std::cout << "axis " << letter << ": commanded " << r.commanded_mm << " mm, drive feedback " << r.feedback_mm
+              << " mm; the machine is off again\n";
+    std::cout << apply_direction_test(s, letter, r.commanded_mm, r.feedback_mm, dial, has_dial).verdict << "\n";
+    s.log.push_back("axis " + std::string(1, letter) + " direction test");
+  } else if (step == "dial") {
+    const double dial = number(a.next("dial reading (mm)"), "dial");
+    const Axis* ax = s.axis(letter);
+    if (!ax || !ax->direction) usage(std::string("axis ") + letter + ": no direction test to go with the dial reading");
+    const DirectionTest t = *ax->direction;
+    std::cout << apply_direction_test(s, letter, t.commanded_mm, t.feedback_mm, dial, true).verdict << "\n";
+    s.log.push_back("axis " + std::string(1, letter) + " dial " + l);
+  } else if (step == "enable" || step == "disable") {
+    Axis* ax = s.axis(letter);
+    if (!ax) usage(std::string("axis ") + letter + " has no drive yet");
+    ax->enabled = step == "enable";
+  } else {
+    usage("axis: unknown step " + step);
+  }
+  return 0;
+}
+
+int cmd_bring_up(State& s, Args& a) {
+  std::filesystem::path dir, log;
+  std::string name = "commission";
+  while (a.more()) {
+    const std::string k = a.next("option");
+    if (k == "--dir") dir = a.next("folder");
+    else if (k == "--name") name = a.next("name");
+    else if (k == "--log") log = a.next("file");
+    else usage("bring-up: unknown option " + k);
+  }
+  if (dir.empty()) usage("bring-up: --dir DIR");
+  if (log.empty()) log = dir / "cncd.log";
+  auto c = bring_up_controller(s, self_dir(), dir, name, log);
+  std::cout << "cncd runs on " << (dir / (name + ".ini")).string() << " (process " << c->pid() << ", log "
+            << log.string() << "); cnc-commission shutdown stops it\n";
+  c->detach();
+  s.log.push_back("controller brought up on " + (dir / (name + ".ini")).string());
+  return 0;
+}
+
+int cmd_write(State& s, Args& a) {
+  std::filesystem::path dir, cncd = self_dir() / "cncd";
+  std::string name = "machine";
+  bool yes = false;
+  while (a.more()) {
+    const std::string k = a.next("option");
+    if (k == "--dir") dir = a.next("folder");
+    else if (k == "--name") name = a.next("name");
+    else if (k == "--yes") yes = true;
+    else if (k == "--cncd") cncd = a.next("path");
+    else usage("write: unknown option " + k);
+  }
+  if (dir.empty()) usage("write: --dir DIR");
+  std::filesystem::create_directories(dir);
+  const auto files = generate_config(s, dir, name);
+  for (const auto& f : files) {
+    std::string old;
+    if (std::filesystem::exists(f.path)) {
+      std::FILE* in = std::fopen(f.path.c_str(), "r");
+      if (in) {
+        char buf[4096];
+        std::size_t n;
+        while ((n = std::fread(buf, 1, sizeof buf, in)) > 0) old.append(buf, n);
+        std::fclose(in);
+      }
+    }
+    std::cout << diff_text(f.path.string(), old, f.content);
+  }
+  if (!yes) {
+    std::cout << "(nothing written: --yes writes these files)\n";
+    return 0;
+  }
+  for (const auto& p : write_config(files)) std::cout << "wrote " << p.string() << "\n";
+  std::string out;
+  const int rc = check_config(cncd, dir / (name + ".ini"), out);
+  std::cout << out;
+  if (rc != 0) {
+    std::cout << "cncd --check --strict failed (status " << rc << "): the old files are kept as .bak\n";
+    return 1;
+  }
+  s.log.push_back("configuration written to " + (dir / (name + ".ini")).string());
+  return 0;
+}
+
+}  // namespace
+
+extern "C" void on_signal(int) { request_abort(); }
+
+int main(int argc, char** argv) {
+  // Ctrl-C during a test move: the move stops, the machine goes off, the
+  // step says it was aborted (the state is not changed).
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  Args a;
+  std::filesystem::path state_file = "commission.json";
+  for (int i = 1; i < argc; ++i) a.v.push_back(argv[i]);
+  if (a.v.empty()) usage("no command");
+  if (a.v[0] == "--help" || a.v[0] == "-h") {
+    std::fputs(kHelp, stdout);
+    return 0;
+  }
+  if (a.v[0] == "--state") {
+    a.i = 1;
+    state_file = a.next("state file");
+  }
+  const std::string cmd = a.next("command");
+  try {
+    State s = load_state(state_file);
+    int rc = 0;
+    if (cmd == "scan") rc = cmd_scan(s, a);
+    else if (cmd == "scan-ethercat") rc = cmd_scan_ethercat(s, a);
+    else if (cmd == "show") {
+      show(s);
+      return 0;
+    } else if (cmd == "axis") rc = cmd_axis(s, a);
+    else if (cmd == "include") {
+      while (a.more()) {
+        const std::string k = a.next("option");
+        if (k == "--ini") s.ini_includes.push_back(a.next("file"));
+        else if (k == "--hal-before-bus") s.hal_before_bus.push_back(a.next("file"));
+        else if (k == "--hal-after-bus") s.hal_after_bus.push_back(a.next("file"));
+        else usage("include: unknown option " + k);
+      }
+    } else if (cmd == "write") rc = cmd_write(s, a);
+    else if (cmd == "bring-up") rc = cmd_bring_up(s, a);
+    else if (cmd == "shutdown") {
+      Controller(self_dir()).cnc({"shutdown"});
+      return 0;
+    }
+    else usage("unknown command " + cmd);
+    save_state(s, state_file);
+    return rc;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "cnc-commission: %s\n", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,48 @@
+// Step 9, writing the configuration: the INI and HAL files of the machine
+// generated from the commissioning state (the CANopen bus, the CiA 402
+// drives with their scaling and direction, joints and axes, the I/O
+// controller), shown as a difference against the files there, then written
+// atomically with the old ones kept as <file>.bak, and checked by
+// `cncd --check --strict`. A disabled axis (Axis::enabled false) is written
+// with its drive DISABLED (the joint follows its command, nothing moves)
+// and its node optional (MANDATORY = NO): a machine can be brought up one
+// axis at a time. Non-realtime.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "commission/state.hpp"
+
+namespace cnc::commission {
+
+struct GeneratedFile {
+  std::filesystem::path path;
+  std::string content;
+};
+
+// The files for configuration name `name` in folder `dir`: <name>.ini,
+// <name>.hal and, when there is none yet, tool.tbl. Throws
+// std::invalid_argument when the state cannot make a configuration (no
+// axis, an axis without scaling), naming what is missing.
+std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem::path& dir, const std::string& name);
+
+// The servo period the written configuration runs at: 1 ms per two axis
+// drives on the one bus (their PDOs at 1 Mbit/s stay inside the bus-load
+// budget of the CANopen master's plan).
+long servo_period_ns(std::size_t drives) noexcept;
+
+// A line difference of `old_text` and `new_text` ("-" removed, "+" added,
+// unchanged lines left out), headed by the file name; "" when equal.
+std::string diff_text(const std::string& file, const std::string& old_text, const std::string& new_text);
+
+// Writes each file atomically; an existing file that changes is first kept
+// as <file>.bak. Returns the files changed.
+std::vector<std::filesystem::path> write_config(const std::vector<GeneratedFile>& files);
+
+// Runs `<cncd> --check --strict <ini>` and returns its exit status; its
+// output goes to `output`.
+int check_config(const std::filesystem::path& cncd, const std::filesystem::path& ini, std::string& output);
+
+}  // namespace cnc::commission

@@ -1,0 +1,115 @@
+// The commissioning state: what each step found or decided, kept in one
+// JSON file beside the machine's configuration so that work can be left and
+// resumed (a person at the wizard, a script between subcommands). Every
+// step reads the state, does its work and saves it again (atomically: a
+// crash leaves the old file). Non-realtime.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace cnc::commission {
+
+// One CANopen node as the bus scan found it.
+struct ScannedNode {
+  int node_id = 0;
+  uint32_t device_type = 0;                 // 0x1000
+  uint32_t vendor_id = 0, product_code = 0, revision = 0, serial = 0;  // 0x1018
+  std::string name;                         // 0x1008 (empty: the node has none)
+  std::string firmware;                     // 0x100A
+  std::optional<uint32_t> supported_modes;  // 0x6502 (CiA 402 drives)
+  std::optional<uint16_t> statusword;       // 0x6041
+  std::optional<uint16_t> error_code;       // 0x603F
+  std::optional<uint32_t> encoder_increments, encoder_motor_revs;  // 0x608F:1/2
+  std::optional<uint32_t> gear_motor_revs, gear_shaft_revs;        // 0x6091:1/2
+  std::optional<uint32_t> feed, feed_shaft_revs;                   // 0x6092:1/2
+  std::string eds;                          // matched description file ("" unknown)
+  bool cia402 = false;                      // device profile 402 with CSP among its modes
+  bool fault = false;                       // statusword says Fault
+  std::vector<std::string> problems;        // what to check, one sentence each
+};
+
+// One EtherCAT slave as the segment scan found it (its SII).
+struct ScannedSlave {
+  unsigned position = 0;                    // 1-based, in the line
+  uint32_t vendor_id = 0, product_code = 0, revision = 0, serial = 0;
+  std::string name, order;
+  bool coe = false, dc = false;
+  std::string esi;                          // matched ESI file ("" unknown)
+  std::vector<std::string> problems;
+};
+
+// Drive scaling of one axis: encoder increments per motor revolution, gear
+// (motor revolutions per screw revolution, as GEAR_MOTOR_REVS:GEAR_LOAD_REVS)
+// and the screw lead (mm per screw revolution); `correction` multiplies the
+// nominal counts per mm after a measured travel (direction test).
+struct AxisScaling {
+  double encoder_counts = 0;
+  double gear_motor_revs = 1, gear_load_revs = 1;
+  double screw_lead = 0;
+  double correction = 1.0;
+  bool reverse = false;
+  std::string source;   // "drive 0x608F, entered lead" ...
+  double nominal_counts_per_mm() const noexcept;
+  double counts_per_mm() const noexcept { return nominal_counts_per_mm() * correction; }
+};
+
+// The outcome of one direction and scaling test.
+struct DirectionTest {
+  double commanded_mm = 0;      // the jog asked for (machine units at the provisional scaling)
+  double feedback_mm = 0;       // what the drive's encoder reported (same scaling)
+  double dial_mm = 0;           // what the dial indicator showed (entered)
+  bool has_dial = false;
+  bool reversed = false;        // the test flipped REVERSE
+  double correction = 1.0;      // factor applied to counts per mm
+  std::string verdict;
+};
+
+struct Axis {
+  char letter = 'X';            // X Y Z A B C U V W
+  int joint = 0;
+  int node = 0;                 // CANopen node-ID of its drive
+  std::string gantry_with;      // "" or the other joint's letter pair, e.g. "Y2"
+  AxisScaling scaling;
+  std::optional<DirectionTest> direction;
+  double min_limit = -10, max_limit = 10;  // provisional soft limits (mm)
+  double max_velocity = 10, max_acceleration = 100;  // provisional
+  bool enabled = true;          // false: left out of the written configuration
+};
+
+struct State {
+  static constexpr int kVersion = 1;
+  std::string machine = "Commissioned machine";
+  std::string interface;        // CAN transport of the scan ("socketcan:can0", "virtual:comm")
+  uint32_t bitrate = 1'000'000;
+  std::string eds_dir;
+  std::vector<ScannedNode> nodes;
+  std::string ethercat_interface;  // "raw:eth0", "sim:<segment>"
+  std::string esi_dir;
+  std::vector<ScannedSlave> slaves;
+  std::vector<Axis> axes;
+  // What the configuration keeps beside the generated part: INI files
+  // included at the end (#INCLUDE), and HAL files sourced before the bus
+  // masters are loaded and after their functions are added (site I/O, or a
+  // simulated machine's drives).
+  std::vector<std::string> ini_includes;
+  std::vector<std::string> hal_before_bus, hal_after_bus;
+  std::vector<std::string> log;  // one line per step done, oldest first
+
+  const ScannedNode* node(int id) const noexcept;
+  Axis* axis(char letter) noexcept;
+  const Axis* axis(char letter) const noexcept;
+};
+
+// Reads a state file; a missing file gives a fresh state. Throws
+// std::runtime_error naming the file and the key at fault.
+State load_state(const std::filesystem::path& file);
+// Writes it atomically (a temporary file renamed over the old one).
+void save_state(const State& s, const std::filesystem::path& file);
+std::string to_json_text(const State& s);
+State from_json_text(const std::string& text, const std::string& origin);
+
+}  // namespace cnc::commission

@@ -1,0 +1,142 @@
+#include "commission/steps.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+namespace cnc::commission {
+
+namespace {
+std::string axis_name(char l) { return std::string("axis ") + l; }
+std::string num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.6g", v);
+  return b;
+}
+Axis& need_axis(State& s, char letter) {
+  Axis* a = s.axis(letter);
+  if (!a) throw std::invalid_argument(axis_name(letter) + " has no drive yet: assign one first (cnc-commission axis " +
+                                      std::string(1, letter) + " assign --node N)");
+  return *a;
+}
+}  // namespace
+
+Axis& assign_axis(State& s, char letter, int joint, int node, const std::string& gantry_with) {
+  const std::string valid = "XYZABCUVW";
+  if (valid.find(letter) == std::string::npos)
+    throw std::invalid_argument(std::string("axis \"") + letter + "\": expected one of X Y Z A B C U V W");
+  if (joint < 0 || joint > 15) throw std::invalid_argument(axis_name(letter) + ": joint " + std::to_string(joint) + " outside 0..15");
+  const ScannedNode* n = s.node(node);
+  if (!n) throw std::invalid_argument("node " + std::to_string(node) + " was not found by the bus scan: scan first, or check its node-ID");
+  if (!n->cia402)
+    throw std::invalid_argument("node " + std::to_string(node) + " (" + n->name + ") is not a CiA 402 drive with CSP: it cannot drive " + axis_name(letter));
+  if (n->fault)
+    throw std::invalid_argument("node " + std::to_string(node) + " (" + n->name + ") is in fault: clear the fault and scan again");
+  for (const Axis& a : s.axes) {
+    if (a.letter == letter) continue;
+    if (a.node == node) throw std::invalid_argument("node " + std::to_string(node) + " already drives axis " + std::string(1, a.letter));
+    if (a.joint == joint) throw std::invalid_argument("joint " + std::to_string(joint) + " already belongs to axis " + std::string(1, a.letter));
+  }
+  Axis* a = s.axis(letter);
+  if (!a) {
+    s.axes.push_back(Axis{});
+    a = &s.axes.back();
+    a->letter = letter;
+  }
+  if (a->node != node) {
+    a->direction.reset();
+    a->scaling = AxisScaling{};
+  }
+  a->joint = joint;
+  a->node = node;
+  a->gantry_with = gantry_with;
+  if (a->scaling.encoder_counts <= 0 && n->encoder_increments) {
+    const double revs = n->encoder_motor_revs.value_or(1) ? n->encoder_motor_revs.value_or(1) : 1;
+    a->scaling.encoder_counts = *n->encoder_increments / revs;
+  }
+  return *a;
+}
+
+double set_scaling(State& s, char letter, double screw_lead, double encoder_counts, double gear_motor_revs,
+                   double gear_load_revs) {
+  Axis& a = need_axis(s, letter);
+  const ScannedNode* n = s.node(a.node);
+  if (!(screw_lead > 0)) throw std::invalid_argument(axis_name(letter) + ": screw lead " + num(screw_lead) + " mm: expected > 0");
+  AxisScaling& sc = a.scaling;
+  std::string src;
+  if (encoder_counts > 0) {
+    sc.encoder_counts = encoder_counts;
+    src = "entered counts/rev";
+  } else if (n && n->encoder_increments && *n->encoder_increments > 0) {
+    const uint32_t revs = n->encoder_motor_revs.value_or(1) ? n->encoder_motor_revs.value_or(1) : 1;
+    sc.encoder_counts = static_cast<double>(*n->encoder_increments) / revs;
+    src = "counts/rev from the drive (0x608F)";
+  } else {
+    throw std::invalid_argument(axis_name(letter) + ": the drive (node " + std::to_string(a.node) +
+                                ") does not give its encoder resolution (0x608F): enter --counts");
+  }
+  if (gear_motor_revs > 0 || gear_load_revs > 0) {
+    sc.gear_motor_revs = gear_motor_revs > 0 ? gear_motor_revs : 1;
+    sc.gear_load_revs = gear_load_revs > 0 ? gear_load_revs : 1;
+    src += ", entered gear";
+  } else if (n && n->gear_motor_revs && n->gear_shaft_revs && *n->gear_shaft_revs > 0) {
+    sc.gear_motor_revs = *n->gear_motor_revs;
+    sc.gear_load_revs = *n->gear_shaft_revs;
+    src += ", gear from the drive (0x6091)";
+  } else {
+    sc.gear_motor_revs = sc.gear_load_revs = 1;
+    src += ", no gear";
+  }
+  sc.screw_lead = screw_lead;
+  sc.correction = 1.0;  // a new nominal scaling: earlier measurements no longer apply
+  sc.source = src + ", entered lead";
+  a.direction.reset();
+  return sc.counts_per_mm();
+}
+
+const DirectionTest& apply_direction_test(State& s, char letter, double commanded_mm, double feedback_mm,
+                                          double dial_mm, bool has_dial) {
+  Axis& a = need_axis(s, letter);
+  if (!(std::fabs(commanded_mm) > 0))
+    throw std::invalid_argument(axis_name(letter) + ": the test commanded no travel");
+  DirectionTest t;
+  t.commanded_mm = commanded_mm;
+  t.feedback_mm = feedback_mm;
+  t.dial_mm = dial_mm;
+  t.has_dial = has_dial;
+  // The controller closes the loop on the encoder: its travel must follow
+  // the command within a few percent, else the drive did not move as told.
+  if (std::fabs(feedback_mm - commanded_mm) > 0.05 * std::fabs(commanded_mm) + 0.01) {
+    t.verdict = axis_name(letter) + ": the drive's encoder moved " + num(feedback_mm) + " mm for " + num(commanded_mm) +
+                " mm commanded: the drive did not follow (fault, torque limit, brake?); nothing changed";
+    a.direction = t;
+    throw std::invalid_argument(t.verdict);
+  }
+  if (!has_dial) {
+    t.verdict = axis_name(letter) + ": encoder travel " + num(feedback_mm) + " mm as commanded; enter the dial reading to check direction and scaling";
+    a.direction = t;
+    return *a.direction;
+  }
+  if (std::fabs(dial_mm) < 0.01 * std::fabs(commanded_mm)) {
+    t.verdict = axis_name(letter) + ": the dial showed " + num(dial_mm) + " mm for " + num(commanded_mm) +
+                " mm commanded: the table did not move (coupling, brake, dial not touching?); nothing changed";
+    a.direction = t;
+    throw std::invalid_argument(t.verdict);
+  }
+  const bool against = (dial_mm > 0) != (commanded_mm > 0);
+  t.correction = std::fabs(feedback_mm) / std::fabs(dial_mm);
+  if (against) {
+    a.scaling.reverse = !a.scaling.reverse;
+    t.reversed = true;
+  }
+  a.scaling.correction *= t.correction;
+  t.verdict = axis_name(letter) + ": " + (against ? "the table moved against the command: REVERSE flipped to " +
+                                                        std::string(a.scaling.reverse ? "YES" : "NO")
+                                                  : std::string("direction right")) +
+              "; scale " + (std::fabs(t.correction - 1) < 1e-3 ? "right" : "corrected by " + num(t.correction)) +
+              ", now " + num(a.scaling.counts_per_mm()) + " counts/mm";
+  a.direction = t;
+  return *a.direction;
+}
+
+}  // namespace cnc::commission

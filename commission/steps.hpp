@@ -1,0 +1,41 @@
+// Steps 2-4 of commissioning as pure functions over the state: assigning
+// drives to axes, the scaling of each axis, and the analysis of a direction
+// and scaling test (a jog whose commanded travel, encoder feedback and
+// dial-indicator reading are given). They check their input and throw
+// std::invalid_argument with a message naming the axis, node or value.
+#pragma once
+
+#include <string>
+
+#include "commission/state.hpp"
+
+namespace cnc::commission {
+
+// Assigns node `node` (which the scan must have found, as a CiA 402 drive
+// not in fault) to axis `letter` on joint `joint`; a second call for the
+// same letter reassigns it. `gantry_with` names the other joint of a
+// gantry pair ("" none).
+Axis& assign_axis(State& s, char letter, int joint, int node, const std::string& gantry_with = "");
+
+// Sets the axis' scaling: encoder increments per motor revolution from the
+// drive (0x608F) unless given (> 0), gear from the drive (0x6091) unless
+// given (> 0), and the screw lead (mm per screw revolution, required).
+// Returns the counts per mm.
+double set_scaling(State& s, char letter, double screw_lead, double encoder_counts = 0, double gear_motor_revs = 0,
+                   double gear_load_revs = 0);
+
+// Largest jog a direction test makes, and its speed limit (mm, mm/s).
+inline constexpr double kMaxTestTravel = 20.0;
+inline constexpr double kMaxTestVelocity = 5.0;
+
+// The analysis of a direction test on axis `letter`: the jog commanded
+// `commanded_mm` at the axis' current scaling; the drive's encoder reported
+// `feedback_mm` of travel (same scaling); the dial indicator, zeroed before
+// the jog, showed `dial_mm` in the axis' positive direction (has_dial false:
+// not measured yet). The table moving against the command flips REVERSE;
+// a dial travel unlike the feedback corrects the counts per mm. The axis'
+// scaling is updated and the test stored in the state.
+const DirectionTest& apply_direction_test(State& s, char letter, double commanded_mm, double feedback_mm,
+                                          double dial_mm, bool has_dial);
+
+}  // namespace cnc::commission

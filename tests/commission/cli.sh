@@ -1,0 +1,95 @@
+#!/usr/bin/env bash
+# cnc-commission as a script uses it: a state with the nodes a scan found
+# (written here: the simulated drives live inside cncd, out of this
+# process's reach), axes, scaling, the configuration's difference and
+# writing, bad input refused with nothing written, and the direction test
+# with --bring-up and on a controller brought up by the program, on a
+# simulated machine (cnc-sim-random-machine, seed 7) whose truth the
+# script reads only to play the dial indicator.
+set -eu  # no pipefail: `grep -q` may end a pipe before the writer
+bin="$1"
+work="$(mktemp -d)"
+trap 'CNC_INSTANCE=$CNC_INSTANCE "$bin/cnc" shutdown >/dev/null 2>&1 || true; rm -rf "$work"' EXIT
+export CNC_INSTANCE="commission-cli-$$" CNC_NO_REALTIME=1
+fail() { echo "FAIL: $*"; [ -f "$work/m/cncd.log" ] && tail -20 "$work/m/cncd.log"; exit 1; }
+cc() { "$bin/cnc-commission" --state "$work/state.json" "$@"; }
+
+"$bin/cnc-sim-random-machine" --seed 7 --dir "$work/m" --interface "virtual:cli-$$" --nodes 1
+node() {
+  cat <<JSON
+{"node_id": $1, "device_type": 131474, "vendor_id": 3265, "product_code": 1026, "name": "drive $1",
+ "cia402": true, "fault": $2, "supported_modes": 928, "encoder_increments": $(python3 -c "import json;print(int(json.load(open('$work/m/sim-truth.json'))['axes'][0]['encoder_counts']))"),
+ "encoder_motor_revs": 1, "problems": []}
+JSON
+}
+cat > "$work/state.json" <<JSON
+{"version": 1, "interface": "virtual:cli-$$", "nodes": [$(node 1 false), $(node 2 true)], "axes": []}
+JSON
+
+# Bad input: nothing changes in the state.
+before="$(cat "$work/state.json")"
+if cc axis X assign --node 2 2>"$work/err"; then fail "a drive in fault was assigned"; fi
+grep -q "is in fault" "$work/err" || fail "no fault message: $(cat "$work/err")"
+if cc axis X assign --node 9 2>"$work/err"; then fail "an unknown node was assigned"; fi
+grep -q "was not found by the bus scan" "$work/err" || fail "no unknown-node message"
+[ "$before" = "$(cat "$work/state.json")" ] || fail "a refused step changed the state"
+set +e; cc scan >/dev/null 2>&1; rc=$?; set -e
+[ $rc -eq 1 ] || [ $rc -eq 2 ] || fail "scan without a reachable bus: status $rc"
+
+cc axis X assign --node 1 --joint 0 | grep -q "axis X: node 1 on joint 0" || fail "assign"
+cc axis X scaling --lead 5 | grep -q "counts/mm" || fail "scaling"
+cc axis X limits --min -50 --max 50 --velocity 10 --acceleration 100
+cc include --ini sim-machine.ini --hal-before-bus sim-machine.hal --hal-after-bus sim-machine-run.hal
+cc show | grep -q "axis X: joint 0, node 1" || fail "show"
+
+# write: a dry run shows the files and writes nothing; --yes writes and checks.
+cc write --dir "$work/m" --name mill | grep -q "^+\[CIA402_DRIVE_0\]" || fail "no difference shown"
+[ ! -f "$work/m/mill.ini" ] || fail "the dry run wrote"
+cc write --dir "$work/m" --name mill --yes > "$work/out" || fail "write --yes: $(cat "$work/out")"; grep -q "wrote .*mill.ini" "$work/out" || fail "write --yes: $(cat "$work/out")"
+cc write --dir "$work/m" --name mill --yes >/dev/null
+[ ! -f "$work/m/mill.ini.bak" ] || fail "an unchanged file was backed up"
+
+# The direction test on a controller of its own, then with a dial reading.
+cc axis X direction-test --distance 10 --velocity 5 --bring-up "$work/m" | grep -q "the machine is off again" \
+  || fail "direction-test --bring-up"
+cc bring-up --dir "$work/m" | grep -q "cncd runs on" || fail "bring-up"
+pin=cia402-sim.0.node.01.table-position
+# Ctrl-C during a test move: stopped, the machine off (motion and drive
+# disabled), the step says so and changes nothing.
+before="$(cat "$work/state.json")"
+"$bin/cnc-commission" --state "$work/state.json" axis X direction-test --distance 20 --velocity 1 >"$work/out" 2>&1 &
+pid=$!
+sleep 3
+kill -INT $pid
+set +e; wait $pid; rc=$?; set -e
+[ $rc -eq 1 ] || fail "aborted test: status $rc: $(cat "$work/out")"
+grep -q "aborted" "$work/out" || fail "no abort message: $(cat "$work/out")"
+grep -q "the drives disabled" "$work/out" || fail "abort did not switch off: $(cat "$work/out")"
+[ "$before" = "$(cat "$work/state.json")" ] || fail "the aborted test changed the state"
+"$bin/cnc" status --json | python3 -c "
+import json, sys
+s = json.load(sys.stdin)
+assert not s['motion']['enabled'], 'motion still enabled'
+assert s['task']['state'] != 'ON', s['task']['state']
+" || fail "the machine is not off after the abort"
+[ "$("$bin/halcmd" getp cia402.0.drive.00.enabled)" = "FALSE" ] || fail "the drive is still enabled"
+t0="$("$bin/halcmd" getp $pin)"
+cc axis X direction-test --distance 10 --velocity 5 >/dev/null || fail "direction-test"
+sleep 0.2
+t1="$("$bin/halcmd" getp $pin)"
+dial="$(python3 -c "print($t1 - $t0)")"
+cc axis X dial "$dial" | tee "$work/verdict"
+cc shutdown
+python3 - "$work/state.json" "$work/m/sim-truth.json" <<'PY' || fail "scaling or direction not found"
+import json, sys
+s = json.load(open(sys.argv[1]))
+t = json.load(open(sys.argv[2]))["axes"][0]
+sc = s["axes"][0]["scaling"]
+assert sc["reverse"] == t["motor_reversed"], (sc, t)
+assert abs(sc["counts_per_mm"] / t["counts_per_mm"] - 1) < 0.005, (sc, t)
+print("found", sc["counts_per_mm"], "counts/mm, reverse", sc["reverse"], "; truth", t)
+PY
+# The configuration written again: the old one kept.
+cc write --dir "$work/m" --name mill --yes >/dev/null || fail "final write"
+[ -f "$work/m/mill.ini.bak" ] || fail "no backup of the changed file"
+echo PASS

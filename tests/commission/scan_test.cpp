@@ -1,0 +1,183 @@
+// The bus scan on simulated CiA 402 drives over the in-process CAN bus on
+// the real-time clock (the drives in the simulator host's own thread), as
+// it runs over SocketCAN: the scan code only sees a can::Transport.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <thread>
+
+#include "commission/scan.hpp"
+#include "sim/can/virtual_bus.hpp"
+#include "sim/cia402/sim_host.hpp"
+#include "sim/ethercat/segment.hpp"
+#include "tests/support/testing.hpp"
+
+namespace cnc::commission {
+namespace {
+
+struct Bus {
+  std::shared_ptr<can::VirtualBus> bus;
+  std::unique_ptr<can::VirtualPort> host_port, scanner;
+  std::unique_ptr<cia402::sim::SimHost> host;
+
+  Bus() {
+    can::VirtualBusOptions o;
+    o.manual_clock = false;
+    bus = can::VirtualBus::create(o);
+    host_port = bus->open_port("host");
+    scanner = bus->open_port("scanner");
+    host = std::make_unique<cia402::sim::SimHost>(*host_port);
+  }
+  void add(uint8_t node, uint32_t product = 0x402, uint32_t serial = 0) {
+    cia402::sim::SimNodeConfig c;
+    c.node_id = node;
+    c.identity.product_code = product;
+    c.identity.serial = serial ? serial : node;
+    c.drive.name = "drive " + std::to_string(node);
+    c.drive.plant.encoder_counts = 10000;
+    host->add(c, bus->open_port("node-" + std::to_string(node) + "-" + std::to_string(host->size())));
+  }
+  void start() {
+    host->start();
+    // The drives' initialisation (20 ms), with room for a loaded host; the
+    // scan's SDO time-out (200 ms) covers a late one too.
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+};
+
+std::filesystem::path eds_dir() { return testing::source_dir() / "configs/canopen-mill/drives"; }
+
+// The simulated drives run in a thread of their own, which a loaded test
+// host may leave waiting for a while: a generous SDO time-out (a real bus
+// scan uses the default 200 ms).
+ScanOptions options() {
+  ScanOptions o;
+  o.timeout_ns = 1'000'000'000;
+  return o;
+}
+
+TEST(CommissionScan, FindsEveryDriveWithIdentityModesEncoderAndEds) {
+  Bus b;
+  b.add(1);
+  b.add(2);
+  b.add(7);
+  b.start();
+  ScanOptions o = options();
+  o.eds_dir = eds_dir();
+  o.expected = {1, 2, 7};
+  const ScanResult r = scan_canopen(*b.scanner, o);
+  ASSERT_EQ(r.nodes.size(), 3u) << (r.problems.empty() ? "" : r.problems[0]);
+  EXPECT_TRUE(r.ok()) << describe(r.nodes[0]);
+  const ScannedNode& n = r.nodes[2];
+  EXPECT_EQ(n.node_id, 7);
+  EXPECT_EQ(n.vendor_id, 0xCC1u);
+  EXPECT_EQ(n.product_code, 0x402u);
+  EXPECT_EQ(n.serial, 7u);
+  EXPECT_EQ(n.device_type & 0xFFFF, 402u);
+  EXPECT_EQ(n.name, "cnc simulated servo drive");
+  EXPECT_TRUE(n.cia402);
+  EXPECT_FALSE(n.fault);
+  EXPECT_EQ(n.encoder_increments.value_or(0), 10000u);
+  EXPECT_EQ(n.eds, "servo.eds");
+}
+
+TEST(CommissionScan, NamesASilentExpectedNode) {
+  Bus b;
+  b.add(1);
+  b.start();
+  ScanOptions o = options();
+  o.expected = {1, 4};
+  o.last = 10;
+  const ScanResult r = scan_canopen(*b.scanner, o);
+  ASSERT_EQ(r.nodes.size(), 1u);
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_NE(r.problems[0].find("node 4 does not answer"), std::string::npos) << r.problems[0];
+  EXPECT_FALSE(r.ok());
+}
+
+TEST(CommissionScan, SaysWhenNoEdsDescribesANode) {
+  Bus b;
+  b.add(3, 0x999);
+  b.start();
+  ScanOptions o = options();
+  o.eds_dir = eds_dir();
+  o.last = 5;
+  const ScanResult r = scan_canopen(*b.scanner, o);
+  ASSERT_EQ(r.nodes.size(), 1u);
+  EXPECT_TRUE(r.nodes[0].eds.empty());
+  ASSERT_EQ(r.nodes[0].problems.size(), 1u);
+  EXPECT_NE(r.nodes[0].problems[0].find("no description file"), std::string::npos) << r.nodes[0].problems[0];
+  EXPECT_NE(r.nodes[0].problems[0].find("0x00000999"), std::string::npos);
+}
+
+TEST(CommissionScan, ReportsTwoDevicesOnOneNodeId) {
+  Bus b;
+  b.add(5, 0x402, 100);
+  b.add(5, 0x402, 200);
+  b.start();
+  ScanOptions o = options();
+  o.last = 8;
+  const ScanResult r = scan_canopen(*b.scanner, o);
+  ASSERT_EQ(r.nodes.size(), 1u);
+  ASSERT_FALSE(r.nodes[0].problems.empty());
+  EXPECT_NE(r.nodes[0].problems[0].find("two or more devices answer on node-ID 5"), std::string::npos)
+      << r.nodes[0].problems[0];
+}
+
+TEST(CommissionScan, ReportsADriveInFaultWithItsErrorCode) {
+  Bus b;
+  b.add(2);
+  b.start();
+  EXPECT_EQ(b.host->inject("drive 2 encoder-loss", 1, true), "");
+  ScanOptions o = options();
+  o.last = 3;
+  // The drive's fault reaction takes its own time: scan until it shows (a
+  // loaded host may delay the simulator's thread).
+  ScanResult r;
+  for (int i = 0; i < 50; ++i) {
+    r = scan_canopen(*b.scanner, o);
+    if (r.nodes.size() == 1 && r.nodes[0].fault) break;
+  }
+  ASSERT_EQ(r.nodes.size(), 1u);
+  EXPECT_TRUE(r.nodes[0].fault);
+  ASSERT_FALSE(r.nodes[0].problems.empty());
+  EXPECT_NE(r.nodes[0].problems[0].find("in fault"), std::string::npos) << r.nodes[0].problems[0];
+  EXPECT_NE(r.nodes[0].problems[0].find("0x7305"), std::string::npos) << r.nodes[0].problems[0];
+}
+
+TEST(CommissionScan, AnEmptyBusGivesNoNodes) {
+  Bus b;
+  b.start();
+  ScanOptions o = options();
+  o.last = 127;
+  const ScanResult r = scan_canopen(*b.scanner, o);
+  EXPECT_TRUE(r.nodes.empty());
+  EXPECT_TRUE(r.ok());
+}
+
+TEST(CommissionScan, FindsEthercatSlavesWithTheirSiiIdentityAndEsi) {
+  auto segment = std::make_shared<ethercat::sim::Segment>();
+  segment->add_drives(2);
+  const std::string name = testing::unique_name("commission-ecat");
+  ethercat::sim::register_sim_link_kind();
+  ethercat::sim::register_segment(name, segment);
+  const EthercatScanResult r = scan_ethercat("sim:" + name, testing::source_dir() / "configs/ethercat-mill/drives");
+  ethercat::sim::unregister_segment(name);
+  ASSERT_EQ(r.slaves.size(), 2u) << (r.problems.empty() ? "" : r.problems[0]);
+  EXPECT_TRUE(r.ok()) << describe(r.slaves[0]);
+  EXPECT_EQ(r.slaves[1].position, 2u);
+  EXPECT_EQ(r.slaves[0].vendor_id, 0xCC1u);
+  EXPECT_EQ(r.slaves[0].product_code, 0x402u);
+  EXPECT_TRUE(r.slaves[0].coe);
+  EXPECT_EQ(r.slaves[0].esi, "servo.xml");
+}
+
+TEST(CommissionScan, AnEthercatSegmentThatCannotBeOpenedIsAProblem) {
+  const EthercatScanResult r = scan_ethercat("sim:" + testing::unique_name("no-such-segment"), "");
+  EXPECT_TRUE(r.slaves.empty());
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_FALSE(r.ok());
+}
+
+}  // namespace
+}  // namespace cnc::commission
