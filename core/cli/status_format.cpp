@@ -198,8 +198,8 @@ std::string format_alarms(const ipc::AlarmStatus& a, bool all) {
     ::localtime_r(&t, &tm);
     char when[32];
     std::strftime(when, sizeof when, "%H:%M:%S", &tm);
-    o << fmt("  #%u %s %s%s: %s\n", e.id, when, e.acknowledged ? "(acknowledged) " : "",
-             e.count > 1 ? fmt("x%u", e.count).c_str() : "", e.text.c_str());
+    o << fmt("  #%u %s%s%s: %s\n", e.id, when, e.acknowledged ? " (acknowledged)" : "",
+             e.count > 1 ? fmt(" x%u", e.count).c_str() : "", e.text.c_str());
   }
   return o.str();
 }

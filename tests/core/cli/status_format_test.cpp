@@ -164,7 +164,7 @@ TEST(StatusFormat, AlarmsListActiveOnesWithCountsAndJsonCarriesAll) {
   EXPECT_NE(active.find("#4 "), std::string::npos) << active;
   EXPECT_NE(active.find("x3: joint 1 amplifier fault"), std::string::npos) << active;
   EXPECT_EQ(active.find("old one"), std::string::npos) << active;
-  EXPECT_NE(cli::format_alarms(a, true).find("(acknowledged) : old one"), std::string::npos);
+  EXPECT_NE(cli::format_alarms(a, true).find("(acknowledged): old one"), std::string::npos);
   EXPECT_NE(cli::format_status(*s).find("Alarms: 1 active"), std::string::npos);
   const auto j = nlohmann::json::parse(cli::status_json(*s));
   EXPECT_EQ(j["alarms"]["active"], 1);
