@@ -61,7 +61,8 @@ void AlarmLog::raise(const std::string& source, const std::string& text, int64_t
   a.source = source;
   a.text = text;
   alarms_.push_back(a);
-  ++active_count_;
+  ++local_active_;
+  active_count_ = local_active_ + controller_alarms_.size();
   // Only acknowledged alarms are dropped when the list is full.
   while (alarms_.size() > max_alarms_) {
     auto it = alarms_.begin();
@@ -77,7 +78,39 @@ void AlarmLog::post(const Message& m) {
   if (m.kind == MessageKind::Error) level = LogLevel::Error;
   if (m.kind == MessageKind::Display) level = LogLevel::Display;
   add_log(LogEntry{m.time_ns, level, std::string(m.source.view()), std::string(m.text.view())});
-  if (m.kind == MessageKind::Error) raise(std::string(m.source.view()), std::string(m.text.view()), m.time_ns);
+  // A controller that keeps alarms raised this one in its table.
+  if (m.kind == MessageKind::Error && !controller_) {
+    raise(std::string(m.source.view()), std::string(m.text.view()), m.time_ns);
+  }
+}
+
+void AlarmLog::update_controller(const ipc::AlarmStatus& a) {
+  if (!a.available) {
+    if (controller_) {
+      controller_ = false;
+      controller_alarms_.clear();
+      active_count_ = local_active_;
+      ++revision_;
+    }
+    return;
+  }
+  if (controller_ && a.revision == controller_revision_) return;
+  controller_ = true;
+  controller_revision_ = a.revision;
+  controller_alarms_.clear();
+  for (const ipc::AlarmEntry& e : a.list) {
+    if (e.id == 0 || e.acknowledged) continue;
+    Alarm m;
+    m.id = (uint64_t{1} << 40) + e.id;  // apart from the screen's own ids
+    m.controller_id = e.id;
+    m.time_ns = e.last_ns;
+    m.source = std::string(e.source.view());
+    m.text = std::string(e.text.view());
+    m.count = e.count;
+    controller_alarms_.push_back(std::move(m));
+  }
+  active_count_ = local_active_ + controller_alarms_.size();
+  ++revision_;
 }
 
 void AlarmLog::post_local(LogLevel level, const std::string& source, const std::string& text, int64_t time_ns) {
@@ -98,7 +131,9 @@ void AlarmLog::update_drives(const ipc::Status& s, int64_t time_ns) {
       const std::string text = d.fault_text.empty() ? decode_drive_error(d.error_code) : std::string(d.fault_text.view());
       const std::string msg = name + ": fault " + code + " " + text;
       add_log(LogEntry{time_ns, LogLevel::Error, "drive", msg});
-      raise("drive", msg, time_ns);
+      // A controller that keeps alarms has one for the fault's cause (the
+      // joint motion disabled for it, with this drive's text).
+      if (!controller_) raise("drive", msg, time_ns);
     } else if (!faulted && seen.faulted) {
       add_log(LogEntry{time_ns, LogLevel::Info, "drive", name + ": fault cleared (" + drive_state_name(d.state) + ")"});
     }
@@ -108,11 +143,20 @@ void AlarmLog::update_drives(const ipc::Status& s, int64_t time_ns) {
 }
 
 bool AlarmLog::acknowledge(uint64_t id, int64_t time_ns) {
+  for (const auto& a : controller_alarms_) {
+    if (a.id == id) {
+      if (acknowledge_in_controller) acknowledge_in_controller(a.controller_id);
+      add_log(LogEntry{time_ns, LogLevel::Operator, "operator", "acknowledged: " + a.text});
+      return true;
+    }
+  }
   for (auto& a : alarms_) {
     if (a.id == id && !a.acknowledged) {
       a.acknowledged = true;
       a.acknowledged_ns = time_ns;
-      --active_count_;
+      --local_active_;
+      active_count_ = local_active_ + controller_alarms_.size();
+      ++revision_;
       add_log(LogEntry{time_ns, LogLevel::Operator, "operator", "acknowledged: " + a.text});
       return true;
     }
@@ -129,13 +173,20 @@ int AlarmLog::acknowledge_all(int64_t time_ns) {
       ++n;
     }
   }
-  active_count_ = 0;
+  local_active_ = 0;
+  if (!controller_alarms_.empty() && acknowledge_in_controller) {
+    acknowledge_in_controller(0);
+    n += static_cast<int>(controller_alarms_.size());
+  }
+  active_count_ = local_active_ + controller_alarms_.size();
+  ++revision_;
   if (n) add_log(LogEntry{time_ns, LogLevel::Operator, "operator", "acknowledged " + std::to_string(n) + " alarm(s)"});
   return n;
 }
 
 std::vector<const Alarm*> AlarmLog::active() const {
   std::vector<const Alarm*> out;
+  for (const auto& a : controller_alarms_) out.push_back(&a);
   for (const auto& a : alarms_) {
     if (!a.acknowledged) out.push_back(&a);
   }

@@ -1,7 +1,12 @@
-// Alarms and the message log of the screen. Errors from the controller's
-// error channel (and drive faults seen in the status) are alarms that stay
-// until the operator acknowledges them; every message, alarm and screen
-// event also goes to a time-stamped log. Repeats are never merged. CiA-402
+// Alarms and the message log of the screen. A controller that keeps alarms
+// (status `alarms.available`: core/ipc/alarms.hpp) is the one source of the
+// controller's alarms: they are mirrored from its status, de-duplicated per
+// cause there, and acknowledging one sends AlarmAcknowledge, so every
+// screen agrees and a screen started later shows no old acknowledged
+// alarm. The screen's own errors (command rejections, lost connection) are
+// local alarms. With an older controller, errors from the error channel and
+// drive faults seen in the status are local alarms as before. Every
+// message, alarm and screen event also goes to a time-stamped log. CiA-402
 // drive faults are decoded (0x603F classes of CiA 301/402) and name the
 // drive. No Qt.
 #pragma once
@@ -42,6 +47,8 @@ struct Alarm {
   std::string text;
   bool acknowledged = false;
   int64_t acknowledged_ns = 0;
+  uint32_t count = 1;          // messages merged into it (controller alarms)
+  uint32_t controller_id = 0;  // != 0: the controller's alarm of this id
 };
 
 class AlarmLog {
@@ -56,6 +63,13 @@ class AlarmLog {
   // Watches the drives: a drive entering fault (or changing its error
   // code) raises an alarm naming the drive; leaving fault is logged.
   void update_drives(const ipc::Status& s, int64_t time_ns);
+  // Mirrors the controller's alarm table (from each status).
+  void update_controller(const ipc::AlarmStatus& a);
+  bool controller_keeps_alarms() const noexcept { return controller_; }
+  // Sends AlarmAcknowledge for a controller alarm (id, 0: all); set by the
+  // window. The alarm stays active here until the controller's status says
+  // it is acknowledged.
+  std::function<void(uint32_t)> acknowledge_in_controller;
 
   bool acknowledge(uint64_t id, int64_t time_ns);
   int acknowledge_all(int64_t time_ns);
@@ -87,6 +101,10 @@ class AlarmLog {
     uint16_t code = 0;
   };
   DriveSeen drives_[kMaxJoints + 1] = {};
+  bool controller_ = false;
+  uint32_t controller_revision_ = 0;
+  std::vector<Alarm> controller_alarms_;  // active ones of the controller's table
+  std::size_t local_active_ = 0;
 };
 
 }  // namespace cnc::hmi

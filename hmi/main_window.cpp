@@ -143,6 +143,9 @@ MainWindow::MainWindow(HmiConfig config, UserDialogConfig dialogs, std::unique_p
   if (!config_.log_file.empty()) {
     log_file_ = std::fopen(config_.log_file.c_str(), "a");
   }
+  alarms_.acknowledge_in_controller = [this](uint32_t id) {
+    screen_.send(ipc::commands::acknowledge_alarm(id), id ? "acknowledge alarm " + std::to_string(id) : "acknowledge all alarms");
+  };
   alarms_.on_log = [this](const LogEntry& e) {
     log_to_file(e);
     if (alarms_page_) alarms_page_->append_log(e);
@@ -387,6 +390,7 @@ void MainWindow::tick() {
       }
       alarms_.post(m);
     }
+    alarms_.update_controller(s.alarms);
     alarms_.update_drives(s, realtime());
     jog_.update(s);
     // A program opened by anyone (this screen, the CLI) is shown.
@@ -439,6 +443,7 @@ void MainWindow::tick() {
   manual_->refresh();
   overrides_->refresh();
   bar_->refresh();
+  drives_->sample(static_cast<double>(monotonic_ns()) * 1e-9);
   refresh_pages();
 }
 

@@ -100,6 +100,7 @@ class ManualPanel : public QWidget {
   void set_speed_label();
   Screen& s_;
   QPushButton* home_all_;
+  QPushButton* override_limits_;
   QButtonGroup* increments_;
   QButtonGroup* angular_increments_ = nullptr;
   QSlider* speed_;
@@ -246,18 +247,28 @@ class AlarmsPage : public QWidget {
   QPushButton* ack_all_;
 };
 
-// Per joint: drive state, mode, statusword, fault, following error, torque.
+// Per joint: drive state, mode, decoded statusword, fault, following
+// error, torque and velocity with their units, and live trends of the
+// following error, torque and velocity of every drive (QtCharts). Fits
+// 1024 px wide without horizontal scrolling: long texts wrap in their cells.
+class DriveCharts;
 class DrivesPage : public QWidget {
   Q_OBJECT
  public:
   DrivesPage(Screen& s, QWidget* parent = nullptr);
+  ~DrivesPage() override;
   void refresh();
+  // Records the trends (every screen cycle, shown or not).
+  void sample(double t_s);
 
  private:
   Screen& s_;
   QTableWidget* table_;
   QLabel* note_;
+  QLabel* detail_;  // the selected drive's statusword, every bit by name
+  QLabel* legend_;  // the trends' colours, by drive
   std::vector<QPushButton*> home_;
+  std::unique_ptr<DriveCharts> charts_;
 };
 
 }  // namespace cnc::hmi

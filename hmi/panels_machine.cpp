@@ -19,6 +19,7 @@
 #include <cmath>
 
 #include "hmi/panels.hpp"
+#include "hmi/readouts.hpp"
 #include "hmi/positions.hpp"
 
 namespace cnc::hmi {
@@ -484,6 +485,18 @@ ManualPanel::ManualPanel(Screen& s, QWidget* parent) : QWidget(parent), s_(s) {
   connect(home_all_, &QPushButton::clicked, this,
           [this]() { s_.send_in_mode(ipc::TaskMode::Manual, {commands::home(-1)}, "home all"); });
   top->addWidget(home_all_);
+  // AXIS's "override limits": motion ignores the limit switches until the
+  // end of the next jog, to jog off a switch it stopped on
+  // (JointOverrideLimits, as `cnc override-limits`).
+  override_limits_ = ui::button("Override\nlimits", "overrideLimitsButton", this, true);
+  override_limits_->setToolTip(
+      "Ignore the limit switches until the next jog ends: to jog off a limit switch the machine stopped on. "
+      "Jog carefully, away from the switch; the switches are watched again after that jog.");
+  connect(override_limits_, &QPushButton::clicked, this, [this]() {
+    override_limits_->setChecked(true);  // shown from the status; cleared by motion after the jog
+    s_.send_in_mode(ipc::TaskMode::Manual, {commands::override_limits()}, "override limits (until the next jog ends)");
+  });
+  top->addWidget(override_limits_);
   flood_ = ui::button("Flood", "floodButton", this, true);
   mist_ = ui::button("Mist", "mistButton", this, true);
   top->addWidget(flood_);
@@ -649,8 +662,19 @@ void ManualPanel::refresh() {
   home_all_->setEnabled(ok);
   ui::set_style(home_all_, ok && !s_.all_homed() ? "QPushButton{background:#ffd400;font-weight:bold;}" : "");
   for (auto* b : jog_buttons_) b->setEnabled(ok);
+  bool overridden = false, on_switch = false;
+  for (int j = 0; j < st.motion.joints && j < kMaxJoints; ++j) {
+    overridden = overridden || st.joints[j].override_limits;
+    on_switch = on_switch || st.joints[j].min_hard_limit || st.joints[j].max_hard_limit;
+  }
+  const bool can_override = s_.connected && st.task.state == ipc::TaskState::On && s_.is_idle();
+  override_limits_->setChecked(s_.connected && overridden);
+  override_limits_->setEnabled(can_override && !overridden);
+  ui::set_style(override_limits_, overridden ? "QPushButton{background:#ffd400;color:black;font-weight:bold;}" : "");
   QString note;
   if (!s_.connected) note = "";
+  else if (overridden) note = "LIMITS OVERRIDDEN until the next jog ends: jog off the switch";
+  else if (on_switch) note = "on a limit switch: press Override limits, then jog off it";
   else if (!s_.jog.can_jog()) note = ui::qs(s_.jog.why_not());
   else if (s_.jog.joint_mode()) note = "not homed: jogging joints";
   if (!s_.jog.keyboard_enabled()) note += note.isEmpty() ? "keyboard jog off (text field)" : " · keyboard jog off";
@@ -711,6 +735,7 @@ OverridePanel::OverridePanel(Screen& s, QWidget* parent) : QWidget(parent), s_(s
   }
   effective_ = new QLabel(this);
   effective_->setObjectName("effectiveFeed");
+  effective_->setWordWrap(true);  // the readouts are long: they wrap in a narrow window
   grid->addWidget(effective_, 4, 0, 1, 4);
   grid->setColumnStretch(1, 1);
 }
@@ -782,17 +807,11 @@ void OverridePanel::refresh() {
       ui::set_text(o.label, text(i, v));
     }
   }
+  // The executing line's F and S, with units, the override, and the
+  // spindle's actual speed from its feedback (hmi/readouts.hpp).
   const auto& st = s_.status;
-  const QString u = s_.config.machine_inch ? "in/min" : "mm/min";
-  const auto& sp = st.spindles[0];
-  const QString dir = sp.direction > 0 ? "FWD" : sp.direction < 0 ? "REV" : "stopped";
-  ui::set_text(effective_, QString("F %1 → %2 %3 · now %4 %3\nS %5 → %6 rpm · spindle %7, actual %8 rpm")
-                               .arg(s_.number(st.task.active_settings[1], 0),
-                                    s_.number(st.task.active_settings[1] * st.motion.feed_scale, 0), u,
-                                    s_.number(st.motion.current_vel * 60, 0), s_.number(st.task.active_settings[2], 0),
-                                    // what motion sends: command x override within the spindle's limits
-                                    s_.number(sp.enabled ? std::fabs(sp.speed_out) : st.task.active_settings[2] * sp.override_scale, 0), dir,
-                                    s_.number(sp.speed_feedback, 0)));
+  ui::set_text(effective_, ui::qs(feed_readout(st, s_.config.machine_inch, s_.numbers)) + "\n" +
+                               ui::qs(spindle_readout(st, s_.numbers)));
 }
 
 }  // namespace cnc::hmi

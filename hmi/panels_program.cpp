@@ -16,6 +16,7 @@
 
 #include "hmi/mdi_history.hpp"
 #include "hmi/panels.hpp"
+#include "hmi/readouts.hpp"
 
 namespace cnc::hmi {
 
@@ -58,6 +59,7 @@ ProgramBar::ProgramBar(Screen& s, QWidget* parent) : QWidget(parent), s_(s) {
   row2->addWidget(run_from_);
   progress_ = new QLabel(line_row_);
   progress_->setObjectName("programProgress");
+  progress_->setWordWrap(true);  // line, %, times and errors: long; it wraps rather than widen the window
   row2->addWidget(progress_, 1);
 
   connect(open_, &QPushButton::clicked, this, &ProgramBar::openRequested);
@@ -115,12 +117,7 @@ void ProgramBar::refresh() {
     return;
   }
   const QString name = QFileInfo(ui::qs(st.task.file.view())).fileName();
-  const int64_t secs = st.task.program_elapsed_ns / 1'000'000'000;
-  QString text = QString("%1 · line %2 of %3").arg(name).arg(st.task.current_line).arg(st.task.total_lines);
-  if (running || st.task.program_elapsed_ns > 0) {
-    text += QString(" · %1:%2:%3").arg(secs / 3600).arg((secs / 60) % 60, 2, 10, QChar('0')).arg(secs % 60, 2, 10, QChar('0'));
-  }
-  if (st.task.errors_since_start) text += QString(" · errors: %1").arg(st.task.errors_since_start);
+  QString text = name + " · " + ui::qs(progress_readout(st));
   ui::set_text(progress_, text);
 }
 
@@ -244,7 +241,7 @@ void MdiPage::refresh() {
   send_->setEnabled(ok);
   for (auto* b : macros_) b->setEnabled(ok && s_.is_idle());
   QString a;
-  if (s_.connected && !st.task.command.empty()) a = QString("running: %1").arg(ui::qs(st.task.command.view()));
+  if (s_.connected) a = ui::qs(mdi_running_readout(st));
   if (s_.connected && st.task.queued_mdi > 0) a += QString("  (%1 queued)").arg(st.task.queued_mdi);
   ui::set_text(active_, a);
 }

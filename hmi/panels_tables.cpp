@@ -10,10 +10,16 @@
 #include <QSpinBox>
 #include <QTableWidget>
 #include <QVBoxLayout>
+#include <QtCharts/QChart>
+#include <QtCharts/QChartView>
+#include <QtCharts/QLineSeries>
+#include <QtCharts/QValueAxis>
 #include <algorithm>
 #include <cmath>
 
 #include "hmi/panels.hpp"
+#include "hmi/readouts.hpp"
+#include "hmi/trends.hpp"
 #include "hmi/positions.hpp"
 
 namespace cnc::hmi {
@@ -380,9 +386,11 @@ AlarmsPage::AlarmsPage(Screen& s, QWidget* parent) : QWidget(parent), s_(s) {
 void AlarmsPage::refresh_alarms() {
   list_->clear();
   for (const Alarm* a : s_.alarms.active()) {
-    auto* it = new QListWidgetItem(QString("%1  [%2]  %3")
+    auto* it = new QListWidgetItem(QString("%1  [%2]  %3%4")
                                        .arg(QString::fromStdString(AlarmLog::format_time(a->time_ns)),
-                                            QString::fromStdString(a->source), QString::fromStdString(a->text)));
+                                            QString::fromStdString(a->source),
+                                            a->count > 1 ? QString("×%1  ").arg(a->count) : QString(),
+                                            QString::fromStdString(a->text)));
     it->setData(Qt::UserRole, QVariant::fromValue<qulonglong>(a->id));
     list_->addItem(it);
   }
@@ -402,21 +410,104 @@ void AlarmsPage::append_log(const LogEntry& e) {
 
 // ------------------------------------------------------------ DrivesPage
 
-DrivesPage::DrivesPage(Screen& s, QWidget* parent) : QWidget(parent), s_(s) {
+namespace {
+enum DriveColumn { kColJoint, kColDrive, kColStatusword, kColFault, kColFerror, kColTorque, kColVelocity, kDriveColumns };
+constexpr int kDriveSlots = kMaxJoints + 1;
+}  // namespace
+
+// Three charts (following error, torque, velocity), one line per drive.
+class DriveCharts {
+ public:
+  struct Plot {
+    QChart* chart = nullptr;
+    QChartView* view = nullptr;
+    QValueAxis* x = nullptr;
+    QValueAxis* y = nullptr;
+    std::array<QLineSeries*, kDriveSlots> series{};
+  };
+  std::array<Plot, 3> plots;
+  std::array<DriveTrends, kDriveSlots> trends;
+  std::array<QString, kDriveSlots> names;
+  double now_s = 0;
+};
+
+DrivesPage::DrivesPage(Screen& s, QWidget* parent) : QWidget(parent), s_(s), charts_(std::make_unique<DriveCharts>()) {
   setObjectName("drivesPage");
   auto* v = new QVBoxLayout(this);
+  v->setContentsMargins(2, 2, 2, 2);
   note_ = new QLabel(this);
   note_->setWordWrap(true);
   v->addWidget(note_);
   table_ = make_table(this, "driveTable");
   table_->setEditTriggers(QAbstractItemView::NoEditTriggers);
-  const QStringList heads = {"Joint", "Axis", "Homed", "Drive", "State", "Mode", "Statusword", "Fault",
-                             "F-error", "F-error max", "Drive f-err.", "Torque %", "Velocity"};
-  table_->setColumnCount(static_cast<int>(heads.size()));
+  table_->setWordWrap(true);
+  table_->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+  const QString len = s_.config.machine_inch ? "in" : "mm";
+  // Short headers (the columns are narrow at 1024 px), the units in them,
+  // the details in their tooltips.
+  const QStringList heads = {"Joint", "Drive", "Status-\nword", "Fault", QString("F-error\n(%1)").arg(len), "Torque\n(%)",
+                             QString("Velocity\n(%1/s)").arg(len)};
+  const QStringList tips = {"joint, axis, homed",
+                            "drive name: CiA 402 state, mode of operation (8 CSP, 9 CSV, ...)",
+                            "statusword 0x6041 with CiA 402's short names of the bits set (RTSO ready to switch on, SO "
+                            "switched on, OE operation enabled, F fault, VE voltage enabled, QS! quick stop active, SOD "
+                            "switch on disabled, W warning, RM remote, TR target reached, ILA internal limit active, SPF "
+                            "set-point followed, FE following error); the selected drive's in full below the table",
+                            "error code 0x603F and its text",
+                            QString("following error in %1: motion's now / limit, its highest so far, the drive's own").arg(len),
+                            "torque in % of the rated torque",
+                            QString("velocity in %1/s (°/s for angular joints, the spindle in rpm)").arg(len)};
+  table_->setColumnCount(kDriveColumns);
   table_->setHorizontalHeaderLabels(heads);
-  table_->horizontalHeader()->setSectionResizeMode(QHeaderView::ResizeToContents);
-  table_->horizontalHeader()->setStretchLastSection(true);
-  v->addWidget(table_, 1);
+  for (int c = 0; c < kDriveColumns; ++c) table_->horizontalHeaderItem(c)->setToolTip(tips[c]);
+  QHeaderView* h = table_->horizontalHeader();
+  h->setSectionResizeMode(QHeaderView::Stretch);
+  h->setSectionResizeMode(kColJoint, QHeaderView::ResizeToContents);
+  h->setSectionResizeMode(kColTorque, QHeaderView::ResizeToContents);
+  table_->verticalHeader()->setSectionResizeMode(QHeaderView::ResizeToContents);
+  v->addWidget(table_, 3);
+  detail_ = new QLabel(this);
+  detail_->setObjectName("driveStatuswordDetail");
+  detail_->setWordWrap(true);
+  v->addWidget(detail_);
+  connect(table_, &QTableWidget::itemSelectionChanged, this, [this]() { refresh(); });
+
+  // Trends: the last 30 s of every drive.
+  legend_ = new QLabel(this);
+  legend_->setObjectName("trendLegend");
+  legend_->setWordWrap(true);
+  v->addWidget(legend_);
+  auto* plots = new QHBoxLayout();
+  const char* titles[3] = {"Following error", "Torque", "Velocity"};
+  const QString units[3] = {len, "% rated", len + "/s (spindle rpm)"};
+  const char* names[3] = {"trendFollowingError", "trendTorque", "trendVelocity"};
+  for (int i = 0; i < 3; ++i) {
+    DriveCharts::Plot& p = charts_->plots[static_cast<std::size_t>(i)];
+    p.chart = new QChart();
+    p.chart->setTitle(QString("%1 (%2)").arg(titles[i], units[i]));
+    p.chart->legend()->hide();  // one legend for the three, above them (legend_)
+    p.chart->setMargins(QMargins(0, 0, 0, 0));
+    QFont small = p.chart->font();
+    small.setPointSizeF(std::max(6.0, small.pointSizeF() * 0.8));
+    p.chart->setTitleFont(small);
+    p.x = new QValueAxis();
+    p.x->setLabelFormat("%.0f s");
+    p.x->setTickCount(4);
+    p.x->setLabelsFont(small);
+    p.y = new QValueAxis();
+    p.y->setLabelFormat("%.2g");
+    p.y->setTickCount(5);
+    p.y->setLabelsFont(small);
+    p.chart->addAxis(p.x, Qt::AlignBottom);
+    p.chart->addAxis(p.y, Qt::AlignLeft);
+    p.view = new QChartView(p.chart, this);
+    p.view->setObjectName(names[i]);
+    p.view->setRenderHint(QPainter::Antialiasing, false);
+    p.view->setMinimumSize(120, 150);  // the page must not widen the window beyond 1024 px
+    plots->addWidget(p.view, 1);
+  }
+  v->addLayout(plots, 2);
+
   // Homing joint by joint (machines whose joints are not one per axis).
   auto* row = new QHBoxLayout();
   const int joints = static_cast<int>(s_.config.joints.size());
@@ -437,6 +528,70 @@ DrivesPage::DrivesPage(Screen& s, QWidget* parent) : QWidget(parent), s_(s) {
   v->addLayout(row);
 }
 
+DrivesPage::~DrivesPage() = default;
+
+void DrivesPage::sample(double t_s) {
+  if (!s_.connected) return;
+  DriveCharts& c = *charts_;
+  c.now_s = t_s;
+  for (int i = 0; i < kDriveSlots; ++i) {
+    const ipc::DriveStatus& d = s_.status.drives[i];
+    DriveTrends& t = c.trends[static_cast<std::size_t>(i)];
+    if (!d.present) {
+      t = DriveTrends{};
+      continue;
+    }
+    t.following_error.add(t_s, d.following_error);
+    t.torque.add(t_s, d.torque_percent);
+    t.velocity.add(t_s, drive_velocity_value(d));
+  }
+}
+
+namespace {
+QColor trend_color(int slot) {
+  static const QColor kColors[] = {QColor(0x1f, 0x77, 0xb4), QColor(0x2c, 0xa0, 0x2c), QColor(0xd6, 0x27, 0x28),
+                                   QColor(0x94, 0x67, 0xbd), QColor(0xff, 0x7f, 0x0e), QColor(0x8c, 0x56, 0x4b),
+                                   QColor(0xe3, 0x77, 0xc2), QColor(0x7f, 0x7f, 0x7f), QColor(0xbc, 0xbd, 0x22),
+                                   QColor(0x17, 0xbe, 0xcf)};
+  return kColors[slot % 10];
+}
+
+// The series of one plot: the drives present, their points, and the axes
+// over the window and the values (a flat trend gets a little room).
+void show_plot(DriveCharts::Plot& p, const std::array<DriveTrends, kDriveSlots>& trends,
+               const std::array<QString, kDriveSlots>& names, double now_s, const Trend DriveTrends::*which) {
+  double lo = 0, hi = 0;
+  bool any = false;
+  for (int i = 0; i < kDriveSlots; ++i) {
+    const Trend& t = trends[static_cast<std::size_t>(i)].*which;
+    QLineSeries*& series = p.series[static_cast<std::size_t>(i)];
+    if (t.points().empty() || names[static_cast<std::size_t>(i)].isEmpty()) {
+      if (series) series->clear();
+      continue;
+    }
+    if (!series) {
+      series = new QLineSeries();
+      series->setColor(trend_color(i));
+      p.chart->addSeries(series);
+      series->attachAxis(p.x);
+      series->attachAxis(p.y);
+    }
+    if (series->name() != names[static_cast<std::size_t>(i)]) series->setName(names[static_cast<std::size_t>(i)]);
+    QList<QPointF> pts;
+    pts.reserve(static_cast<qsizetype>(t.points().size()));
+    for (const auto& [ts, v] : t.points()) pts.append(QPointF(ts - now_s, v));
+    series->replace(pts);
+    const auto [a, b] = t.range();
+    lo = any ? std::min(lo, a) : a;
+    hi = any ? std::max(hi, b) : b;
+    any = true;
+  }
+  const double pad = std::max(1e-6, (hi - lo) * 0.1);
+  p.x->setRange(-30, 0);
+  p.y->setRange(lo - pad, hi + pad);
+}
+}  // namespace
+
 void DrivesPage::refresh() {
   for (auto* b : home_) b->setEnabled(s_.is_on() && s_.is_idle());
   const auto& st = s_.status;
@@ -450,57 +605,90 @@ void DrivesPage::refresh() {
                       : any_drive   ? "CiA-402 drives as the controller reports them; following error from motion and from the drive."
                                     : "No drive data in the status (simulated joints): following error from motion only.");
   const int dec = s_.config.dro_decimals(s_.config.machine_inch) + 1;
-  const auto set = [&](int r, int c, const QString& text, const QColor& bg = QColor()) {
+  const auto set = [&](int r, int c, const QString& text, const QColor& bg = QColor(), const QString& tip = QString()) {
     QTableWidgetItem* it = table_->item(r, c);
     if (!it) {
       it = new QTableWidgetItem();
       table_->setItem(r, c, it);
     }
     if (it->text() != text) it->setText(text);
+    if (it->toolTip() != tip) it->setToolTip(tip);
     if (it->background().color() != bg) it->setBackground(bg.isValid() ? QBrush(bg) : QBrush());
   };
+  const auto angular = [&](int joint) {
+    return joint >= 0 && joint < static_cast<int>(s_.config.joints.size()) && s_.config.joints[static_cast<std::size_t>(joint)].angular;
+  };
+  // The statusword of the selected drive (else the first) in full below the table.
+  const QList<QTableWidgetItem*> selected = table_->selectedItems();
+  const int detail_row = selected.isEmpty() ? -1 : selected.front()->row();
+  QString detail;
   for (int r = 0; r < rows; ++r) {
     const bool is_spindle = r >= joints;
     const ipc::DriveStatus* d = nullptr;
-    for (const auto& dr : st.drives) {
-      if (dr.present && (is_spindle ? dr.joint < 0 : dr.joint == r)) d = &dr;
+    int slot = -1;
+    for (int i = 0; i < kDriveSlots; ++i) {
+      const auto& dr = st.drives[i];
+      if (dr.present && (is_spindle ? dr.joint < 0 : dr.joint == r)) {
+        d = &dr;
+        slot = i;
+      }
     }
+    const std::string pos_unit = drive_position_unit(angular(r), s_.config.machine_inch);
+    const std::string vel_unit = drive_velocity_unit(is_spindle, angular(r), s_.config.machine_inch);
+    QString ferror;
     if (is_spindle) {
-      set(r, 0, "spindle");
-      for (int c = 1; c < 3; ++c) set(r, c, "");
-      set(r, 8, "");
-      set(r, 9, "");
+      set(r, kColJoint, "spindle");
     } else {
       const auto& j = st.joints[r];
-      set(r, 0, QString::number(r));
-      set(r, 1, j.axis >= 0 && j.axis < kNumAxes ? QString(kAxisLetters[j.axis]) : QString("—"));
-      set(r, 2, j.homing ? "homing" : j.homed ? "yes" : "no", j.homed ? QColor() : QColor(0xff, 0xe0, 0xe0));
+      const QString axis = j.axis >= 0 && j.axis < kNumAxes ? QString(kAxisLetters[j.axis]) : QString("—");
+      set(r, kColJoint, QString("%1 %2\n%3").arg(r).arg(axis, j.homing ? "homing" : j.homed ? "homed" : "unhomed"),
+          j.homed ? QColor() : QColor(0xff, 0xe0, 0xe0));
       const bool near = j.ferror_limit > 0 && std::fabs(j.ferror_current) > 0.5 * j.ferror_limit;
-      set(r, 8, QString("%1 / %2").arg(s_.number(j.ferror_current, dec), s_.number(j.ferror_limit, dec)),
-          near ? QColor(0xff, 0xe8, 0xb0) : QColor());
-      set(r, 9, s_.number(j.ferror_highmark, dec));
+      ferror = QString("%1 / %2\nmax %3").arg(s_.number(j.ferror_current, dec), s_.number(j.ferror_limit, dec),
+                                               s_.number(j.ferror_highmark, dec));
+      if (d) ferror += QString(" · drive %1").arg(s_.number(d->following_error, dec));
+      if (angular(r)) ferror += " " + ui::qs(pos_unit);  // the header's unit is the linear one
+      set(r, kColFerror, ferror, near ? QColor(0xff, 0xe8, 0xb0) : QColor());
     }
     if (!d) {
-      for (int c = 3; c < 8; ++c) set(r, c, c == 3 ? "—" : "");
-      set(r, 10, "");
-      set(r, 11, "");
-      if (!is_spindle) set(r, 12, s_.number(st.joints[r].velocity, 3));
+      set(r, kColDrive, "— (no drive data)");
+      set(r, kColStatusword, "");
+      set(r, kColFault, "");
+      set(r, kColTorque, "");
+      if (!is_spindle) set(r, kColVelocity, s_.number(st.joints[r].velocity, 3) + " " + ui::qs(vel_unit));
       continue;
     }
     const bool fault = d->state == kDriveStateFault || d->state == kDriveStateFaultReaction;
-    set(r, 3, d->name.empty() ? "drive" : ui::qs(d->name.view()));
-    set(r, 4, drive_state_name(d->state), fault ? QColor(0xff, 0xb0, 0xb0) : d->state == 4 ? QColor(0xd0, 0xf0, 0xd0) : QColor());
     static const char* kModes[] = {"", "PP", "", "PV", "PT", "", "HM", "IP", "CSP", "CSV", "CST"};
-    set(r, 5, QString("%1 %2").arg(d->mode).arg(d->mode <= 10 ? kModes[d->mode] : ""));
-    set(r, 6, QString("0x%1").arg(d->statusword, 4, 16, QChar('0')));
-    set(r, 7, d->error_code ? QString("0x%1 %2").arg(d->error_code, 4, 16, QChar('0'))
-                                   .arg(d->fault_text.empty() ? QString::fromStdString(decode_drive_error(d->error_code))
-                                                              : ui::qs(d->fault_text.view()))
-                            : QString(), fault ? QColor(0xff, 0xb0, 0xb0) : QColor());
-    set(r, 10, s_.number(d->following_error, dec));
-    set(r, 11, s_.number(d->torque_percent, 1));
-    set(r, 12, s_.number(d->velocity, 3));
+    const QString name = d->name.empty() ? QString("drive") : ui::qs(d->name.view());
+    charts_->names[static_cast<std::size_t>(slot)] = is_spindle ? name + " (spindle)" : QString("%1 (J%2)").arg(name).arg(r);
+    set(r, kColDrive, QString("%1: %2\nmode %3 %4").arg(name, drive_state_name(d->state)).arg(d->mode).arg(d->mode <= 10 ? kModes[d->mode] : ""),
+        fault ? QColor(0xff, 0xb0, 0xb0) : d->state == 4 ? QColor(0xd0, 0xf0, 0xd0) : QColor());
+    set(r, kColStatusword, ui::qs(statusword_short(d->statusword)), QColor(),
+        ui::qs(statusword_readout(d->statusword)) + QString("\ncontrolword 0x%1").arg(d->controlword, 4, 16, QChar('0')));
+    if (r == detail_row || (detail_row < 0 && detail.isEmpty())) {
+      detail = QString("<b>%1</b> statusword %2").arg(name.toHtmlEscaped(), ui::qs(statusword_readout(d->statusword)).toHtmlEscaped());
+    }
+    set(r, kColFault, d->error_code ? QString("0x%1 %2").arg(d->error_code, 4, 16, QChar('0'))
+                                          .arg(d->fault_text.empty() ? QString::fromStdString(decode_drive_error(d->error_code))
+                                                                     : ui::qs(d->fault_text.view()))
+                                    : QString(), fault ? QColor(0xff, 0xb0, 0xb0) : QColor());
+    if (is_spindle) set(r, kColFerror, "");
+    set(r, kColTorque, s_.number(d->torque_percent, 1) + " %");
+    set(r, kColVelocity, s_.number(drive_velocity_value(*d), is_spindle ? 0 : 3) + " " + ui::qs(vel_unit));
   }
+  ui::set_text(detail_, detail);
+  DriveCharts& c = *charts_;
+  QString legend;
+  for (int i = 0; i < kDriveSlots; ++i) {
+    if (c.names[static_cast<std::size_t>(i)].isEmpty() || !st.drives[i].present) continue;
+    legend += QString("<span style='color:%1'>&#9632;</span> %2 &nbsp; ")
+                  .arg(trend_color(i).name(), c.names[static_cast<std::size_t>(i)].toHtmlEscaped());
+  }
+  ui::set_text(legend_, legend.isEmpty() ? QString() : "Trends, last 30 s: " + legend);
+  show_plot(c.plots[0], c.trends, c.names, c.now_s, &DriveTrends::following_error);
+  show_plot(c.plots[1], c.trends, c.names, c.now_s, &DriveTrends::torque);
+  show_plot(c.plots[2], c.trends, c.names, c.now_s, &DriveTrends::velocity);
 }
 
 }  // namespace cnc::hmi

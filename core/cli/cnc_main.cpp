@@ -394,6 +394,24 @@ std::map<std::string, Entry> commands() {
                     need_args(c, 1, "display TEXT", SIZE_MAX);
                     return send(c, checked(ipc::commands::operator_display, join_args(c)));
                   }};
+  m["alarms"] = {"alarms [--all] | alarms ack ID|all",
+                 "list the controller's active alarms (--all: with acknowledged ones), or acknowledge one or all",
+                 [](Context& c) {
+                   if (!c.args.empty() && c.args[0] == "ack") {
+                     need_args(c, 2, "alarms ack ID|all");
+                     const uint32_t id = c.args[1] == "all" ? 0U
+                                                            : static_cast<uint32_t>(integer(c.args[1], "alarm id", 1));
+                     return send(c, ipc::commands::acknowledge_alarm(id));
+                   }
+                   bool all = false;
+                   for (const auto& a : c.args) {
+                     if (a == "--all") all = true;
+                     else fail_usage("alarms: unknown option " + a);
+                   }
+                   ipc::Client client(c.instance);
+                   std::fputs(cli::format_alarms(client.status().alarms, all).c_str(), stdout);
+                   return 0;
+                 }};
   m["estop"] = {"estop", "E-stop (acted on in the servo thread, needs no free channel)", cmd_estop};
   m["estop-reset"] = {"estop-reset", "reset the E-stop",
                       [](Context& c) { return send(c, ipc::commands::set_state(ipc::TaskState::EstopReset)); }};

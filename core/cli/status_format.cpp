@@ -3,6 +3,7 @@
 #include <cinttypes>
 #include <cstdarg>
 #include <cstdio>
+#include <ctime>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -181,7 +182,25 @@ std::string format_status(const ipc::Status& s, const ipc::Liveness* live) {
              static_cast<double>(sim.exec_last_ns) / 1e3,
              static_cast<double>(sim.exec_max_ns) / 1e3);
   }
+  o << format_alarms(s.alarms);
   o << fmt("Last command: serial %u %s, %s\n", s.echo.serial, to_string(s.echo.type), to_string(s.echo.state));
+  return o.str();
+}
+
+std::string format_alarms(const ipc::AlarmStatus& a, bool all) {
+  if (!a.available) return "";
+  std::ostringstream o;
+  o << fmt("Alarms: %u active%s\n", a.active, a.dropped ? fmt(", %u older ones dropped", a.dropped).c_str() : "");
+  for (const ipc::AlarmEntry& e : a.list) {
+    if (e.id == 0 || (e.acknowledged && !all)) continue;
+    const std::time_t t = static_cast<std::time_t>(e.last_ns / 1'000'000'000);
+    std::tm tm{};
+    ::localtime_r(&t, &tm);
+    char when[32];
+    std::strftime(when, sizeof when, "%H:%M:%S", &tm);
+    o << fmt("  #%u %s%s%s: %s\n", e.id, when, e.acknowledged ? " (acknowledged)" : "",
+             e.count > 1 ? fmt(" x%u", e.count).c_str() : "", e.text.c_str());
+  }
   return o.str();
 }
 
@@ -255,6 +274,24 @@ std::string status_json(const ipc::Status& s, int indent, const ipc::Liveness* l
                  {"estop_cause", to_string(s.motion.estop_cause)},
                  {"estop_pid", s.motion.estop_pid},
                  {"servo_stalled", s.motion.servo_stalled}};
+  {
+    json alarms = json::array();
+    for (const ipc::AlarmEntry& e : s.alarms.list) {
+      if (e.id == 0) continue;
+      alarms.push_back({{"id", e.id},
+                        {"count", e.count},
+                        {"first_ns", e.first_ns},
+                        {"last_ns", e.last_ns},
+                        {"acknowledged", e.acknowledged},
+                        {"source", e.source.c_str()},
+                        {"cause", e.cause.c_str()},
+                        {"text", e.text.c_str()}});
+    }
+    j["alarms"] = {{"available", s.alarms.available},
+                   {"active", s.alarms.active},
+                   {"dropped", s.alarms.dropped},
+                   {"list", alarms}};
+  }
   if (live) {
     j["liveness"] = {{"status_age_s", static_cast<double>(live->status_age_ns) * 1e-9},
                      {"task_stalled", live->task_stalled},

@@ -13,5 +13,8 @@ namespace cnc::cli {
 // heartbeat is shown as a warning first.
 std::string format_status(const ipc::Status& s, const ipc::Liveness* live = nullptr);
 std::string status_json(const ipc::Status& s, int indent = 2, const ipc::Liveness* live = nullptr);
+// The controller's alarms (`cnc alarms`, and in format_status): the active
+// ones, or with `all` the acknowledged ones still in the table too.
+std::string format_alarms(const ipc::AlarmStatus& a, bool all = false);
 
 }  // namespace cnc::cli

@@ -271,6 +271,16 @@ void Controller::dispatch(const ipc::Command& cmd) {
       report(cmd, ipc::CommandState::Done, {});
       return;
     }
+    case CommandType::AlarmAcknowledge: {
+      const auto id = static_cast<uint32_t>(cmd.i[0]);
+      if (alarms_.acknowledge(id, realtime_ns()) == 0 && id != 0) {
+        report(cmd, ipc::CommandState::Rejected,
+               "no active alarm " + std::to_string(id) + " (unknown or already acknowledged; `cnc alarms` lists them)");
+        return;
+      }
+      report(cmd, ipc::CommandState::Done, {});
+      return;
+    }
     case CommandType::SimInject:
       if (inject(cmd)) return;
       break;
@@ -298,6 +308,7 @@ void Controller::drain_messages() {
   }
   Message m;
   while (messages_.pop(m)) {
+    alarms_.post(m);
     if (server_) server_->post(m);
     log_line(to_string(m.kind), m.source.c_str(), m.text.c_str());
   }
@@ -355,6 +366,7 @@ void Controller::publish_status() {
   for (; i < ipc::kMaxThreads; ++i) s.threads[i] = ipc::ThreadStatus{};
   s.health.realtime_fifo = fifo;
   for (ipc::SimulatorStatus& sim : s.simulators) sim = ipc::SimulatorStatus{};  // simulators fill their own
+  s.alarms = alarms_.status();
   for (ipc::ControllerService* svc : services_) svc->contribute_status(s);
   server_->publish(s);
 }

@@ -14,6 +14,7 @@
 #include "core/hal/commands.hpp"
 #include "core/ini/ini_file.hpp"
 #include "core/ipc/admin.hpp"
+#include "core/ipc/alarms.hpp"
 #include "core/ipc/server.hpp"
 #include "core/ipc/service.hpp"
 #include "core/util/messages.hpp"
@@ -67,6 +68,7 @@ class Controller : private ipc::CommandReporter {
   Options options_;
   ini::IniFile ini_;
   MessageQueue messages_;
+  ipc::AlarmTable alarms_;  // errors of the message channel, de-duplicated, acknowledged by clients
   ipc::AccessPolicy access_;
   std::unique_ptr<ipc::Server> server_;
   hal::Hal hal_;

@@ -20,6 +20,7 @@ enum class CommandType : uint16_t {
   OperatorError = 10,  // text
   OperatorText = 11,   // text
   OperatorDisplay = 12,  // text
+  AlarmAcknowledge = 13, // i[0]: alarm id (status alarms), 0: all active alarms
   // --- TASK (4.7) ---
   TaskSetState = 20,     // i[0]: TaskState
   TaskSetMode = 21,      // i[0]: TaskMode

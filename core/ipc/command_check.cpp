@@ -107,6 +107,7 @@ std::string check_arguments(const Command& c) {
     case CommandType::ToolDelete: k.in(0, "tool", 1, 99'999'999); break;
     case CommandType::SetWorkOffset: k.in(0, "coordinate system", 0, 9).reals(0, 8, "offset", L).real(9, "rotation", -360, 360); break;
     case CommandType::SimInject: k.real(0, "value", -1e12, 1e12); break;
+    case CommandType::AlarmAcknowledge: k.in(0, "alarm id", 0, 2'000'000'000); break;
     default: break;
   }
   return k.why();

@@ -11,6 +11,7 @@ const char* to_string(CommandType t) noexcept {
     case CommandType::OperatorError: return "operator-error";
     case CommandType::OperatorText: return "operator-text";
     case CommandType::OperatorDisplay: return "operator-display";
+    case CommandType::AlarmAcknowledge: return "alarm-acknowledge";
     case CommandType::TaskSetState: return "task-set-state";
     case CommandType::TaskSetMode: return "task-set-mode";
     case CommandType::TaskAbort: return "task-abort";

@@ -39,6 +39,7 @@ void check_text(const std::string& text, const char* what) {
 Command set_state(TaskState s) { return with_i(CommandType::TaskSetState, static_cast<int>(s)); }
 Command set_mode(TaskMode m) { return with_i(CommandType::TaskSetMode, static_cast<int>(m)); }
 Command abort() { return make_command(CommandType::TaskAbort); }
+Command acknowledge_alarm(uint32_t id) { return with_i(CommandType::AlarmAcknowledge, static_cast<int>(id)); }
 Command open(const std::string& path) { return with_text(CommandType::TaskPlanOpen, path, "program path"); }
 Command close() { return make_command(CommandType::TaskPlanClose); }
 Command run(int line) { return with_i(CommandType::TaskPlanRun, line); }

@@ -59,6 +59,8 @@ Command set_work_offset(int index, const Pose& offsets, double rotation_deg);
 Command operator_error(const std::string& text);
 Command operator_text(const std::string& text);
 Command operator_display(const std::string& text);
+// Acknowledges an alarm of the controller's table (status `alarms`), 0: all.
+Command acknowledge_alarm(uint32_t id);
 Command set_digital_output(int index, bool value, bool now = true);
 Command set_analog_output(int index, double value, bool now = true);
 

@@ -292,6 +292,32 @@ struct SimulatorStatus {
   int64_t exec_max_ns = 0;
 };
 
+// Alarms kept by the controller (core/ipc/alarms.hpp): the error messages
+// de-duplicated per cause, with their acknowledgement, so that every screen
+// and the CLI show the same alarms and a screen started later does not show
+// old acknowledged ones as active.
+inline constexpr int kMaxAlarms = 16;
+
+struct AlarmEntry {
+  uint32_t id = 0;               // 0: unused slot; ids grow, never reused
+  uint32_t count = 0;            // messages merged into this alarm
+  int64_t first_ns = 0;          // CLOCK_REALTIME of the first and the last message
+  int64_t last_ns = 0;
+  bool acknowledged = false;
+  int64_t acknowledged_ns = 0;
+  FixedString<48> source;        // of the message whose text is shown
+  FixedString<48> cause;         // what it is about: "joint 1", "spindle 0", or the message itself
+  FixedString<256> text;         // the most explicit message of the cause
+};
+
+struct AlarmStatus {
+  bool available = false;        // this controller keeps alarms (screens then do not raise their own from messages)
+  uint32_t revision = 0;         // +1 on every change
+  uint32_t active = 0;           // unacknowledged alarms
+  uint32_t dropped = 0;          // alarms pushed out of the table by newer ones
+  AlarmEntry list[kMaxAlarms];   // oldest first
+};
+
 struct Status {
   HealthStatus health;
   CommandEcho echo;
@@ -304,6 +330,7 @@ struct Status {
   DriveStatus drives[kMaxJoints + 1];
   ThreadStatus threads[kMaxThreads];
   SimulatorStatus simulators[kMaxSimulators];
+  AlarmStatus alarms;
 };
 
 }  // namespace cnc::ipc

@@ -38,6 +38,7 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
   t.teleop_enabled = mode_ == ipc::MotionMode::Teleop;
   t.motion_line = tp_out_.line;
   t.motion_id = tp_out_.id;
+  s.tag = tp_out_.tag;
   uint32_t mask = kins_.axis_mask();
   t.axis_mask = mask;
   t.joints = cfg_.num_joints;

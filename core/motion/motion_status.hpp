@@ -7,6 +7,7 @@
 #include <cstdint>
 
 #include "core/ipc/status.hpp"
+#include "core/tp/planner.hpp"
 #include "core/util/fixed_string.hpp"
 
 namespace cnc::motion {
@@ -21,6 +22,9 @@ struct MotionStatus {
   bool all_homed = false;
   bool any_homing = false;
   bool tp_done = true;
+  // The modal state of the executing move's line (of the last executed
+  // move once the queue ran empty); see tp::StateTag.
+  tp::StateTag tag;
   bool jogging = false;
   bool faulted = false;       // a fault disabled motion and is not cleared yet
   // Enabled, and every active joint's amplifier reported ready

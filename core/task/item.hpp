@@ -38,6 +38,9 @@ struct Item {
   std::string text;
   tooltable::Tool tool;
   bool probe_must_touch = false;
+  // The modal state after the block that made this item (tp::StateTag);
+  // Motion items carry it in motion.segment.tag as well, through the planner.
+  tp::StateTag tag;
 };
 
 }  // namespace cnc::task

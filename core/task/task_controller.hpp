@@ -95,6 +95,9 @@ class TaskController : public ipc::ControllerService {
   void run_mdi();
   void synch_interpreter();  // the machine is at rest: the interpreter re-reads it
   void execute_items(int64_t now_ns);
+  // Tags the items the block just executed added (items_[from..]) with the
+  // interpreter's modal state after it (tp::StateTag).
+  void tag_new_items(std::size_t from, int line);
   bool execute_item(Item& it, int64_t now_ns);  // true: done, pop it
   void start_mdi_line(const std::string& line, const ipc::Command& cmd);
   void pause(bool operator_request);
@@ -168,6 +171,9 @@ class TaskController : public ipc::ControllerService {
   int64_t program_elapsed_ns_ = 0;
   int64_t blocks_ = 0;
   int errors_ = 0;
+  // Tag of the last item given to motion or executed; with motion at rest
+  // everything given to it ran, so this is the executing line's state.
+  tp::StateTag executed_tag_;
   // items in progress
   bool item_started_ = false;
   int64_t item_started_ns_ = 0;

@@ -87,6 +87,7 @@ void TaskController::abort_all(const std::string& why, bool quiet) {
   mdi_queue_.clear();
   running_mdi_ = mdi_reading_ = mdi_line_started_ = false;
   mdi_current_ = ipc::Command{};
+  mdi_text_.clear();  // the status shows no MDI line as running any more
   if (reconstruct_) {
     reconstruct_->done = true;
     if (reconstruct_->error.empty()) reconstruct_->error = "aborted: " + why;
@@ -115,7 +116,9 @@ void TaskController::abort_all(const std::string& why, bool quiet) {
 }
 
 void TaskController::program_error(const std::string& what) {
-  ++errors_;
+  // errors_since_start counts the program's errors: an MDI line's error is
+  // answered to its sender and logged, not counted against a program.
+  if (interp_state_ != ipc::InterpState::Idle) ++errors_;
   messages_.post(MessageKind::Error, "interp", what);
   if (running_mdi_ && reporter_) {
     reporter_->report(mdi_current_, CommandState::Rejected, what);
@@ -127,6 +130,7 @@ void TaskController::program_error(const std::string& what) {
     mdi_queue_.swap(rest);
     running_mdi_ = mdi_reading_ = mdi_line_started_ = false;
     mdi_current_ = ipc::Command{};
+    mdi_text_.clear();
   }
   const auto mdi_left = mdi_queue_;
   mdi_queue_.clear();
@@ -213,7 +217,9 @@ void TaskController::run_mdi() {
         return;
       }
       if (rs == interp::Status::Ok) {
+        const std::size_t before = items_.size();
         const interp::Status st = interp_->execute();
+        tag_new_items(before, interp_->line());
         if (const std::string e = canon_->take_error(); !e.empty()) {
           program_error(e);
           return;
@@ -262,7 +268,9 @@ void TaskController::run_interpreter() {
         return;
       }
       read_line_ = interp_->line();
+      const std::size_t before = items_.size();
       const interp::Status st = interp_->execute();
+      tag_new_items(before, read_line_);
       ++blocks_;
       if (const std::string e = canon_->take_error(); !e.empty()) {
         program_error(file_ + ":" + std::to_string(read_line_) + ": " + e);
@@ -472,6 +480,7 @@ void TaskController::execute_items(int64_t now_ns) {
       }
       send(it.motion);
       if (it.line > 0) current_line_ = it.line;
+      if (it.tag.valid) executed_tag_ = it.tag;
       items_.pop_front();
       continue;
     }
@@ -481,8 +490,29 @@ void TaskController::execute_items(int64_t now_ns) {
     }
     if (paused_ && it.kind != Item::Kind::StepMark) return;
     if (it.line > 0) current_line_ = it.line;
+    const tp::StateTag tag = it.tag;
     if (!execute_item(it, now_ns)) return;
+    if (tag.valid) executed_tag_ = tag;
     if (!items_.empty()) items_.pop_front();  // an error may have cleared the list
+  }
+}
+
+void TaskController::tag_new_items(std::size_t from, int line) {
+  if (items_.size() <= from) return;
+  tp::StateTag tag;
+  tag.valid = true;
+  tag.line = line;
+  const auto g = interp_->active_g_codes();
+  for (std::size_t i = 0; i < tp::StateTag::kGCodes; ++i) tag.gcodes[i] = static_cast<int16_t>(i < g.size() ? g[i] : -1);
+  const auto m = interp_->active_m_codes();
+  for (std::size_t i = 0; i < tp::StateTag::kMCodes; ++i) tag.mcodes[i] = static_cast<int16_t>(i < m.size() ? m[i] : -1);
+  tag.feed = canon_->feed_rate_units_min();
+  tag.speed = canon_->spindle_speed(0);
+  for (std::size_t i = from; i < items_.size(); ++i) {
+    items_[i].tag = tag;
+    if (items_[i].kind == Item::Kind::Motion || items_[i].kind == Item::Kind::MotionAtRest) {
+      items_[i].motion.segment.tag = tag;
+    }
   }
 }
 

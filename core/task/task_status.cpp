@@ -109,12 +109,31 @@ void TaskController::contribute_status(ipc::Status& s) {
   t.rotation_xy = canon_->rotation();
   t.tool_offset = canon_->tool_offset();
   t.program_units = canon_->program_units() == interp::Units::Inch ? 1 : 2;
-  const auto g = interp_->active_g_codes();
-  for (std::size_t i = 0; i < 17; ++i) t.active_gcodes[i] = i < g.size() ? g[i] : -1;
-  const auto m = interp_->active_m_codes();
-  for (std::size_t i = 0; i < 10; ++i) t.active_mcodes[i] = i < m.size() ? m[i] : -1;
-  t.active_settings[1] = canon_->feed_rate_units_min();
-  t.active_settings[2] = canon_->spindle_speed(0);
+  // Modal codes, F and S of the line being executed (LinuxCNC 2.9's state
+  // tags): while a program or MDI runs, the tag of the move motion executes,
+  // or with motion at rest the tag of the last item executed; otherwise
+  // (idle) the interpreter's own state, which then is the machine's.
+  const bool running = interp_state_ != ipc::InterpState::Idle || running_mdi_;
+  if (!running) executed_tag_ = tp::StateTag{};
+  const tp::StateTag* tag = nullptr;
+  if (running && !ms_.tp_done && ms_.tag.valid) {
+    tag = &ms_.tag;
+  } else if (running && executed_tag_.valid) {
+    tag = &executed_tag_;
+  }
+  if (tag) {
+    for (int i = 0; i < 17; ++i) t.active_gcodes[i] = i < tp::StateTag::kGCodes ? tag->gcodes[i] : -1;
+    for (int i = 0; i < 10; ++i) t.active_mcodes[i] = i < tp::StateTag::kMCodes ? tag->mcodes[i] : -1;
+    t.active_settings[1] = tag->feed;
+    t.active_settings[2] = tag->speed;
+  } else {
+    const auto g = interp_->active_g_codes();
+    for (std::size_t i = 0; i < 17; ++i) t.active_gcodes[i] = i < g.size() ? g[i] : -1;
+    const auto m = interp_->active_m_codes();
+    for (std::size_t i = 0; i < 10; ++i) t.active_mcodes[i] = i < m.size() ? m[i] : -1;
+    t.active_settings[1] = canon_->feed_rate_units_min();
+    t.active_settings[2] = canon_->spindle_speed(0);
+  }
   t.queued_mdi = static_cast<int32_t>(mdi_queue_.size());
   t.program_started_ns = program_started_ns_;
   t.program_elapsed_ns = program_elapsed_ns_;

@@ -1223,6 +1223,7 @@ void Executor::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
     const SegmentRecord& sr = store_.segs.at(p.seg);
     out.line = sr.line;
     out.id = sr.id;
+    out.tag = sr.tag;
     out.distance_to_go = std::max(0.0, sr.s0 + sr.curve.length - y_);
     out.move_end = sr.curve.end;
   } else {

@@ -214,6 +214,7 @@ bool PathBuilder::try_merge(const Pose& end, const SegmentParams& p) noexcept {
   m.end = end;
   m.params.line = p.line;
   m.params.id = p.id;
+  m.params.tag = p.tag;
   m.err = err;
   ++m.inputs;
   position_ = end;
@@ -300,6 +301,7 @@ Result PathBuilder::append(const Curve& curve, const SegmentParams& params, uint
   out.type = params.type;
   out.line = params.line;
   out.id = params.id;
+  out.tag = params.tag;
   out.epoch = epoch_;
   store_.segs.publish();
   Held& h = held(seq);

@@ -31,6 +31,7 @@ struct SegmentRecord {
   int32_t line = 0;
   uint32_t id = 0;
   uint32_t epoch = 0;
+  StateTag tag;
 };
 
 enum class StopKind : uint8_t { None, Stop, Dwell };

@@ -50,6 +50,23 @@ struct PlannerConfig {
   int flush_idle_cycles = 4;
 };
 
+// The modal state of the program line a move came from (LinuxCNC 2.9's
+// state_tag_t): the task takes it from the interpreter when the line is
+// executed (read ahead), it travels with the move through the queue, and
+// the planner reports the executing move's tag, so that the status shows
+// the codes, F and S of the line being cut, not of the read-ahead. Fixed
+// size and plain: the servo thread only copies it.
+struct StateTag {
+  static constexpr int kGCodes = 17;
+  static constexpr int kMCodes = 10;
+  bool valid = false;          // false: no tag (jogs, homing, a move queued without one)
+  int32_t line = 0;
+  int16_t gcodes[kGCodes] = {};  // LinuxCNC's active_gcodes numbering (G1 = 10, G59.3 = 593), -1 unused
+  int16_t mcodes[kMCodes] = {};  // -1 unused
+  double feed = 0;             // F, program units per minute (as LinuxCNC's settings[1])
+  double speed = 0;            // S of spindle 0, rpm as programmed
+};
+
 struct SegmentParams {
   MotionType type = MotionType::Feed;
   int32_t line = 0;            // program line it came from (status: motion_line)
@@ -65,6 +82,7 @@ struct SegmentParams {
   // CycleInputs::spindles_at_speed (LinuxCNC's wait for spindle.N.at-speed
   // before a feed move that follows a spindle start or speed change).
   bool wait_spindle_at_speed = false;
+  StateTag tag;                // modal state of the source line (status only)
 };
 
 struct CycleInputs {
@@ -83,6 +101,7 @@ struct CycleOutputs {
   Pose move_end;            // where the executing move ends (position when none): per-axis distance to go
   int32_t line = 0;         // line of the executing segment
   uint32_t id = 0;          // id of the executing segment
+  StateTag tag;             // tag of the executing segment (of the last one once the queue ran empty)
   bool done = true;         // queue empty and at rest
   bool probe_tripped = false;
   Pose probed_position;     // valid when probe_tripped

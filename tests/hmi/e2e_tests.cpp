@@ -8,6 +8,9 @@
 
 #include <QApplication>
 #include <QDir>
+#include <QHeaderView>
+#include <QScrollBar>
+#include <QtCharts/QChartView>
 #include <QLabel>
 #include <QLineEdit>
 #include <QMessageBox>
@@ -274,8 +277,13 @@ class E2eTests : public QObject {
     QVERIFY(near(s.motion.position[0], 120));  // nothing moved
     click("alarmBadge");
     shot("alarm");
+    // The controller keeps the alarms: one alarm for the refused line, and
+    // acknowledging goes through it (the screen follows its status).
+    QVERIFY(w_->alarms().controller_keeps_alarms());
+    QVERIFY(st().alarms.active >= 1);
     click("ackAllButton");
-    QCOMPARE(w_->alarms().active_count(), std::size_t(0));
+    QTRY_COMPARE_WITH_TIMEOUT(w_->alarms().active_count(), std::size_t(0), 5000);
+    QTRY_COMPARE(st().alarms.active, 0u);
     QTRY_COMPARE(button("alarmBadge")->text(), QString("No alarms"));
     shot("alarm-acknowledged");
   }
@@ -351,10 +359,78 @@ class E2eTests : public QObject {
     w_->resize(1280, 800);
   }
 
+  // The drive page at both screen sizes: no horizontal scrolling, units in
+  // the headers and cells, the statusword decoded, the trends drawn.
+  void t13b_drives_page_fits_both_sizes_with_units_and_trends() {
+    show_tab("drivesPage");
+    auto* drives = w_->findChild<QTableWidget*>("driveTable");
+    QVERIFY(drives);
+    // The window (its widest page included) fits 1024 px.
+    QString widths;
+    for (int i = 0; i < w_->tabs()->count(); ++i) {
+      widths += QString(" %1=%2").arg(w_->tabs()->widget(i)->objectName()).arg(w_->tabs()->widget(i)->minimumSizeHint().width());
+    }
+    for (const char* n : {"droPanel", "manualPanel", "overridePanel", "mainTabs"}) {
+      if (auto* p = w_->findChild<QWidget*>(n)) widths += QString(" %1=%2").arg(n).arg(p->minimumSizeHint().width());
+    }
+    QVERIFY2(w_->minimumSizeHint().width() <= 1024,
+             qPrintable(QString("window %1 px wide at least; parts:%2").arg(w_->minimumSizeHint().width()).arg(widths)));
+    for (const QSize size : {QSize(1280, 1024), QSize(1024, 768)}) {
+      w_->resize(size);
+      QTRY_VERIFY(w_->width() <= size.width());
+      QTest::qWait(300);  // trend samples
+      QVERIFY2(drives->horizontalHeader()->length() <= drives->viewport()->width() + 1,
+               qPrintable(QString("columns %1 px in %2 px").arg(drives->horizontalHeader()->length()).arg(drives->viewport()->width())));
+      QVERIFY(!drives->horizontalScrollBar()->isVisible());
+      shot(QString("drives-%1x%2").arg(size.width()).arg(size.height()));
+    }
+    QVERIFY(drives->horizontalHeaderItem(4)->text().contains("(mm)"));
+    QVERIFY(drives->horizontalHeaderItem(6)->text().contains("mm/s"));
+    bool decoded = false;
+    for (int r = 0; r < drives->rowCount(); ++r) {
+      if (drives->item(r, 2) && drives->item(r, 2)->text().contains(" SO")) decoded = true;
+    }
+    QVERIFY2(decoded, "no decoded statusword on the drive page");
+    QVERIFY(w_->findChild<QLabel*>("driveStatuswordDetail")->text().contains("switched on"));
+    for (const char* name : {"trendFollowingError", "trendTorque", "trendVelocity"}) {
+      auto* view = w_->findChild<QChartView*>(name);
+      QVERIFY2(view, name);
+      QVERIFY2(!view->chart()->series().isEmpty(), name);
+    }
+    w_->resize(1280, 800);
+  }
+
+  // Override limits on the manual panel, with its meaning; the readouts
+  // with units.
+  void t13c_override_limits_and_readouts() {
+    auto* b = button("overrideLimitsButton");
+    QVERIFY(b);
+    QVERIFY(b->toolTip().contains("limit switch"));
+    QTRY_VERIFY_WITH_TIMEOUT(b->isEnabled(), 10000);
+    click("overrideLimitsButton");
+    QTRY_VERIFY_WITH_TIMEOUT(
+        [&]() {
+          const ipc::Status s = st();
+          for (int j = 0; j < s.motion.joints; ++j) {
+            if (s.joints[j].override_limits) return true;
+          }
+          return false;
+        }(),
+        5000);
+    QTRY_VERIFY(b->isChecked());
+    shot("override-limits");
+    auto* effective = w_->findChild<QLabel*>("effectiveFeed");
+    QVERIFY(effective);
+    QVERIFY(effective->text().contains("mm/min"));
+    QVERIFY(effective->text().contains("actual"));
+  }
+
   void t14_estop() {
     click("estopButton");
     QVERIFY(wait_for([](const ipc::Status& s) { return s.task.state == ipc::TaskState::Estop && !s.motion.enabled; }, 10000));
     QTRY_COMPARE(button("estopButton")->text(), QString("E-STOP\nRESET"));
+    // Nothing commanded is shown as in force after the E-stop.
+    QTRY_VERIFY(w_->findChild<QLabel*>("effectiveFeed")->text().startsWith("F – (machine off) · now 0 mm/min"));
     shot("estop");
   }
 };

@@ -17,6 +17,8 @@
 #include "hmi/numbers.hpp"
 #include "hmi/positions.hpp"
 #include "hmi/preview_path.hpp"
+#include "hmi/readouts.hpp"
+#include "hmi/trends.hpp"
 #include "hmi/user_dialogs.hpp"
 
 using namespace cnc;
@@ -386,7 +388,146 @@ class LogicTests : public QObject {
     QCOMPARE(std::string(drive_state_name(4)), std::string("operation enabled"));
   }
 
+  void alarms_of_a_controller_that_keeps_them_are_its_table_not_the_messages() {
+    // A screen started after two alarms, one acknowledged by another screen:
+    // only the active one shows, with its count.
+    ipc::AlarmStatus a;
+    a.available = true;
+    a.revision = 3;
+    a.list[0].id = 4;
+    a.list[0].count = 1;
+    a.list[0].acknowledged = true;
+    a.list[0].text.assign("old, acknowledged");
+    a.list[1].id = 5;
+    a.list[1].count = 3;
+    a.list[1].source.assign("task");
+    a.list[1].text.assign("program aborted at line 3: joint 1 amplifier fault; drive y: over-current");
+    AlarmLog log;
+    std::vector<uint32_t> sent;
+    log.acknowledge_in_controller = [&](uint32_t id) { sent.push_back(id); };
+    log.update_controller(a);
+    QVERIFY(log.controller_keeps_alarms());
+    QCOMPARE(log.active_count(), std::size_t(1));
+    QCOMPARE(log.active()[0]->count, 3u);
+    // Messages and drive faults are logged, not raised again here.
+    Message m;
+    m.kind = MessageKind::Error;
+    m.source.assign("motion");
+    m.text.assign("joint 1 amplifier fault");
+    log.post(m);
+    ipc::Status s{};
+    s.drives[1].present = true;
+    s.drives[1].joint = 1;
+    s.drives[1].state = kDriveStateFault;
+    s.drives[1].error_code = 0x2310;
+    log.update_drives(s, 5);
+    QCOMPARE(log.active_count(), std::size_t(1));
+    QCOMPARE(log.log().size(), std::size_t(2));
+    // Acknowledging asks the controller; the alarm goes when its status says so.
+    QVERIFY(log.acknowledge(log.active()[0]->id, 10));
+    QCOMPARE(sent, std::vector<uint32_t>{5});
+    QCOMPARE(log.active_count(), std::size_t(1));
+    a.list[1].acknowledged = true;
+    a.revision = 4;
+    log.update_controller(a);
+    QCOMPARE(log.active_count(), std::size_t(0));
+    // The screen's own errors stay local alarms.
+    log.post_local(LogLevel::Error, "screen", "command refused", 11);
+    QCOMPARE(log.active_count(), std::size_t(1));
+    QCOMPARE(log.acknowledge_all(12), 1);
+    QCOMPARE(sent.size(), std::size_t(1));  // nothing of the controller's was active
+  }
+
+  void trends_keep_the_window_and_restart_when_time_goes_back() {
+    Trend t(10.0, 100);
+    for (int i = 0; i <= 20; ++i) t.add(i, i * 0.5);
+    QCOMPARE(t.points().size(), std::size_t(11));  // 10..20 s
+    QCOMPARE(t.points().front().first, 10.0);
+    QCOMPARE(t.range(), std::make_pair(5.0, 10.0));
+    Trend few(100.0, 3);
+    for (int i = 0; i < 5; ++i) few.add(i, -i);
+    QCOMPARE(few.points().size(), std::size_t(3));
+    QCOMPARE(few.range(), std::make_pair(-4.0, -2.0));
+    few.add(1.0, 7);  // a new clock
+    QCOMPARE(few.points().size(), std::size_t(1));
+  }
+
   // ---------------------------------------------------------------- positions
+  // ---------------------------------------------------------------- readouts
+  void readout_feed_after_estop_shows_no_programmed_feed_and_zero_speed() {
+    ipc::Status s = on_status(true, ipc::TaskMode::Auto);
+    s.task.active_settings[1] = 1200;
+    s.motion.current_vel = 20;  // 1200 mm/min
+    s.motion.enabled = true;
+    QCOMPARE(feed_readout(s, false), std::string("F 1200 mm/min × 100% = 1200 mm/min · now 1200 mm/min"));
+    s.task.state = ipc::TaskState::Estop;
+    s.motion.enabled = false;
+    QCOMPARE(feed_readout(s, false), std::string("F – (machine off) · now 0 mm/min"));
+  }
+  void readout_spindle_shows_commanded_and_actual_apart() {
+    ipc::Status s = on_status(true, ipc::TaskMode::Auto);
+    s.task.active_settings[2] = 3000;
+    auto& sp = s.spindles[0];
+    sp.enabled = true;
+    sp.direction = 1;
+    sp.speed_out = 3000;
+    sp.override_scale = 1;
+    sp.speed_feedback = 500;
+    sp.at_speed = false;
+    QCOMPARE(spindle_readout(s), std::string("S 3000 rpm × 100% = 3000 rpm FWD · actual 500 rpm · NOT AT SPEED"));
+    sp.enabled = false;
+    sp.speed_feedback = 0;
+    QCOMPARE(spindle_readout(s), std::string("S 3000 rpm · spindle stopped · actual 0 rpm"));
+  }
+  void readout_mdi_running_only_while_a_line_runs() {
+    ipc::Status s = on_status(true, ipc::TaskMode::Mdi);
+    s.task.command.assign("G0 X1000");
+    s.task.interp_state = ipc::InterpState::Reading;
+    QCOMPARE(mdi_running_readout(s), std::string("running: G0 X1000"));
+    // Rejected: the task went idle (an old controller left the text).
+    s.task.interp_state = ipc::InterpState::Idle;
+    QCOMPARE(mdi_running_readout(s), std::string());
+  }
+  void readout_progress_percent_estimate_and_errors_only_of_a_program() {
+    ipc::Status s = on_status(true, ipc::TaskMode::Auto);
+    s.task.file.assign("/tmp/p.ngc");
+    s.task.total_lines = 400;
+    s.task.errors_since_start = 1;  // an MDI error before any program
+    QCOMPARE(progress_readout(s), std::string("line 0 of 400 · 0%"));
+    s.task.interp_state = ipc::InterpState::Reading;
+    s.task.current_line = 100;
+    s.task.program_started_ns = 1;
+    s.task.errors_since_start = 0;
+    s.task.program_elapsed_ns = 60'000'000'000;
+    const ProgramProgress p = program_progress(s);
+    QCOMPARE(p.percent, 25);
+    QCOMPARE(p.remaining_s, 180.0);
+    QCOMPARE(progress_readout(s), std::string("line 100 of 400 · 25% · 0:01:00 · about 0:03:00 left (from lines)"));
+    s.task.errors_since_start = 2;
+    QVERIFY(progress_readout(s).find("errors: 2") != std::string::npos);
+  }
+  void readout_statusword_names_the_cia402_bits() {
+    // Operation enabled: 0x0237 = ready, switched on, enabled, voltage, quick stop off, remote.
+    QCOMPARE(statusword_readout(0x1637),
+             std::string("0x1637: ready to switch on, switched on, operation enabled, voltage enabled, remote, "
+                         "target reached, set-point followed"));
+    const auto fault = statusword_bits(0x2008 | 0x0003);
+    QVERIFY(std::find(fault.begin(), fault.end(), "fault") != fault.end());
+    QVERIFY(std::find(fault.begin(), fault.end(), "following error") != fault.end());
+    QVERIFY(std::find(fault.begin(), fault.end(), "QUICK STOP active") != fault.end());
+    QCOMPARE(statusword_short(0x1637), std::string("0x1637 RTSO SO OE VE RM TR SPF"));
+    QCOMPARE(statusword_short(0x200B), std::string("0x200B RTSO SO F QS! FE"));
+  }
+  void readout_drive_units() {
+    QCOMPARE(drive_velocity_unit(false, false, false), std::string("mm/s"));
+    QCOMPARE(drive_velocity_unit(true, false, false), std::string("rpm"));
+    QCOMPARE(drive_position_unit(true, false), std::string("°"));
+    ipc::DriveStatus d;
+    d.joint = -1;
+    d.velocity = 10;
+    QCOMPARE(drive_velocity_value(d), 600.0);
+  }
+
   void positions_follow_the_task_conversion() {
     ipc::Status s{};
     s.motion.linear_units = 1;

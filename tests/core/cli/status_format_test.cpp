@@ -145,3 +145,30 @@ TEST(StatusFormat, ServoTimeOfProductAndSimulatorsIsShownApart) {
   EXPECT_EQ(j["simulators"][0]["wakes"], 3);
   EXPECT_EQ(j["simulators"][0]["exec_max_ns"], 410'000);
 }
+
+TEST(StatusFormat, AlarmsListActiveOnesWithCountsAndJsonCarriesAll) {
+  auto s = std::make_unique<ipc::Status>();
+  ipc::AlarmStatus& a = s->alarms;
+  a.available = true;
+  a.active = 1;
+  a.list[0].id = 3;
+  a.list[0].count = 1;
+  a.list[0].acknowledged = true;
+  a.list[0].text.assign("old one");
+  a.list[1].id = 4;
+  a.list[1].count = 3;
+  a.list[1].cause.assign("joint 1");
+  a.list[1].text.assign("joint 1 amplifier fault");
+  const std::string active = cli::format_alarms(a);
+  EXPECT_NE(active.find("Alarms: 1 active"), std::string::npos) << active;
+  EXPECT_NE(active.find("#4 "), std::string::npos) << active;
+  EXPECT_NE(active.find("x3: joint 1 amplifier fault"), std::string::npos) << active;
+  EXPECT_EQ(active.find("old one"), std::string::npos) << active;
+  EXPECT_NE(cli::format_alarms(a, true).find("(acknowledged): old one"), std::string::npos);
+  EXPECT_NE(cli::format_status(*s).find("Alarms: 1 active"), std::string::npos);
+  const auto j = nlohmann::json::parse(cli::status_json(*s));
+  EXPECT_EQ(j["alarms"]["active"], 1);
+  ASSERT_EQ(j["alarms"]["list"].size(), 2u);
+  EXPECT_EQ(j["alarms"]["list"][1]["cause"], "joint 1");
+  EXPECT_EQ(j["alarms"]["list"][1]["count"], 3);
+}

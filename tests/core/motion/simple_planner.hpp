@@ -102,6 +102,7 @@ class SimplePlanner : public tp::TrajectoryPlanner {
     out.done = count_ == 0 && !active_;
     out.line = active_ ? q_[head_].p.line : last_line_;
     out.id = active_ ? q_[head_].p.id : last_id_;
+    out.tag = active_ ? q_[head_].p.tag : last_tag_;
     if (out.done) out.path_velocity = 0;
   }
 
@@ -202,6 +203,7 @@ class SimplePlanner : public tp::TrajectoryPlanner {
   void finish_front() noexcept {
     last_line_ = q_[head_].p.line;
     last_id_ = q_[head_].p.id;
+    last_tag_ = q_[head_].p.tag;
     head_ = (head_ + 1) % kCapacity;
     --count_;
     active_ = false;
@@ -220,6 +222,7 @@ class SimplePlanner : public tp::TrajectoryPlanner {
   double acc_ = 1000;
   int32_t last_line_ = 0;
   uint32_t last_id_ = 0;
+  tp::StateTag last_tag_;
 };
 
 }  // namespace cnc::testing

@@ -591,3 +591,75 @@ TEST(TaskParameters, TemporaryFilesOfAnInterruptedSaveAreRemovedAtStartAndAMissi
         << e.what();
   }
 }
+
+// The status shows the modal state of the line motion executes, not of the
+// interpreter's read-ahead (LinuxCNC 2.9's state tags): during the drilling
+// cycle the interpreter has already read M5 and F0 further on.
+TEST(TaskStateTags, StatusShowsTheCodesFeedAndSpeedOfTheExecutingLineNotOfTheReadAhead) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("drill.ngc",
+              "G21 G90 G17 G54\n"                    // 1
+              "S1000 M3\n"                            // 2
+              "G0 X0 Y0 Z-10\n"                       // 3
+              "G81 X10 Y0 Z-40 R-12 F200\n"           // 4
+              "G80\n"                                 // 5
+              "M5\n"                                  // 6
+              "F0\n"                                  // 7
+              "G0 Z-5\n"                              // 8
+              "M2\n"),                                // 9
+       "open");
+  m.ok(m.send(CommandType::TaskPlanRun, 0), "run");
+  ASSERT_TRUE(m.run_until([&] {
+    const auto s = m.status();
+    return s.task.current_line == 4 && s.task.read_line >= 7 && s.motion.current_vel > 0;
+  }, 400000)) << m.errors();
+  const auto s = m.status();
+  EXPECT_EQ(s.task.active_gcodes[0], 810);
+  EXPECT_EQ(s.task.active_mcodes[0], 3);
+  EXPECT_DOUBLE_EQ(s.task.active_settings[1], 200);
+  EXPECT_DOUBLE_EQ(s.task.active_settings[2], 1000);
+  ASSERT_TRUE(m.run_until([&] { return !m.program_running(); }, 400000)) << m.errors();
+  // At rest and idle: the interpreter's own state (M2 reset the spindle to M5).
+  const auto e = m.status();
+  EXPECT_EQ(e.task.active_mcodes[0], 5);
+}
+
+// Everything given to motion has run once it is at rest: a block executed
+// by the task (M5, at rest) shows its own state while the program goes on.
+TEST(TaskStateTags, WithMotionAtRestTheLastExecutedItemsStateIsShown) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kAuto), "auto");
+  m.ok(m.open("dwell.ngc",
+              "G21 G90\n"            // 1
+              "S500 M3\n"             // 2
+              "G1 X5 F100\n"          // 3
+              "M5\n"                  // 4
+              "G4 P0.5\n"             // 5
+              "M2\n"),                // 6
+       "open");
+  m.ok(m.send(CommandType::TaskPlanRun, 0), "run");
+  ASSERT_TRUE(m.run_until([&] {
+    const auto s = m.status();
+    return s.task.current_line == 3 && s.motion.current_vel > 0;
+  }, 400000)) << m.errors();
+  EXPECT_EQ(m.status().task.active_mcodes[0], 3);
+  ASSERT_TRUE(m.run_until([&] { return !m.status().spindles[0].enabled; }, 400000)) << m.errors();
+  EXPECT_EQ(m.status().task.active_mcodes[0], 5);
+}
+
+// A rejected MDI line is not shown as running afterwards, and it is not
+// counted as an error of a program (errors_since_start: the program's).
+TEST(TaskStaleStatus, ARejectedMdiLineIsNoLongerRunningAndNotAProgramError) {
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  const auto r = m.mdi("G0 X1000");
+  ASSERT_EQ(r.first, CommandState::Rejected) << r.second;
+  m.step(5);
+  const auto s = m.status();
+  EXPECT_EQ(std::string(s.task.command.view()), "");
+  EXPECT_EQ(s.task.errors_since_start, 0);
+}
