@@ -36,9 +36,10 @@ double LoadArgs::get_double(const std::string& key, double def) const {
   return *d;
 }
 
-std::vector<std::string> LoadArgs::instance_names(const std::string& prefix, int default_count, int max_count) const {
+std::vector<std::string> LoadArgs::instance_names(const std::string& prefix, int default_count, int max_count,
+                                                  const std::string& count_key) const {
   const auto names = get("names");
-  if (names && get("count")) throw HalError(component_ + ": give count= or names=, not both");
+  if (names && get(count_key)) throw HalError(component_ + ": give " + count_key + "= or names=, not both");
   std::vector<std::string> out;
   if (names) {
     out = split(*names, ',', true);
@@ -48,7 +49,7 @@ std::vector<std::string> LoadArgs::instance_names(const std::string& prefix, int
     }
     return out;
   }
-  const auto count = get_int("count", default_count, 1, max_count);
+  const auto count = get_int(count_key, default_count, 1, max_count);
   for (int64_t i = 0; i < count; ++i) out.push_back(prefix + "." + std::to_string(i));
   return out;
 }

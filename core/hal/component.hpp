@@ -78,8 +78,11 @@ class LoadArgs {
   std::string get_string(const std::string& key, const std::string& def) const;
   int64_t get_int(const std::string& key, int64_t def, int64_t min, int64_t max) const;
   double get_double(const std::string& key, double def) const;
-  // Instance names from `names=a,b` or `count=N` (prefix.0 ... prefix.N-1).
-  std::vector<std::string> instance_names(const std::string& prefix, int default_count = 1, int max_count = 64) const;
+  // Instance names from `names=a,b` or `<count_key>=N` (prefix.0 ...
+  // prefix.N-1); count_key is LinuxCNC's for the component: `count` for
+  // most, `num_chan` for pid, siggen and encoder.
+  std::vector<std::string> instance_names(const std::string& prefix, int default_count = 1, int max_count = 64,
+                                          const std::string& count_key = "count") const;
   // Throws naming any key not in `known`.
   void allow_only(const std::vector<std::string>& known) const;
   const std::vector<std::pair<std::string, std::string>>& values() const noexcept { return values_; }

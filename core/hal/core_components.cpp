@@ -34,14 +34,15 @@ class ThreadsComponent : public Component {
 template <class Instance>
 class Multi : public Component {
  public:
-  Multi(ComponentContext& ctx, const LoadArgs& args, const std::string& prefix)
+  Multi(ComponentContext& ctx, const LoadArgs& args, const std::string& prefix, const std::string& count_key,
+        const std::string& suffix)
       : Component(ctx.hal, args.component()) {
-    args.allow_only({"count", "names"});
-    for (const auto& n : args.instance_names(prefix)) {
+    args.allow_only({count_key, "names"});
+    for (const auto& n : args.instance_names(prefix, 1, 64, count_key)) {
       instances_.push_back(std::make_unique<Instance>());
       Instance& inst = *instances_.back();
       inst.make(*this, n);
-      export_function(n, &inst);
+      export_function(n + suffix, &inst);
     }
   }
   template <class T>
@@ -91,7 +92,8 @@ struct Not {
   BitPin in, out;
   template <class C> void make(C& c, const std::string& n) {
     in = c.template pin<bool>(n + ".in", PinDir::In);
-    out = c.template pin<bool>(n + ".out", PinDir::Out, true);
+    // FALSE until the function first runs, as LinuxCNC's.
+    out = c.template pin<bool>(n + ".out", PinDir::Out);
   }
   void update(const rt::CycleInfo&) noexcept { out.set(!in.get()); }
 };
@@ -108,14 +110,16 @@ struct Mux2 {
   void update(const rt::CycleInfo&) noexcept { out.set(sel.get() ? in1.get() : in0.get()); }
 };
 
+// sum2: gains and offset are parameters, as LinuxCNC's.
 struct Sum2 {
-  FloatPin in0, in1, gain0, gain1, offset, out;
+  FloatPin in0, in1, out;
+  Param<double> gain0, gain1, offset;
   template <class C> void make(C& c, const std::string& n) {
     in0 = c.template pin<double>(n + ".in0", PinDir::In);
     in1 = c.template pin<double>(n + ".in1", PinDir::In);
-    gain0 = c.template pin<double>(n + ".gain0", PinDir::In, 1.0);
-    gain1 = c.template pin<double>(n + ".gain1", PinDir::In, 1.0);
-    offset = c.template pin<double>(n + ".offset", PinDir::In);
+    gain0 = c.template param<double>(n + ".gain0", ParamDir::RW, 1.0);
+    gain1 = c.template param<double>(n + ".gain1", ParamDir::RW, 1.0);
+    offset = c.template param<double>(n + ".offset", ParamDir::RW, 0.0);
     out = c.template pin<double>(n + ".out", PinDir::Out);
   }
   void update(const rt::CycleInfo&) noexcept {
@@ -127,7 +131,7 @@ struct Scale {
   FloatPin in, gain, offset, out;
   template <class C> void make(C& c, const std::string& n) {
     in = c.template pin<double>(n + ".in", PinDir::In);
-    gain = c.template pin<double>(n + ".gain", PinDir::In, 1.0);
+    gain = c.template pin<double>(n + ".gain", PinDir::In);  // 0, as LinuxCNC's: set it
     offset = c.template pin<double>(n + ".offset", PinDir::In);
     out = c.template pin<double>(n + ".out", PinDir::Out);
   }
@@ -135,12 +139,14 @@ struct Scale {
 };
 
 // First-order low-pass: out += (in - out) * gain each cycle.
+// gain is a parameter, 0 (out holds) until set, as LinuxCNC's.
 struct Lowpass {
-  FloatPin in, gain, out;
+  FloatPin in, out;
+  Param<double> gain;
   BitPin load;
   template <class C> void make(C& c, const std::string& n) {
     in = c.template pin<double>(n + ".in", PinDir::In);
-    gain = c.template pin<double>(n + ".gain", PinDir::In, 1.0);
+    gain = c.template param<double>(n + ".gain", ParamDir::RW, 0.0);
     load = c.template pin<bool>(n + ".load", PinDir::In);
     out = c.template pin<double>(n + ".out", PinDir::Out);
   }
@@ -197,7 +203,7 @@ struct EstopLatch {
 // Signal generator: sine, cosine, triangle, square and sawtooth outputs.
 struct Siggen {
   FloatPin frequency, amplitude, offset, sine, cosine, triangle, square, sawtooth;
-  BitPin clock;
+  BitPin clock, reset;
   double phase = 0;
   template <class C> void make(C& c, const std::string& n) {
     frequency = c.template pin<double>(n + ".frequency", PinDir::In, 1.0);
@@ -209,8 +215,20 @@ struct Siggen {
     square = c.template pin<double>(n + ".square", PinDir::Out);
     sawtooth = c.template pin<double>(n + ".sawtooth", PinDir::Out);
     clock = c.template pin<bool>(n + ".clock", PinDir::Out);
+    reset = c.template pin<bool>(n + ".reset", PinDir::In);
   }
   void update(const rt::CycleInfo& info) noexcept {
+    if (reset.get()) {
+      // Held at the start of a period; the states LinuxCNC's man page names.
+      phase = 0;
+      const double a = amplitude.get();
+      sine.set(0);
+      sawtooth.set(0);
+      square.set(-a);
+      cosine.set(-a);
+      triangle.set(-a);
+      return;
+    }
     phase += frequency.get() * static_cast<double>(info.actual_period_ns) * 1e-9;
     phase -= std::floor(phase);
     const double a = amplitude.get(), o = offset.get();
@@ -224,9 +242,10 @@ struct Siggen {
 };
 
 template <class Instance>
-void add_multi(ComponentRegistry& r, const std::string& comp, const std::string& prefix, const std::string& help) {
-  r.add(comp, help, [prefix](ComponentContext& ctx, const LoadArgs& args) -> std::unique_ptr<Component> {
-    return std::make_unique<Multi<Instance>>(ctx, args, prefix);
+void add_multi(ComponentRegistry& r, const std::string& comp, const std::string& prefix, const std::string& help,
+               const std::string& count_key = "count", const std::string& suffix = "") {
+  r.add(comp, help, [prefix, count_key, suffix](ComponentContext& ctx, const LoadArgs& args) -> std::unique_ptr<Component> {
+    return std::make_unique<Multi<Instance>>(ctx, args, prefix, count_key, suffix);
   });
 }
 
@@ -248,7 +267,8 @@ void register_core_components(ComponentRegistry& r) {
   add_multi<Ddt>(r, "ddt", "ddt", "ddt [count=N|names=a,b]: out = d(in)/dt over the measured period");
   add_multi<EstopLatch>(r, "estop_latch", "estop-latch",
                         "estop_latch [count=N|names=a,b]: latch a fault until reset (LinuxCNC's estop_latch)");
-  add_multi<Siggen>(r, "siggen", "siggen", "siggen [count=N|names=a,b]: sine, cosine, triangle, square, sawtooth");
+  add_multi<Siggen>(r, "siggen", "siggen", "siggen [num_chan=N|names=a,b]: sine, cosine, triangle, square, sawtooth",
+                     "num_chan", ".update");
   register_panel_components(r);
 }
 

@@ -27,10 +27,11 @@ double cycle_seconds(const rt::CycleInfo& info) noexcept {
 template <class Instance>
 class Instances : public Component {
  public:
-  Instances(ComponentContext& ctx, const LoadArgs& args, const std::string& prefix, const std::string& suffix)
+  Instances(ComponentContext& ctx, const LoadArgs& args, const std::string& prefix, const std::string& suffix,
+            const std::string& count_key)
       : Component(ctx.hal, args.component()) {
-    args.allow_only({"count", "names"});
-    for (const auto& n : args.instance_names(prefix)) {
+    args.allow_only({count_key, "names"});
+    for (const auto& n : args.instance_names(prefix, 1, 64, count_key)) {
       instances_.push_back(std::make_unique<Instance>());
       Instance& inst = *instances_.back();
       inst.make(*this, n);
@@ -114,7 +115,7 @@ struct Edge {
   template <class C> void make(C& c, const std::string& n) {
     in = c.template pin<bool>(n + ".in", PinDir::In);
     out = c.template pin<bool>(n + ".out", PinDir::Out);
-    out_invert = c.template pin<bool>(n + ".out-invert", PinDir::Out, true);
+    out_invert = c.template pin<bool>(n + ".out-invert", PinDir::Out);  // FALSE until it first runs
     both = c.template param<bool>(n + ".both", ParamDir::RW, false);
     in_edge = c.template param<bool>(n + ".in-edge", ParamDir::RW, true);
     out_width_ns = c.template param<int32_t>(n + ".out-width-ns", ParamDir::RW, 0);
@@ -177,9 +178,10 @@ struct Timedelay {
 // |acceleration| <= maxa, braking in time to stop on the target without
 // overshoot (the discrete stopping distance of one-cycle steps is used).
 // load jumps out to the clamped in. maxv/maxa <= 0 means no such limit.
+// enable FALSE steers out back to 0 the same way.
 struct Limit3 {
   FloatPin in, min_, max_, maxv, maxa, out;
-  BitPin load;
+  BitPin load, enable;
   double vel = 0;
   template <class C> void make(C& c, const std::string& n) {
     in = c.template pin<double>(n + ".in", PinDir::In);
@@ -188,11 +190,13 @@ struct Limit3 {
     maxv = c.template pin<double>(n + ".maxv", PinDir::In, 1e20);
     maxa = c.template pin<double>(n + ".maxa", PinDir::In, 1e20);
     load = c.template pin<bool>(n + ".load", PinDir::In);
+    enable = c.template pin<bool>(n + ".enable", PinDir::In, true);
     out = c.template pin<double>(n + ".out", PinDir::Out);
   }
   void update(const rt::CycleInfo& info) noexcept {
     const double dt = cycle_seconds(info);
-    const double target = std::clamp(in.get(), std::min(min_.get(), max_.get()), max_.get());
+    // enable FALSE: out returns to 0, within the same limits.
+    const double target = std::clamp(enable.get() ? in.get() : 0.0, std::min(min_.get(), max_.get()), max_.get());
     const double pos = out.get();
     if (load.get() || dt <= 0) {
       out.set(target);
@@ -379,7 +383,7 @@ class Debounce : public Component {
 };
 
 // conv_<in>_<out>: type conversion. Where the output type cannot hold every
-// input, `out-of-range` tells, and the `clamp` parameter (default TRUE)
+// input, `out-of-range` tells, and the `clamp` parameter (default FALSE, as LinuxCNC's)
 // chooses between the nearest value of the output type and wrapping around
 // (two's complement, as LinuxCNC's C cast does on its platforms).
 template <class In, class Out>
@@ -396,7 +400,7 @@ struct Conv {
     out = c.template pin<Out>(n + ".out", PinDir::Out);
     if constexpr (kCanOverflow) {
       out_of_range = c.template pin<bool>(n + ".out-of-range", PinDir::Out);
-      clamp = c.template param<bool>(n + ".clamp", ParamDir::RW, true);
+      clamp = c.template param<bool>(n + ".clamp", ParamDir::RW, false);
     }
   }
   static double lo() noexcept { return std::is_same_v<Out, bool> ? 0.0 : static_cast<double>(std::numeric_limits<Out>::min()); }
@@ -468,12 +472,12 @@ class Encoder : public Component {
       ch.phase_z = make_pin<bool>(n + ".phase-Z", PinDir::In);
       ch.index_enable = make_pin<bool>(n + ".index-enable", PinDir::IO);
       ch.reset = make_pin<bool>(n + ".reset", PinDir::In);
-      ch.counter_mode = make_pin<bool>(n + ".counter-mode", PinDir::In);
-      ch.x4_mode = make_pin<bool>(n + ".x4-mode", PinDir::In, true);
+      ch.counter_mode = make_pin<bool>(n + ".counter-mode", PinDir::IO);
+      ch.x4_mode = make_pin<bool>(n + ".x4-mode", PinDir::IO, true);
       ch.use_counts_in = make_pin<bool>(n + ".use-counts-in", PinDir::In);
       ch.counts_in = make_pin<int32_t>(n + ".counts-in", PinDir::In);
       ch.rawcounts = make_pin<int32_t>(n + ".rawcounts", PinDir::Out);
-      ch.count = make_pin<int32_t>(n + ".count", PinDir::Out);
+      ch.count = make_pin<int32_t>(n + ".counts", PinDir::Out);
       ch.position = make_pin<double>(n + ".position", PinDir::Out);
       ch.velocity = make_pin<double>(n + ".velocity", PinDir::Out);
       ch.velocity_rpm = make_pin<double>(n + ".velocity-rpm", PinDir::Out);
@@ -584,9 +588,9 @@ class Encoder : public Component {
 
 template <class Instance>
 void add(ComponentRegistry& r, const std::string& comp, const std::string& prefix, const std::string& suffix,
-         const std::string& help) {
-  r.add(comp, help, [prefix, suffix](ComponentContext& ctx, const LoadArgs& args) -> std::unique_ptr<Component> {
-    return std::make_unique<Instances<Instance>>(ctx, args, prefix, suffix);
+         const std::string& help, const std::string& count_key = "count") {
+  r.add(comp, help, [prefix, suffix, count_key](ComponentContext& ctx, const LoadArgs& args) -> std::unique_ptr<Component> {
+    return std::make_unique<Instances<Instance>>(ctx, args, prefix, suffix, count_key);
   });
 }
 
@@ -611,7 +615,7 @@ void register_panel_components(ComponentRegistry& r) {
   add<Limit3>(r, "limit3", "limit3", "",
               "limit3 [count=N|names=a,b]: out follows in within min/max, |v| <= maxv, |a| <= maxa");
   add<Pid>(r, "pid", "pid", ".do-pid-calcs",
-           "pid [count=N|names=a,b]: PID with feed-forward, deadband and limits (LinuxCNC's pid pins)");
+           "pid [num_chan=N|names=a,b]: PID with feed-forward, deadband and limits (LinuxCNC's pid pins)", "num_chan");
   r.add("debounce", "debounce cfg=N[,N...]: groups of N filters, out follows in after `delay` cycles",
         [](ComponentContext& ctx, const LoadArgs& args) -> std::unique_ptr<Component> {
           return std::make_unique<Debounce>(ctx, args);

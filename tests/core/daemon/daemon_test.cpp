@@ -78,7 +78,7 @@ class Daemon {
 const char* kBasicHal =
     "loadrt threads name1=servo-thread period1=[EMCMOT]SERVO_PERIOD\n"
     "loadrt siggen\nloadrt scale\n"
-    "addf siggen.0 servo-thread\naddf scale.0 servo-thread\n"
+    "addf siggen.0.update servo-thread\naddf scale.0 servo-thread\n"
     "net wave siggen.0.sine => scale.0.in\n";
 
 }  // namespace

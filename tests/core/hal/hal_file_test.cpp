@@ -99,7 +99,7 @@ TEST(HalFile, SourceIncludesRelativeFiles) {
   const auto main = dir.write("main.hal", "loadrt and2\nsource sub/io.hal\n");
   Fixture f;
   f.interp.run_file(main);
-  EXPECT_EQ(f.hal.get_signal("n"), "TRUE");
+  EXPECT_EQ(f.hal.get_signal("n"), "FALSE") << "not.0.out before its function runs (LinuxCNC's initial value)";
   const auto bad = dir.write("bad.hal", "source sub/missing.hal\n");
   Fixture g;
   EXPECT_NE(error_of([&] { g.interp.run_file(bad); }).find("missing.hal: cannot read HAL file"), std::string::npos);

@@ -39,8 +39,8 @@ TEST(HalThread, FunctionsRunInOrderAndAreTimed) {
   cnc::rt::CycleInfo info;
   info.period_ns = 1'000'000;
   t->run_cycle(info);
-  // not.1 ran before not.0 wrote its first TRUE: it saw the initial TRUE.
-  EXPECT_EQ(hal.get_value("not.1.out"), "FALSE");
+  // not.1 ran before not.0 wrote its first TRUE: it saw the initial FALSE.
+  EXPECT_EQ(hal.get_value("not.1.out"), "TRUE");
   EXPECT_EQ(hal.get_value("counter.out"), "1");
   EXPECT_GE(std::stoll(hal.get_value("counter.update.tmax")), 0);
   interp.execute("delf counter.update servo-thread");
@@ -63,7 +63,7 @@ TEST(HalThread, ServoCycleDoesNotAllocate) {
       "net s siggen.0.sine => ddt.0.in scale.0.in lowpass.0.in mux2.0.in0 sum2.0.in0\n"
       "net c siggen.0.clock => and2.0.in0 or2.0.in0 not.0.in xor2.0.in0 estop-latch.0.reset mux2.0.sel\n",
       "t.hal");
-  for (const char* f : {"siggen.0", "and2.0", "and2.1", "and2.2", "and2.3", "or2.0", "not.0", "mux2.0", "sum2.0",
+  for (const char* f : {"siggen.0.update", "and2.0", "and2.1", "and2.2", "and2.3", "or2.0", "not.0", "mux2.0", "sum2.0",
                         "scale.0", "lowpass.0", "ddt.0", "estop-latch.0", "xor2.0"}) {
     hal.add_function(f, "servo-thread");
   }

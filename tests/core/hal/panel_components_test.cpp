@@ -187,6 +187,42 @@ TEST(PanelComponents, Limit3LoadJumpsToTheClampedInput) {
   EXPECT_EQ(b.num("limit3.0.out"), 3.0);
 }
 
+TEST(PanelComponents, Limit3DisabledReturnsToZeroWithinItsLimits) {
+  Bench b;
+  b.load("loadrt limit3\naddf limit3.0 t\nsetp limit3.0.maxv 1000\nsetp limit3.0.in 5\nsetp limit3.0.load 1\n");
+  EXPECT_EQ(b.get("limit3.0.enable"), "TRUE") << "LinuxCNC's default";
+  b.step();
+  EXPECT_EQ(b.num("limit3.0.out"), 5.0);
+  b.load("setp limit3.0.load 0\nsetp limit3.0.enable 0\n");
+  b.step();
+  EXPECT_NEAR(b.num("limit3.0.out"), 4.0, 1e-9) << "at most maxv * 1 ms per cycle";
+  b.step(10);
+  EXPECT_EQ(b.num("limit3.0.out"), 0.0);
+}
+
+TEST(PanelComponents, LinuxCncLoadArgumentsAndParameters) {
+  Bench b;
+  b.load("loadrt pid num_chan=2\nloadrt siggen num_chan=1\nloadrt sum2\nloadrt lowpass\naddf siggen.0.update t\n");
+  EXPECT_TRUE(b.hal.has_pin("pid.1.Pgain"));
+  EXPECT_TRUE(b.hal.has_param("sum2.0.gain0")) << "parameters, as LinuxCNC's";
+  EXPECT_TRUE(b.hal.has_param("sum2.0.offset"));
+  EXPECT_TRUE(b.hal.has_param("lowpass.0.gain"));
+  EXPECT_ANY_THROW(b.load("loadrt pid count=1\n")) << "LinuxCNC's pid takes num_chan=";
+}
+
+TEST(PanelComponents, SiggenResetHoldsTheDocumentedStates) {
+  Bench b;
+  b.load("loadrt siggen\naddf siggen.0.update t\nsetp siggen.0.amplitude 2\nsetp siggen.0.frequency 100\n");
+  b.step(3);
+  b.set("siggen.0.reset", "1");
+  b.step();
+  EXPECT_EQ(b.num("siggen.0.sine"), 0.0);
+  EXPECT_EQ(b.num("siggen.0.sawtooth"), 0.0);
+  EXPECT_EQ(b.num("siggen.0.square"), -2.0);
+  EXPECT_EQ(b.num("siggen.0.cosine"), -2.0);
+  EXPECT_EQ(b.num("siggen.0.triangle"), -2.0);
+}
+
 TEST(PanelComponents, PidOutputForKnownInputs) {
   Bench b;
   b.load("loadrt pid names=px\naddf px.do-pid-calcs t\n"
@@ -241,17 +277,17 @@ TEST(PanelComponents, EncoderCountsQuadratureBothDirectionsInX4AndX1) {
   b.step();
   int ph = 0;
   quadrature(b, "encoder.0", ph, 40, true);
-  EXPECT_EQ(b.get("encoder.0.count"), "40");
+  EXPECT_EQ(b.get("encoder.0.counts"), "40");
   EXPECT_EQ(b.num("encoder.0.position"), 10.0);
   EXPECT_EQ(b.num("encoder.0.velocity"), 250.0) << "one count per ms over scale 4";
   quadrature(b, "encoder.0", ph, 48, false);
-  EXPECT_EQ(b.get("encoder.0.count"), "-8");
+  EXPECT_EQ(b.get("encoder.0.counts"), "-8");
   EXPECT_EQ(b.num("encoder.0.velocity"), -250.0);
   b.set("encoder.0.x4-mode", "0");
   quadrature(b, "encoder.0", ph, 40, true);
-  EXPECT_EQ(b.get("encoder.0.count"), "2") << "x1: one count per 4 edges";
+  EXPECT_EQ(b.get("encoder.0.counts"), "2") << "x1: one count per 4 edges";
   quadrature(b, "encoder.0", ph, 40, false);
-  EXPECT_EQ(b.get("encoder.0.count"), "-8") << "and back to the same count";
+  EXPECT_EQ(b.get("encoder.0.counts"), "-8") << "and back to the same count";
   EXPECT_FALSE(b.bit("encoder.0.error"));
 }
 
@@ -264,7 +300,7 @@ TEST(PanelComponents, EncoderReportsBothPhasesChangingInOneSample) {
   b.step();
   EXPECT_TRUE(b.bit("encoder.0.error"));
   EXPECT_EQ(b.get("encoder.0.error-count"), "1");
-  EXPECT_EQ(b.get("encoder.0.count"), "0") << "a skipped edge is not guessed";
+  EXPECT_EQ(b.get("encoder.0.counts"), "0") << "a skipped edge is not guessed";
 }
 
 TEST(PanelComponents, EncoderCounterModeCountsRisingEdgesOfA) {
@@ -277,7 +313,7 @@ TEST(PanelComponents, EncoderCounterModeCountsRisingEdgesOfA) {
     b.set("mpg.phase-B", (i % 3) ? "0" : "1");  // ignored
     b.step();
   }
-  EXPECT_EQ(b.get("mpg.count"), "5");
+  EXPECT_EQ(b.get("mpg.counts"), "5");
 }
 
 TEST(PanelComponents, EncoderIndexAndResetZeroTheCount) {
@@ -288,19 +324,19 @@ TEST(PanelComponents, EncoderIndexAndResetZeroTheCount) {
   quadrature(b, "encoder.0", ph, 10, true);
   b.set("encoder.0.phase-Z", "1");
   b.step();
-  EXPECT_EQ(b.get("encoder.0.count"), "10") << "index-enable FALSE: Z ignored";
+  EXPECT_EQ(b.get("encoder.0.counts"), "10") << "index-enable FALSE: Z ignored";
   b.set("encoder.0.phase-Z", "0");
   b.set("encoder.0.index-enable", "1");
   quadrature(b, "encoder.0", ph, 3, true);
   b.set("encoder.0.phase-Z", "1");
   b.step();
-  EXPECT_EQ(b.get("encoder.0.count"), "0");
+  EXPECT_EQ(b.get("encoder.0.counts"), "0");
   EXPECT_FALSE(b.bit("encoder.0.index-enable"));
   EXPECT_EQ(b.get("encoder.0.rawcounts"), "13");
   quadrature(b, "encoder.0", ph, 2, true);
   b.set("encoder.0.reset", "1");
   b.step();
-  EXPECT_EQ(b.get("encoder.0.count"), "0");
+  EXPECT_EQ(b.get("encoder.0.counts"), "0");
 }
 
 TEST(PanelComponents, EncoderTakesAWrappingCounterOnCountsIn) {
@@ -308,10 +344,10 @@ TEST(PanelComponents, EncoderTakesAWrappingCounterOnCountsIn) {
   b.load("loadrt encoder num_chan=1\naddf encoder.update-counters t\naddf encoder.capture-position t\n"
          "setp encoder.0.use-counts-in 1\nsetp encoder.0.counts-in 2147483640\n");
   b.step();
-  EXPECT_EQ(b.get("encoder.0.count"), "0") << "the counter's value at start is the origin";
+  EXPECT_EQ(b.get("encoder.0.counts"), "0") << "the counter's value at start is the origin";
   b.set("encoder.0.counts-in", "-2147483646");  // wrapped: +10
   b.step();
-  EXPECT_EQ(b.get("encoder.0.count"), "10");
+  EXPECT_EQ(b.get("encoder.0.counts"), "10");
   EXPECT_EQ(b.num("encoder.0.velocity"), 10000.0);
 }
 
@@ -325,6 +361,9 @@ TEST(PanelComponents, ConvClampsOrWrapsAndTellsOutOfRange) {
          "setp conv-float-s32.0.in -2.7\nsetp conv-float-s32.1.in 3e9\nsetp conv-s32-u32.0.in -5\n"
          "setp conv-u32-s32.0.in 4000000000\nsetp conv-s32-bit.0.in 7\nsetp conv-float-u32.0.in -1\n");
   EXPECT_FALSE(b.hal.has_param("conv-s32-float.0.clamp")) << "no range to leave";
+  EXPECT_EQ(b.get("conv-float-s32.0.clamp"), "FALSE") << "LinuxCNC's default: wrap";
+  b.load("setp conv-float-s32.1.clamp 1\nsetp conv-s32-u32.0.clamp 1\nsetp conv-u32-s32.0.clamp 1\n"
+         "setp conv-s32-bit.0.clamp 1\nsetp conv-float-u32.0.clamp 1\n");
   EXPECT_FALSE(b.hal.has_pin("conv-bit-s32.0.out-of-range"));
   b.step();
   EXPECT_EQ(b.get("conv-float-s32.0.out"), "-2") << "truncation toward zero";
@@ -362,7 +401,7 @@ TEST(PanelComponents, ServoCycleDoesNotAllocate) {
          "mux4.0.sel0\n"
          "net i conv-float-s32.0.out => select8.0.sel conv-s32-bit.0.in\n"
          "setp encoder.0.counter-mode 1\nsetp pid.0.enable 1\nsetp siggen.0.frequency 50\nsetp timedelay.0.on-delay 0.001\n");
-  for (const char* f : {"siggen.0", "mux4.0", "select8.0", "debounce.0", "toggle.0", "edge.0", "timedelay.0",
+  for (const char* f : {"siggen.0.update", "mux4.0", "select8.0", "debounce.0", "toggle.0", "edge.0", "timedelay.0",
                         "limit3.0", "pid.0.do-pid-calcs", "encoder.update-counters", "encoder.capture-position",
                         "conv-float-s32.0", "conv-s32-bit.0"}) {
     b.hal.add_function(f, "t");

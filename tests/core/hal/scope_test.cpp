@@ -87,7 +87,7 @@ TEST(Scope, HalcmdCapturesPinsToCsvWithoutAllocatingInTheCycle) {
   CommandInterpreter interp(hal, reg, nullptr, nullptr);
   interp.run_text(
       "loadrt threads name1=t period1=1000000\nloadrt scope samples=50\nloadrt siggen\n"
-      "setp siggen.0.frequency 100\naddf siggen.0 t\naddf scope.sample t\n",
+      "setp siggen.0.frequency 100\naddf siggen.0.update t\naddf scope.sample t\n",
       "t.hal");
   EXPECT_THROW(interp.execute("scope arm"), HalError) << "setup first";
   interp.execute("scope setup siggen.0.sine,siggen.0.clock trigger=siggen.0.clock edge=falling pre=20 samples=20");
