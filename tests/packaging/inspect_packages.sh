@@ -76,7 +76,7 @@ fi
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 dpkg-deb -x "$cnc" "$tmp"
-file "$tmp/usr/bin/cncd" | grep -q "stripped" && ! file "$tmp/usr/bin/cncd" | grep -q "not stripped" ||
+file "$tmp/usr/bin/cncd" | grep "stripped" >/dev/null && ! file "$tmp/usr/bin/cncd" | grep "not stripped" >/dev/null ||
   bad "cncd is not stripped"
 dpkg-deb -e "$cnc" "$tmp/DEBIAN"
 grep -q "setcap cap_sys_nice,cap_ipc_lock,cap_net_raw+ep /usr/bin/cncd" "$tmp/DEBIAN/postinst" ||

@@ -46,7 +46,7 @@ check
 # G10 L2 P1 X100 Y50 Z-80 is persisted: #5221..#5223 in the parameter file.
 grep -Eq '^5221[[:space:]]+100(\.0+)?$' "$work/sim/sim.var" || fail "G54 X offset not persisted: $(grep ^522 "$work/sim/sim.var" || true)"
 grep -Eq '^5223[[:space:]]+-80(\.0+)?$' "$work/sim/sim.var" || fail "G54 Z offset not persisted"
-if "$bin/cnc" messages | grep -q " error "; then fail "errors on the message channel: $("$bin/cnc" messages)"; fi
+if "$bin/cnc" messages | grep " error " >/dev/null; then fail "errors on the message channel: $("$bin/cnc" messages)"; fi
 "$bin/cnc" shutdown || fail "shutdown"
 wait $daemon || fail "cncd exited with an error"
 # A shutdown is said as one: the task goes to E-stop first, no "fault".
