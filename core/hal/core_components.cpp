@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/hal/component.hpp"
+#include "core/hal/instances.hpp"
 #include "core/util/strings.hpp"
 
 namespace cnc::hal {
@@ -28,34 +29,6 @@ class ThreadsComponent : public Component {
     }
     args.allow_only(known);
   }
-};
-
-// Instances share one shape: a struct of pins and an update.
-template <class Instance>
-class Multi : public Component {
- public:
-  Multi(ComponentContext& ctx, const LoadArgs& args, const std::string& prefix, const std::string& count_key,
-        const std::string& suffix)
-      : Component(ctx.hal, args.component()) {
-    args.allow_only({count_key, "names"});
-    for (const auto& n : args.instance_names(prefix, 1, 64, count_key)) {
-      instances_.push_back(std::make_unique<Instance>());
-      Instance& inst = *instances_.back();
-      inst.make(*this, n);
-      export_function(n + suffix, &inst);
-    }
-  }
-  template <class T>
-  Pin<T> pin(const std::string& name, PinDir dir, T initial = T{}) { return make_pin<T>(name, dir, initial); }
-  template <class T>
-  Param<T> param(const std::string& name, ParamDir dir, T initial = T{}) { return make_param<T>(name, dir, initial); }
-
- private:
-  void export_function(const std::string& n, Instance* inst) {
-    hal().export_function(
-        this, n, [](void* arg, const rt::CycleInfo& info) { static_cast<Instance*>(arg)->update(info); }, inst);
-  }
-  std::vector<std::unique_ptr<Instance>> instances_;
 };
 
 struct And2 {
@@ -241,13 +214,6 @@ struct Siggen {
   }
 };
 
-template <class Instance>
-void add_multi(ComponentRegistry& r, const std::string& comp, const std::string& prefix, const std::string& help,
-               const std::string& count_key = "count", const std::string& suffix = "") {
-  r.add(comp, help, [prefix, count_key, suffix](ComponentContext& ctx, const LoadArgs& args) -> std::unique_ptr<Component> {
-    return std::make_unique<Multi<Instance>>(ctx, args, prefix, count_key, suffix);
-  });
-}
 
 }  // namespace
 
@@ -256,18 +222,18 @@ void register_core_components(ComponentRegistry& r) {
         [](ComponentContext& ctx, const LoadArgs& args) -> std::unique_ptr<Component> {
           return std::make_unique<ThreadsComponent>(ctx, args);
         });
-  add_multi<And2>(r, "and2", "and2", "and2 [count=N|names=a,b]: out = in0 AND in1");
-  add_multi<Or2>(r, "or2", "or2", "or2 [count=N|names=a,b]: out = in0 OR in1");
-  add_multi<Xor2>(r, "xor2", "xor2", "xor2 [count=N|names=a,b]: out = in0 XOR in1");
-  add_multi<Not>(r, "not", "not", "not [count=N|names=a,b]: out = NOT in");
-  add_multi<Mux2>(r, "mux2", "mux2", "mux2 [count=N|names=a,b]: out = sel ? in1 : in0");
-  add_multi<Sum2>(r, "sum2", "sum2", "sum2 [count=N|names=a,b]: out = in0*gain0 + in1*gain1 + offset");
-  add_multi<Scale>(r, "scale", "scale", "scale [count=N|names=a,b]: out = in*gain + offset");
-  add_multi<Lowpass>(r, "lowpass", "lowpass", "lowpass [count=N|names=a,b]: first-order filter, out += (in-out)*gain");
-  add_multi<Ddt>(r, "ddt", "ddt", "ddt [count=N|names=a,b]: out = d(in)/dt over the measured period");
-  add_multi<EstopLatch>(r, "estop_latch", "estop-latch",
+  add_instances<And2>(r, "and2", "and2", "and2 [count=N|names=a,b]: out = in0 AND in1");
+  add_instances<Or2>(r, "or2", "or2", "or2 [count=N|names=a,b]: out = in0 OR in1");
+  add_instances<Xor2>(r, "xor2", "xor2", "xor2 [count=N|names=a,b]: out = in0 XOR in1");
+  add_instances<Not>(r, "not", "not", "not [count=N|names=a,b]: out = NOT in");
+  add_instances<Mux2>(r, "mux2", "mux2", "mux2 [count=N|names=a,b]: out = sel ? in1 : in0");
+  add_instances<Sum2>(r, "sum2", "sum2", "sum2 [count=N|names=a,b]: out = in0*gain0 + in1*gain1 + offset");
+  add_instances<Scale>(r, "scale", "scale", "scale [count=N|names=a,b]: out = in*gain + offset");
+  add_instances<Lowpass>(r, "lowpass", "lowpass", "lowpass [count=N|names=a,b]: first-order filter, out += (in-out)*gain");
+  add_instances<Ddt>(r, "ddt", "ddt", "ddt [count=N|names=a,b]: out = d(in)/dt over the measured period");
+  add_instances<EstopLatch>(r, "estop_latch", "estop-latch",
                         "estop_latch [count=N|names=a,b]: latch a fault until reset (LinuxCNC's estop_latch)");
-  add_multi<Siggen>(r, "siggen", "siggen", "siggen [num_chan=N|names=a,b]: sine, cosine, triangle, square, sawtooth",
+  add_instances<Siggen>(r, "siggen", "siggen", "siggen [num_chan=N|names=a,b]: sine, cosine, triangle, square, sawtooth",
                      "num_chan", ".update");
   register_panel_components(r);
 }

@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "core/hal/component.hpp"
+#include "core/hal/instances.hpp"
 #include "core/hal/scope.hpp"
 #include "core/util/strings.hpp"
 
@@ -22,32 +23,6 @@ double cycle_seconds(const rt::CycleInfo& info) noexcept {
   return static_cast<double>(ns) * 1e-9;
 }
 
-// Instances of one shape; each exports `<instance><suffix>` (LinuxCNC:
-// mux4.0, pid.0.do-pid-calcs).
-template <class Instance>
-class Instances : public Component {
- public:
-  Instances(ComponentContext& ctx, const LoadArgs& args, const std::string& prefix, const std::string& suffix,
-            const std::string& count_key)
-      : Component(ctx.hal, args.component()) {
-    args.allow_only({count_key, "names"});
-    for (const auto& n : args.instance_names(prefix, 1, 64, count_key)) {
-      instances_.push_back(std::make_unique<Instance>());
-      Instance& inst = *instances_.back();
-      inst.make(*this, n);
-      hal().export_function(
-          this, n + suffix, [](void* arg, const rt::CycleInfo& info) { static_cast<Instance*>(arg)->update(info); },
-          &inst);
-    }
-  }
-  template <class T>
-  Pin<T> pin(const std::string& name, PinDir dir, T initial = T{}) { return make_pin<T>(name, dir, initial); }
-  template <class T>
-  Param<T> param(const std::string& name, ParamDir dir, T initial = T{}) { return make_param<T>(name, dir, initial); }
-
- private:
-  std::vector<std::unique_ptr<Instance>> instances_;
-};
 
 // mux4: out = in[sel1*2 + sel0].
 struct Mux4 {
@@ -589,9 +564,7 @@ class Encoder : public Component {
 template <class Instance>
 void add(ComponentRegistry& r, const std::string& comp, const std::string& prefix, const std::string& suffix,
          const std::string& help, const std::string& count_key = "count") {
-  r.add(comp, help, [prefix, suffix, count_key](ComponentContext& ctx, const LoadArgs& args) -> std::unique_ptr<Component> {
-    return std::make_unique<Instances<Instance>>(ctx, args, prefix, suffix, count_key);
-  });
+  add_instances<Instance>(r, comp, prefix, help, count_key, suffix);
 }
 
 template <class In, class Out>
