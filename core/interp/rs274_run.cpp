@@ -1,8 +1,10 @@
 #include "core/interp/rs274_run.hpp"
 
 #include <functional>
+#include <stdexcept>
 
 #include "core/ini/ini_file.hpp"
+#include "core/interp/canon_replay.hpp"
 #include "core/interp/text_canon.hpp"
 #include "core/tooltable/tool_table.hpp"
 
@@ -83,6 +85,11 @@ bool run_program(Interpreter& interp, const Rs274Options& o, const std::function
 
 }  // namespace
 
+bool is_canon_replay_plugin(const std::string& plugin) {
+  const std::string name = std::filesystem::path(plugin).filename().string();
+  return name == "canterp.so" || name == "canterp";
+}
+
 bool run_rs274(const Rs274Options& o, std::FILE* out, std::string& error, std::FILE* err_out) {
   error.clear();
   cnc::ini::IniFile ini;
@@ -107,6 +114,24 @@ bool run_rs274(const Rs274Options& o, std::FILE* out, std::string& error, std::F
   cnc::tooltable::ToolTable table(kind);
   if (!o.tool_table.empty()) table = cnc::tooltable::ToolTable::load(o.tool_table, kind);
   TextCanon canon(out, table, o.machine_units);
+  if (!o.plugin.empty()) {
+    if (!is_canon_replay_plugin(o.plugin)) {
+      throw std::runtime_error("-p " + o.plugin +
+                               ": unknown interpreter plugin; the one known is canterp.so, LinuxCNC's canon interpreter "
+                               "(here the built-in canon replay)");
+    }
+    // canterp makes no calls of its own at start and end, only the file's
+    try {
+      replay_canon_file(o.program, canon);
+    } catch (const InterpError& e) {
+      canon.flush();
+      error = describe(e, o);
+      if (err_out != nullptr) std::fprintf(err_out, "%s\n", error.c_str());
+      return false;
+    }
+    canon.flush();
+    return true;
+  }
   Interpreter interp(canon, cfg);
   // Errors go out as they happen, after the calls made before them.
   const std::function<void(const InterpError&)> report = [&](const InterpError& e) {

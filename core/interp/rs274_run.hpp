@@ -32,7 +32,15 @@ struct Rs274Options {
   bool print_stack = false;
   // rs274 -T: run as in the task controller (#<_task> reads 1).
   bool task = false;
+  // rs274 -p: the interpreter plugin. LinuxCNC's canon interpreter
+  // "canterp.so" (any directory) selects the built-in canon replay
+  // (canon_replay.hpp): `program` is a file of canonical calls. Empty: the
+  // RS274/NGC interpreter. Others: refused (run_rs274 throws).
+  std::string plugin;
 };
+
+// True when `plugin` (an rs274 -p argument) names LinuxCNC's canterp.
+bool is_canon_replay_plugin(const std::string& plugin);
 
 // Writes the canonical calls to `out` (may be null). On an interpreter
 // error (with on_error 2, or an error in an MDI answer) returns false and sets `error` to "message\nline text" as rs274

@@ -17,7 +17,7 @@ namespace {
 void usage() {
   std::fprintf(stderr,
                "Usage: cnc-rs274 [-t tool.tbl] [-v var-file.var] [-i file.ini] [-n 0|1|2] [-b] [-s] [-g] [-T]\n"
-               "                 [-l level] [-r] [-m mm|inch] [-a AXES] [-q] program.ngc [output]\n"
+               "                 [-l level] [-r] [-m mm|inch] [-a AXES] [-q] [-p canterp.so] program.ngc [output]\n"
                "    -t: tool table (LinuxCNC format)\n"
                "    -v: parameter file (read at start, written atomically at the end)\n"
                "    -i: INI file ([RS274NGC], [EMCIO]RANDOM_TOOLCHANGER, [TRAJ]COORDINATES)\n"
@@ -30,7 +30,8 @@ void usage() {
                "    -r: random tool changer\n"
                "    -m: machine (tool table and parameter) units, default inch as rs274\n"
                "    -a: axis letters, default XYZABC as rs274\n"
-               "    -q: do not print the canonical calls (for timing)\n");
+               "    -q: do not print the canonical calls (for timing)\n"
+               "    -p canterp.so: the program is a file of canonical calls (rs274 -g output), replayed\n");
 }
 }  // namespace
 
@@ -57,8 +58,15 @@ int main(int argc, char** argv) {
       case 'T': o.task = true; break;
       case 'l': break;
       case 'p':
-        std::fprintf(stderr, "cnc-rs274: -p %s: interpreter plugins are not supported\n", optarg);
-        return 2;
+        if (!is_canon_replay_plugin(optarg)) {
+          std::fprintf(stderr,
+                       "cnc-rs274: -p %s: unknown interpreter plugin; the one known is canterp.so (LinuxCNC's canon "
+                       "interpreter: the program is a file of canonical calls, replayed)\n",
+                       optarg);
+          return 2;
+        }
+        o.plugin = optarg;
+        break;
       default: usage(); return 2;
     }
   }
