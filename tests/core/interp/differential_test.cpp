@@ -133,7 +133,11 @@ TEST(InterpDifferential, RandomProgramsMatchLinuxCncRs274) {
   const fs::path table = cnc::testing::source_dir() / "tests/core/interp/data/tool.tbl";
   for (int k = 0; k < 25; ++k) {
     const fs::path prog = dir.write("p" + std::to_string(k) + ".ngc", gen.program(40));
-    const std::string cmd = "cd '" + dir.path().string() + "' && rs274 -g -t '" + table.string() + "' '" +
+    // HOME: LinuxCNC's rs274 keeps its tool data in ~/.tool.mmap, shared by
+    // every rs274 of the user; another test running one at the same time
+    // (ctest -j) changed the tools this one saw
+    const std::string cmd = "cd '" + dir.path().string() + "' && HOME='" + dir.path().string() + "' rs274 -g -t '" +
+                            table.string() + "' '" +
                             prog.filename().string() + "' > ref.out 2> ref.err";
     std::system(cmd.c_str());
     std::string want_err = slurp(dir / "ref.err");

@@ -58,7 +58,10 @@ run_one() {
         cp "$HERE/params2.var" "$dir/params2.var"
         args+=(-t "$HERE/tool2.tbl" -v params2.var)
     fi
-    (cd "$dir" && timeout 20 "$interp" "${args[@]}" "$(basename "$prog")" < /dev/null > "$out.stdout" 2> "$out.stderr")
+    # HOME: LinuxCNC's rs274 keeps its tool data in ~/.tool.mmap, one file
+    # for every rs274 of the user; runs at the same time (ctest -j) would
+    # read each other's tools
+    (cd "$dir" && HOME="$dir" timeout 20 "$interp" "${args[@]}" "$(basename "$prog")" < /dev/null > "$out.stdout" 2> "$out.stderr")
     echo $? > "$out.rc"
     { cat "$out.stdout"; grep -v '^executing$' "$out.stderr"; } > "$out"
     [ "$config" = own ] || cp "$dir/params2.var" "$out.var" 2>/dev/null
