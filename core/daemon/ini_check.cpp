@@ -117,7 +117,7 @@ const std::vector<IgnoredKey>& ignored_linuxcnc_keys() {
       {"EMCIO", "DB_PROGRAM"},
       {"HALUI", "*"},
       {"APPLICATIONS", "*"},
-      {"PYTHON", "*"},
+      {"PYTHON", "LOG_LEVEL"},
   };
   return keys;
 }

@@ -254,6 +254,7 @@ void Interpreter::State::execute_step(int step, Status& st) {
   switch (step) {
     case kStepComment:
       if (block.has_comment) convert_comment();
+      if (block.has_py) run_script(block.py_code);
       break;
     case kStepSpindleMode:
       if (block.g[kGSpindleMode] != -1) convert_spindle_mode(block.g[kGSpindleMode]);
@@ -476,6 +477,15 @@ void Interpreter::State::check_other_words() const {
   }
 }
 
+void Interpreter::State::run_script(const std::string& code) {
+  if (!config.script) return;  // no scripts configured: a comment like any other
+  try {
+    config.script->run_statement(code);
+  } catch (const std::runtime_error& e) {
+    fail(std::string("py,") + code + ": " + e.what());
+  }
+}
+
 void Interpreter::State::convert_comment() {
   std::string_view c = block.comment;
   std::string_view rest;
@@ -496,6 +506,8 @@ void Interpreter::State::convert_comment() {
     canon.log(substitute_params(rest));
   } else if (cnc::iequals(cnc::trim(c), "logclose")) {
     canon.log_close();
+  } else if (config.script && comment_prefix(c, "py", rest)) {
+    run_script(std::string(rest));
   } else {
     canon.comment(skip_blanks(c));  // LinuxCNC drops the leading blanks
   }

@@ -190,8 +190,8 @@ ReadResult Interpreter::State::read_block() {
         set_named(a.name, a.value);
       }
     }
-    if (block.has == 0 && block.m_count == 0 && !block.has_comment && block.dollar < 0 && !block.has_polar_r &&
-        !block.has_polar_a) {
+    if (block.has == 0 && block.m_count == 0 && !block.has_comment && !block.has_py && block.dollar < 0 &&
+        !block.has_polar_r && !block.has_polar_a) {
       bool any_g = false;
       for (int g : block.g) any_g = any_g || g != -1;
       if (!any_g) continue;
@@ -412,6 +412,19 @@ void Interpreter::State::do_call(bool fanuc, int repeats) {
   const std::string label = block.o_name;
   const std::vector<double> args = block.call_args;
   if (frames.size() >= 64) fail("Too many subroutine levels");
+  if (!fanuc && config.script && config.script->has_oword(label)) {
+    // a script function: called at once, no frame; its number (if any) is
+    // the call's value as a G-code sub's return value is
+    std::optional<double> value;
+    try {
+      value = config.script->call_oword(label, args);
+    } catch (const std::runtime_error& e) {
+      fail("o<" + label + "> (Python): " + e.what());
+    }
+    globals["_value"] = value ? *value : 0.0;
+    globals["_value_returned"] = value ? 1.0 : 0.0;
+    return;
+  }
   auto it = subs.find(label);
   if (it == subs.end()) {
     // Look further down this file, then in a file named after the sub.

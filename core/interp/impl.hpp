@@ -203,6 +203,9 @@ struct Interpreter::State {
   void reset_modal(bool keep_params);
   void canon_init_calls();
   void convert_comment();
+  // A `py,` statement on the configured ScriptHost (none: ignored as a
+  // comment); a script error is an InterpError of the line.
+  void run_script(const std::string& code);
   void convert_feed_mode(int g);
   void convert_spindle_mode(int g);
   void convert_m(int group, Status& st);

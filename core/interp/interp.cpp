@@ -230,6 +230,7 @@ void Interpreter::init() {
   s.reset_modal(true);
   s.update_tool_from_canon();
   s.canon_init_calls();
+  if (s.config.script) s.config.script->attach(*this, s.canon);
   if (!s.config.startup_code.empty()) {
     execute(s.config.startup_code);
   }
@@ -483,6 +484,16 @@ void Interpreter::set_parameter(int index, double value) {
 bool Interpreter::named_parameter(std::string_view name, double& value) const {
   return s_->find_named(cnc::to_lower(name), value);
 }
+
+void Interpreter::set_named_parameter(std::string_view name, double value) {
+  s_->set_named(cnc::to_lower(name), value);
+}
+
+const cnc::tooltable::ToolTable& Interpreter::tool_table() const noexcept { return s_->tools; }
+
+Pose Interpreter::tool_offset() const noexcept { return s_->tool_offset; }
+
+Canon& Interpreter::canon() noexcept { return s_->canon; }
 
 std::vector<int> Interpreter::active_g_codes() const {
   const State& s = *s_;

@@ -22,6 +22,7 @@
 
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -73,6 +74,27 @@ struct RemapSpec {
   std::string epilog;    // subroutine called after the body ("" none)
   std::string where;     // "file:line" of the REMAP= line
   std::string name() const;  // "M400", "G88.1", "T"
+};
+
+class Interpreter;
+
+// Embedded scripts ([PYTHON], core/interp/python/python_host.hpp): O-word
+// subroutines written as functions of the script's `oword` module, and
+// statements in `;py,` and `(py,...)` comments. The interpreter knows only
+// this interface; the script library implements it.
+class ScriptHost {
+ public:
+  virtual ~ScriptHost() = default;
+  // Interpreter::init(): the interpreter the scripts see as
+  // `interpreter.this` (and `self`); runs the start-up script once.
+  virtual void attach(Interpreter& interp, Canon& canon) = 0;
+  // True when `name` (as written after o<, lower case) is a script function.
+  virtual bool has_oword(const std::string& name) = 0;
+  // Calls it with the call's arguments; the number it returned, if any.
+  // Throws std::runtime_error with the script's error.
+  virtual std::optional<double> call_oword(const std::string& name, const std::vector<double>& args) = 0;
+  // Runs the statement of a `py,` comment. Throws std::runtime_error.
+  virtual void run_statement(const std::string& code) = 0;
 };
 
 struct Config {
@@ -142,6 +164,9 @@ struct Config {
   // [RS274NGC]DISABLE_FANUC_STYLE_SUB: M98/M99 and O-number subprograms
   // (O1000 ... M99) are refused.
   bool disable_fanuc_style_sub = false;
+  // Embedded scripts; null: none (`py,` comments are plain comments and
+  // only G-code subroutines exist).
+  std::shared_ptr<ScriptHost> script;
   // Fills the fields above from [RS274NGC], [EMCIO] and [TRAJ]; a bad REMAP
   // line throws ConfigError naming its file and line.
   static Config from_ini(const cnc::ini::IniFile& ini);
@@ -222,6 +247,16 @@ class Interpreter {
   double parameter(int index) const;
   void set_parameter(int index, double value);
   bool named_parameter(std::string_view name, double& value) const;
+  // Sets a named parameter as `#<name> = value` does (global when it starts
+  // with '_', else local to the current call); throws InterpError for a
+  // read-only one.
+  void set_named_parameter(std::string_view name, double value);
+  // The tool table as the interpreter knows it (index 0: the spindle) and
+  // the tool length offset in effect (program units).
+  const cnc::tooltable::ToolTable& tool_table() const noexcept;
+  Pose tool_offset() const noexcept;
+  // The Canon the interpreter calls (embedded scripts make calls on it).
+  Canon& canon() noexcept;
 
   // The active G and M codes as LinuxCNC reports them (G x10, e.g. 641 for G64.1).
   std::vector<int> active_g_codes() const;

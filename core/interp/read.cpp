@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "core/interp/impl.hpp"
+#include "core/util/strings.hpp"
 
 namespace cnc::interp {
 
@@ -86,6 +87,8 @@ void Block::clear() {
   dollar = -1;
   has_comment = false;
   comment.clear();
+  has_py = false;
+  py_code.clear();
   o_type = OType::None;
   o_name.clear();
   o_has_value = false;
@@ -111,7 +114,8 @@ void Interpreter::State::normalize(std::string_view raw) {
   norm.clear();
   norm.reserve(raw.size());
   bool in_comment = false;
-  for (char c : raw) {
+  for (std::size_t k = 0; k < raw.size(); ++k) {
+    const char c = raw[k];
     if (in_comment) {
       if (c == '(') fail("Nested comment found");
       norm.push_back(c);
@@ -122,6 +126,12 @@ void Interpreter::State::normalize(std::string_view raw) {
       in_comment = true;
       norm.push_back(c);
     } else if (c == ';') {
+      // `;py,statement`: a script statement, kept as written
+      const std::string_view rest = raw.substr(k + 1);
+      if (rest.size() >= 3 && cnc::iequals(rest.substr(0, 3), "py,")) {
+        block.has_py = true;
+        block.py_code.assign(rest.substr(3));
+      }
       break;
     } else if (c == ' ' || c == '\t') {
       continue;

@@ -132,6 +132,12 @@ bool run_rs274(const Rs274Options& o, std::FILE* out, std::string& error, std::F
     canon.flush();
     return true;
   }
+  if (o.make_script) {
+    cfg.script = o.make_script(o.ini.empty() ? nullptr : &ini, [&canon, out] {
+      canon.flush();
+      if (out != nullptr) std::fflush(out);
+    });
+  }
   Interpreter interp(canon, cfg);
   // Errors go out as they happen, after the calls made before them.
   const std::function<void(const InterpError&)> report = [&](const InterpError& e) {

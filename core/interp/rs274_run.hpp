@@ -5,8 +5,11 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <string>
 
+#include "core/ini/ini_file.hpp"
 #include "core/interp/interp.hpp"
 
 namespace cnc::interp {
@@ -37,6 +40,10 @@ struct Rs274Options {
   // (canon_replay.hpp): `program` is a file of canonical calls. Empty: the
   // RS274/NGC interpreter. Others: refused (run_rs274 throws).
   std::string plugin;
+  // Makes the embedded-script host (the tool passes make_python_host): from
+  // the INI (null when none) and a function that writes out what the text
+  // canon buffered. Empty: no scripts.
+  std::function<std::shared_ptr<ScriptHost>(const cnc::ini::IniFile* ini, std::function<void()> flush)> make_script;
 };
 
 // True when `plugin` (an rs274 -p argument) names LinuxCNC's canterp.

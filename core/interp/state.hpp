@@ -69,6 +69,9 @@ struct Block {
   double polar_r = 0, polar_a = 0;
   bool has_comment = false;
   std::string comment;
+  // A `;py,` comment: the script statement after "py," (raw text).
+  bool has_py = false;
+  std::string py_code;
   OType o_type = OType::None;
   std::string o_name;
   bool o_has_value = false;

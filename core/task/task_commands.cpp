@@ -545,7 +545,7 @@ std::string TaskController::program_run(const ipc::Command& c) {
       // fresh one (parameters go through the parameter file).
       if (const std::string unsaved = save_parameters(); !unsaved.empty()) return unsaved;
       interp_config_.block_delete = block_delete_;
-      interp_ = std::make_unique<interp::Interpreter>(*canon_, interp_config_);
+      interp_ = make_interpreter(*canon_);
       interp_->init();
       items_.clear();
     }
@@ -713,7 +713,7 @@ std::string TaskController::run_from_line_preview(const ipc::Command& c) {
   job->view = view_;
   job->canon = std::make_unique<TaskCanon>(canon_cfg_, job->items, job->view);
   job->canon->set_end_position(ms_.traj.position);
-  job->interp = std::make_unique<interp::Interpreter>(*job->canon, interp_config_);
+  job->interp = make_interpreter(*job->canon);
   try {
     job->interp->init();
     job->interp->open(file_);

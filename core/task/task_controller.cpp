@@ -59,17 +59,26 @@ TaskController::TaskController(const ini::IniFile& ini, hal::Hal& hal, motion::M
   interp_config_ = interp::Config::from_ini(ini);
   interp_config_.axis_mask = ms_.traj.axis_mask;
   interp_config_.task = true;  // #<_task> is 1 and M99 in the main program starts it again, as in LinuxCNC's task
-  interp_ = std::make_unique<interp::Interpreter>(*canon_, interp_config_);
+  python_ = interp::python_settings(ini);
+  interp_ = make_interpreter(*canon_);
   try {
     interp_->init();
   } catch (const interp::InterpError& e) {
     const bool params = !interp_config_.parameter_file.empty() && e.file() == interp_config_.parameter_file.string();
     throw ConfigError(e.file().empty() ? ini.path().string() : e.file(), e.line(),
-                      std::string(params ? "[RS274NGC]PARAMETER_FILE: " : "[RS274NGC]RS274NGC_STARTUP_CODE: ") +
+                      std::string(params                                ? "[RS274NGC]PARAMETER_FILE: "
+                                  : e.message().starts_with("[PYTHON]") ? ""
+                                                                        : "[RS274NGC]RS274NGC_STARTUP_CODE: ") +
                           e.message());
   }
   items_.clear();
   canon_->set_end_position(ms_.traj.position);
+}
+
+std::unique_ptr<interp::Interpreter> TaskController::make_interpreter(interp::Canon& canon) const {
+  interp::Config cfg = interp_config_;
+  cfg.script = interp::make_python_host(python_);
+  return std::make_unique<interp::Interpreter>(canon, std::move(cfg));
 }
 
 TaskController::~TaskController() {

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/interp/interp.hpp"
+#include "core/interp/python_host.hpp"
 #include "core/io/io_controller.hpp"
 #include "core/ipc/service.hpp"
 #include "core/motion/motion_component.hpp"
@@ -158,7 +159,10 @@ class TaskController : public ipc::ControllerService {
   MachineView view_;
   std::unique_ptr<TaskCanon> canon_;
   std::unique_ptr<interp::Interpreter> interp_;
-  interp::Config interp_config_;
+  interp::Config interp_config_;  // without its script host: each interpreter gets its own
+  interp::PythonSettings python_;  // [PYTHON]
+  // An interpreter on `canon` with interp_config_ and a Python host of its own.
+  std::unique_ptr<interp::Interpreter> make_interpreter(interp::Canon& canon) const;
   std::string file_;
   int total_lines_ = 0;
   int read_line_ = 0;

@@ -11,6 +11,7 @@
 
 #include <unistd.h>
 
+#include "core/interp/python_host.hpp"
 #include "core/interp/rs274_run.hpp"
 
 namespace {
@@ -75,6 +76,10 @@ int main(int argc, char** argv) {
     return 2;
   }
   o.program = argv[optind];
+  // [PYTHON] of the INI: O-word functions and `;py,` statements
+  o.make_script = [](const cnc::ini::IniFile* ini, std::function<void()> flush) {
+    return make_python_host(ini != nullptr ? python_settings(*ini) : PythonSettings{}, std::move(flush));
+  };
   o.mdi_in = stdin;
   std::FILE* out = stdout;
   if (optind + 1 < argc) {

@@ -663,3 +663,30 @@ TEST(TaskStaleStatus, ARejectedMdiLineIsNoLongerRunningAndNotAProgramError) {
   EXPECT_EQ(std::string(s.task.command.view()), "");
   EXPECT_EQ(s.task.errors_since_start, 0);
 }
+
+TEST(TaskPython, AnMdiCallOfAPythonOwordFunctionMovesTheMachineAndReturnsItsValue) {
+  // [PYTHON] as LinuxCNC's: TOPLEVEL imports the module `oword`, whose
+  // functions are O-word subroutines; emccanon calls are machine moves.
+  cnc::testing::TempDir py;
+  py.write("oword.py",
+           "import emccanon\n"
+           "def goto(self, x, y):\n"
+           "    emccanon.STRAIGHT_FEED(0, x, y, -5, 0, 0, 0, 0, 0, 0)\n"
+           "def square(self, v):\n"
+           "    return v * v\n");
+  py.write("subs.py", "import oword\n");
+  TaskMachine m({}, "", "",
+                "[PYTHON]\nPATH_PREPEND = " + py.path().string() + "\nTOPLEVEL = " + (py / "subs.py").string() + "\n");
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  m.ok(m.mdi("G1 F600 X0 Y0 Z0"), "start");
+  m.ok(m.mdi("o<goto> call [12] [34]"), "python goto");
+  auto s = m.status();
+  EXPECT_NEAR(s.motion.position[0], 12, 1e-9);
+  EXPECT_NEAR(s.motion.position[1], 34, 1e-9);
+  EXPECT_NEAR(s.motion.position[2], -5, 1e-9);
+  m.ok(m.mdi("o<square> call [3]"), "python square");
+  m.ok(m.mdi("G0 X#<_value>"), "move to the value");
+  EXPECT_NEAR(m.status().motion.position[0], 9, 1e-9);
+  EXPECT_EQ(m.errors(), "");
+}

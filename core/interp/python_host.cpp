@@ -1,0 +1,340 @@
+#include "core/interp/python_host.hpp"
+
+#include <pybind11/embed.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <stdexcept>
+
+#include "core/util/strings.hpp"
+
+namespace py = pybind11;
+
+namespace cnc::interp {
+namespace {
+
+// The interpreter and Canon the scripts act on: the host attached last
+// (Python and the modules `interpreter` and `emccanon` are per process, as in
+// LinuxCNC).
+Interpreter* g_interp = nullptr;
+Canon* g_canon = nullptr;
+
+Interpreter& interp() {
+  if (g_interp == nullptr) throw std::runtime_error("no interpreter is attached to Python");
+  return *g_interp;
+}
+
+Canon& canon() {
+  if (g_canon == nullptr) throw std::runtime_error("no interpreter is attached to Python");
+  return *g_canon;
+}
+
+// `this`: attributes set from Python stay (py::dynamic_attr).
+struct This {};
+// `this.params`
+struct Params {};
+// `this.tool_table`
+struct ToolTableView {};
+
+Pose pose9(double x, double y, double z, double a, double b, double c, double u, double v, double w) {
+  Pose p;
+  const double values[] = {x, y, z, a, b, c, u, v, w};
+  for (int i = 0; i < kNumAxes; ++i) p[i] = values[i];
+  return p;
+}
+
+double get_param(const py::object& key) {
+  if (py::isinstance<py::str>(key)) {
+    const std::string name = key.cast<std::string>();
+    double v = 0;
+    if (!interp().named_parameter(name, v)) throw py::key_error("named parameter #<" + name + "> is not defined");
+    return v;
+  }
+  const int index = key.cast<int>();
+  if (index < 1 || index > 5601) throw py::index_error("parameter #" + std::to_string(index) + " is out of range 1-5601");
+  return interp().parameter(index);
+}
+
+void set_param(const py::object& key, double value) {
+  try {
+    if (py::isinstance<py::str>(key)) {
+      interp().set_named_parameter(key.cast<std::string>(), value);
+      return;
+    }
+    const int index = key.cast<int>();
+    if (index < 1 || index > 5601) throw py::index_error("parameter #" + std::to_string(index) + " is out of range 1-5601");
+    interp().set_parameter(index, value);
+  } catch (const InterpError& e) {
+    throw py::value_error(e.message());
+  }
+}
+
+double named_or_zero(const char* name) {
+  double v = 0;
+  return interp().named_parameter(name, v) ? v : 0.0;
+}
+
+}  // namespace
+}  // namespace cnc::interp
+
+PYBIND11_EMBEDDED_MODULE(interpreter, m) {
+  using namespace cnc::interp;
+  m.doc() = "The RS274/NGC interpreter as LinuxCNC's embedded Python sees it (a subset)";
+  // LinuxCNC's interpreter return codes
+  m.attr("INTERP_OK") = 0;
+  m.attr("INTERP_EXIT") = 1;
+  m.attr("INTERP_EXECUTE_FINISH") = 2;
+  m.attr("INTERP_ENDFILE") = 3;
+  m.attr("INTERP_FILE_NOT_OPEN") = 4;
+  m.attr("INTERP_ERROR") = 5;
+  // LinuxCNC's TOLERANCE_EQUAL
+  m.def("equal", [](double a, double b) { return std::fabs(a - b) < 0.0001; });
+
+  py::class_<cnc::Pose>(m, "Position")
+      .def_property_readonly("x", [](const cnc::Pose& p) { return p[0]; })
+      .def_property_readonly("y", [](const cnc::Pose& p) { return p[1]; })
+      .def_property_readonly("z", [](const cnc::Pose& p) { return p[2]; })
+      .def_property_readonly("a", [](const cnc::Pose& p) { return p[3]; })
+      .def_property_readonly("b", [](const cnc::Pose& p) { return p[4]; })
+      .def_property_readonly("c", [](const cnc::Pose& p) { return p[5]; })
+      .def_property_readonly("u", [](const cnc::Pose& p) { return p[6]; })
+      .def_property_readonly("v", [](const cnc::Pose& p) { return p[7]; })
+      .def_property_readonly("w", [](const cnc::Pose& p) { return p[8]; });
+
+  py::class_<cnc::tooltable::Tool>(m, "Tool")
+      .def_property_readonly("toolno", [](const cnc::tooltable::Tool& t) { return t.is_empty() ? -1 : t.number; })
+      .def_property_readonly("pocketno", [](const cnc::tooltable::Tool& t) { return t.pocket; })
+      .def_property_readonly("diameter", [](const cnc::tooltable::Tool& t) { return t.diameter; })
+      .def_property_readonly("frontangle", [](const cnc::tooltable::Tool& t) { return t.front_angle; })
+      .def_property_readonly("backangle", [](const cnc::tooltable::Tool& t) { return t.back_angle; })
+      .def_property_readonly("orientation", [](const cnc::tooltable::Tool& t) { return t.orientation; })
+      .def_property_readonly("offset", [](const cnc::tooltable::Tool& t) { return t.offset; });
+
+  py::class_<ToolTableView>(m, "ToolTable")
+      .def("__len__", [](const ToolTableView&) { return interp().tool_table().size(); })
+      .def("__getitem__", [](const ToolTableView&, int i) {
+        if (i < 0 || i >= interp().tool_table().size()) throw py::index_error("tool table index out of range");
+        return interp().tool_table().at(i);
+      });
+
+  py::class_<Params>(m, "Params")
+      .def("__getitem__", [](const Params&, const py::object& key) { return get_param(key); })
+      .def("__setitem__", [](const Params&, const py::object& key, double v) { set_param(key, v); });
+
+  py::class_<This>(m, "Interp", py::dynamic_attr())
+      .def_property_readonly("params", [](const This&) { return Params{}; })
+      .def_property_readonly("tool_table", [](const This&) { return ToolTableView{}; })
+      .def_property_readonly("tool_offset", [](const This&) { return interp().tool_offset(); })
+      .def_property_readonly("call_level", [](const This&) { return interp().call_level(); })
+      .def_property_readonly("return_value", [](const This&) { return named_or_zero("_value"); })
+      .def_property_readonly("value_returned", [](const This&) { return static_cast<int>(named_or_zero("_value_returned")); })
+      .def_property_readonly("line_number", [](const This&) { return interp().line(); })
+      .def_property_readonly("filename", [](const This&) { return interp().file_name(); });
+}
+
+PYBIND11_EMBEDDED_MODULE(emccanon, m) {
+  using namespace cnc::interp;
+  m.doc() = "Canonical machining calls from Python (a subset of LinuxCNC's emccanon)";
+  m.def("STRAIGHT_TRAVERSE", [](int line, double x, double y, double z, double a, double b, double c, double u, double v,
+                                double w) { canon().straight_traverse(line, pose9(x, y, z, a, b, c, u, v, w)); });
+  m.def("STRAIGHT_FEED", [](int line, double x, double y, double z, double a, double b, double c, double u, double v,
+                            double w) { canon().straight_feed(line, pose9(x, y, z, a, b, c, u, v, w)); });
+  m.def("MESSAGE", [](const std::string& text) { canon().message(text); });
+  m.def("COMMENT", [](const std::string& text) { canon().comment(text); });
+  m.def("SET_FEED_RATE", [](double rate) { canon().set_feed_rate(rate); });
+}
+
+namespace cnc::interp {
+namespace {
+
+// "Type: message (at file:line)" of a Python exception: the innermost frame
+// of its traceback when that is a file (not a `py,` statement).
+std::string describe(py::error_already_set& e) {
+  std::string text = py::str(e.type().attr("__name__")).cast<std::string>();
+  const std::string message = py::str(e.value()).cast<std::string>();
+  if (!message.empty()) text += ": " + message;
+  py::object tb = e.trace();
+  if (!tb.is_none()) {
+    while (!tb.attr("tb_next").is_none()) tb = tb.attr("tb_next");
+    const std::string file = py::str(tb.attr("tb_frame").attr("f_code").attr("co_filename")).cast<std::string>();
+    if (!file.empty() && file.front() != '<') {
+      text += " (at " + file + ":" + std::to_string(tb.attr("tb_lineno").cast<int>()) + ")";
+    }
+  }
+  return text;
+}
+
+void ensure_python() {
+  if (Py_IsInitialized() != 0) return;
+  py::initialize_interpreter();
+  // Calls take the GIL when they run; no thread holds it in between.
+  PyEval_SaveThread();
+}
+
+class PythonHost final : public ScriptHost {
+ public:
+  PythonHost(PythonSettings settings, std::function<void()> before_output)
+      : settings_(std::move(settings)), before_output_(std::move(before_output)) {}
+  ~PythonHost() override {
+    if (ns_) {
+      py::gil_scoped_acquire gil;
+      ns_.reset();
+    }
+  }
+  PythonHost(const PythonHost&) = delete;
+  PythonHost& operator=(const PythonHost&) = delete;
+
+  void attach(Interpreter& interp, Canon& canon) override {
+    interp_ = &interp;
+    canon_ = &canon;
+    if (!settings_.configured) return;  // Python starts when a `py,` comment needs it
+    start();
+  }
+
+  bool has_oword(const std::string& name) override {
+    if (!started_ || !ns_) return false;  // no TOPLEVEL ran: no `oword` module
+    py::gil_scoped_acquire gil;
+    if (!ns_->contains("oword")) return false;
+    py::object oword = (*ns_)["oword"];
+    return py::hasattr(oword, name.c_str()) && PyCallable_Check(oword.attr(name.c_str()).ptr()) != 0;
+  }
+
+  std::optional<double> call_oword(const std::string& name, const std::vector<double>& args) override {
+    Output out(*this);
+    py::gil_scoped_acquire gil;
+    try {
+      py::tuple call_args(args.size() + 1);
+      call_args[0] = this_object();
+      for (std::size_t i = 0; i < args.size(); ++i) call_args[i + 1] = py::float_(args[i]);
+      py::object result = (*ns_)["oword"].attr(name.c_str())(*call_args);
+      flush_python();
+      if (result.is_none()) return std::nullopt;
+      if (py::isinstance<py::str>(result)) throw std::runtime_error(result.cast<std::string>());
+      if (py::isinstance<py::float_>(result) || py::isinstance<py::int_>(result)) return result.cast<double>();
+      throw std::runtime_error("returned " + std::string(py::str(result.get_type().attr("__name__"))) +
+                               ", expected a number or None");
+    } catch (py::error_already_set& e) {
+      flush_python();
+      throw std::runtime_error(describe(e));
+    }
+  }
+
+  void run_statement(const std::string& code) override {
+    start();
+    if (!ns_) throw std::runtime_error("Python did not start (see the first error)");
+    Output out(*this);
+    py::gil_scoped_acquire gil;
+    try {
+      py::exec(code, *ns_);
+      flush_python();
+    } catch (py::error_already_set& e) {
+      flush_python();
+      throw std::runtime_error(describe(e));
+    }
+  }
+
+ private:
+  // Before Python writes anything, what the caller buffered goes out.
+  // Also points `interpreter.this` and `emccanon` at this host's
+  // interpreter (several interpreters in a process, e.g. the task's and a
+  // run-from-line preview's, each have their host).
+  struct Output {
+    explicit Output(PythonHost& h) {
+      g_interp = h.interp_;
+      g_canon = h.canon_;
+      if (h.before_output_) h.before_output_();
+    }
+  };
+
+  static py::object this_object() { return py::module_::import("interpreter").attr("this"); }
+
+  static void flush_python() {
+    py::module_ sys = py::module_::import("sys");
+    sys.attr("stdout").attr("flush")();
+    sys.attr("stderr").attr("flush")();
+  }
+
+  // Starts Python (once per process), sets sys.path and `interpreter.this`,
+  // runs TOPLEVEL and its __init__(self) (once per host) in the host's own
+  // namespace, where `py,` statements run too. The modules a TOPLEVEL
+  // imports by LinuxCNC's names are imported afresh for every host (another
+  // configuration in the same process has its own).
+  void start() {
+    if (started_) return;
+    started_ = true;
+    ensure_python();
+    Output out(*this);
+    py::gil_scoped_acquire gil;
+    try {
+      py::module_ sys = py::module_::import("sys");
+      py::list path = sys.attr("path");
+      for (auto it = settings_.path_prepend.rbegin(); it != settings_.path_prepend.rend(); ++it) {
+        path.insert(0, it->string());
+      }
+      for (const auto& p : settings_.path_append) path.append(p.string());
+      py::dict modules = sys.attr("modules");
+      for (const char* name : {"oword", "remap", "namedparams"}) {
+        if (modules.contains(name)) PyDict_DelItemString(modules.ptr(), name);
+      }
+      py::module_ interpreter = py::module_::import("interpreter");
+      if (!py::hasattr(interpreter, "this")) interpreter.attr("this") = py::cast(This{});
+      ns_ = std::make_unique<py::dict>();
+      py::dict& ns = *ns_;
+      ns["__builtins__"] = py::module_::import("builtins");
+      ns["__name__"] = "__main__";
+      if (!settings_.toplevel.empty()) {
+        ns["__file__"] = settings_.toplevel.string();
+        py::eval_file(settings_.toplevel.string(), ns);
+        if (ns.contains("__init__") && PyCallable_Check(ns["__init__"].ptr()) != 0) {
+          ns["__init__"](interpreter.attr("this"));
+        }
+      }
+      flush_python();
+    } catch (py::error_already_set& e) {
+      flush_python();
+      throw InterpError("[PYTHON]TOPLEVEL " + settings_.toplevel.string() + ": " + describe(e), settings_.toplevel.string(),
+                        0, {});
+    }
+  }
+
+  PythonSettings settings_;
+  std::function<void()> before_output_;
+  bool started_ = false;
+  Interpreter* interp_ = nullptr;
+  Canon* canon_ = nullptr;
+  std::unique_ptr<py::dict> ns_;  // TOPLEVEL's globals; null until started
+};
+
+std::vector<std::filesystem::path> path_list(const cnc::ini::IniFile& ini, std::string_view key) {
+  std::vector<std::filesystem::path> out;
+  for (const std::string& value : ini.find_all("PYTHON", key)) {
+    for (const std::string& part : cnc::split(value, ':')) {
+      const std::string p(cnc::trim(part));
+      if (!p.empty()) out.push_back(ini.resolve_path(p));
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+PythonSettings python_settings(const cnc::ini::IniFile& ini) {
+  PythonSettings s;
+  s.configured = ini.has_section("PYTHON");
+  if (!s.configured) return s;
+  s.path_prepend = path_list(ini, "PATH_PREPEND");
+  s.path_append = path_list(ini, "PATH_APPEND");
+  if (const auto* e = ini.find_entry("PYTHON", "TOPLEVEL")) {
+    s.toplevel = ini.resolve_path(e->value);
+    if (!std::filesystem::is_regular_file(s.toplevel)) {
+      ini.fail(e, "[PYTHON]TOPLEVEL: " + s.toplevel.string() + " is not a file (expected the Python script run at start)");
+    }
+  }
+  return s;
+}
+
+std::shared_ptr<ScriptHost> make_python_host(PythonSettings settings, std::function<void()> before_output) {
+  return std::make_shared<PythonHost>(std::move(settings), std::move(before_output));
+}
+
+}  // namespace cnc::interp

@@ -1,0 +1,161 @@
+// Embedded Python in the interpreter ([PYTHON], core/interp/python_host.hpp):
+// O-word subroutines written as Python functions, `;py,` statements, the
+// interpreter as Python sees it, and errors that name the file and line.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <functional>
+#include <fstream>
+#include <sstream>
+
+#include <unistd.h>
+
+#include "core/interp/python_host.hpp"
+#include "core/interp/rs274_run.hpp"
+#include "tests/support/testing.hpp"
+
+namespace fs = std::filesystem;
+using cnc::interp::Rs274Options;
+
+namespace {
+
+struct Result {
+  bool ok = false;
+  std::string out;  // canonical calls (index dropped) and what Python printed
+  std::string err;
+};
+
+// Runs test.ngc in a fresh folder holding `files` (and test.ini when given)
+// with the Python host, as cnc-rs274 does; stdout is captured through a file
+// so that Python's prints and the calls interleave as they would.
+Result run(const std::string& program, const std::string& ini, const std::vector<std::pair<std::string, std::string>>& files) {
+  cnc::testing::TempDir dir;
+  for (const auto& [name, text] : files) dir.write(name, text);
+  dir.write("test.ngc", program);
+  Rs274Options o;
+  o.program = "test.ngc";
+  o.machine_units = cnc::interp::Units::Mm;
+  o.rs274_error_format = false;  // file:line: message
+  if (!ini.empty()) o.ini = dir.write("test.ini", ini);
+  o.make_script = [](const cnc::ini::IniFile* ini_file, std::function<void()> flush) {
+    return cnc::interp::make_python_host(ini_file ? cnc::interp::python_settings(*ini_file) : cnc::interp::PythonSettings{},
+                                         std::move(flush));
+  };
+  const fs::path back = fs::current_path();
+  fs::current_path(dir.path());
+  Result r;
+  std::fflush(stdout);
+  // Python writes to file descriptor 1: point it at a file for the run
+  const int saved = dup(1);
+  std::FILE* capture = std::fopen("out.txt", "w");
+  dup2(fileno(capture), 1);
+  std::string error;
+  char* ebuf = nullptr;
+  std::size_t esize = 0;
+  std::FILE* emem = open_memstream(&ebuf, &esize);
+  try {
+    r.ok = cnc::interp::run_rs274(o, stdout, error, emem);
+  } catch (const std::exception& e) {
+    r.err = std::string("thrown: ") + e.what();
+  }
+  std::fflush(stdout);
+  dup2(saved, 1);
+  close(saved);
+  std::fclose(capture);
+  std::fclose(emem);
+  r.err += std::string(ebuf, esize);
+  std::free(ebuf);
+  std::ifstream in("out.txt");
+  std::string line;
+  while (std::getline(in, line)) {
+    const std::size_t n = line.find(" N.");
+    r.out += (n == std::string::npos ? line : line.substr(n + 1)) + "\n";
+  }
+  fs::current_path(back);
+  return r;
+}
+
+const char* kIni = "[RS274NGC]\nSUBROUTINE_PATH = .\n[PYTHON]\nPATH_PREPEND = .\nTOPLEVEL = subs.py\n";
+
+}  // namespace
+
+TEST(InterpPython, AnOwordFunctionGetsTheCallsArgumentsAndItsNumberIsTheCallsValue) {
+  const Result r = run("o<area> call [3] [4]\n(debug, value=#<_value> returned=#<_value_returned>)\n"
+                       "o<nothing> call\n(debug, value=#<_value> returned=#<_value_returned>)\nM2\n",
+                       kIni,
+                       {{"subs.py", "import oword\n"},
+                        {"oword.py", "def area(self, w, h):\n    print('area of', w, h)\n    return w * h\n"
+                                     "def nothing(self, *args):\n    pass\n"}});
+  ASSERT_TRUE(r.ok) << r.err << r.out;
+  EXPECT_NE(r.out.find("area of 3.0 4.0\nN..... MESSAGE(\" value=12.000000 returned=1.000000\")"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("MESSAGE(\" value=0.000000 returned=0.000000\")"), std::string::npos) << r.out;
+}
+
+TEST(InterpPython, PyCommentsRunInOneNamespaceAndSeeParametersToolsAndSelfAttributes) {
+  const Result r = run("#<depth> = 2.5\n#1 = 7\n;py,from interpreter import *\n"
+                       ";py,this.seen = this.params['depth'] + this.params[1]\n"
+                       ";py,print('seen', this.seen, 'level', this.call_level)\n"
+                       ";py,this.params['_answer'] = 42\n(debug, answer=#<_answer>)\n"
+                       ";py,assert equal(this.tool_offset.z, 0.0)\nM2\n",
+                       kIni, {{"subs.py", "\n"}});
+  ASSERT_TRUE(r.ok) << r.err << r.out;
+  EXPECT_NE(r.out.find("seen 9.5 level 0"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("MESSAGE(\" answer=42.000000\")"), std::string::npos) << r.out;
+}
+
+TEST(InterpPython, EmccanonCallsFromAFunctionAreMachineCallsInOrder) {
+  const Result r = run("G1 X1 F100\no<mv> call [5]\nM2\n", kIni,
+                       {{"subs.py", "import oword\n"},
+                        {"oword.py", "import emccanon\ndef mv(self, x):\n    emccanon.MESSAGE('moving')\n"
+                                     "    emccanon.STRAIGHT_FEED(1, x, 2, 3, 0, 0, 0, 0, 0, 0)\n"}});
+  ASSERT_TRUE(r.ok) << r.err << r.out;
+  const std::size_t first = r.out.find("STRAIGHT_FEED(1.0000, 0.0000");
+  const std::size_t msg = r.out.find("MESSAGE(\"moving\")");
+  const std::size_t second = r.out.find("STRAIGHT_FEED(5.0000, 2.0000, 3.0000");
+  ASSERT_NE(second, std::string::npos) << r.out;
+  EXPECT_LT(first, msg);
+  EXPECT_LT(msg, second);
+}
+
+TEST(InterpPython, APythonErrorStopsTheProgramNamingTheLineAndTheException) {
+  const Result r = run("(debug, before)\n;py,assert 1 == 2, 'one is not two'\n(debug, after)\nM2\n", kIni,
+                       {{"subs.py", "\n"}});
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("test.ngc:2: py,assert 1 == 2, 'one is not two': AssertionError: one is not two"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.out.find("after"), std::string::npos) << r.out;
+}
+
+TEST(InterpPython, AnExceptionInAFunctionNamesTheCallAndWhereInThePythonFileItWasRaised) {
+  const Result r = run("o<div> call [1]\nM2\n", kIni,
+                       {{"subs.py", "import oword\n"}, {"oword.py", "def div(self, x):\n    y = 0\n    return x / y\n"}});
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("test.ngc:1: o<div> (Python): ZeroDivisionError: float division by zero (at "), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("oword.py:3)"), std::string::npos) << r.err;
+}
+
+TEST(InterpPython, AStringReturnedByAnOwordFunctionIsAnError) {
+  const Result r = run("o<check> call\nM2\n", kIni,
+                       {{"subs.py", "import oword\n"}, {"oword.py", "def check(self):\n    return 'probe not connected'\n"}});
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("o<check> (Python): probe not connected"), std::string::npos) << r.err;
+}
+
+TEST(InterpPython, AMissingToplevelIsAConfigurationErrorNamingTheKey) {
+  const Result r = run("M2\n", "[PYTHON]\nTOPLEVEL = nothere.py\n", {});
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("[PYTHON]TOPLEVEL"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("nothere.py is not a file"), std::string::npos) << r.err;
+}
+
+TEST(InterpPython, WithoutAnOwordFunctionOfThatNameTheGcodeSubroutineRuns) {
+  const Result r = run("o<sub1> call\nM2\n", kIni,
+                       {{"subs.py", "import oword\n"},
+                        {"oword.py", "def other(self):\n    return 1\n"},
+                        {"sub1.ngc", "o<sub1> sub\n(debug, from ngc)\no<sub1> endsub\nM2\n"}});
+  ASSERT_TRUE(r.ok) << r.err << r.out;
+  EXPECT_NE(r.out.find("MESSAGE(\" from ngc\")"), std::string::npos) << r.out;
+}
