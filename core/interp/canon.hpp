@@ -133,6 +133,9 @@ class Canon {
   virtual void comment(std::string_view text) = 0;
   virtual void message(std::string_view text) = 0;
   virtual void print(std::string_view text) = 0;  // (PRINT,...): log only
+  // An error a script reports through the canon (LinuxCNC's CANON_ERROR):
+  // by default shown to the operator like a message, in order.
+  virtual void canon_error(std::string_view text) { message(text); }
   // (LOGOPEN,file) (LOGAPPEND,file) (LOG,text) (LOGCLOSE)
   virtual void log_open(std::string_view /*path*/, bool /*append*/) {}
   virtual void log_close() {}

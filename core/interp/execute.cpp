@@ -242,8 +242,8 @@ Status Interpreter::State::execute_block() {
   n_number = block.n_number;
   for (int step = first == 0 ? int{kStepComment} : first; step < kStepEnd; ++step) {
     if (const RemapSpec* r = remap_at_step(step)) {
-      start_remap(*r, step);
-      return st;
+      if (start_remap(*r, step)) return st;
+      continue;  // carried out at once (Python)
     }
     execute_step(step, st);
   }
@@ -329,7 +329,7 @@ const RemapSpec* Interpreter::State::remap_at_step(int step) const {
 }
 
 int Interpreter::State::remap_level() const {
-  int n = 0;
+  int n = python_remap_depth;
   for (const Frame& f : frames) n += f.remap ? 1 : 0;
   return n;
 }
@@ -360,7 +360,25 @@ void Interpreter::State::check_remap_args() {
   }
 }
 
-void Interpreter::State::start_remap(const RemapSpec& spec, int step) {
+void Interpreter::State::call_python_remap(const std::string& function, const RemapCall& rc,
+                                           const std::string& block_text) {
+  if (!config.script) {
+    fail(rc.spec->name() + ": its Python procedure " + function +
+         " needs the interpreter's embedded Python, which this program does not have");
+  }
+  std::string error;
+  try {
+    error = config.script->call_remap(function, rc.words);
+  } catch (const std::runtime_error& e) {
+    error = e.what();
+  }
+  if (!error.empty()) {
+    if (!block_text.empty()) line_text = block_text;  // LinuxCNC shows the call it made
+    fail(error);
+  }
+}
+
+bool Interpreter::State::start_remap(const RemapSpec& spec, int step) {
   auto rc = std::make_shared<RemapCall>();
   rc->spec = &spec;
   rc->block = block;
@@ -378,8 +396,47 @@ void Interpreter::State::start_remap(const RemapSpec& spec, int step) {
       rc->named.emplace_back(std::string(1, l), block.get(l));
     }
   }
-  rc->stage = spec.prolog.empty() ? 1 : 0;
+  for (char ch : spec.argspec) {
+    const char l = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (l >= 'a' && l <= 'z' && block.has_word(l)) rc->words.emplace_back(std::string(1, l), block.get(l));
+  }
+  if (!spec.python.empty()) {
+    // A Python body: prolog, body and epilog run now, inside the block
+    ++python_remap_depth;
+    struct Depth {
+      int& d;
+      ~Depth() { --d; }
+    } depth{python_remap_depth};
+    const std::string call = "O <" + spec.python + "> call ";
+    if (spec.prolog_python) call_python_remap(spec.prolog, *rc, call);
+    call_python_remap(spec.python, *rc, call);
+    if (spec.epilog_python) call_python_remap(spec.epilog, *rc, call);
+    return false;
+  }
+  rc->stage = spec.prolog.empty() || spec.prolog_python ? 1 : 0;
+  if (spec.prolog_python) {
+    // A Python prolog runs in the body's call, before the body is looked
+    // for (as in LinuxCNC): what it sets in self.params become the body's
+    // local parameters.
+    Frame call;
+    call.sub_name = spec.ngc;
+    call.remap = rc;
+    for (const auto& [n, v] : rc->named) call.locals[n] = v;
+    frames.push_back(std::move(call));
+    try {
+      call_python_remap(spec.prolog, *rc, "O <" + spec.ngc + "> call ");
+    } catch (...) {
+      frames.pop_back();
+      throw;
+    }
+    auto locals = std::move(frames.back().locals);
+    frames.pop_back();
+    call_remap_stage(rc);
+    for (auto& [n, v] : locals) frame().locals[n] = v;
+    return true;
+  }
   call_remap_stage(rc);
+  return true;
 }
 
 void Interpreter::State::call_remap_stage(const std::shared_ptr<RemapCall>& rc) {
@@ -397,7 +454,7 @@ void Interpreter::State::call_remap_stage(const std::shared_ptr<RemapCall>& rc) 
 bool Interpreter::State::remap_returned(const std::shared_ptr<RemapCall>& rc) {
   const RemapSpec& spec = *rc->spec;
   int next = rc->stage + 1;
-  if (next == 2 && spec.epilog.empty()) next = 3;
+  if (next == 2 && (spec.epilog.empty() || rc->epilog_done)) next = 3;
   if (next <= 2) {
     rc->stage = next;
     call_remap_stage(rc);

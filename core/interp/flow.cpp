@@ -529,6 +529,12 @@ bool Interpreter::State::skip_line_matches_sub(std::string_view raw, const std::
 }
 
 void Interpreter::State::do_return(bool has_value, double value) {
+  if (const auto& rc = frames.back().remap; rc && rc->stage == 1 && rc->spec->epilog_python && !rc->epilog_done) {
+    // A Python epilog runs before the body's call is left: it sees the
+    // body's local parameters (as in LinuxCNC)
+    rc->epilog_done = true;
+    call_python_remap(rc->spec->epilog, *rc, {});
+  }
   Frame f = std::move(frames.back());
   frames.pop_back();
   if (!f.fanuc) {

@@ -193,7 +193,13 @@ struct Interpreter::State {
   const RemapSpec* remap_at_step(int step) const;
   int remap_level() const;
   void check_remap_args();
-  void start_remap(const RemapSpec& spec, int step);
+  // Starts carrying out a remapped code; false when it is done already (a
+  // Python body) and the block goes on with the next step.
+  bool start_remap(const RemapSpec& spec, int step);
+  // A Python stage of a remap; an error (with `block_text` as the error's
+  // block when not empty) is an InterpError.
+  void call_python_remap(const std::string& function, const RemapCall& rc, const std::string& block_text);
+  int python_remap_depth = 0;  // Python bodies running (they count in remap_level())
   void call_remap_stage(const std::shared_ptr<RemapCall>& rc);
   bool remap_returned(const std::shared_ptr<RemapCall>& rc);
 

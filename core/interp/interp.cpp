@@ -125,20 +125,29 @@ RemapSpec parse_remap(const Config& c, const cnc::ini::IniFile& ini, const cnc::
     } else if (key == "ngc") {
       r.ngc = cnc::to_lower(value);
     } else if (key == "prolog" || key == "epilog") {
-      // LinuxCNC's prolog/epilog are Python functions; here they name an
-      // O-word subroutine file, and anything else is refused.
-      if (!ngc_file_exists(c, ini, cnc::to_lower(value))) {
+      // LinuxCNC's prolog/epilog are Python functions (module `remap`);
+      // here a subroutine file of that name is taken first.
+      const bool python = !ngc_file_exists(c, ini, cnc::to_lower(value));
+      if (python && !ini.has_section("PYTHON")) {
         bad(key + "=" + value + " names no subroutine file " + value +
-            ".ngc in SUBROUTINE_PATH: Python prolog/epilog functions are not supported");
+            ".ngc in SUBROUTINE_PATH, and without [PYTHON] it cannot be a Python function");
       }
-      (key == "prolog" ? r.prolog : r.epilog) = cnc::to_lower(value);
+      (key == "prolog" ? r.prolog : r.epilog) = python ? value : cnc::to_lower(value);
+      (key == "prolog" ? r.prolog_python : r.epilog_python) = python;
     } else if (key == "py" || key == "python") {
-      bad(key + "=" + value + ": Python remap procedures are not supported (use ngc=)");
+      if (!ini.has_section("PYTHON")) bad(key + "=" + value + ": a Python remap procedure needs [PYTHON] (TOPLEVEL)");
+      r.python = value;
     } else {
-      bad("unknown key '" + key + "' (modalgroup, argspec, ngc, prolog, epilog)");
+      bad("unknown key '" + key + "' (modalgroup, argspec, ngc, py, prolog, epilog)");
     }
   }
-  if (r.ngc.empty()) bad("ngc= is missing (the O-word subroutine that implements " + r.name() + ")");
+  if (r.ngc.empty() && r.python.empty()) {
+    bad("ngc= or py= is missing (the O-word subroutine or Python function that implements " + r.name() + ")");
+  }
+  if (!r.ngc.empty() && !r.python.empty()) bad("ngc= and py= both given: one body only");
+  if (!r.python.empty() && ((!r.prolog.empty() && !r.prolog_python) || (!r.epilog.empty() && !r.epilog_python))) {
+    bad("a subroutine prolog or epilog needs an ngc= body (py= takes Python ones)");
+  }
   if (r.letter == 'g') {
     if (!group_given) r.modal_group = 1;
     if (r.modal_group != 1) bad("a G code can only be remapped in modal group 1");
@@ -230,7 +239,21 @@ void Interpreter::init() {
   s.reset_modal(true);
   s.update_tool_from_canon();
   s.canon_init_calls();
-  if (s.config.script) s.config.script->attach(*this, s.canon);
+  if (s.config.script) {
+    s.config.script->attach(*this, s.canon);
+    // Every Python function a REMAP names must exist
+    for (const RemapSpec& r : s.config.remaps) {
+      for (const auto& [name, python] : {std::pair{r.python, !r.python.empty()}, std::pair{r.prolog, r.prolog_python},
+                                         std::pair{r.epilog, r.epilog_python}}) {
+        if (python && !s.config.script->has_remap(name)) {
+          const std::size_t colon = r.where.rfind(':');
+          throw InterpError("REMAP " + r.name() + ": " + name + " is no function of the Python module `remap`",
+                            r.where.substr(0, colon), colon == std::string::npos ? 0 : std::atoi(r.where.c_str() + colon + 1),
+                            {});
+        }
+      }
+    }
+  }
   if (!s.config.startup_code.empty()) {
     execute(s.config.startup_code);
   }
@@ -470,6 +493,8 @@ int Interpreter::line() const noexcept { return s_->current_line; }
 int Interpreter::n_number() const noexcept { return s_->n_number; }
 const std::string& Interpreter::file_name() const noexcept { return s_->current_file; }
 int Interpreter::call_level() const noexcept { return static_cast<int>(s_->frames.size()) - 1; }
+
+int Interpreter::remap_level() const noexcept { return s_->remap_level(); }
 
 double Interpreter::parameter(int index) const {
   if (index < 1 || index >= kMaxParameters) return 0.0;

@@ -70,8 +70,11 @@ struct RemapSpec {
   int modal_group = 10;  // where in the block it runs: 1 (G motion), 4-10 (M)
   std::string argspec;   // LinuxCNC's: A-Z required, a-z optional, @ positional, > feed, ^ speed
   std::string ngc;       // the body: o<ngc> (found as ngc.ngc in SUBROUTINE_PATH)
-  std::string prolog;    // subroutine called before the body ("" none)
-  std::string epilog;    // subroutine called after the body ("" none)
+  std::string python;    // py=: the body is this Python function of module `remap` ("" none)
+  std::string prolog;    // called before the body ("" none): a subroutine, or
+  std::string epilog;    // after it: Python functions of `remap` when *_python
+  bool prolog_python = false;
+  bool epilog_python = false;
   std::string where;     // "file:line" of the REMAP= line
   std::string name() const;  // "M400", "G88.1", "T"
 };
@@ -95,6 +98,13 @@ class ScriptHost {
   virtual std::optional<double> call_oword(const std::string& name, const std::vector<double>& args) = 0;
   // Runs the statement of a `py,` comment. Throws std::runtime_error.
   virtual void run_statement(const std::string& code) = 0;
+  // True when `name` is a function of the module bound to `remap`.
+  virtual bool has_remap(const std::string& name) = 0;
+  // A REMAP's Python body, prolog or epilog: name(self, **words). Returns
+  // an empty string when it succeeded, else the error: the message it set
+  // with self.set_errormsg() when it returned INTERP_ERROR, or what went
+  // wrong. Throws std::runtime_error for a Python exception.
+  virtual std::string call_remap(const std::string& name, const std::vector<std::pair<std::string, double>>& words) = 0;
 };
 
 struct Config {
@@ -242,6 +252,8 @@ class Interpreter {
   const std::string& file_name() const noexcept;
   // Subroutine call depth (0 at top level).
   int call_level() const noexcept;
+  // Remapped codes being carried out (#<_remap_level>).
+  int remap_level() const noexcept;
 
   // Numbered and named parameter access (for tools and tests).
   double parameter(int index) const;

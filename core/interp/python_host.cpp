@@ -18,6 +18,8 @@ namespace {
 // LinuxCNC).
 Interpreter* g_interp = nullptr;
 Canon* g_canon = nullptr;
+// self.set_errormsg() of the remap procedure running
+std::string g_errormsg;
 
 Interpreter& interp() {
   if (g_interp == nullptr) throw std::runtime_error("no interpreter is attached to Python");
@@ -128,6 +130,8 @@ PYBIND11_EMBEDDED_MODULE(interpreter, m) {
       .def_property_readonly("call_level", [](const This&) { return interp().call_level(); })
       .def_property_readonly("return_value", [](const This&) { return named_or_zero("_value"); })
       .def_property_readonly("value_returned", [](const This&) { return static_cast<int>(named_or_zero("_value_returned")); })
+      .def_property_readonly("remap_level", [](const This&) { return interp().remap_level(); })
+      .def("set_errormsg", [](const This&, const std::string& text) { g_errormsg = text; })
       .def_property_readonly("line_number", [](const This&) { return interp().line(); })
       .def_property_readonly("filename", [](const This&) { return interp().file_name(); });
 }
@@ -140,6 +144,7 @@ PYBIND11_EMBEDDED_MODULE(emccanon, m) {
   m.def("STRAIGHT_FEED", [](int line, double x, double y, double z, double a, double b, double c, double u, double v,
                             double w) { canon().straight_feed(line, pose9(x, y, z, a, b, c, u, v, w)); });
   m.def("MESSAGE", [](const std::string& text) { canon().message(text); });
+  m.def("CANON_ERROR", [](const std::string& text) { canon().canon_error(text); });
   m.def("COMMENT", [](const std::string& text) { canon().comment(text); });
   m.def("SET_FEED_RATE", [](double rate) { canon().set_feed_rate(rate); });
 }
@@ -213,6 +218,44 @@ class PythonHost final : public ScriptHost {
       if (py::isinstance<py::float_>(result) || py::isinstance<py::int_>(result)) return result.cast<double>();
       throw std::runtime_error("returned " + std::string(py::str(result.get_type().attr("__name__"))) +
                                ", expected a number or None");
+    } catch (py::error_already_set& e) {
+      flush_python();
+      throw std::runtime_error(describe(e));
+    }
+  }
+
+  bool has_remap(const std::string& name) override {
+    if (!started_ || !ns_) return false;
+    py::gil_scoped_acquire gil;
+    if (!ns_->contains("remap")) return false;
+    py::object remap = (*ns_)["remap"];
+    return py::hasattr(remap, name.c_str()) && PyCallable_Check(remap.attr(name.c_str()).ptr()) != 0;
+  }
+
+  std::string call_remap(const std::string& name, const std::vector<std::pair<std::string, double>>& words) override {
+    if (!has_remap(name)) return name + " is no function of the Python module `remap`";
+    Output out(*this);
+    py::gil_scoped_acquire gil;
+    g_errormsg.clear();
+    try {
+      py::dict kwargs;
+      for (const auto& [letter, value] : words) kwargs[py::str(letter)] = py::float_(value);
+      py::object result = (*ns_)["remap"].attr(name.c_str())(this_object(), **kwargs);
+      flush_python();
+      if (result.is_none()) return {};
+      if (PyGen_Check(result.ptr()) != 0) {
+        return name + ": generator procedures (yield INTERP_EXECUTE_FINISH) are not supported";
+      }
+      if (py::isinstance<py::int_>(result) && !py::isinstance<py::bool_>(result)) {
+        const long code = result.cast<long>();
+        if (code == 0 || code == 1) return {};  // INTERP_OK, INTERP_EXIT
+        if (code == 5) return g_errormsg.empty() ? name + " returned INTERP_ERROR" : g_errormsg;
+        return "Unknown error, bad error code";  // LinuxCNC's words for a code it does not know
+      }
+      if (py::isinstance<py::float_>(result)) return {};  // a value: accepted as LinuxCNC does
+      if (py::isinstance<py::str>(result)) return result.cast<std::string>();
+      return name + " returned " + std::string(py::str(result.get_type().attr("__name__"))) +
+             ", expected INTERP_OK, INTERP_ERROR or None";
     } catch (py::error_already_set& e) {
       flush_python();
       throw std::runtime_error(describe(e));

@@ -199,6 +199,7 @@ class QueueingCanon final : public Canon {
     real_.comment(text);
   }
   void message(std::string_view text) override { real_.message(text); }
+  void canon_error(std::string_view text) override { real_.canon_error(text); }
   void print(std::string_view text) override { real_.print(text); }
   void log_open(std::string_view a0, bool a1) override { real_.log_open(a0, a1); }
   void log_close() override { real_.log_close(); }

@@ -143,6 +143,8 @@ struct RemapCall {
   int stage = 1;  // 0 prolog, 1 body, 2 epilog
   std::vector<double> positional;                        // argspec with @
   std::vector<std::pair<std::string, double>> named;     // #<p>, #<q>, ...
+  std::vector<std::pair<std::string, double>> words;     // the argspec words present (Python's **words)
+  bool epilog_done = false;  // a Python epilog ran before the body's frame was left
 };
 
 struct Frame {

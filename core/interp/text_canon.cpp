@@ -479,6 +479,14 @@ void TextCanon::message(std::string_view text) {
   out(call_);
 }
 
+void TextCanon::canon_error(std::string_view text) {
+  // as rs274's saicanon: the text as given, no quotes
+  call_ = "CANON_ERROR(";
+  call_ += text;
+  call_ += ')';
+  out(call_);
+}
+
 void TextCanon::print(std::string_view text) {
   // rs274 writes (PRINT,...) text on its standard output, unnumbered.
   if (file_ != nullptr) {

@@ -90,6 +90,7 @@ class TextCanon : public Canon {
   void wait_input(int index, bool digital, WaitType type, double timeout_s) override;
   void comment(std::string_view text) override;
   void message(std::string_view text) override;
+  void canon_error(std::string_view text) override;
   void print(std::string_view text) override;
   void log_open(std::string_view path, bool append) override;
   void log_close() override;

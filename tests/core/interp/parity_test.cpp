@@ -355,15 +355,15 @@ TEST(InterpRemap, PrologAndEpilogSubroutinesRunAroundTheBodyWithTheSameArguments
                      "N..... MESSAGE(\" post 7.000000\")")) << r.canon;
 }
 
-TEST(InterpRemap, PythonProceduresAreRefusedAtLoadNamingTheIniFileAndLine) {
+TEST(InterpRemap, PythonProceduresWithoutAPythonSectionAreRefusedAtLoadNamingTheIniFileAndLine) {
   const Rs274Result py = run("M2\n", with_ini("[RS274NGC]\n\nREMAP=M500 py=m500\n"));
   EXPECT_FALSE(py.ok);
   EXPECT_NE(py.err.find("t.ini:3"), std::string::npos) << py.err;
-  EXPECT_NE(py.err.find("Python remap procedures are not supported"), std::string::npos) << py.err;
+  EXPECT_NE(py.err.find("a Python remap procedure needs [PYTHON]"), std::string::npos) << py.err;
   const Rs274Result prolog = run("M2\n", with_ini("[RS274NGC]\nREMAP=M500 prolog=setup ngc=x\n"));
   EXPECT_FALSE(prolog.ok);
   EXPECT_NE(prolog.err.find("t.ini:2"), std::string::npos) << prolog.err;
-  EXPECT_NE(prolog.err.find("Python prolog/epilog functions are not supported"), std::string::npos) << prolog.err;
+  EXPECT_NE(prolog.err.find("without [PYTHON] it cannot be a Python function"), std::string::npos) << prolog.err;
   const Rs274Result builtin = run("M2\n", with_ini("[RS274NGC]\nREMAP=M3 ngc=x\n"));
   EXPECT_FALSE(builtin.ok);
   EXPECT_NE(builtin.err.find("built-in M code"), std::string::npos) << builtin.err;

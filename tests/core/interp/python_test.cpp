@@ -159,3 +159,78 @@ TEST(InterpPython, WithoutAnOwordFunctionOfThatNameTheGcodeSubroutineRuns) {
   ASSERT_TRUE(r.ok) << r.err << r.out;
   EXPECT_NE(r.out.find("MESSAGE(\" from ngc\")"), std::string::npos) << r.out;
 }
+
+// ---------------------------------------------------------------- REMAP
+
+namespace {
+const char* kRemapIni =
+    "[RS274NGC]\nSUBROUTINE_PATH = .\n"
+    "REMAP = M410 modalgroup=10 argspec=Pq py=m410\n"
+    "REMAP = M411 modalgroup=10 argspec=P prolog=pro411 ngc=rm411 epilog=epi411\n"
+    "[PYTHON]\nPATH_PREPEND = .\nTOPLEVEL = subs.py\n";
+const char* kRemapPy =
+    "import emccanon\nfrom interpreter import *\n"
+    "def m410(self, **words):\n"
+    "    emccanon.MESSAGE('m410 p=%g q=%s level=%d' % (words['p'], words.get('q'), self.remap_level))\n"
+    "    if words['p'] < 0:\n"
+    "        self.set_errormsg('M410: P must not be negative')\n"
+    "        return INTERP_ERROR\n"
+    "    return INTERP_OK\n"
+    "def pro411(self, **words):\n"
+    "    self.params['twice'] = words['p'] * 2\n"
+    "    return INTERP_OK\n"
+    "def epi411(self, **words):\n"
+    "    emccanon.MESSAGE('epilog sees %g' % self.params['result'])\n"
+    "    return INTERP_OK\n";
+}  // namespace
+
+TEST(InterpPython, APythonRemapBodyGetsTheArgspecWordsAndTheBlockGoesOn) {
+  const Result r = run("M410 P2 G0 X5\nM410 P3 Q4\nM2\n", kRemapIni,
+                       {{"subs.py", "import remap\n"}, {"remap.py", kRemapPy}, {"rm411.ngc", "o<rm411> sub\no<rm411> endsub\n"}});
+  ASSERT_TRUE(r.ok) << r.err << r.out;
+  const std::size_t first = r.out.find("MESSAGE(\"m410 p=2 q=None level=1\")");
+  const std::size_t move = r.out.find("STRAIGHT_TRAVERSE(5.0000");
+  ASSERT_NE(first, std::string::npos) << r.out;
+  EXPECT_LT(first, move);  // group 10 runs before the motion of its block
+  EXPECT_NE(r.out.find("MESSAGE(\"m410 p=3 q=4.0 level=1\")"), std::string::npos) << r.out;
+}
+
+TEST(InterpPython, AnInterpErrorFromARemapStopsWithTheMessageItSet) {
+  const Result r = run("M410 P-1\n(debug, not reached)\nM2\n", kRemapIni,
+                       {{"subs.py", "import remap\n"}, {"remap.py", kRemapPy}, {"rm411.ngc", "o<rm411> sub\no<rm411> endsub\n"}});
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("test.ngc:1: M410: P must not be negative"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out.find("not reached"), std::string::npos) << r.out;
+}
+
+TEST(InterpPython, APythonPrologSetsTheBodysParametersAndTheEpilogSeesTheBodysResult) {
+  const Result r = run("M411 P21\nM2\n", kRemapIni,
+                       {{"subs.py", "import remap\n"},
+                        {"remap.py", kRemapPy},
+                        {"rm411.ngc", "o<rm411> sub\n(debug, body twice=#<twice>)\n#<result> = [#<twice> + 1]\no<rm411> endsub\n"}});
+  ASSERT_TRUE(r.ok) << r.err << r.out;
+  EXPECT_NE(r.out.find("MESSAGE(\" body twice=42.000000\")"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("MESSAGE(\"epilog sees 43\")"), std::string::npos) << r.out;
+}
+
+TEST(InterpPython, ARemapNamingAMissingPythonFunctionStopsTheStartNamingTheRemapLine) {
+  const Result r = run("M2\n",
+                       "[RS274NGC]\nREMAP = M410 modalgroup=10 py=nothere\n[PYTHON]\nPATH_PREPEND = .\nTOPLEVEL = subs.py\n",
+                       {{"subs.py", "import remap\n"}, {"remap.py", "def other(self, **words):\n    pass\n"}});
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("test.ini:2: REMAP M410: nothere is no function of the Python module `remap`"), std::string::npos)
+      << r.err;
+}
+
+TEST(InterpPython, APyRemapWithoutAPythonSectionIsRefusedNamingTheLine) {
+  const Result r = run("M2\n", "[RS274NGC]\nREMAP = M410 modalgroup=10 py=m410\n", {});
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("a Python remap procedure needs [PYTHON]"), std::string::npos) << r.err;
+}
+
+TEST(InterpPython, CanonErrorFromPythonIsACanonicalCall) {
+  const Result r = run(";py,import emccanon\n;py,emccanon.CANON_ERROR('spindle not at speed')\nM2\n", kIni,
+                       {{"subs.py", "\n"}});
+  ASSERT_TRUE(r.ok) << r.err << r.out;
+  EXPECT_NE(r.out.find("CANON_ERROR(spindle not at speed)"), std::string::npos) << r.out;
+}
