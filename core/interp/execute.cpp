@@ -75,6 +75,7 @@ void Interpreter::State::reset_modal(bool keep_params) {
   spindle = Direction::Stopped;
   css = false;
   css_max = 0;
+  other_spindles = {};
   mist = flood = false;
   motion_mode = -1;  // G80 until a motion code is given
   origin = round_to_int(params[5220]);
@@ -270,8 +271,7 @@ void Interpreter::State::execute_step(int step, Status& st) {
       break;
     case kStepSpeed:
       if (block.has_word('s')) {
-        speed = block.get('s');
-        canon.set_spindle_speed(0, speed);
+        for (int k : chosen_spindles("Spindle speed command")) set_speed(k, block.get('s'));
       }
       break;
     case kStepTool:
@@ -524,6 +524,21 @@ void Interpreter::State::check_other_words() const {
   if (block.has_word('r') && !motion_in({20, 30, 760}) && !cycle && g0 != 100 && block.m[kMSpindle] != 19) {
     fail("R word with no g code that uses it");
   }
+  if (block.has_dollar && !block.has_word('s')) {
+    const int sp = block.m[kMSpindle];
+    const int fm = block.g[kGFeedMode];
+    const int sm = block.g[kGSpindleMode];
+    if (sp != 3 && sp != 4 && sp != 5 && sp != 19 && block.m[kMOverride] != 51 && !motion_in({330, 331, 760}) &&
+        fm != 950 && sm != 960 && sm != 970) {
+      fail("$ (spindle selection) word with no M3, M4, M5, M19, M51, G33, G33.1, G76, G95, G96 or G97 to use it");
+    }
+  }
+  if (block.has_dollar && block.dollar != 0 &&
+      (motion_in({330, 331, 760}) || block.g[kGFeedMode] == 950 || block.m[kMOverride] == 51)) {
+    // refused rather than synchronised to the wrong spindle
+    fail("$" + std::to_string(block.dollar) +
+         ": spindle-synchronised motion (G33, G33.1, G76, G95) and M51 follow spindle 0 only in this interpreter");
+  }
   if (block.m[kMSpindle] == 19 && block.has_word('p')) {
     const double p = block.get('p');
     if (std::fabs(round_to_int(p) - p) > 0.001) fail("P value not an integer with M19 G2 or G3");
@@ -571,14 +586,53 @@ void Interpreter::State::convert_comment() {
 }
 
 void Interpreter::State::convert_spindle_mode(int g) {
-  if (g == 960) {
-    css = true;
-    css_max = block.has_word('d') ? block.get('d') : 1e30;
-    if (!block.has_word('s')) fail("S word missing with G96");
-    canon.set_spindle_mode(0, css_max);
+  for (int k : chosen_spindles("Spindle Mode command")) {
+    bool& mode = k == 0 ? css : other_spindles[static_cast<std::size_t>(k)].css;
+    double& max = k == 0 ? css_max : other_spindles[static_cast<std::size_t>(k)].css_max;
+    if (g == 960) {
+      mode = true;
+      max = block.has_word('d') ? block.get('d') : 1e30;
+      if (!block.has_word('s')) fail("S word missing with G96");
+      canon.set_spindle_mode(k, max);
+    } else {
+      mode = false;
+      canon.set_spindle_mode(k, 0);
+    }
+  }
+}
+
+std::vector<int> Interpreter::State::chosen_spindles(const char* what, bool minus_one_allowed) const {
+  const int n = config.spindles;
+  if (block.dollar == -1 && !block.has_dollar) return {0};
+  if (block.dollar == -1 && minus_one_allowed) {
+    std::vector<int> all;
+    for (int k = 0; k < n; ++k) all.push_back(k);
+    return all;
+  }
+  if (block.dollar < 0 || block.dollar >= n) {
+    fail(std::string("Invalid spindle ($) number ") + std::to_string(block.dollar) + " in " + what + ": the machine has " +
+         (n == 1 ? std::string("spindle 0") : "spindles 0-" + std::to_string(n - 1)) + " ([TRAJ]SPINDLES), $-1 is all");
+  }
+  return {block.dollar};
+}
+
+void Interpreter::State::set_speed(int k, double rpm) {
+  if (k == 0) {
+    speed = rpm;
   } else {
-    css = false;
-    canon.set_spindle_mode(0, 0);
+    other_spindles[static_cast<std::size_t>(k)].speed = rpm;
+  }
+  canon.set_spindle_speed(k, rpm);
+}
+
+void Interpreter::State::set_direction(int k, Direction d) {
+  if (d == Direction::Clockwise) canon.start_spindle_clockwise(k);
+  if (d == Direction::CounterClockwise) canon.start_spindle_counterclockwise(k);
+  if (d == Direction::Stopped) canon.stop_spindle_turning(k);
+  if (k == 0) {
+    spindle = d;
+  } else {
+    other_spindles[static_cast<std::size_t>(k)].dir = d;
   }
 }
 
@@ -714,28 +768,30 @@ void Interpreter::State::convert_m(int group, Status& st) {
   if (group == kMToolChange && block.m[kMToolChange] != -1) convert_tool_change(st);
   switch (group == kMSpindle ? block.m[kMSpindle] : -1) {
     case 3:
-      canon.start_spindle_clockwise(0);
-      spindle = Direction::Clockwise;
+      for (int k : chosen_spindles("M3")) set_direction(k, Direction::Clockwise);
       break;
     case 4:
-      canon.start_spindle_counterclockwise(0);
-      spindle = Direction::CounterClockwise;
+      for (int k : chosen_spindles("M4")) set_direction(k, Direction::CounterClockwise);
       break;
     case 5:
-      canon.stop_spindle_turning(0);
-      spindle = Direction::Stopped;
+      for (int k : chosen_spindles("M5")) set_direction(k, Direction::Stopped);
       break;
     case 19: {
       // As LinuxCNC 2.9: the angle is R plus [RS274NGC]ORIENT_OFFSET; without
       // R and P nothing is oriented (only Q waits); Q waits for the spindle.
-      spindle = Direction::Stopped;
+      const int k = chosen_spindles("M19", false).front();
+      if (k == 0) {
+        spindle = Direction::Stopped;
+      } else {
+        other_spindles[static_cast<std::size_t>(k)].dir = Direction::Stopped;
+      }
       if (block.has_word('r') || block.has_word('p')) {
         const double r = (block.has_word('r') ? block.get('r') : 0.0) + config.orient_offset;
-        canon.orient_spindle(0, r, block.has_word('p') ? round_to_int(block.get('p')) : 0);
+        canon.orient_spindle(k, r, block.has_word('p') ? round_to_int(block.get('p')) : 0);
       }
       if (block.has_word('q')) {
         if (block.get('q') <= 0.0) fail("Q word with M19 requires a value > 0");
-        canon.wait_spindle_orient_complete(0, block.get('q'));
+        canon.wait_spindle_orient_complete(k, block.get('q'));
       }
       break;
     }
@@ -1373,10 +1429,16 @@ void Interpreter::State::end_program(bool pallet) {
     comp_flush();
     cutter_side = 400;
   }
-  canon.stop_spindle_turning(0);
-  spindle = Direction::Stopped;
-  css = false;
-  canon.set_spindle_mode(0, 0);
+  // every spindle stops and goes back to RPM mode, in order
+  for (int k = 0; k < config.spindles; ++k) {
+    set_direction(k, Direction::Stopped);
+    if (k == 0) {
+      css = false;
+    } else {
+      other_spindles[static_cast<std::size_t>(k)].css = false;
+    }
+    canon.set_spindle_mode(k, 0);
+  }
   motion_mode = 10;
   if (mist) {
     canon.mist_off();

@@ -190,7 +190,7 @@ ReadResult Interpreter::State::read_block() {
         set_named(a.name, a.value);
       }
     }
-    if (block.has == 0 && block.m_count == 0 && !block.has_comment && !block.has_py && block.dollar < 0 &&
+    if (block.has == 0 && block.m_count == 0 && !block.has_comment && !block.has_py && !block.has_dollar &&
         !block.has_polar_r && !block.has_polar_a) {
       bool any_g = false;
       for (int g : block.g) any_g = any_g || g != -1;

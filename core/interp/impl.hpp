@@ -78,7 +78,20 @@ struct Interpreter::State {
   FeedMode feed_mode = FeedMode::UnitsPerMinute;
   double feed = 0;
   double speed = 0;
-  Direction spindle = Direction::Stopped;
+  Direction spindle = Direction::Stopped;  // spindle 0; `speed`, `css`, `css_max` too
+  // Spindles 1.. ([TRAJ]SPINDLES, the $ word); index 0 unused (the fields above).
+  struct OtherSpindle {
+    double speed = 0;
+    Direction dir = Direction::Stopped;
+    bool css = false;
+    double css_max = 0;
+  };
+  std::array<OtherSpindle, Config::kMaxSpindles> other_spindles{};
+  // The spindles a block's $ word chooses (absent: 0; $-1: all), checked
+  // against [TRAJ]SPINDLES; `what` names the command in the error.
+  std::vector<int> chosen_spindles(const char* what, bool minus_one_allowed = true) const;
+  void set_speed(int k, double rpm);
+  void set_direction(int k, Direction d);
   bool css = false;
   double css_max = 0;
   bool mist = false, flood = false;

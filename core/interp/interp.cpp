@@ -1,6 +1,7 @@
 // The public Interpreter API over Interpreter::State.
 #include "core/interp/interp.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -200,6 +201,9 @@ Config Config::from_ini(const cnc::ini::IniFile& ini) {
   c.oword_nargs = ini.get_bool("RS274NGC", "OWORD_NARGS", false);
   c.disable_fanuc_style_sub = ini.get_bool("RS274NGC", "DISABLE_FANUC_STYLE_SUB", false);
   for (const cnc::ini::Entry* e : ini.find_all_entries("RS274NGC", "REMAP")) c.remaps.push_back(parse_remap(c, ini, *e));
+  // cncd's task takes the number from motion, the owner of [TRAJ]SPINDLES;
+  // stand-alone tools (cnc-rs274, the screen's preview) read it here
+  c.spindles = std::max(1, static_cast<int>(ini.get_int("TRAJ", "SPINDLES", 1, {0, Config::kMaxSpindles})));
   if (const auto v = ini.find("TRAJ", "COORDINATES")) {
     unsigned mask = 0;
     for (char ch : *v) {
@@ -495,6 +499,11 @@ const std::string& Interpreter::file_name() const noexcept { return s_->current_
 int Interpreter::call_level() const noexcept { return static_cast<int>(s_->frames.size()) - 1; }
 
 int Interpreter::remap_level() const noexcept { return s_->remap_level(); }
+
+double Interpreter::spindle_speed(int k) const noexcept {
+  if (k <= 0) return s_->speed;
+  return k < Config::kMaxSpindles ? s_->other_spindles[static_cast<std::size_t>(k)].speed : 0.0;
+}
 
 double Interpreter::parameter(int index) const {
   if (index < 1 || index >= kMaxParameters) return 0.0;

@@ -133,6 +133,9 @@ struct Config {
   static constexpr double kDefaultCenterArcToleranceMm = 2 * 0.01 * 1.41421356237309504880;
   static constexpr double kMinCenterArcToleranceInch = 0.00004;
   static constexpr double kMinCenterArcToleranceMm = 0.001;
+  // [TRAJ]SPINDLES: spindles 0..spindles-1, chosen with the $ word.
+  int spindles = 1;
+  static constexpr int kMaxSpindles = 8;
   // Axes the machine has (bit i: axis i of XYZABCUVW).
   unsigned axis_mask = 0x1ff;
   // Length units the interpreter starts in.
@@ -254,6 +257,8 @@ class Interpreter {
   int call_level() const noexcept;
   // Remapped codes being carried out (#<_remap_level>).
   int remap_level() const noexcept;
+  // The speed last set for spindle k (0 .. Config::kMaxSpindles-1).
+  double spindle_speed(int k) const noexcept;
 
   // Numbered and named parameter access (for tools and tests).
   double parameter(int index) const;

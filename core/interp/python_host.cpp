@@ -131,6 +131,14 @@ PYBIND11_EMBEDDED_MODULE(interpreter, m) {
       .def_property_readonly("return_value", [](const This&) { return named_or_zero("_value"); })
       .def_property_readonly("value_returned", [](const This&) { return static_cast<int>(named_or_zero("_value_returned")); })
       .def_property_readonly("remap_level", [](const This&) { return interp().remap_level(); })
+      // feed per revolution, threading and the spindle codes without $ use
+      // spindle 0 in this interpreter
+      .def_property_readonly("active_spindle", [](const This&) { return 0; })
+      .def_property_readonly("speed", [](const This&) {
+        std::vector<double> v;
+        for (int k = 0; k < Config::kMaxSpindles; ++k) v.push_back(interp().spindle_speed(k));
+        return v;
+      })
       .def("set_errormsg", [](const This&, const std::string& text) { g_errormsg = text; })
       .def_property_readonly("line_number", [](const This&) { return interp().line(); })
       .def_property_readonly("filename", [](const This&) { return interp().file_name(); });

@@ -85,6 +85,7 @@ void Block::clear() {
   m.fill(-1);
   m_count = 0;
   dollar = -1;
+  has_dollar = false;
   has_comment = false;
   comment.clear();
   has_py = false;
@@ -268,8 +269,9 @@ void Interpreter::State::read_word(std::size_t& i) {
       return;
     }
     case '$': {
-      if (block.dollar != -1) fail("Multiple spindle choice ($) words on one line");
+      if (block.has_dollar) fail("Multiple spindle choice ($) words on one line");
       block.dollar = read_integer_value(i);
+      block.has_dollar = true;
       return;
     }
     case 'n':

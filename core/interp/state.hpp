@@ -64,7 +64,8 @@ struct Block {
   std::array<int, kGNumGroups> g{};  // code x10 or -1
   std::array<int, kMNumGroups> m{};  // code or -1
   int m_count = 0;
-  int dollar = -1;  // $ spindle number
+  int dollar = -1;  // $ spindle number (-1 with has_dollar: all spindles)
+  bool has_dollar = false;
   bool has_polar_r = false, has_polar_a = false;  // @ radius, ^ angle
   double polar_r = 0, polar_a = 0;
   bool has_comment = false;

@@ -4,6 +4,8 @@
 // (task_internal.hpp: what they share).
 #include "core/task/task_internal.hpp"
 
+#include <algorithm>
+
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -58,6 +60,7 @@ TaskController::TaskController(const ini::IniFile& ini, hal::Hal& hal, motion::M
   canon_->on_print = [this](std::string_view t) { post(MessageKind::Text, std::string(t)); };
   interp_config_ = interp::Config::from_ini(ini);
   interp_config_.axis_mask = ms_.traj.axis_mask;
+  interp_config_.spindles = std::max(1, motion_.config().spindles);  // motion owns [TRAJ]SPINDLES
   interp_config_.task = true;  // #<_task> is 1 and M99 in the main program starts it again, as in LinuxCNC's task
   python_ = interp::python_settings(ini);
   interp_ = make_interpreter(*canon_);

@@ -646,3 +646,39 @@ TEST(Rs274Tool, TextCanonTracksItsPositionWithSaicanonsArithmetic) {
   ASSERT_TRUE(r.ok) << r.err;
   EXPECT_TRUE(has(r, "STRAIGHT_FEED(0.0000, -0.0000, 0.1000, 0.0000, 0.0000, 0.0000)")) << r.canon;
 }
+
+// ---------------------------------------------------------------- spindles ($)
+
+TEST(InterpSpindles, TheDollarWordChoosesTheSpindleOfSAndM3M4M5AndMinusOneMeansAll) {
+  // LinuxCNC 2.9's rs274 with [TRAJ]SPINDLES=3 prints these calls; before,
+  // every $ went to spindle 0 (S2000 $1 changed the first spindle's speed)
+  const Rs274Result r = run("S100 $-1\nM3 $-1\nS7 $2\nM5 $1\nS2000 $1\nM4 $1\nM2\n", with_ini("[TRAJ]\nSPINDLES=3\n"));
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "N..... SET_SPINDLE_SPEED(0, 100.0000)\nN..... SET_SPINDLE_SPEED(1, 100.0000)\n"
+                     "N..... SET_SPINDLE_SPEED(2, 100.0000)\nN..... START_SPINDLE_CLOCKWISE(0)\n"
+                     "N..... START_SPINDLE_CLOCKWISE(1)\nN..... START_SPINDLE_CLOCKWISE(2)\n"
+                     "N..... SET_SPINDLE_SPEED(2, 7.0000)\nN..... STOP_SPINDLE_TURNING(1)\n"
+                     "N..... SET_SPINDLE_SPEED(1, 2000.0000)\nN..... START_SPINDLE_COUNTERCLOCKWISE(1)\n"))
+      << r.canon;
+  // the program end stops every spindle and sets it back to RPM mode
+  EXPECT_TRUE(has(r, "N..... STOP_SPINDLE_TURNING(0)\nN..... SET_SPINDLE_MODE(0 0.0000)\nN..... STOP_SPINDLE_TURNING(1)\n"
+                     "N..... SET_SPINDLE_MODE(1 0.0000)\nN..... STOP_SPINDLE_TURNING(2)\nN..... SET_SPINDLE_MODE(2 0.0000)\n"
+                     "N..... PROGRAM_END()"))
+      << r.canon;
+}
+
+TEST(InterpSpindles, ASpindleTheMachineDoesNotHaveOrADollarNothingUsesIsAnError) {
+  const auto ini = with_ini("[TRAJ]\nSPINDLES=3\n");
+  const Rs274Result high = run("M3 $5\nM2\n", ini);
+  EXPECT_FALSE(high.ok);
+  EXPECT_NE(high.err.find("Invalid spindle ($) number 5 in M3"), std::string::npos) << high.err;
+  const Rs274Result one = run("S100 $1\nM2\n");  // one spindle without [TRAJ]SPINDLES
+  EXPECT_FALSE(one.ok);
+  EXPECT_NE(one.err.find("Invalid spindle ($) number 1 in Spindle speed command"), std::string::npos) << one.err;
+  const Rs274Result unused = run("G1 X1 F1 $1\nM2\n", ini);
+  EXPECT_FALSE(unused.ok);
+  EXPECT_NE(unused.err.find("$ (spindle selection) word with no M3"), std::string::npos) << unused.err;
+  const Rs274Result sync = run("S100 $2\nM3 $2\nG33 Z-1 K1 $2\nM2\n", ini);
+  EXPECT_FALSE(sync.ok);
+  EXPECT_NE(sync.err.find("follow spindle 0 only"), std::string::npos) << sync.err;
+}
