@@ -9,7 +9,9 @@ namespace {
 constexpr int kMaxRows = kNumAxes + 1;
 // Longest averaging window the history rings hold (samples).
 constexpr int kMaxFilter = 8192;
-constexpr int kRing = kMaxFilter + 2;
+// A power of two (indices wrap by masking).
+constexpr int kRing = 16384;
+static_assert(kRing >= kMaxFilter + 2 && (kRing & (kRing - 1)) == 0);
 // Velocities at which each piece's acceleration limit is tabulated.
 constexpr int kGrid = 16;
 // Tree channels: the limit at each grid velocity, then ceiling, feed, rapid.
@@ -122,6 +124,7 @@ Executor::Executor(const PlannerConfig& config, PathStore& store)
   ha_ = std::make_unique<double[]>(kRing);
   hcommit_ = std::make_unique<double[]>(kRing);
   halpha_ = std::make_unique<double[]>(kRing);
+  hmax_ = std::make_unique<double[]>(kRing);
   configure(config);
   clear_history(0);
 }
@@ -132,7 +135,7 @@ Executor::PieceData& Executor::pdata(uint64_t seq) noexcept { return pdata_[seq 
 const Executor::PieceData& Executor::pdata(uint64_t seq) const noexcept { return pdata_[seq & pmask_]; }
 Executor::Span& Executor::span(uint64_t seq) noexcept { return spans_[seq & smask_]; }
 const Executor::Span& Executor::span(uint64_t seq) const noexcept { return spans_[seq & smask_]; }
-int Executor::ring(int ago) const noexcept { return ((hist_pos_ - ago) % kRing + kRing) % kRing; }
+int Executor::ring(int ago) const noexcept { return (hist_pos_ - ago) & (kRing - 1); }
 
 void Executor::configure(const PlannerConfig& config) noexcept {
   cfg_ = config;
@@ -177,7 +180,11 @@ void Executor::configure(const PlannerConfig& config) noexcept {
 }
 
 void Executor::clear_history(double x) noexcept {
-  for (int i = 0; i < kRing; ++i) {
+  // Only the newest n_ + 2 samples are ever read (the window and the one
+  // leaving it); n_ changes only together with a clear. The whole ring
+  // (16384 samples) took some 30 us in the cycle a path restarts.
+  for (int k = 0; k < n_ + 2; ++k) {
+    const int i = ring(k);
     hx_[i] = x;
     hv_[i] = 0;
     ha_[i] = 0;
@@ -290,6 +297,7 @@ double limit_at(const PieceBounds& b, const int* axis, const double* A, const do
 // around piece `from`, not across a stop (outputs never cross one while the
 // input moves).
 double Executor::range_min(uint64_t from, double lo, double hi, int c) const noexcept {
+  ++work_.queries;
   if (from >= ptail_) return 0;
   const uint64_t first = store_.pieces.released();
   // Stops bound the range.
@@ -431,7 +439,7 @@ void Executor::finalize() noexcept {
   const double near = v_bound_ * v_bound_ / std::max(a_top_, 1e-9) + v_bound_ * tf_;
   const bool urgent = (env_active_ && env_k_ < stail_ && span(env_k_).a - x_ < near) ||
                       (!env_active_ && env_pending_ && final_end() - x_ < near);
-  envelope_work(urgent ? kEnvelopeUrgent : kEnvelopePerCycle);
+  envelope_work(urgent ? kEnvelopeUrgent : kEnvelopePerCycle, urgent ? kQueriesUrgent : kQueriesPerCycle);
 }
 
 void Executor::make_spans(uint64_t p) noexcept {
@@ -620,8 +628,12 @@ void Executor::envelope_request(bool full) noexcept {
   env_floor_ = full ? 0 : stail_ - 1;
 }
 
-void Executor::envelope_work(int budget) noexcept {
-  while (budget-- > 0) {
+void Executor::envelope_work(int budget, int queries) noexcept {
+  // Spans and range minima: a curved span may cost many times a straight
+  // one, so the walk also stops once its own queries this cycle reach
+  // `queries` (at least one span a cycle).
+  const int q0 = work_.queries;
+  for (bool first = true; budget-- > 0 && (first || work_.queries - q0 < queries); first = false) {
     if (!env_active_) {
       if (!env_pending_) return;
       env_pending_ = false;
@@ -641,6 +653,7 @@ void Executor::envelope_work(int budget) noexcept {
     const double before_end = span(k).w_end;
     envelope_span(k, w_end);
     ++work_.enveloped;
+    work_.envelope_queries = work_.queries - q0;
     if ((known && k < env_floor_ && span(k).w_start == before && span(k).w_end == before_end) || k == in_ || k == 0) {
       env_active_ = false;
       continue;
@@ -834,8 +847,9 @@ bool Executor::safe(double v_new, double a_new, bool loose) const noexcept {
   }
   double cx = xn, cv = v_new;
   for (int i = 0; i <= last_pos && cv > 0; ++i) {
-    double am = 0;
-    for (int j = i; j < n - 1; ++j) am = std::max(am, halpha_[ring(n - 2 - j)]);
+    // The largest limit of the samples 0 .. n-2-i back (prefix maxima,
+    // computed once per cycle by plan_input).
+    double am = i <= n - 2 ? hmax_[n - 2 - i] : 0.0;
     uint64_t kb = k < stail_ ? k : stail_ - 1;
     const double al = brake_alpha(kb, cx, cx + cv * T_);
     am = std::max(am, al);
@@ -868,8 +882,19 @@ bool Executor::safe(double v_new, double a_new, bool loose) const noexcept {
   return true;
 }
 
+// hmax_[m]: the largest limit of the samples 0 .. m back (m < n_): the
+// limits of the window that still apply m steps on, for the brake
+// simulations (once per call instead of once per simulated step).
+void Executor::prefix_max_alpha() const noexcept {
+  double m = 0;
+  for (int i = 0; i < n_; ++i) {
+    m = std::max(m, halpha_[ring(i)]);
+    hmax_[i] = m;
+  }
+}
+
 void Executor::push_sample(double x, double v, double a, double commit, double alpha) noexcept {
-  hist_pos_ = (hist_pos_ + 1) % kRing;
+  hist_pos_ = (hist_pos_ + 1) & (kRing - 1);
   hx_[hist_pos_] = x;
   hv_[hist_pos_] = v;
   ha_[hist_pos_] = a;
@@ -917,6 +942,7 @@ void Executor::plan_input(const CycleInputs& in) noexcept {
   if (hi < lo) hi = lo;
   const double want = std::clamp((target - v_) / T_, lo, hi);
   double a = want;
+  prefix_max_alpha();  // for safe()
   const bool want_safe = safe(v_ + want * T_, want);
   if (want_safe) recovering_ = false;
   if (!want_safe) {
@@ -1149,12 +1175,21 @@ double Executor::stop_distance() const noexcept {
   // The fastest brake the history allows, then the envelope's
   // accelerations, until rest.
   const int n = n_;
+  prefix_max_alpha();
   double cx = x_, cv = v_;
   uint64_t k = in_;
   for (int i = 0; cv > 0 && i < 10'000'000; ++i) {
     const double al = brake_alpha(k, cx, cx + cv * T_);
+    if (!(al > 0)) {
+      // A span the envelope's walk has not reached (envelope zero): the
+      // input moves there only by the rounding slack (kVelEps), which
+      // comes to rest within the step. Braking at zero would loop here
+      // for ten million steps.
+      cx += cv * T_;
+      break;
+    }
     double am = al;
-    for (int j = i; j < n; ++j) am = std::max(am, halpha_[ring(n - 1 - j)]);
+    if (i < n) am = std::max(am, hmax_[n - 1 - i]);
     const double old = i < n ? ha_[ring(n - 1 - i)] : -al;
     const double a = std::max(-al, old - am);
     cv = std::max(0.0, cv + a * T_);

@@ -76,9 +76,12 @@ class Executor {
   // (tests): pieces taken in, pieces split into spans and envelope spans
   // computed. Each is at most its per-cycle bound below whatever the
   // program, except the envelope of a merged span grown in place (one per
-  // split piece at most).
+  // split piece at most). `queries`: range minima over the pieces (the
+  // unit of the envelope's and the input limits' cost), `envelope_queries`
+  // the walk's share: at most kQueriesUrgent plus one span's
+  // (kSpanQueriesMax).
   struct CycleWork {
-    int ingested = 0, split = 0, enveloped = 0;
+    int ingested = 0, split = 0, enveloped = 0, queries = 0, envelope_queries = 0;
   };
   const CycleWork& cycle_work() const noexcept { return work_; }
   static constexpr int kIngestPerCycle = 128;
@@ -86,6 +89,13 @@ class Executor {
   static constexpr int kEnvelopePerCycle = 6;
   // Envelope spans per cycle while the walk is near the input.
   static constexpr int kEnvelopeUrgent = 24;
+  // Range minima per cycle after which the envelope's walk waits for the
+  // next cycle (one span is always walked).
+  static constexpr int kQueriesPerCycle = 1000;
+  static constexpr int kQueriesUrgent = 2400;
+  // Most range minima one envelope span may take: 4 chunks, each at most
+  // 14 velocity limits of at most 10 queries (executor.cpp).
+  static constexpr int kSpanQueriesMax = 4 * 14 * 10;
 
   // Position on the smoothed path at global position s (tests: dense
   // evaluation of the path that is being executed). Only for s within the
@@ -104,7 +114,7 @@ class Executor {
   void finalize() noexcept;
   void make_spans(uint64_t p) noexcept;
   void envelope_request(bool full) noexcept;
-  void envelope_work(int budget) noexcept;
+  void envelope_work(int budget, int queries) noexcept;
   bool idle_ingested() const noexcept;
   void envelope_span(uint64_t k, double w_end) noexcept;
   double accel_limit(uint64_t piece, double lo, double hi, double u) const noexcept;
@@ -120,6 +130,7 @@ class Executor {
   bool safe(double v_new, double a_new, bool loose = false) const noexcept;
   void plan_input(const CycleInputs& in) noexcept;
   void push_sample(double x, double v, double a, double commit, double alpha) noexcept;
+  void prefix_max_alpha() const noexcept;
   void update_output() noexcept;
   void handle_stops() noexcept;
   void advance_output() noexcept;
@@ -180,6 +191,7 @@ class Executor {
   // Input state and the last samples (ring, newest at hist_pos_).
   double x_ = 0, v_ = 0;
   std::unique_ptr<double[]> hx_, hv_, ha_, hcommit_, halpha_;
+  std::unique_ptr<double[]> hmax_;  // prefix maxima of halpha_ (scratch)
   int hist_pos_ = 0;
   // Output.
   double y_ = 0, w_ = 0, b_ = 0;
@@ -203,7 +215,7 @@ class Executor {
   uint64_t completed_ = 0;
   uint64_t overruns_ = 0;
   uint64_t cycles_ = 0;
-  CycleWork work_;
+  mutable CycleWork work_;  // counters only (range_min is const)
 };
 
 }  // namespace cnc::tp

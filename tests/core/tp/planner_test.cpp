@@ -1,8 +1,9 @@
 // Behaviour of tp::LookaheadPlanner through the TrajectoryPlanner interface:
 // limits on lines, arcs, helices and blends; G64 P, G61 and G61.1; tangent
 // joints at full speed; short segments at the programmed feed; look-ahead
-// depth; overrides, pause/resume, step, abort, probe, dwell; no allocation
-// in the servo thread. Every stream is checked sample by sample
+// depth; overrides, pause/resume, step, abort, probe, dwell (the servo
+// thread's realtime discipline: realtime_test.cpp). Every stream is
+// checked sample by sample
 // (StreamChecker: finite differences, distance to the programmed path).
 #include <gtest/gtest.h>
 
@@ -621,75 +622,6 @@ TEST(TpControls, DwellHoldsInPlaceForItsTime) {
   }
   EXPECT_NEAR(at_10, 250, 2);
   EXPECT_EQ(out.position[0], 20);
-}
-
-// --- realtime discipline ----------------------------------------------------
-
-// The servo thread's share of planning is bounded per cycle whatever the
-// program: a deep queue of short curved moves arriving at once (a spiral
-// polyline, G64 P0.01, 600 moves of 0.2 mm, all queued in the first
-// cycles) once made one cycle take in, split and envelope the whole queue
-// (the envelope's backward walk over every span). Counted, not timed.
-TEST(TpRealtime, ServoCycleWorkIsBoundedWhateverTheQueue) {
-  PlannerConfig cfg = profile("lc", 0.001);
-  cfg.lookahead_segments = 1000;
-  Program prog;
-  const SegmentParams p = feed_params(100, 0.01);
-  double theta = 0;
-  for (int i = 0; i < 600; ++i) {
-    const double r = 5 + 0.5 / (2 * std::numbers::pi) * theta;
-    theta += 0.2 / r;
-    prog.moves.push_back(line_to(r * std::cos(theta), r * std::sin(theta), 0, p));
-  }
-  prog.start = pose(5, 0, 0);
-  Executor::CycleWork most;
-  RunOptions opt;
-  opt.flush_at_end = true;
-  opt.moves_per_cycle = 1 << 20;
-  opt.before_cycle = [&](uint64_t, TrajectoryPlanner& planner, CycleInputs&) {
-    const Executor::CycleWork& w = dynamic_cast<LookaheadPlanner&>(planner).executor().cycle_work();
-    most.ingested = std::max(most.ingested, w.ingested);
-    most.split = std::max(most.split, w.split);
-    most.enveloped = std::max(most.enveloped, w.enveloped);
-  };
-  const RunResult r = run(cfg, prog, opt);
-  expect_clean(r);
-  EXPECT_LE(most.ingested, Executor::kIngestPerCycle);
-  EXPECT_LE(most.split, Executor::kSplitPerCycle);
-  EXPECT_LE(most.enveloped, Executor::kEnvelopeUrgent);
-  EXPECT_GT(most.enveloped, 0);
-}
-
-TEST(TpRealtime, ServoThreadCallsNeverAllocate) {
-  if (!testing::AllocationCounter::available()) GTEST_SKIP() << "allocation counter off in sanitizer builds";
-  const PlannerConfig cfg = profile("mill-s", 0.00025);
-  const Program prog = test::random_program(77, 80);
-  for (PlannerThreading th : {PlannerThreading::Inline, PlannerThreading::OwnThread}) {
-    auto planner = make_planner(cfg, th);  // construction allocates
-    planner->set_position(prog.start);
-    CycleInputs in;
-    CycleOutputs out;
-    std::size_t next = 0;
-    uint64_t allocations = 0;
-    {
-      testing::ScopedAllocationCheck check;  // this (the servo) thread only
-      // A real servo thread sleeps between cycles; this loop yields so the
-      // builder thread gets the CPU on a loaded machine. When it is late
-      // anyway the executor stops and waits (more cycles, no allocation):
-      // the cycle bound is generous for that.
-      for (int c = 0; c < 4'000'000 && !(next == prog.moves.size() && planner->is_done()); ++c) {
-        if (th == PlannerThreading::OwnThread) std::this_thread::yield();
-        while (next < prog.moves.size() && queue_move(*planner, prog, next) != Result::QueueFull) ++next;
-        if (c == 3000) planner->pause();
-        if (c == 3500) planner->resume();
-        in.feed_scale = c > 5000 && c < 9000 ? 0.3 : 1.0;
-        planner->run_cycle(in, out);
-      }
-      allocations = check.allocations();
-    }
-    EXPECT_TRUE(planner->is_done());
-    EXPECT_EQ(allocations, 0u) << (th == PlannerThreading::Inline ? "inline" : "own thread");
-  }
 }
 
 }  // namespace

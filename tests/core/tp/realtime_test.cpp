@@ -1,0 +1,150 @@
+// The servo thread's share of tp::LookaheadPlanner: bounded work per cycle
+// whatever the program (counted, never timed), no allocation. What it
+// costs in time on this machine: build/bin/bench_tp (docs/tp.md).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <thread>
+
+#include "tests/core/tp/tp_test_util.hpp"
+#include "tests/support/testing.hpp"
+
+namespace cnc::tp {
+namespace {
+
+using test::feed_params;
+using test::line_to;
+using test::profile;
+
+Pose pose(double x, double y, double z) {
+  Pose p;
+  p[0] = x;
+  p[1] = y;
+  p[2] = z;
+  return p;
+}
+
+void expect_clean(const RunResult& r, double end_tol = 1e-9) {
+  ASSERT_TRUE(r.completed) << "cycles " << r.cycles;
+  EXPECT_LE(r.stats.ratio_v, 1 + 1e-9);
+  EXPECT_LE(r.stats.ratio_a, 1 + 1e-9);
+  EXPECT_LE(r.stats.ratio_j, 1 + 1e-9);
+  EXPECT_LE(r.stats.deviation_ratio, 1 + 1e-6) << "max deviation " << r.stats.max_deviation;
+  EXPECT_LT(r.stats.end_error, end_tol);
+  EXPECT_TRUE(r.monotone);
+  EXPECT_EQ(r.overruns, 0u);
+}
+
+RunResult run(const PlannerConfig& cfg, const Program& prog, RunOptions opt = {}) {
+  auto planner = make_planner(cfg, PlannerThreading::Inline);
+  return run_program(*planner, cfg, prog, opt);
+}
+
+// A spiral polyline of `n` moves of 0.2 mm (G64 P0.01): curved pieces,
+// whose envelope spans cost the most.
+Program spiral(int n) {
+  Program prog;
+  const SegmentParams p = feed_params(100, 0.01);
+  double theta = 0;
+  for (int i = 0; i < n; ++i) {
+    const double r = 5 + 0.5 / (2 * std::numbers::pi) * theta;
+    theta += 0.2 / r;
+    prog.moves.push_back(line_to(r * std::cos(theta), r * std::sin(theta), 0, p));
+  }
+  prog.start = pose(5, 0, 0);
+  return prog;
+}
+
+// The servo thread's share of planning is bounded per cycle whatever the
+// program: a deep queue of short curved moves arriving at once (a spiral
+// polyline, G64 P0.01, 600 moves of 0.2 mm, all queued in the first
+// cycles) once made one cycle take in, split and envelope the whole queue
+// (the envelope's backward walk over every span). Counted, not timed.
+TEST(TpRealtime, ServoCycleWorkIsBoundedWhateverTheQueue) {
+  PlannerConfig cfg = profile("lc", 0.001);
+  cfg.lookahead_segments = 1000;
+  const Program prog = spiral(600);
+  Executor::CycleWork most;
+  RunOptions opt;
+  opt.flush_at_end = true;
+  opt.moves_per_cycle = 1 << 20;
+  opt.before_cycle = [&](uint64_t, TrajectoryPlanner& planner, CycleInputs&) {
+    const Executor::CycleWork& w = dynamic_cast<LookaheadPlanner&>(planner).executor().cycle_work();
+    most.ingested = std::max(most.ingested, w.ingested);
+    most.split = std::max(most.split, w.split);
+    most.enveloped = std::max(most.enveloped, w.enveloped);
+  };
+  const RunResult r = run(cfg, prog, opt);
+  expect_clean(r);
+  EXPECT_LE(most.ingested, Executor::kIngestPerCycle);
+  EXPECT_LE(most.split, Executor::kSplitPerCycle);
+  EXPECT_LE(most.enveloped, Executor::kEnvelopeUrgent);
+  EXPECT_GT(most.enveloped, 0);
+}
+
+TEST(TpRealtime, ServoThreadCallsNeverAllocate) {
+  if (!testing::AllocationCounter::available()) GTEST_SKIP() << "allocation counter off in sanitizer builds";
+  const PlannerConfig cfg = profile("mill-s", 0.00025);
+  const Program prog = test::random_program(77, 80);
+  for (PlannerThreading th : {PlannerThreading::Inline, PlannerThreading::OwnThread}) {
+    auto planner = make_planner(cfg, th);  // construction allocates
+    planner->set_position(prog.start);
+    CycleInputs in;
+    CycleOutputs out;
+    std::size_t next = 0;
+    uint64_t allocations = 0;
+    {
+      testing::ScopedAllocationCheck check;  // this (the servo) thread only
+      // A real servo thread sleeps between cycles; this loop yields so the
+      // builder thread gets the CPU on a loaded machine. When it is late
+      // anyway the executor stops and waits (more cycles, no allocation):
+      // the cycle bound is generous for that.
+      for (int c = 0; c < 4'000'000 && !(next == prog.moves.size() && planner->is_done()); ++c) {
+        if (th == PlannerThreading::OwnThread) std::this_thread::yield();
+        while (next < prog.moves.size() && queue_move(*planner, prog, next) != Result::QueueFull) ++next;
+        if (c == 3000) planner->pause();
+        if (c == 3500) planner->resume();
+        in.feed_scale = c > 5000 && c < 9000 ? 0.3 : 1.0;
+        planner->run_cycle(in, out);
+      }
+      allocations = check.allocations();
+    }
+    EXPECT_TRUE(planner->is_done());
+    EXPECT_EQ(allocations, 0u) << (th == PlannerThreading::Inline ? "inline" : "own thread");
+  }
+}
+
+// The envelope's walk is bounded in range minima (its unit of cost), not
+// only in spans: a span on curved pieces takes up to kSpanQueriesMax of
+// them, a straight one a handful, so 24 curved spans in one cycle (the
+// walk near the input) once cost up to 10 000 queries on this spiral.
+// Now the walk stops after kQueriesUrgent queries, past the span it is
+// on. Whole spiral queued at once, then fed at one move a
+// cycle: both ways the walk runs near the input.
+TEST(TpRealtime, EnvelopeWalkIsBoundedInRangeQueriesPerCycle) {
+  PlannerConfig cfg = profile("lc", 0.001);
+  cfg.lookahead_segments = 1000;
+  for (int per_cycle : {1 << 20, 1}) {
+    SCOPED_TRACE(per_cycle);
+    int most = 0, most_total = 0;
+    RunOptions opt;
+    opt.flush_at_end = true;
+    opt.moves_per_cycle = per_cycle;
+    opt.before_cycle = [&](uint64_t, TrajectoryPlanner& planner, CycleInputs&) {
+      const Executor::CycleWork& w = dynamic_cast<LookaheadPlanner&>(planner).executor().cycle_work();
+      most = std::max(most, w.envelope_queries);
+      most_total = std::max(most_total, w.queries);
+    };
+    const RunResult r = run(cfg, spiral(1500), opt);
+    expect_clean(r);
+    EXPECT_GT(most, 0);
+    EXPECT_LE(most, Executor::kQueriesUrgent + Executor::kSpanQueriesMax);
+    // The split (one query a piece) and the input's limits (two) besides.
+    EXPECT_LE(most_total, Executor::kQueriesUrgent + Executor::kSpanQueriesMax + Executor::kSplitPerCycle + 2);
+  }
+}
+
+}  // namespace
+}  // namespace cnc::tp
