@@ -111,3 +111,78 @@ TEST(Halui, JogPlusRunsWhileHeldAtJogSpeedPerMinute) {
   b.poll();
   EXPECT_EQ(b.sent.back().type, CommandType::JogStop);
 }
+
+// The pins LinuxCNC's halui(1) has beyond the first set: coolant and lube,
+// spindle speed steps and brake, abort, the tool, joint jogs.
+TEST(Halui, CoolantLubeSpindleStepsBrakeAndAbortPinsSendTheirCommands) {
+  Bench b;
+  const std::vector<std::pair<const char*, CommandType>> presses = {
+      {"halui.flood.on", CommandType::CoolantFloodOn},     {"halui.flood.off", CommandType::CoolantFloodOff},
+      {"halui.mist.on", CommandType::CoolantMistOn},       {"halui.mist.off", CommandType::CoolantMistOff},
+      {"halui.lube.on", CommandType::LubeOn},              {"halui.lube.off", CommandType::LubeOff},
+      {"halui.spindle.0.increase", CommandType::SpindleIncrease},
+      {"halui.spindle.0.decrease", CommandType::SpindleDecrease},
+      {"halui.spindle.0.brake-on", CommandType::SpindleBrakeEngage},
+      {"halui.spindle.0.brake-off", CommandType::SpindleBrakeRelease},
+      {"halui.abort", CommandType::TaskAbort},
+  };
+  for (const auto& [pin, type] : presses) {
+    b.sent.clear();
+    b.set(pin, "1");
+    b.poll();
+    b.poll();  // held: nothing more
+    b.set(pin, "0");
+    b.poll();
+    ASSERT_EQ(b.types(), std::vector<CommandType>{type}) << pin;
+  }
+}
+
+TEST(Halui, CoolantLubeSpindleAndToolStatusPinsFollowTheStatus) {
+  Bench b;
+  b.status->io.flood = true;
+  b.status->io.lube = true;
+  b.status->io.tool_in_spindle = 7;
+  b.status->task.tool_offset[2] = 42.5;
+  b.status->spindles[0].enabled = true;
+  b.status->spindles[0].direction = -1;
+  b.status->spindles[0].brake = false;
+  b.poll();
+  EXPECT_EQ(b.hal.get_value("halui.flood.is-on"), "TRUE");
+  EXPECT_EQ(b.hal.get_value("halui.mist.is-on"), "FALSE");
+  EXPECT_EQ(b.hal.get_value("halui.lube.is-on"), "TRUE");
+  EXPECT_EQ(b.hal.get_value("halui.tool.number"), "7");
+  EXPECT_EQ(b.hal.get_value("halui.tool.length-offset.z"), "42.5");
+  EXPECT_EQ(b.hal.get_value("halui.tool.length-offset.w"), "0");
+  EXPECT_EQ(b.hal.get_value("halui.spindle.0.runs-backward"), "TRUE");
+  EXPECT_EQ(b.hal.get_value("halui.spindle.0.runs-forward"), "FALSE");
+  EXPECT_EQ(b.hal.get_value("halui.spindle.0.brake-is-on"), "FALSE");
+}
+
+TEST(Halui, JointJogPinsJogJointsAtTheJointJogSpeed) {
+  Bench b;
+  ASSERT_TRUE(b.hal.has_pin("halui.joint.2.increment-minus"));
+  EXPECT_FALSE(b.hal.has_pin("halui.joint.3.plus")) << "[KINS]JOINTS = 3";
+  b.set("halui.joint.jog-speed", "120");
+  b.set("halui.joint.1.minus", "1");
+  b.poll();
+  ASSERT_EQ(b.types(), (std::vector<CommandType>{CommandType::JogCont}));
+  EXPECT_EQ(b.sent[0].i[0], 1);
+  EXPECT_EQ(b.sent[0].i[1], 1) << "a joint jog";
+  EXPECT_DOUBLE_EQ(b.sent[0].d[0], -2.0) << "120 units/min, negative";
+  b.set("halui.joint.1.minus", "0");
+  b.poll();
+  EXPECT_EQ(b.sent.back().type, CommandType::JogStop);
+  EXPECT_EQ(b.sent.back().i[1], 1);
+  b.sent.clear();
+  b.set("halui.joint.0.increment", "0.5");
+  b.set("halui.joint.0.increment-plus", "1");
+  b.poll();
+  ASSERT_EQ(b.types(), (std::vector<CommandType>{CommandType::JogIncr}));
+  EXPECT_DOUBLE_EQ(b.sent[0].d[1], 0.5);
+  b.sent.clear();
+  b.set("halui.joint.2.analog", "0.5");
+  b.poll();
+  ASSERT_EQ(b.types(), (std::vector<CommandType>{CommandType::JogCont}));
+  EXPECT_DOUBLE_EQ(b.sent[0].d[0], 1.0) << "half of 2 units/s";
+  EXPECT_EQ(b.sent[0].i[0], 2);
+}
