@@ -2,6 +2,12 @@
 // is given a status block and collects the commands it would send.
 #include <gtest/gtest.h>
 
+#include <cctype>
+#include <cstdio>
+#include <regex>
+#include <set>
+#include <sstream>
+
 #include "core/hal/commands.hpp"
 #include "core/halui/halui.hpp"
 #include "core/ini/ini_file.hpp"
@@ -185,4 +191,48 @@ TEST(Halui, JointJogPinsJogJointsAtTheJointJogSpeed) {
   ASSERT_EQ(b.types(), (std::vector<CommandType>{CommandType::JogCont}));
   EXPECT_DOUBLE_EQ(b.sent[0].d[0], 1.0) << "half of 2 units/s";
   EXPECT_EQ(b.sent[0].i[0], 2);
+}
+
+// Every halui pin has the name, type and direction LinuxCNC's halui(1)
+// documents (read from the installed man page; skipped without it): joint
+// numbers read as N, axis letters as L, spindle 0 as N, MDI numbers as XX.
+TEST(Halui, EveryPinHasTheNameTypeAndDirectionOfLinuxCncsHalui) {
+  FILE* f = ::popen("zcat /usr/share/man/man1/halui.1.gz 2>/dev/null", "r");
+  ASSERT_NE(f, nullptr);
+  std::string man;
+  char buf[4096];
+  while (const std::size_t n = std::fread(buf, 1, sizeof buf, f)) man.append(buf, n);
+  ::pclose(f);
+  if (man.empty()) GTEST_SKIP() << "LinuxCNC's halui(1) man page is not installed";
+  // ".B halui.abort\fR bit in \fR" -> "halui.abort bit in".
+  std::set<std::string> documented;
+  std::istringstream lines(man);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind(".B halui.", 0) != 0) continue;
+    for (const std::string from : {"\\fR", "\\-"}) {
+      for (std::size_t at; (at = line.find(from)) != std::string::npos;) line.replace(at, from.size(), from == "\\-" ? "-" : " ");
+    }
+    std::istringstream words(line.substr(3));
+    std::string name, type, dir;
+    words >> name >> type >> dir;
+    documented.insert(name + " " + type + " " + dir);
+  }
+  ASSERT_GT(documented.size(), 100u) << "the man page's pin list was not found";
+  Bench b;
+  const std::regex joint(R"(^halui\.joint\.\d+\.)"), axis(R"(^halui\.axis\.[xyzabcuvw]\.)"),
+      spindle(R"(^halui\.spindle\.0\.)"), mdi(R"(^halui\.mdi-command-\d\d$)");
+  int checked = 0;
+  for (const auto& p : b.hal.pins()) {
+    if (p.name.rfind("halui.", 0) != 0) continue;
+    std::string n = std::regex_replace(p.name, joint, "halui.joint.N.");
+    n = std::regex_replace(n, axis, "halui.axis.L.");
+    n = std::regex_replace(n, spindle, "halui.spindle.N.");
+    n = std::regex_replace(n, mdi, "halui.mdi-command-XX");
+    std::string dir = hal::to_string(p.dir);
+    for (char& c : dir) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    const std::string key = n + " " + hal::to_string(p.type) + " " + dir;
+    EXPECT_TRUE(documented.count(key)) << p.name << " as " << key << " is not in halui(1)";
+    ++checked;
+  }
+  EXPECT_GT(checked, 100);
 }
