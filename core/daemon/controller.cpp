@@ -105,7 +105,7 @@ Controller::Controller(const Options& options) : options_(options), status_(std:
         throw ConfigError(e->file, e->line, "[HAL]HALUI = " + e->value + ": only halui (this controller's component) can be started");
       }
       if (hal_.find_component("halui")) {
-        throw ConfigError(e->file, e->line, "[HAL]HALUI = halui, and a HAL file loads halui too: keep one of them");
+        throw ConfigError(e->file, e->line, "[HAL]HALUI = halui, and a HAL file or [HAL]HALCMD loads halui too: keep one of them");
       }
       interp_->execute("loadrt halui");
     }
