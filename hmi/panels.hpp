@@ -357,6 +357,7 @@ class ScopePage : public QWidget {
   QSpinBox* pre_;
   QSpinBox* samples_;
   QComboBox* mode_;
+  class QCheckBox* normalise_;
   QPushButton* run_;
   QPushButton* stop_;
   QPushButton* export_;

@@ -1,5 +1,6 @@
 // The Scope page: the controller's HAL scope driven through the screen's
 // halcmd channel, the capture plotted and exported.
+#include <QCheckBox>
 #include <QComboBox>
 #include <QFileDialog>
 #include <QFormLayout>
@@ -82,6 +83,12 @@ ScopePage::ScopePage(Screen& s, HalChannel* hal, QWidget* parent) : QWidget(pare
   mode_->addItem("normal: every trigger", static_cast<int>(scope::Mode::Normal));
   mode_->addItem("auto: forced without trigger", static_cast<int>(scope::Mode::Auto));
   right->addRow("Mode", mode_);
+  normalise_ = new QCheckBox("own scale per pin", this);
+  normalise_->setObjectName("scopeNormalise");
+  normalise_->setChecked(true);
+  normalise_->setToolTip("draw every pin from its minimum (0) to its maximum (1), its range in the legend: a following "
+                         "error beside a position stays visible");
+
   auto* buttons = new QHBoxLayout();
   run_ = ui::button("Run", "scopeRun", this);
   stop_ = ui::button("Stop", "scopeStop", this);
@@ -89,6 +96,7 @@ ScopePage::ScopePage(Screen& s, HalChannel* hal, QWidget* parent) : QWidget(pare
   buttons->addWidget(run_);
   buttons->addWidget(stop_);
   buttons->addWidget(export_);
+  buttons->addWidget(normalise_);
   buttons->addStretch(1);
   state_ = new QLabel(hal_ ? "Scope idle" : "No HAL channel to the controller: the scope is not available", this);
   state_->setObjectName("scopeState");
@@ -105,6 +113,7 @@ ScopePage::ScopePage(Screen& s, HalChannel* hal, QWidget* parent) : QWidget(pare
   view_->setMinimumHeight(200);
   v->addWidget(view_, 1);
   connect(run_, &QPushButton::clicked, this, [this]() { run(); });
+  connect(normalise_, &QCheckBox::toggled, this, [this](bool) { plot(); });
   connect(stop_, &QPushButton::clicked, this, [this]() { stop(); });
   connect(export_, &QPushButton::clicked, this, [this]() {
     const QString path = QFileDialog::getSaveFileName(this, "Export the capture", "scope.csv", "CSV (*.csv)");
@@ -241,18 +250,25 @@ void ScopePage::plot() {
   auto* y = new QValueAxis();
   chart->addAxis(x, Qt::AlignBottom);
   chart->addAxis(y, Qt::AlignLeft);
+  const bool normalise = normalise_->isChecked();
   double lo = 0, hi = 0;
   bool first = true;
   // At most about 2000 points per line on the screen; the CSV keeps all.
   const std::size_t n = capture_->time.size();
   const std::size_t step = std::max<std::size_t>(1, n / 2000);
   for (std::size_t c = 0; c < capture_->columns.size(); ++c) {
+    const auto& col = capture_->columns[c];
+    const auto [mn, mx] = std::minmax_element(col.begin(), col.end());
+    const double cmin = *mn, cmax = *mx;
     auto* series = new QLineSeries();
-    series->setName(QString::fromStdString(capture_->names[c]));
+    QString name = QString::fromStdString(capture_->names[c]);
+    if (normalise) name += QString(" (%1 … %2)").arg(cmin, 0, 'g', 5).arg(cmax, 0, 'g', 5);
+    series->setName(name);
     QList<QPointF> pts;
     pts.reserve(static_cast<qsizetype>(n / step + 1));
     for (std::size_t i = 0; i < n; i += step) {
-      const double val = capture_->columns[c][i];
+      double val = col[i];
+      if (normalise) val = cmax > cmin ? (val - cmin) / (cmax - cmin) : 0.5;
       pts.append(QPointF(capture_->time[i], val));
       if (first || val < lo) lo = val;
       if (first || val > hi) hi = val;
@@ -263,6 +279,7 @@ void ScopePage::plot() {
     series->attachAxis(x);
     series->attachAxis(y);
   }
+  y->setTitleText(normalise ? "each pin: 0 = its minimum, 1 = its maximum" : "value");
   const double pad = hi > lo ? (hi - lo) * 0.05 : std::max(1e-6, std::fabs(hi) * 0.05 + 1e-6);
   y->setRange(lo - pad, hi + pad);
 }

@@ -5,6 +5,7 @@
 #include <QDir>
 #include <QFileInfo>
 #include <QInputDialog>
+#include <QCheckBox>
 #include <QComboBox>
 #include <QLabel>
 #include <QtCharts/QChartView>
@@ -698,6 +699,10 @@ class WidgetTests : public QObject {
     QCOMPARE(scope_lines.back(), std::string("scope csv"));
     auto* view = r.find<QChartView>("scopeChart");
     QCOMPARE(view->chart()->series().size(), 2);
+    // Each pin on its own scale by default, its range in the legend.
+    QCOMPARE(view->chart()->series()[0]->name(), QString("a.b (1 … 3)"));
+    r.find<QCheckBox>("scopeNormalise")->setChecked(false);
+    QCOMPARE(view->chart()->series()[0]->name(), QString("a.b"));
     QVERIFY(r.find<QPushButton>("scopeRun")->isEnabled());  // single: done
     const QString out = r.dir.path() + "/capture.csv";
     QVERIFY(r.w->findChild<ScopePage*>("scopePage")->export_csv(out));
