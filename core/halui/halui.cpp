@@ -32,10 +32,10 @@ Halui::Edge Halui::edge(const std::string& name) {
   return e;
 }
 
-void Halui::make_override(OverridePins& o, const std::string& p, double default_scale) {
+void Halui::make_override(OverridePins& o, const std::string& p, double default_scale, bool with_reset) {
   o.increase = make_pin<bool>("halui." + p + ".increase", PinDir::In);
   o.decrease = make_pin<bool>("halui." + p + ".decrease", PinDir::In);
-  o.reset = make_pin<bool>("halui." + p + ".reset", PinDir::In);
+  if (with_reset) o.reset = make_pin<bool>("halui." + p + ".reset", PinDir::In);
   o.count_enable = make_pin<bool>("halui." + p + ".count-enable", PinDir::In, true);
   o.direct_value = make_pin<bool>("halui." + p + ".direct-value", PinDir::In);
   o.counts = make_pin<int32_t>("halui." + p + ".counts", PinDir::In);
@@ -100,6 +100,18 @@ Halui::Halui(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(
   lube_off_ = edge("lube.off");
   lube_is_on_ = make_pin<bool>("halui.lube.is-on", PinDir::Out);
   abort_ = edge("abort");
+  optional_stop_on_ = edge("program.optional-stop.on");
+  optional_stop_off_ = edge("program.optional-stop.off");
+  optional_stop_is_on_ = make_pin<bool>("halui.program.optional-stop.is-on", PinDir::Out);
+  block_delete_on_ = edge("program.block-delete.on");
+  block_delete_off_ = edge("program.block-delete.off");
+  block_delete_is_on_ = make_pin<bool>("halui.program.block-delete.is-on", PinDir::Out);
+  mode_joint_ = edge("mode.joint");
+  mode_teleop_ = edge("mode.teleop");
+  mode_is_joint_ = make_pin<bool>("halui.mode.is-joint", PinDir::Out);
+  mode_is_teleop_ = make_pin<bool>("halui.mode.is-teleop", PinDir::Out);
+  units_per_mm_ = make_pin<double>("halui.machine.units-per-mm", PinDir::Out);
+  make_override(max_velocity_, "max-velocity", 0.1, false);
   tool_number_ = make_pin<uint32_t>("halui.tool.number", PinDir::Out);
   for (int i = 0; i < kNumAxes; ++i) {
     tool_length_offset_[static_cast<std::size_t>(i)] =
@@ -146,6 +158,15 @@ Halui::Halui(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(
     jj.increment = make_pin<double>(p + ".increment", PinDir::In);
     jj.analog = make_pin<double>(p + ".analog", PinDir::In);
     joint_jogs_.push_back(jj);
+    JointStatusPins js;
+    js.unhome = edge("joint." + std::to_string(j) + ".unhome");
+    js.has_fault = make_pin<bool>(p + ".has-fault", PinDir::Out);
+    js.on_hard_max = make_pin<bool>(p + ".on-hard-max-limit", PinDir::Out);
+    js.on_hard_min = make_pin<bool>(p + ".on-hard-min-limit", PinDir::Out);
+    js.on_soft_max = make_pin<bool>(p + ".on-soft-max-limit", PinDir::Out);
+    js.on_soft_min = make_pin<bool>(p + ".on-soft-min-limit", PinDir::Out);
+    js.override_limits = make_pin<bool>(p + ".override-limits", PinDir::Out);
+    joint_status_.push_back(js);
   }
   for (std::size_t i = 0; i < mdi_commands_.size(); ++i) mdi_.push_back(edge("mdi-command-" + two_digits(i)));
 }
@@ -217,7 +238,7 @@ void Halui::poll_override(OverridePins& o, double current, double max,
   o.value.set(current);
   const double scale = o.scale.get();
   const int32_t counts = o.counts.get();
-  const bool inc = o.increase.get(), dec = o.decrease.get(), rst = o.reset.get();
+  const bool inc = o.increase.get(), dec = o.decrease.get(), rst = o.reset.valid() && o.reset.get();
   double target = std::nan("");
   if (!o.primed) {
     // The first poll takes the inputs as they are: no jump at start.
@@ -292,6 +313,21 @@ void Halui::poll(const ipc::Status& s, const Sender& send) {
   lube_is_on_.set(s.io.lube);
   tool_number_.set(static_cast<uint32_t>(std::max(0, s.io.tool_in_spindle)));
   for (int i = 0; i < kNumAxes; ++i) tool_length_offset_[static_cast<std::size_t>(i)].set(t.tool_offset[i]);
+  optional_stop_is_on_.set(t.optional_stop);
+  block_delete_is_on_.set(t.block_delete);
+  mode_is_teleop_.set(s.motion.teleop_enabled);
+  mode_is_joint_.set(!s.motion.teleop_enabled);
+  units_per_mm_.set(s.motion.linear_units);
+  for (std::size_t j = 0; j < joint_status_.size(); ++j) {
+    const ipc::JointStatus& js = s.joints[j];
+    JointStatusPins& p = joint_status_[j];
+    p.has_fault.set(js.fault);
+    p.on_hard_max.set(js.max_hard_limit);
+    p.on_hard_min.set(js.min_hard_limit);
+    p.on_soft_max.set(js.max_soft_limit);
+    p.on_soft_min.set(js.min_soft_limit);
+    p.override_limits.set(js.override_limits);
+  }
   for (std::size_t j = 0; j < joint_is_homed_.size(); ++j) joint_is_homed_[j].set(s.joints[j].homed);
   for (auto& a : axes_) {
     a.pos_commanded.set(s.motion.position[a.index]);
@@ -331,6 +367,12 @@ void Halui::poll(const ipc::Status& s, const Sender& send) {
   if (mode_mdi_.rose()) send(cmd::set_mode(ipc::TaskMode::Mdi));
   if (program_stop_.rose()) send(cmd::abort());
   if (abort_.rose()) send(cmd::abort());
+  if (optional_stop_on_.rose()) send(cmd::optional_stop(true));
+  if (optional_stop_off_.rose()) send(cmd::optional_stop(false));
+  if (block_delete_on_.rose()) send(cmd::block_delete(true));
+  if (block_delete_off_.rose()) send(cmd::block_delete(false));
+  if (mode_joint_.rose()) send(cmd::teleop_enable(false));
+  if (mode_teleop_.rose()) send(cmd::teleop_enable(true));
   if (program_pause_.rose()) send(cmd::pause());
   if (program_resume_.rose()) send(cmd::resume());
   if (program_step_.rose()) in_mode(ipc::TaskMode::Auto, cmd::step());
@@ -338,6 +380,7 @@ void Halui::poll(const ipc::Status& s, const Sender& send) {
   if (home_all_.rose()) in_mode(ipc::TaskMode::Manual, cmd::home(-1));
   for (std::size_t j = 0; j < joint_home_.size(); ++j) {
     if (joint_home_[j].rose()) in_mode(ipc::TaskMode::Manual, cmd::home(static_cast<int>(j)));
+    if (joint_status_[j].unhome.rose()) in_mode(ipc::TaskMode::Manual, cmd::unhome(static_cast<int>(j)));
   }
   const ipc::SpindleStatus& sp = s.spindles[0];
   const double rpm = sp.speed != 0 ? std::fabs(sp.speed) : default_spindle_speed_;
@@ -371,6 +414,9 @@ void Halui::poll(const ipc::Status& s, const Sender& send) {
 
   poll_override(feed_, s.motion.feed_scale, max_feed_override_, [](double v) { return cmd::feed_override(v); }, send);
   poll_override(rapid_, s.motion.rapid_scale, 1.0, [](double v) { return cmd::rapid_override(v); }, send);
+  // Max velocity in machine units per second (the controller limits it to
+  // the machine's).
+  poll_override(max_velocity_, s.motion.max_velocity, 1e9, [](double v) { return cmd::max_velocity(v); }, send);
   poll_override(spindle_override_, sp.override_scale, max_spindle_override_,
                 [](double v) { return cmd::spindle_override(v, 0); }, send);
 }

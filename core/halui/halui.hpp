@@ -80,7 +80,8 @@ class Halui : public hal::Component {
     }
   };
   Edge edge(const std::string& name);
-  void make_override(OverridePins& o, const std::string& prefix, double default_scale);
+  // `with_reset`: LinuxCNC's max-velocity has no reset pin.
+  void make_override(OverridePins& o, const std::string& prefix, double default_scale, bool with_reset = true);
   void poll_override(OverridePins& o, double current, double max, const std::function<ipc::Command(double)>& make,
                      const Sender& send);
   void run_worker();
@@ -109,6 +110,16 @@ class Halui : public hal::Component {
   Edge spindle_start_, spindle_stop_, spindle_forward_, spindle_reverse_, spindle_increase_, spindle_decrease_;
   Edge spindle_brake_on_, spindle_brake_off_;
   Edge flood_on_, flood_off_, mist_on_, mist_off_, lube_on_, lube_off_, abort_;
+  Edge optional_stop_on_, optional_stop_off_, block_delete_on_, block_delete_off_, mode_joint_, mode_teleop_;
+  hal::BitPin optional_stop_is_on_, block_delete_is_on_, mode_is_joint_, mode_is_teleop_;
+  hal::FloatPin units_per_mm_;
+  // Per joint: unhome, and LinuxCNC's joint status pins.
+  struct JointStatusPins {
+    Edge unhome;
+    hal::BitPin has_fault, on_hard_max, on_hard_min, on_soft_max, on_soft_min, override_limits;
+  };
+  std::vector<JointStatusPins> joint_status_;
+  OverridePins max_velocity_;
   std::vector<Edge> joint_home_, mdi_;
   std::vector<hal::BitPin> joint_is_homed_;
   hal::BitPin machine_is_on_, estop_is_activated_, mode_is_manual_, mode_is_auto_, mode_is_mdi_;
