@@ -476,6 +476,8 @@ class E2eTests : public QObject {
     QVERIFY2(!routine.failed(), routine.error().c_str());
     QCOMPARE(stages, 3);  // to the setter, probe, result
     const double expected = contact + 118;
+    qInfo("tool length through cnc mdi: %.4f, setter contact + 118: %.4f, difference %.2f um", routine.result().tool_length,
+          expected, (routine.result().tool_length - expected) * 1000);
     QVERIFY2(std::fabs(routine.result().tool_length - expected) < 0.005,
              qPrintable(QString("length %1, expected %2").arg(routine.result().tool_length).arg(expected)));
     QTRY_VERIFY_WITH_TIMEOUT(
