@@ -445,6 +445,7 @@ HmiConfig HmiConfig::from_ini(const ini::IniFile& ini) {
     c.postgui_halfiles.push_back(ini.resolve_path(v));
   }
   for (const auto& cmd : ini.find_all("HAL", "POSTGUI_HALCMD")) c.postgui_halcmds.emplace_back(trim(cmd));
+  c.probe = probing::Settings::from_ini(ini);
   return c;
 }
 

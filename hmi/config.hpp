@@ -12,6 +12,8 @@
 #include <string_view>
 #include <vector>
 
+#include "hmi/probing.hpp"
+
 namespace cnc::ini {
 class IniFile;
 }
@@ -121,6 +123,8 @@ struct HmiConfig {
   std::vector<EmbedTab> embed_tabs;
   std::vector<std::filesystem::path> postgui_halfiles;
   std::vector<std::string> postgui_halcmds;
+
+  probing::Settings probe;  // [PROBE]
 
   // What the reader could not use, for the screen's log (file:line: ...).
   std::vector<std::string> warnings;

@@ -321,6 +321,10 @@ void MainWindow::build() {
   tabs_->addTab(alarms_page_, "Alarms / log");
   drives_ = new DrivesPage(screen_, tabs_);
   tabs_->addTab(drives_, "Drives");
+  probe_ = new ProbePage(screen_, tabs_);
+  tabs_->addTab(probe_, "Probe");
+  scope_ = new ScopePage(screen_, hal_.get(), tabs_);
+  tabs_->addTab(scope_, "Scope");
   if (options_.embed_tabs) {
     const QString dir = QString::fromStdString(config_.ini_path.parent_path().string());
     for (const auto& e : config_.embed_tabs) {
@@ -444,6 +448,7 @@ void MainWindow::tick() {
   overrides_->refresh();
   bar_->refresh();
   drives_->sample(static_cast<double>(monotonic_ns()) * 1e-9);
+  probe_->refresh();  // a running routine goes on whichever page is shown
   refresh_pages();
 }
 
@@ -453,6 +458,7 @@ void MainWindow::refresh_pages() {
   else if (current == tools_) tools_->refresh();
   else if (current == offsets_) offsets_->refresh();
   else if (current == drives_) drives_->refresh();
+  if (current == scope_ || scope_->capturing()) scope_->refresh();
   if (alarms_.revision() != alarms_revision_) {
     alarms_revision_ = alarms_.revision();
     alarms_page_->refresh_alarms();
@@ -713,6 +719,7 @@ void MainWindow::hal_setup() {
 }
 
 void MainWindow::hal_replied(int tag, const QString& line, bool ok, const QString& text) {
+  if (tag >= ScopePage::kTagFirst && tag <= ScopePage::kTagLast) return;  // the Scope page's own
   if (tag == kTagSetup || tag == kTagPostgui) hal_pending_ = std::max(0, hal_pending_ - 1);
   if (ok) {
     if (tag == kTagPostgui) {

@@ -37,6 +37,8 @@ class DroPanel;
 class ManualPanel;
 class OverridePanel;
 class ProgramBar;
+class ProbePage;
+class ScopePage;
 class MdiPage;
 class ToolPage;
 class OffsetsPage;
@@ -127,6 +129,8 @@ class MainWindow : public QMainWindow {
   ToolPage* tools_ = nullptr;
   OffsetsPage* offsets_ = nullptr;
   AlarmsPage* alarms_page_ = nullptr;
+  ProbePage* probe_ = nullptr;
+  ScopePage* scope_ = nullptr;
   DrivesPage* drives_ = nullptr;
   QWidget* program_page_ = nullptr;
 

@@ -8,6 +8,8 @@
 #include <memory>
 #include <vector>
 
+#include "hmi/probing.hpp"
+#include "hmi/scope_view.hpp"
 #include "hmi/screen.hpp"
 
 class QLabel;
@@ -269,6 +271,103 @@ class DrivesPage : public QWidget {
   QLabel* legend_;  // the trends' colours, by drive
   std::vector<QPushButton*> home_;
   std::unique_ptr<DriveCharts> charts_;
+};
+
+// Probing (hmi/probing.hpp): tool length on the tool setter, edges,
+// corners, bore and boss centres, each optionally setting the origin of
+// any coordinate system; touch-off of the current position into any
+// coordinate system. The routine's stages go as MDI lines through the
+// command tracker, one stage after the other; each probe's result is read
+// from the status of the cycle after the stage was done.
+class ProbePage : public QWidget {
+  Q_OBJECT
+ public:
+  ProbePage(Screen& s, QWidget* parent = nullptr);
+  ~ProbePage() override;
+  // Every cycle (the routine runs whichever page is shown).
+  void refresh();
+  bool running() const;
+  // Starts the routine selected on the page; false with the reason logged
+  // and shown when it cannot start.
+  bool start();
+
+ private:
+  void send_stage();
+  void finished();
+  void touch_off();
+  void update_fields();
+  Screen& s_;
+  QComboBox* kind_;
+  QSpinBox* tool_;
+  QComboBox* corner_x_;
+  QComboBox* corner_y_;
+  QLineEdit* corner_step_;
+  QLineEdit* boss_diameter_;
+  QLineEdit* boss_depth_;
+  QComboBox* system_;
+  QLineEdit* value_x_;
+  QLineEdit* value_y_;
+  QPushButton* start_;
+  QPushButton* stop_;
+  QLabel* stage_;
+  QLabel* result_;
+  QLabel* settings_;
+  QComboBox* touch_axis_;
+  QComboBox* touch_system_;
+  QLineEdit* touch_value_;
+  QPushButton* touch_button_;
+  std::unique_ptr<probing::Routine> routine_;
+  int wait_cycles_ = 0;  // > 0: the stage is done; its result is read when this reaches 0
+};
+
+// The controller's HAL scope (docs/hal.md, "Scope and watch") on the
+// screen: pins, trigger, edge, level, pre-trigger, samples and mode
+// (single, normal, auto), run and stop, the capture plotted with QtCharts
+// (one line per pin against time from the trigger) and exported as CSV.
+// Drives the scope with halcmd lines through the screen's HAL channel
+// (hmi/scope_view.hpp builds and reads them); needs `loadrt scope` and
+// `addf scope.sample servo-thread` in the machine's HAL.
+class HalChannel;
+class ScopePage : public QWidget {
+  Q_OBJECT
+ public:
+  // Tags of the HAL channel's requests that belong to this page.
+  static constexpr int kTagFirst = 100, kTagLast = 109;
+  ScopePage(Screen& s, HalChannel* hal, QWidget* parent = nullptr);
+  ~ScopePage() override;
+  // Every cycle while shown or while a capture runs: polls the state.
+  void refresh();
+  bool capturing() const { return capturing_; }
+  // Runs a capture with the page's settings; false with the reason shown.
+  bool run();
+  void stop();
+  // Writes the last capture's CSV; false with the reason shown.
+  bool export_csv(const QString& path);
+  const scope::Capture* last_capture() const { return capture_.get(); }
+
+ private:
+  void replied(int tag, const QString& line, bool ok, const QString& text);
+  void plot();
+  Screen& s_;
+  HalChannel* hal_;
+  QLineEdit* pins_;
+  QLineEdit* trigger_;
+  QComboBox* edge_;
+  QLineEdit* level_;
+  QSpinBox* pre_;
+  QSpinBox* samples_;
+  QComboBox* mode_;
+  class QCheckBox* normalise_;
+  QPushButton* run_;
+  QPushButton* stop_;
+  QPushButton* export_;
+  QLabel* state_;
+  class QChartView* view_;
+  std::unique_ptr<scope::Capture> capture_;
+  bool capturing_ = false;
+  bool state_pending_ = false;
+  bool normal_mode_ = false;
+  int captures_ = 0;
 };
 
 }  // namespace cnc::hmi

@@ -97,6 +97,18 @@ Controller::Controller(const Options& options) : options_(options), status_(std:
         throw ConfigError(e->file, e->line, "[HAL]HALCMD: " + std::string(ex.what()));
       }
     }
+    // [HAL]HALUI = halui: LinuxCNC's launcher starts halui after the HAL
+    // files (its pins are netted in POSTGUI_HALFILEs); here it is the
+    // halui component, loaded at the same point.
+    if (const ini::Entry* e = ini_.find_entry("HAL", "HALUI")) {
+      if (e->value != "halui") {
+        throw ConfigError(e->file, e->line, "[HAL]HALUI = " + e->value + ": only halui (this controller's component) can be started");
+      }
+      if (hal_.find_component("halui")) {
+        throw ConfigError(e->file, e->line, "[HAL]HALUI = halui, and a HAL file or [HAL]HALCMD loads halui too: keep one of them");
+      }
+      interp_->execute("loadrt halui");
+    }
     for (hal::Component* c : hal_.components()) c->on_ready();
   } catch (...) {
     hal_.stop_threads();

@@ -98,7 +98,6 @@ const std::vector<IgnoredKey>& ignored_linuxcnc_keys() {
       {"EMCMOT", "BASE_PERIOD"},
       {"EMCMOT", "TRAJ_PERIOD"},
       {"HAL", "TWOPASS"},
-      {"HAL", "HALUI"},
       {"TRAJ", "ARC_BLEND_*"},
       {"TRAJ", "DEFAULT_LINEAR_ACCELERATION"},
       {"TRAJ", "DEFAULT_ANGULAR_VELOCITY"},

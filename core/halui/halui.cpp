@@ -32,10 +32,10 @@ Halui::Edge Halui::edge(const std::string& name) {
   return e;
 }
 
-void Halui::make_override(OverridePins& o, const std::string& p, double default_scale) {
+void Halui::make_override(OverridePins& o, const std::string& p, double default_scale, bool with_reset) {
   o.increase = make_pin<bool>("halui." + p + ".increase", PinDir::In);
   o.decrease = make_pin<bool>("halui." + p + ".decrease", PinDir::In);
-  o.reset = make_pin<bool>("halui." + p + ".reset", PinDir::In);
+  if (with_reset) o.reset = make_pin<bool>("halui." + p + ".reset", PinDir::In);
   o.count_enable = make_pin<bool>("halui." + p + ".count-enable", PinDir::In, true);
   o.direct_value = make_pin<bool>("halui." + p + ".direct-value", PinDir::In);
   o.counts = make_pin<int32_t>("halui." + p + ".counts", PinDir::In);
@@ -83,6 +83,40 @@ Halui::Halui(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(
   spindle_forward_ = edge("spindle.0.forward");
   spindle_reverse_ = edge("spindle.0.reverse");
   spindle_is_on_ = make_pin<bool>("halui.spindle.0.is-on", PinDir::Out);
+  spindle_increase_ = edge("spindle.0.increase");
+  spindle_decrease_ = edge("spindle.0.decrease");
+  spindle_brake_on_ = edge("spindle.0.brake-on");
+  spindle_brake_off_ = edge("spindle.0.brake-off");
+  spindle_brake_is_on_ = make_pin<bool>("halui.spindle.0.brake-is-on", PinDir::Out);
+  spindle_runs_forward_ = make_pin<bool>("halui.spindle.0.runs-forward", PinDir::Out);
+  spindle_runs_backward_ = make_pin<bool>("halui.spindle.0.runs-backward", PinDir::Out);
+  flood_on_ = edge("flood.on");
+  flood_off_ = edge("flood.off");
+  flood_is_on_ = make_pin<bool>("halui.flood.is-on", PinDir::Out);
+  mist_on_ = edge("mist.on");
+  mist_off_ = edge("mist.off");
+  mist_is_on_ = make_pin<bool>("halui.mist.is-on", PinDir::Out);
+  lube_on_ = edge("lube.on");
+  lube_off_ = edge("lube.off");
+  lube_is_on_ = make_pin<bool>("halui.lube.is-on", PinDir::Out);
+  abort_ = edge("abort");
+  optional_stop_on_ = edge("program.optional-stop.on");
+  optional_stop_off_ = edge("program.optional-stop.off");
+  optional_stop_is_on_ = make_pin<bool>("halui.program.optional-stop.is-on", PinDir::Out);
+  block_delete_on_ = edge("program.block-delete.on");
+  block_delete_off_ = edge("program.block-delete.off");
+  block_delete_is_on_ = make_pin<bool>("halui.program.block-delete.is-on", PinDir::Out);
+  mode_joint_ = edge("mode.joint");
+  mode_teleop_ = edge("mode.teleop");
+  mode_is_joint_ = make_pin<bool>("halui.mode.is-joint", PinDir::Out);
+  mode_is_teleop_ = make_pin<bool>("halui.mode.is-teleop", PinDir::Out);
+  units_per_mm_ = make_pin<double>("halui.machine.units-per-mm", PinDir::Out);
+  make_override(max_velocity_, "max-velocity", 0.1, false);
+  tool_number_ = make_pin<uint32_t>("halui.tool.number", PinDir::Out);
+  for (int i = 0; i < kNumAxes; ++i) {
+    tool_length_offset_[static_cast<std::size_t>(i)] =
+        make_pin<double>(std::string("halui.tool.length-offset.") + kAxisLetters[i], PinDir::Out);
+  }
   make_override(feed_, "feed-override", 0.1);
   make_override(rapid_, "rapid-override", 0.1);
   make_override(spindle_override_, "spindle.0.override", 0.1);
@@ -109,9 +143,30 @@ Halui::Halui(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(
     axes_.push_back(a);
   }
   if (joints < 0) joints = static_cast<int>(axes_.size());
+  joint_jog_speed_ = make_pin<double>("halui.joint.jog-speed", PinDir::In);
+  joint_jog_deadband_ = make_pin<double>("halui.joint.jog-deadband", PinDir::In, 0.2);
   for (int j = 0; j < joints; ++j) {
+    const std::string p = "halui.joint." + std::to_string(j);
     joint_home_.push_back(edge("joint." + std::to_string(j) + ".home"));
-    joint_is_homed_.push_back(make_pin<bool>("halui.joint." + std::to_string(j) + ".is-homed", PinDir::Out));
+    joint_is_homed_.push_back(make_pin<bool>(p + ".is-homed", PinDir::Out));
+    JointJogPins jj;
+    jj.index = j;
+    jj.plus = make_pin<bool>(p + ".plus", PinDir::In);
+    jj.minus = make_pin<bool>(p + ".minus", PinDir::In);
+    jj.increment_plus = make_pin<bool>(p + ".increment-plus", PinDir::In);
+    jj.increment_minus = make_pin<bool>(p + ".increment-minus", PinDir::In);
+    jj.increment = make_pin<double>(p + ".increment", PinDir::In);
+    jj.analog = make_pin<double>(p + ".analog", PinDir::In);
+    joint_jogs_.push_back(jj);
+    JointStatusPins js;
+    js.unhome = edge("joint." + std::to_string(j) + ".unhome");
+    js.has_fault = make_pin<bool>(p + ".has-fault", PinDir::Out);
+    js.on_hard_max = make_pin<bool>(p + ".on-hard-max-limit", PinDir::Out);
+    js.on_hard_min = make_pin<bool>(p + ".on-hard-min-limit", PinDir::Out);
+    js.on_soft_max = make_pin<bool>(p + ".on-soft-max-limit", PinDir::Out);
+    js.on_soft_min = make_pin<bool>(p + ".on-soft-min-limit", PinDir::Out);
+    js.override_limits = make_pin<bool>(p + ".override-limits", PinDir::Out);
+    joint_status_.push_back(js);
   }
   for (std::size_t i = 0; i < mdi_commands_.size(); ++i) mdi_.push_back(edge("mdi-command-" + two_digits(i)));
 }
@@ -183,7 +238,7 @@ void Halui::poll_override(OverridePins& o, double current, double max,
   o.value.set(current);
   const double scale = o.scale.get();
   const int32_t counts = o.counts.get();
-  const bool inc = o.increase.get(), dec = o.decrease.get(), rst = o.reset.get();
+  const bool inc = o.increase.get(), dec = o.decrease.get(), rst = o.reset.valid() && o.reset.get();
   double target = std::nan("");
   if (!o.primed) {
     // The first poll takes the inputs as they are: no jump at start.
@@ -203,6 +258,41 @@ void Halui::poll_override(OverridePins& o, double current, double max,
   if (!std::isnan(target)) send(make(std::clamp(target, 0.0, max)));
 }
 
+// Continuous, incremental and analog jog pins of one axis or joint.
+template <typename Pins, typename InMode>
+void poll_jog(Pins& a, int index, bool joint, double speed, double deadband, InMode& in_mode,
+              const Halui::Sender& send) {
+  const bool plus = a.plus.get(), minus = a.minus.get();
+  const bool ip = a.increment_plus.get(), im = a.increment_minus.get();
+  if ((plus && !a.last_plus) || (minus && !a.last_minus)) {
+    in_mode(ipc::TaskMode::Manual, cmd::jog_continuous(index, joint, plus ? speed : -speed));
+  } else if ((!plus && a.last_plus) || (!minus && a.last_minus)) {
+    send(cmd::jog_stop(index, joint));
+  }
+  if ((ip && !a.last_inc_plus) || (im && !a.last_inc_minus)) {
+    const double inc = std::fabs(a.increment.get());
+    in_mode(ipc::TaskMode::Manual, cmd::jog_increment(index, joint, speed, ip ? inc : -inc));
+  }
+  a.last_plus = plus;
+  a.last_minus = minus;
+  a.last_inc_plus = ip;
+  a.last_inc_minus = im;
+  // Analog (a joystick, -1..1): a jog at analog x jog-speed outside the
+  // deadband, re-sent when it changes by more than 5 % of full speed.
+  const double v = a.analog.get();
+  if (std::fabs(v) > deadband) {
+    const double vel = std::clamp(v, -1.0, 1.0) * speed;
+    if (!a.analog_jogging || std::fabs(vel - a.analog_sent) > 0.05 * speed) {
+      in_mode(ipc::TaskMode::Manual, cmd::jog_continuous(index, joint, vel));
+      a.analog_jogging = true;
+      a.analog_sent = vel;
+    }
+  } else if (a.analog_jogging) {
+    send(cmd::jog_stop(index, joint));
+    a.analog_jogging = false;
+  }
+}
+
 void Halui::poll(const ipc::Status& s, const Sender& send) {
   const ipc::TaskStatus& t = s.task;
   // Status pins.
@@ -215,6 +305,29 @@ void Halui::poll(const ipc::Status& s, const Sender& send) {
   program_is_paused_.set(t.mode == ipc::TaskMode::Auto && t.paused);
   program_is_running_.set(t.mode == ipc::TaskMode::Auto && t.interp_state != ipc::InterpState::Idle && !t.paused);
   spindle_is_on_.set(s.spindles[0].enabled);
+  spindle_runs_forward_.set(s.spindles[0].enabled && s.spindles[0].direction > 0);
+  spindle_runs_backward_.set(s.spindles[0].enabled && s.spindles[0].direction < 0);
+  spindle_brake_is_on_.set(s.spindles[0].brake);
+  flood_is_on_.set(s.io.flood);
+  mist_is_on_.set(s.io.mist);
+  lube_is_on_.set(s.io.lube);
+  tool_number_.set(static_cast<uint32_t>(std::max(0, s.io.tool_in_spindle)));
+  for (int i = 0; i < kNumAxes; ++i) tool_length_offset_[static_cast<std::size_t>(i)].set(t.tool_offset[i]);
+  optional_stop_is_on_.set(t.optional_stop);
+  block_delete_is_on_.set(t.block_delete);
+  mode_is_teleop_.set(s.motion.teleop_enabled);
+  mode_is_joint_.set(!s.motion.teleop_enabled);
+  units_per_mm_.set(s.motion.linear_units);
+  for (std::size_t j = 0; j < joint_status_.size(); ++j) {
+    const ipc::JointStatus& js = s.joints[j];
+    JointStatusPins& p = joint_status_[j];
+    p.has_fault.set(js.fault);
+    p.on_hard_max.set(js.max_hard_limit);
+    p.on_hard_min.set(js.min_hard_limit);
+    p.on_soft_max.set(js.max_soft_limit);
+    p.on_soft_min.set(js.min_soft_limit);
+    p.override_limits.set(js.override_limits);
+  }
   for (std::size_t j = 0; j < joint_is_homed_.size(); ++j) joint_is_homed_[j].set(s.joints[j].homed);
   for (auto& a : axes_) {
     a.pos_commanded.set(s.motion.position[a.index]);
@@ -253,6 +366,13 @@ void Halui::poll(const ipc::Status& s, const Sender& send) {
   if (mode_auto_.rose()) send(cmd::set_mode(ipc::TaskMode::Auto));
   if (mode_mdi_.rose()) send(cmd::set_mode(ipc::TaskMode::Mdi));
   if (program_stop_.rose()) send(cmd::abort());
+  if (abort_.rose()) send(cmd::abort());
+  if (optional_stop_on_.rose()) send(cmd::optional_stop(true));
+  if (optional_stop_off_.rose()) send(cmd::optional_stop(false));
+  if (block_delete_on_.rose()) send(cmd::block_delete(true));
+  if (block_delete_off_.rose()) send(cmd::block_delete(false));
+  if (mode_joint_.rose()) send(cmd::teleop_enable(false));
+  if (mode_teleop_.rose()) send(cmd::teleop_enable(true));
   if (program_pause_.rose()) send(cmd::pause());
   if (program_resume_.rose()) send(cmd::resume());
   if (program_step_.rose()) in_mode(ipc::TaskMode::Auto, cmd::step());
@@ -260,6 +380,7 @@ void Halui::poll(const ipc::Status& s, const Sender& send) {
   if (home_all_.rose()) in_mode(ipc::TaskMode::Manual, cmd::home(-1));
   for (std::size_t j = 0; j < joint_home_.size(); ++j) {
     if (joint_home_[j].rose()) in_mode(ipc::TaskMode::Manual, cmd::home(static_cast<int>(j)));
+    if (joint_status_[j].unhome.rose()) in_mode(ipc::TaskMode::Manual, cmd::unhome(static_cast<int>(j)));
   }
   const ipc::SpindleStatus& sp = s.spindles[0];
   const double rpm = sp.speed != 0 ? std::fabs(sp.speed) : default_spindle_speed_;
@@ -267,47 +388,35 @@ void Halui::poll(const ipc::Status& s, const Sender& send) {
   if (spindle_forward_.rose()) send(cmd::spindle_on(rpm, 0));
   if (spindle_reverse_.rose()) send(cmd::spindle_on(-rpm, 0));
   if (spindle_start_.rose()) send(cmd::spindle_on(sp.direction < 0 ? -rpm : rpm, 0));
+  if (spindle_increase_.rose()) send(cmd::spindle_faster(0));
+  if (spindle_decrease_.rose()) send(cmd::spindle_slower(0));
+  if (spindle_brake_on_.rose()) send(cmd::spindle_brake(true, 0));
+  if (spindle_brake_off_.rose()) send(cmd::spindle_brake(false, 0));
+  if (flood_on_.rose()) send(cmd::flood(true));
+  if (flood_off_.rose()) send(cmd::flood(false));
+  if (mist_on_.rose()) send(cmd::mist(true));
+  if (mist_off_.rose()) send(cmd::mist(false));
+  if (lube_on_.rose()) send(cmd::lube(true));
+  if (lube_off_.rose()) send(cmd::lube(false));
   for (std::size_t i = 0; i < mdi_.size(); ++i) {
     if (mdi_[i].rose()) in_mode(ipc::TaskMode::Mdi, cmd::mdi(mdi_commands_[i]));
   }
 
   // Jogs: jog-speed is in units per minute (LinuxCNC's), commands take
-  // units per second.
+  // units per second. Axes jog in world (teleop) mode, joints in joint
+  // (free) mode; the controller refuses what the machine's state does not
+  // allow (an axis jog before homing on a non-trivial machine) and the
+  // rejection is posted.
   const double speed = std::fabs(jog_speed_.get()) / 60.0;
-  for (auto& a : axes_) {
-    const bool plus = a.plus.get(), minus = a.minus.get();
-    const bool ip = a.increment_plus.get(), im = a.increment_minus.get();
-    if ((plus && !a.last_plus) || (minus && !a.last_minus)) {
-      in_mode(ipc::TaskMode::Manual, cmd::jog_continuous(a.index, false, plus ? speed : -speed));
-    } else if ((!plus && a.last_plus) || (!minus && a.last_minus)) {
-      send(cmd::jog_stop(a.index, false));
-    }
-    if ((ip && !a.last_inc_plus) || (im && !a.last_inc_minus)) {
-      const double inc = std::fabs(a.increment.get());
-      in_mode(ipc::TaskMode::Manual, cmd::jog_increment(a.index, false, speed, ip ? inc : -inc));
-    }
-    a.last_plus = plus;
-    a.last_minus = minus;
-    a.last_inc_plus = ip;
-    a.last_inc_minus = im;
-    // Analog (a joystick, -1..1): a jog at analog x jog-speed outside the
-    // deadband, re-sent when it changes by more than 5 % of full speed.
-    const double v = a.analog.get();
-    if (std::fabs(v) > std::fabs(jog_deadband_.get())) {
-      const double vel = std::clamp(v, -1.0, 1.0) * speed;
-      if (!a.analog_jogging || std::fabs(vel - a.analog_sent) > 0.05 * speed) {
-        in_mode(ipc::TaskMode::Manual, cmd::jog_continuous(a.index, false, vel));
-        a.analog_jogging = true;
-        a.analog_sent = vel;
-      }
-    } else if (a.analog_jogging) {
-      send(cmd::jog_stop(a.index, false));
-      a.analog_jogging = false;
-    }
-  }
+  for (auto& a : axes_) poll_jog(a, a.index, false, speed, std::fabs(jog_deadband_.get()), in_mode, send);
+  const double joint_speed = std::fabs(joint_jog_speed_.get()) / 60.0;
+  for (auto& j : joint_jogs_) poll_jog(j, j.index, true, joint_speed, std::fabs(joint_jog_deadband_.get()), in_mode, send);
 
   poll_override(feed_, s.motion.feed_scale, max_feed_override_, [](double v) { return cmd::feed_override(v); }, send);
   poll_override(rapid_, s.motion.rapid_scale, 1.0, [](double v) { return cmd::rapid_override(v); }, send);
+  // Max velocity in machine units per second (the controller limits it to
+  // the machine's).
+  poll_override(max_velocity_, s.motion.max_velocity, 1e9, [](double v) { return cmd::max_velocity(v); }, send);
   poll_override(spindle_override_, sp.override_scale, max_spindle_override_,
                 [](double v) { return cmd::spindle_override(v, 0); }, send);
 }

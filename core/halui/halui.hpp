@@ -6,6 +6,7 @@
 // status pins from the shared status block. docs/hal.md lists the pins.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <functional>
 #include <memory>
@@ -32,6 +33,16 @@ struct AxisPins {
   int index = 0;  // 0 = X .. 8 = W
   hal::BitPin plus, minus, increment_plus, increment_minus;
   hal::FloatPin increment, analog, pos_commanded, pos_feedback;
+  bool last_plus = false, last_minus = false, last_inc_plus = false, last_inc_minus = false;
+  bool analog_jogging = false;
+  double analog_sent = 0;
+};
+
+// One joint's jog pins (halui.joint.N.*), jogged in joint (free) mode.
+struct JointJogPins {
+  int index = 0;
+  hal::BitPin plus, minus, increment_plus, increment_minus;
+  hal::FloatPin increment, analog;
   bool last_plus = false, last_minus = false, last_inc_plus = false, last_inc_minus = false;
   bool analog_jogging = false;
   double analog_sent = 0;
@@ -69,7 +80,8 @@ class Halui : public hal::Component {
     }
   };
   Edge edge(const std::string& name);
-  void make_override(OverridePins& o, const std::string& prefix, double default_scale);
+  // `with_reset`: LinuxCNC's max-velocity has no reset pin.
+  void make_override(OverridePins& o, const std::string& prefix, double default_scale, bool with_reset = true);
   void poll_override(OverridePins& o, double current, double max, const std::function<ipc::Command(double)>& make,
                      const Sender& send);
   void run_worker();
@@ -95,11 +107,29 @@ class Halui : public hal::Component {
 
   Edge machine_on_, machine_off_, estop_activate_, estop_reset_, mode_manual_, mode_auto_, mode_mdi_;
   Edge program_run_, program_pause_, program_resume_, program_step_, program_stop_, home_all_;
-  Edge spindle_start_, spindle_stop_, spindle_forward_, spindle_reverse_;
+  Edge spindle_start_, spindle_stop_, spindle_forward_, spindle_reverse_, spindle_increase_, spindle_decrease_;
+  Edge spindle_brake_on_, spindle_brake_off_;
+  Edge flood_on_, flood_off_, mist_on_, mist_off_, lube_on_, lube_off_, abort_;
+  Edge optional_stop_on_, optional_stop_off_, block_delete_on_, block_delete_off_, mode_joint_, mode_teleop_;
+  hal::BitPin optional_stop_is_on_, block_delete_is_on_, mode_is_joint_, mode_is_teleop_;
+  hal::FloatPin units_per_mm_;
+  // Per joint: unhome, and LinuxCNC's joint status pins.
+  struct JointStatusPins {
+    Edge unhome;
+    hal::BitPin has_fault, on_hard_max, on_hard_min, on_soft_max, on_soft_min, override_limits;
+  };
+  std::vector<JointStatusPins> joint_status_;
+  OverridePins max_velocity_;
   std::vector<Edge> joint_home_, mdi_;
   std::vector<hal::BitPin> joint_is_homed_;
   hal::BitPin machine_is_on_, estop_is_activated_, mode_is_manual_, mode_is_auto_, mode_is_mdi_;
   hal::BitPin program_is_idle_, program_is_running_, program_is_paused_, spindle_is_on_;
+  hal::BitPin spindle_runs_forward_, spindle_runs_backward_, spindle_brake_is_on_;
+  hal::BitPin flood_is_on_, mist_is_on_, lube_is_on_;
+  hal::U32Pin tool_number_;
+  std::array<hal::FloatPin, kNumAxes> tool_length_offset_{};
+  hal::FloatPin joint_jog_speed_, joint_jog_deadband_;
+  std::vector<JointJogPins> joint_jogs_;
   hal::FloatPin jog_speed_, jog_deadband_;
   OverridePins feed_, rapid_, spindle_override_;
   std::vector<AxisPins> axes_;

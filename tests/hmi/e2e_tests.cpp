@@ -13,6 +13,8 @@
 #include <QtCharts/QChartView>
 #include <QLabel>
 #include <QLineEdit>
+#include <QComboBox>
+#include <QSpinBox>
 #include <QMessageBox>
 #include <QProcess>
 #include <QScreen>
@@ -33,6 +35,8 @@
 #include "hmi/main_window.hpp"
 #include "hmi/positions.hpp"
 #include "hmi/preview_widget.hpp"
+#include "hmi/panels.hpp"
+#include "hmi/probing.hpp"
 
 using namespace cnc;
 using namespace cnc::hmi;
@@ -61,7 +65,12 @@ const char* kExtraIni =
     "MDI_HISTORY_FILE = mdi_history.txt\n"
     "MESSAGE_BOLDTEXT = Lubrication\nMESSAGE_TEXT = Check the way oil level\n"
     "MESSAGE_TYPE = okdialog status\nMESSAGE_PINNAME = e2e-note\n"
-    "\n[HAL]\nPOSTGUI_HALCMD = net e2e-note-signal hmi.e2e-note\n";
+    "\n[HAL]\nPOSTGUI_HALCMD = net e2e-note-signal hmi.e2e-note\n"
+    // The tool setter of configs/sim trips at table Z -100 (machine Z near
+    // -100); a tool of length 0 would touch it at Z -118.
+    "\n[PROBE]\nTIP_DIAMETER = 2\nSEARCH_DISTANCE = 10\nLATCH_DISTANCE = 1\nSEARCH_FEED = 300\nLATCH_FEED = 30\n"
+    "SETTER_X = 250\nSETTER_Y = 150\nSETTER_Z = -85\nSETTER_SAFE_Z = 0\nSETTER_REFERENCE_Z = -118\n"
+    "SETTER_SEARCH_DISTANCE = 32\n";
 
 }  // namespace
 
@@ -137,6 +146,8 @@ class E2eTests : public QObject {
     std::filesystem::copy(std::filesystem::path(CNC_SOURCE_DIR) / "configs/sim", run_, std::filesystem::copy_options::recursive);
     std::ofstream(run_ / "sim.ini", std::ios::app) << kExtraIni;
     std::ofstream(run_ / "nc_files/e2e.ngc") << kProgram;
+    // The HAL scope for the Scope page (as tests/system/scope_capture.sh).
+    std::ofstream(run_ / "sim.hal", std::ios::app) << "\nloadrt scope samples=2000\naddf scope.sample servo-thread\n";
     cncd_.setProgram(QString(CNC_BINARY_DIR) + "/bin/cncd");
     cncd_.setArguments({"--instance", QString::fromStdString(instance_), QString::fromStdString((run_ / "sim.ini").string())});
     cncd_.setStandardErrorFile(QString::fromStdString((run_ / "cncd.log").string()));
@@ -423,6 +434,133 @@ class E2eTests : public QObject {
     QVERIFY(effective);
     QVERIFY(effective->text().contains("mm/min"));
     QVERIFY(effective->text().contains("actual"));
+  }
+
+  // Machine Z where the simulated setter trips: table Z -100 plus the Z
+  // drive's offset between table and joint position (as
+  // Cia402SimMill.ProbingTakesTheDrivesLatchedPosition).
+  double setter_contact_z() {
+    const double fb = std::stod(hal("getp joint.2.pos-fb"));
+    const double table = std::stod(hal("getp cia402-sim.1.node.03.table-position"));
+    return -100 + fb - table;
+  }
+
+  // The tool-length routine's G-code (hmi/probing) run line by line through
+  // the `cnc mdi` command-line client against the simulated tool setter;
+  // the measured length goes into the tool table.
+  void t13d_tool_length_routine_through_cnc_mdi() {
+    const double contact = setter_contact_z();
+    const ini::IniFile ini = ini::IniFile::load(run_ / "sim.ini");
+    const probing::Settings settings = probing::Settings::from_ini(ini);
+    QVERIFY(settings.setter);
+    probing::Start start;
+    start.position = st().motion.position;
+    start.tool_in_spindle = st().io.tool_in_spindle;
+    probing::Routine routine(settings, probing::Request{.kind = probing::Kind::ToolLength, .tool = 2}, start);
+    const auto cnc = [&](const QStringList& args) {
+      QProcess p;
+      p.start(QString(CNC_BINARY_DIR) + "/bin/cnc", QStringList{"-i", QString::fromStdString(instance_), "--timeout", "60"} + args);
+      if (!p.waitForFinished(90000)) return QString("cnc did not finish");
+      return p.exitCode() == 0 ? QString() : QString::fromUtf8(p.readAllStandardError());
+    };
+    QCOMPARE(cnc({"mode", "mdi"}), QString());
+    int stages = 0;
+    while (!routine.done()) {
+      for (const auto& line : routine.stage().lines) {
+        QCOMPARE(cnc({"mdi", QString::fromStdString(line)}), QString());
+      }
+      const ipc::Status s = st();
+      routine.completed(s.motion.probe_tripped, s.motion.probed_position);
+      ++stages;
+    }
+    QVERIFY2(!routine.failed(), routine.error().c_str());
+    QCOMPARE(stages, 3);  // to the setter, probe, result
+    const double expected = contact + 118;
+    qInfo("tool length through cnc mdi: %.4f, setter contact + 118: %.4f, difference %.2f um", routine.result().tool_length,
+          expected, (routine.result().tool_length - expected) * 1000);
+    QVERIFY2(std::fabs(routine.result().tool_length - expected) < 0.005,
+             qPrintable(QString("length %1, expected %2").arg(routine.result().tool_length).arg(expected)));
+    QTRY_VERIFY_WITH_TIMEOUT(
+        [&]() {
+          const auto t = tooltable::ToolTable::load(run_ / "tool.tbl", tooltable::ChangerKind::NonRandom);
+          const auto idx = t.find_tool(2);
+          return idx && std::fabs(t.at(*idx).offset[2] - routine.result().tool_length) < 1e-3;
+        }(),
+        10000);
+    QVERIFY(near(st().motion.position[2], 0));  // back at the safe height
+  }
+
+  // The Probe page: tool length on the setter, a probe that finds nothing
+  // (the routine fails, saying which move) and touch-off into a coordinate
+  // system that is not the active one.
+  void t13e_probe_page() {
+    show_tab("probePage");
+    auto* page = w_->findChild<QWidget*>("probePage");
+    QVERIFY(page);
+    QVERIFY(w_->findChild<QLabel*>("probeSettings")->text().contains("Tool setter at machine X 250"));
+    shot("probe-page");
+    const double contact = setter_contact_z();
+    w_->findChild<QComboBox*>("probeRoutine")->setCurrentIndex(0);
+    w_->findChild<QSpinBox*>("probeTool")->setValue(3);
+    click("probeStart");
+    auto* result = w_->findChild<QLabel*>("probeResult");
+    QTRY_VERIFY_WITH_TIMEOUT(result->text().startsWith("T3 length") || result->text().startsWith("Failed"), 60000);
+    QVERIFY2(result->text().startsWith("T3 length"), qPrintable(result->text()));
+    const double length = result->text().section(' ', 2, 2).toDouble();
+    QVERIFY2(std::fabs(length - (contact + 118)) < 0.005, qPrintable(result->text()));
+    shot("probe-tool-length");
+    // Edge X+ at the safe height: nothing to touch.
+    w_->findChild<QComboBox*>("probeRoutine")->setCurrentIndex(1);
+    click("probeStart");
+    QTRY_VERIFY_WITH_TIMEOUT(result->text().startsWith("Failed"), 60000);
+    QVERIFY2(result->text().contains("edge: probe X+: "), qPrintable(result->text()));
+    QTRY_VERIFY_WITH_TIMEOUT(st().task.interp_state == ipc::InterpState::Idle, 10000);
+    shot("probe-no-contact");
+    // Touch-off: X reads 12.5 in G56 (G54 is active).
+    QCOMPARE(st().task.g5x_index, 1);
+    const double x = st().motion.position[0];
+    w_->findChild<QComboBox*>("touchAxis")->setCurrentIndex(0);
+    w_->findChild<QComboBox*>("touchSystem")->setCurrentIndex(2);  // G56
+    w_->findChild<QLineEdit*>("touchValue")->setText("12,5");
+    click("touchOffButton");
+    QTRY_VERIFY_WITH_TIMEOUT(std::fabs(read_work_offsets(run_ / "sim.var").g5x[2][0] - (x - 12.5)) < 1e-3, 10000);
+    QCOMPARE(st().task.g5x_index, 1);  // still G54
+    shot("probe-touch-off");
+  }
+
+  // The Scope page: X's commanded and actual position and following error
+  // captured on a rising velocity command while X jogs; plotted, exported
+  // as the controller's CSV.
+  void t13f_scope_page_captures_a_jog() {
+    show_tab("scopePage");
+    w_->findChild<QLineEdit*>("scopePins")->setText("joint.0.pos-cmd, joint.0.pos-fb, joint.0.f-error");
+    w_->findChild<QLineEdit*>("scopeTrigger")->setText("joint.0.vel-cmd");
+    w_->findChild<QLineEdit*>("scopeLevel")->setText("1");
+    w_->findChild<QSpinBox*>("scopeSamples")->setValue(1000);
+    w_->findChild<QSpinBox*>("scopePre")->setValue(20);
+    click("scopeRun");
+    auto* state = w_->findChild<QLabel*>("scopeState");
+    QTRY_VERIFY_WITH_TIMEOUT(state->text().startsWith("Scope waiting"), 10000);
+    shot("scope-armed");
+    mdi("G53 G1 X290 F1200");  // +X from the setter at X250: vel-cmd rises through 1
+    QTRY_VERIFY_WITH_TIMEOUT(state->text().startsWith("Capture 1"), 20000);
+    show_tab("scopePage");
+    QVERIFY(wait_for([](const ipc::Status& s) { return s.task.interp_state == ipc::InterpState::Idle; }, 30000));
+    auto* page = w_->findChild<ScopePage*>("scopePage");
+    QVERIFY(page && page->last_capture());
+    const auto& c = *page->last_capture();
+    QCOMPARE(c.names, (std::vector<std::string>{"joint.0.pos-cmd", "joint.0.pos-fb", "joint.0.f-error", "joint.0.vel-cmd"}));
+    QCOMPARE(c.time.size(), std::size_t(1000));
+    QVERIFY(std::fabs(c.time.front() + 0.2) < 0.01);  // 200 of 1000 samples before the trigger, 1 ms apart
+    QVERIFY(c.columns[3].back() > 1.0);              // the trigger: velocity up
+    auto* view = w_->findChild<QChartView*>("scopeChart");
+    QCOMPARE(view->chart()->series().size(), 4);
+    shot("scope-capture");
+    const QString csv = dir_.path() + "/scope-export.csv";
+    QVERIFY(page->export_csv(csv));
+    QFile f(csv);
+    QVERIFY(f.open(QIODevice::ReadOnly));
+    QVERIFY(f.readLine().startsWith("time_s,joint.0.pos-cmd,joint.0.pos-fb,joint.0.f-error,joint.0.vel-cmd"));
   }
 
   void t14_estop() {

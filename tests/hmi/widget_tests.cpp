@@ -5,7 +5,10 @@
 #include <QDir>
 #include <QFileInfo>
 #include <QInputDialog>
+#include <QCheckBox>
+#include <QComboBox>
 #include <QLabel>
+#include <QtCharts/QChartView>
 #include <QLineEdit>
 #include <QListWidget>
 #include <QMessageBox>
@@ -15,6 +18,7 @@
 #include <QTableWidget>
 #include <QTemporaryDir>
 #include <QtTest>
+#include <algorithm>
 #include <fstream>
 #include <mutex>
 
@@ -22,6 +26,7 @@
 #include "core/util/atomic_file.hpp"
 #include "fake_link.hpp"
 #include "hmi/main_window.hpp"
+#include "hmi/panels.hpp"
 #include "hmi/preview_widget.hpp"
 #include "hmi/program_text.hpp"
 
@@ -90,6 +95,9 @@ struct Rig {
   std::mutex hal_mutex;
   std::vector<std::string> hal_lines;
   std::string show_pin;
+  // Answers to halcmd lines starting with the key (the scope's); ok = false
+  // when the text starts with "ERROR ".
+  std::vector<std::pair<std::string, std::string>> replies;
   std::unique_ptr<MainWindow> w;
 
   explicit Rig(const std::string& extra = {}, const std::string& base = kIni, MainWindow::Options opt = {},
@@ -109,6 +117,12 @@ struct Rig {
       hal_lines.push_back(line);
       ipc::AdminReply r;
       if (line.rfind("show pin", 0) == 0) r.text = show_pin;
+      for (const auto& [prefix, text] : replies) {
+        if (line.rfind(prefix, 0) == 0) {
+          r.ok = text.rfind("ERROR ", 0) != 0;
+          r.text = r.ok ? text : text.substr(6);
+        }
+      }
       return r;
     };
     w = std::make_unique<MainWindow>(HmiConfig::from_ini(file), UserDialogConfig::from_ini(file), std::move(fake), hal, opt);
@@ -135,6 +149,20 @@ struct Rig {
   std::vector<std::string> hal() {
     std::lock_guard lock(hal_mutex);
     return hal_lines;
+  }
+  void set_reply(const std::string& prefix, const std::string& text) {
+    std::lock_guard lock(hal_mutex);
+    replies.emplace_back(prefix, text);
+  }
+  void show(const char* page) {
+    for (int i = 0; i < w->tabs()->count(); ++i) {
+      if (w->tabs()->widget(i)->objectName() == page) w->tabs()->setCurrentIndex(i);
+    }
+  }
+  std::vector<std::string> mdi_lines() const {
+    std::vector<std::string> out;
+    for (const auto& c : link->sent_of(CommandType::TaskPlanExecute)) out.emplace_back(c.text.view());
+    return out;
   }
   void set_show_pin(const std::string& s) {
     std::lock_guard lock(hal_mutex);
@@ -581,6 +609,119 @@ class WidgetTests : public QObject {
     QCOMPARE(r.w->alarms().active_count(), std::size_t(1));
     r.w->grab().save(screenshot_dir() + "/widget-drives.png");
   }
+  // The Probe page runs a bore routine stage by stage: each stage's MDI
+  // lines, the probe result read from the status after the stage, the
+  // centre and diameters shown, G55's origin set.
+  void probe_page_runs_a_bore_with_the_probe_results_from_the_status() {
+    Rig r("[PROBE]\nTIP_DIAMETER = 2\nSEARCH_DISTANCE = 10\nLATCH_DISTANCE = 1\nSEARCH_FEED = 300\nLATCH_FEED = 25\n");
+    r.link->set_on();
+    r.link->status.motion.position[0] = 100;
+    r.link->status.motion.position[1] = 50;
+    r.link->status.motion.position[2] = -10;
+    r.show("probePage");
+    r.tick();
+    r.find<QComboBox>("probeRoutine")->setCurrentIndex(7);  // bore
+    r.find<QComboBox>("probeSystem")->setCurrentIndex(2);   // G55
+    QVERIFY(r.find<QPushButton>("probeStart")->isEnabled());
+    r.find<QPushButton>("probeStart")->click();
+    auto* result = r.find<QLabel>("probeResult");
+    const std::vector<double> hits = {108, 94, 57, 45};
+    const int axes[] = {0, 0, 1, 1};
+    std::size_t k = 0, probes_seen = 0;
+    for (int i = 0; i < 500 && text_of(result) == QString("Probing…"); ++i) {
+      r.tick();
+      const auto lines = r.mdi_lines();
+      const auto probes = static_cast<std::size_t>(std::count(lines.begin(), lines.end(), std::string("G90")));
+      if (probes > probes_seen && k < hits.size()) {  // a probe stage was sent: its result comes in the status
+        probes_seen = probes;
+        r.link->status.motion.probe_tripped = true;
+        r.link->status.motion.probed_position[axes[k]] = hits[k];
+        ++k;
+      }
+    }
+    QVERIFY2(text_of(result).startsWith("centre at machine X 101.0000 Y 51.0000, diameter X 16.0000 Y 14.0000; G55 set"),
+             qPrintable(text_of(result)));
+    const auto lines = r.mdi_lines();
+    QCOMPARE(lines.front(), std::string("G91 G38.2 X10.0000 F300.0000"));
+    QVERIFY(contains(lines, "G53 G0 X101.0000"));
+    QCOMPARE(lines.back(), std::string("G10 L2 P2 X101.0000 Y51.0000"));
+    r.w->grab().save(screenshot_dir() + "/widget-probe.png");
+  }
+
+  void probe_page_stops_when_the_probe_finds_nothing_and_restores_g90() {
+    Rig r;
+    r.link->set_on();
+    r.show("probePage");
+    r.tick();
+    r.find<QComboBox>("probeRoutine")->setCurrentIndex(1);  // edge X+
+    r.find<QPushButton>("probeStart")->click();
+    auto* result = r.find<QLabel>("probeResult");
+    for (int i = 0; i < 100 && text_of(result) == QString("Probing…"); ++i) r.tick();  // probe_tripped stays FALSE
+    QCOMPARE(text_of(result), QString("Failed: edge: probe X+: no contact within the search distance"));
+    r.tick(5);
+    QCOMPARE(r.mdi_lines().back(), std::string("G90"));
+    // Touch-off into a coordinate system that is not the active one.
+    r.find<QComboBox>("touchAxis")->setCurrentIndex(2);    // Z
+    r.find<QComboBox>("touchSystem")->setCurrentIndex(8);  // G59.3
+    r.find<QLineEdit>("touchValue")->setText("-1,5");
+    r.tick();
+    r.find<QPushButton>("touchOffButton")->click();
+    r.tick(3);  // MDI mode first
+    QCOMPARE(r.mdi_lines().back(), std::string("G10 L20 P9 Z-1.5000"));
+  }
+
+  // The Scope page drives the controller's scope with halcmd lines: stop,
+  // setup, arm, state until done, csv; the capture is plotted and exported.
+  void scope_page_sets_up_arms_polls_plots_and_exports() {
+    Rig r;
+    const std::string csv = "time_s,a.b,c.d\n-0.001000,1,2\n0.000000,2,3\n0.001000,3,1\n";
+    r.set_reply("scope state", "done samples=3 pre=1 channels=2\n");
+    r.set_reply("scope csv", csv);
+    r.link->set_on();
+    r.show("scopePage");
+    r.tick();
+    r.find<QLineEdit>("scopePins")->setText("a.b c.d");
+    r.find<QLineEdit>("scopeTrigger")->setText("c.d");
+    r.find<QLineEdit>("scopeLevel")->setText("2,5");
+    r.find<QPushButton>("scopeRun")->click();
+    auto* state = r.find<QLabel>("scopeState");
+    QTRY_VERIFY_WITH_TIMEOUT((r.tick(), text_of(state).startsWith("Capture 1: 3 samples")), 5000);
+    const auto hal = r.hal();
+    std::vector<std::string> scope_lines;
+    for (const auto& l : hal) {
+      if (l.rfind("scope", 0) == 0) scope_lines.push_back(l);
+    }
+    QVERIFY(scope_lines.size() >= 5);
+    QCOMPARE(scope_lines[0], std::string("scope stop"));
+    QCOMPARE(scope_lines[1], std::string("scope setup a.b,c.d trigger=c.d edge=rising level=2.5 pre=10 mode=single"));
+    QCOMPARE(scope_lines[2], std::string("scope arm"));
+    QCOMPARE(scope_lines[3], std::string("scope state"));
+    QCOMPARE(scope_lines.back(), std::string("scope csv"));
+    auto* view = r.find<QChartView>("scopeChart");
+    QCOMPARE(view->chart()->series().size(), 2);
+    // Each pin on its own scale by default, its range in the legend.
+    QCOMPARE(view->chart()->series()[0]->name(), QString("a.b (1 … 3)"));
+    r.find<QCheckBox>("scopeNormalise")->setChecked(false);
+    QCOMPARE(view->chart()->series()[0]->name(), QString("a.b"));
+    QVERIFY(r.find<QPushButton>("scopeRun")->isEnabled());  // single: done
+    const QString out = r.dir.path() + "/capture.csv";
+    QVERIFY(r.w->findChild<ScopePage*>("scopePage")->export_csv(out));
+    QCOMPARE(read_file(out.toStdString()), csv);
+    r.w->grab().save(screenshot_dir() + "/widget-scope.png");
+  }
+
+  void scope_page_shows_the_controllers_refusal() {
+    Rig r;
+    r.set_reply("scope setup", "ERROR scope: no scope loaded (loadrt scope [samples=N], addf scope.sample servo-thread)");
+    r.show("scopePage");
+    r.tick();
+    r.find<QPushButton>("scopeRun")->click();
+    auto* state = r.find<QLabel>("scopeState");
+    QTRY_VERIFY_WITH_TIMEOUT((r.tick(), text_of(state).startsWith("Scope: scope: no scope loaded")), 5000);
+    QVERIFY(r.find<QPushButton>("scopeRun")->isEnabled());
+    QVERIFY(!r.w->findChild<ScopePage*>("scopePage")->capturing());
+  }
+
   void lathe_layout() {
     std::string ini = kIni;
     ini.replace(ini.find("COORDINATES = X Y Z"), 19, "COORDINATES = X Z");
@@ -606,8 +747,12 @@ class WidgetTests : public QObject {
     Rig r;
     r.link->set_on();
     r.tick();
-    QVERIFY(r.w->minimumSizeHint().width() <= 1024);
-    QVERIFY(r.w->minimumSizeHint().height() <= 768);
+    QString widths;
+    for (int i = 0; i < r.w->tabs()->count(); ++i) {
+      widths += QString(" %1=%2x%3").arg(r.w->tabs()->widget(i)->objectName()).arg(r.w->tabs()->widget(i)->minimumSizeHint().width()).arg(r.w->tabs()->widget(i)->minimumSizeHint().height());
+    }
+    QVERIFY2(r.w->minimumSizeHint().width() <= 1024, qPrintable(QString("%1 px; pages:%2").arg(r.w->minimumSizeHint().width()).arg(widths)));
+    QVERIFY2(r.w->minimumSizeHint().height() <= 768, qPrintable(QString("%1 px; pages:%2").arg(r.w->minimumSizeHint().height()).arg(widths)));
     r.w->resize(1024, 768);
     QCoreApplication::processEvents();
     for (const char* name : {"estopButton", "machineButton", "modeAuto", "alarmBadge", "runButton", "abortButton",

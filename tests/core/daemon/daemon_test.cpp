@@ -447,3 +447,18 @@ TEST(Daemon, WaitReadySaysWhenTheControllerDiesDuringStartup) {
   EXPECT_NE(r.text.find("stopped during start-up, before it was ready"), std::string::npos) << r.text;
   EXPECT_EQ(d.wait_exit(), 1);
 }
+
+// [HAL]HALUI = halui loads the halui component after the HAL files (as
+// LinuxCNC's launcher starts halui); other values, or halui loaded twice,
+// stop the start naming the key.
+TEST(Daemon, HalHaluiKeyLoadsHaluiAndOtherValuesAreRefused) {
+  cnc::testing::TempDir dir;
+  auto r = run_cncd(dir, "--check --strict", "HALUI = halui\n", cnc::testing::unique_name("hu"));
+  EXPECT_EQ(r.code, 0) << r.text;
+  r = run_cncd(dir, "--check", "HALUI = axisui\n", cnc::testing::unique_name("hu"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.text.find("m.ini:9: [HAL]HALUI = axisui: only halui"), std::string::npos) << r.text;
+  r = run_cncd(dir, "--check", "HALUI = halui\nHALCMD = loadrt halui\n", cnc::testing::unique_name("hu"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.text.find("m.ini:9: [HAL]HALUI = halui, and a HAL file or [HAL]HALCMD loads halui too"), std::string::npos) << r.text;
+}
