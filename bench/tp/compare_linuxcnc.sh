@@ -6,8 +6,10 @@
 #   bench/tp/compare_linuxcnc.sh [BUILD_DIR]
 #
 # Writes the benchmark's generated programs as G-code (bench_tp
-# --write-ngc), adds LinuxCNC's own 3D_Chips.ngc and CAM-style programs
-# from ../shared/tools/linuxcnc/gen_gcode.py, runs each through
+# --write-ngc; its own CAM-style programs among them: a trochoidal slot,
+# a 3-D surfacing raster, a dense contour), adds LinuxCNC's own
+# 3D_Chips.ngc and CAM-style programs from
+# ../shared/tools/linuxcnc/gen_gcode.py, runs each through
 # bench_tp (our planner, checked sample by sample) and through
 # ../shared/tools/linuxcnc/b_sim_motion_time.sh (LinuxCNC's headless
 # simulated machine; its planned motion time), and prints for every
@@ -28,7 +30,7 @@ build="$root/build"
 for a in "$@"; do
   case "$a" in
     -h | --help)
-      sed -n '2,19p' "$0"
+      sed -n '2,26p' "$0"
       exit 0
       ;;
     *) build="$a" ;;

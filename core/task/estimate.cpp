@@ -109,7 +109,10 @@ Machine load_machine(const ini::IniFile& ini) {
   task::view_limits(ms, m.view);
   m.interp = interp::Config::from_ini(ini);
   m.interp.axis_mask = m.planner.axis_mask;
-  m.interp.task = true;
+  // As a preview, not as cncd's task: M99 at the end of the main program
+  // ends the estimate after one pass (cncd would run it again for ever),
+  // and #<_task> reads 0.
+  m.interp.task = false;
   const io::IoConfig io = io::IoConfig::from_ini(ini);
   m.tools = tooltable::ToolTable(io.kind);
   if (!io.tool_table.empty() && std::filesystem::exists(io.tool_table)) {

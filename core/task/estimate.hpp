@@ -8,6 +8,8 @@
 // point: M6, M66, probes, spindle and override commands, M0/M1) the motion
 // stops here too. What it does not count: tool changes, spindle spin-up
 // waits, operator pauses, probe contacts (a probe move runs to its end).
+// The interpreter runs as for a preview: #<_task> is 0, and M99 at the end
+// of the main program ends it after one pass (cncd repeats it).
 // Used by bench_tp (bench/tp) and cnc-estimate (docs/tp.md, "Time
 // estimate"); the operator screen may call it for "time estimate from the
 // planner". Not realtime: allocates, reads files, throws.

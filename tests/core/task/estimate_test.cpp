@@ -154,6 +154,15 @@ TEST(Estimate, JointLimitsNarrowTheAxisLimitsAsInMotion) {
   EXPECT_DOUBLE_EQ(m.planner.cycle_time_s, 0.001);
 }
 
+TEST(Estimate, AMainProgramEndingInM99IsEstimatedOnce) {
+  Config c;
+  const Machine m = load_machine(c.ini());
+  const Result r = estimate(m, c.program("G21 G90 G61\nG1 X10 F6000\nG1 X0\nM99\n"));
+  ASSERT_TRUE(r.completed) << r.error;
+  EXPECT_EQ(r.moves, 2U);
+  expect_end(r, 0, 0, 0);
+}
+
 TEST(Estimate, AProgramErrorNamesFileAndLine) {
   Config c;
   const Machine m = load_machine(c.ini());
