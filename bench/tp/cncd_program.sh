@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
 # One program through the real controller: cncd on a copy of configs/sim
 # (no realtime scheduling), power on, home, run PROGRAM in auto mode, and
-# print its wall time from `cnc run` to the end of `cnc wait-program` and
-# the servo thread's figures (cycles, overruns, longest overrun streak,
+# print its wall time from `cnc run` to the end of `cnc wait-program`, the
+# controller's own program time (task: from run to the program's end), the
+# end position (machine coordinates) and the servo thread's figures (cycles, overruns, longest overrun streak,
 # execution time max). For the planner's servo-cycle cost under the daemon
-# and for comparing the time with what bench_tp predicts (docs/tp.md).
+# and for comparing the time with what bench_tp predicts (docs/tp.md;
+# bench/tp/predict_cncd.sh does both and compares). The last line is
+# machine-readable: RESULT program_s=... wall_s=... cycles_s=... overruns=... end=X,Y,Z
 #
 #   bench/tp/cncd_program.sh PROGRAM.ngc [BUILD_DIR]
 #
@@ -44,6 +47,17 @@ print(f"servo thread: {cycles} cycles, {over} overruns ({100.0 * over / max(cycl
       f"longest streak {sa['longest_streak']}, exec max {sa['exec_max_ns'] / 1e3:.1f} us, "
       f"product exec max {sa['product_exec_max_ns'] / 1e3:.1f} us, "
       f"latency p99.9 {sa['latency_p999_ns'] / 1e3:.1f} us")
-print("end position", [round(x, 6) for x in a["motion"]["position"][:3]])
+end = a["motion"]["position"][:3]
+prog_s = a["task"]["program_elapsed_s"]
+print(f"program time {prog_s:.3f} s (the controller's, from run to the program's end)")
+print("end position", [round(x, 6) for x in end])
+# Servo periods that ran while the program did (a few more: the command
+# round trips): the motion time as the planner counts it. Without realtime
+# scheduling the thread misses periods when it is late, and the wall time
+# is longer by them.
+cycles_s = cycles * sa["period_ns"] * 1e-9
+print(f"servo cycles x period {cycles_s:.3f} s (the planner's time: periods missed by a late thread not counted)")
+print(f"RESULT program_s={prog_s:.6f} wall_s={t1 - t0:.6f} cycles_s={cycles_s:.6f} overruns={over} "
+      f"end={end[0]:.6f},{end[1]:.6f},{end[2]:.6f}")
 PY
 cnc shutdown >/dev/null 2>&1 || true

@@ -6,13 +6,20 @@
 #   bench/tp/compare_linuxcnc.sh [BUILD_DIR]
 #
 # Writes the benchmark's generated programs as G-code (bench_tp
-# --write-ngc), adds LinuxCNC's own 3D_Chips.ngc and CAM-style programs
-# from ../shared/tools/linuxcnc/gen_gcode.py, runs each through
+# --write-ngc; its own CAM-style programs among them: a trochoidal slot,
+# a 3-D surfacing raster, a dense contour), adds LinuxCNC's own
+# 3D_Chips.ngc and CAM-style programs from
+# ../shared/tools/linuxcnc/gen_gcode.py, runs each through
 # bench_tp (our planner, checked sample by sample) and through
 # ../shared/tools/linuxcnc/b_sim_motion_time.sh (LinuxCNC's headless
-# simulated machine; its planned motion time), and prints the traverse
-# times and their ratio (ours / LinuxCNC; below 1 is faster). Ours also
-# limits jerk (50,000 mm/s^3), LinuxCNC does not.
+# simulated machine; its planned motion time), and prints for every
+# program the traverse times and their ratio (ours / LinuxCNC; below 1 is
+# faster), and bench_tp's lower bound of the time under our limits (jerk
+# included) with its ratio to LinuxCNC's time: a bound/LinuxCNC ratio above
+# 0.85 says the issue's 0.85x goal cannot be reached on that program with
+# our jerk limit (50,000 mm/s^3; LinuxCNC has none). The bound is exact
+# for straight rest-to-rest moves (G61 corners, single moves) and low for
+# programs of many blended corners (docs/tp.md).
 #
 # LinuxCNC (Debian package linuxcnc-uspace) is a yardstick for this script
 # only, never a dependency of the project. It runs in real time: the whole
@@ -23,7 +30,7 @@ build="$root/build"
 for a in "$@"; do
   case "$a" in
     -h | --help)
-      sed -n '2,19p' "$0"
+      sed -n '2,26p' "$0"
       exit 0
       ;;
     *) build="$a" ;;
@@ -72,9 +79,10 @@ for f in "${cam[@]}"; do ngc_args+=(--ngc "$f"); done
 # profile at 1 ms.
 "$bench" --quick --write-ngc "$work" "${ngc_args[@]}" >"$work/ours.txt"
 chmod 644 "$work"/*.ngc
-# "name  LC  1000 ok  time ..." : the name is the first 34 columns.
-ours_time() {
-  awk -v n="$1" 'index($0, "LC ") == 36 && substr($0, 1, 34) ~ "^" n " *$" { split(substr($0, 36), f, " +"); print f[4]; exit }' \
+# "name  LC  1000 ok  time bound ..." : the name is the first 34 columns.
+# ours_field NAME K: K = 4 the time, 5 the lower bound.
+ours_field() {
+  awk -v n="$1" -v k="$2" 'index($0, "LC ") == 36 && substr($0, 1, 34) ~ "^" n " *$" { split(substr($0, 36), f, " +"); print f[k]; exit }' \
     "$work/ours.txt"
 }
 
@@ -94,20 +102,23 @@ done
 echo "running ${#progs[@]} programs on LinuxCNC 2.9 (real time) ..." >&2
 "$sim" -v 100 -a 1000 -p 0.01 -o "$work/lcnc" "${progs[@]}" 2>"$work/lcnc.log" | grep '^RESULT' >"$work/lcnc.txt" || true
 
-printf '\n%-34s %10s %10s %8s\n' "program (LC limits, 1 ms)" "ours_s" "lcnc_s" "ratio"
+printf '\n%-34s %10s %10s %8s %10s %8s\n' "program (LC limits, 1 ms)" "ours_s" "lcnc_s" "ratio" "bound_s" "bnd/lc"
 for i in "${!progs[@]}"; do
   name="${names[$i]}"
   base=$(basename "${progs[$i]}")
   esc=$(printf '%s' "$name" | sed 's/[][\.*^$()+?{}|/]/\\&/g')
-  ours=$(ours_time "$esc")
+  ours=$(ours_field "$esc" 4)
+  bound=$(ours_field "$esc" 5)
   lc=$(awk -v b="$base" '{ p = ""; t = ""; for (k = 1; k <= NF; ++k) { if ($k ~ /^program=/) p = substr($k, 9); if ($k ~ /^motion_busy_s=/) t = substr($k, 15) }
         n = split(p, parts, "/"); if (parts[n] == b) { print t; exit } }' "$work/lcnc.txt")
   if [[ -n "$ours" && -n "$lc" ]]; then
     ratio=$(awk -v a="$ours" -v b="$lc" 'BEGIN { printf "%.2f", (b > 0 ? a / b : 0) }')
+    bratio=$(awk -v a="${bound:-0}" -v b="$lc" 'BEGIN { printf "%.2f", (b > 0 ? a / b : 0) }')
   else
     ratio="n/a"
+    bratio="n/a"
   fi
-  printf '%-34s %10s %10s %8s\n' "$name" "${ours:-n/a}" "${lc:-n/a}" "$ratio"
+  printf '%-34s %10s %10s %8s %10s %8s\n' "$name" "${ours:-n/a}" "${lc:-n/a}" "$ratio" "${bound:-n/a}" "$bratio"
 done
 if grep -q 'status=' "$work/lcnc.txt" && grep -v 'status=ok' "$work/lcnc.txt" >&2; then
   echo "(some LinuxCNC runs did not finish: see above)" >&2

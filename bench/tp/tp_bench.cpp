@@ -1,25 +1,38 @@
 // Trajectory planner benchmark (docs/tp.md): runs fixed programs through
 // tp::LookaheadPlanner (inline: planning and servo work on this thread, the
-// way a 1-core machine would run it) under the Mill-S, Mill-F and LC limit
-// profiles at 1 ms and 250 us, and prints per program: traverse time,
-// worst per-axis |v|, |a|, |j| relative to the limits, worst distance from
-// the programmed path relative to the tolerance, share of time at the
-// programmed feed, and planner CPU per servo cycle and per queued segment.
-// Also short-segment feed attainment for segment lengths 1 um ... 1 mm.
+// way a 1-core machine would run it) and prints per program: traverse time,
+// a lower bound of it where one is computable, worst per-axis |v|, |a|, |j|
+// relative to the limits, worst distance from the programmed path relative
+// to the tolerance, share of time at the programmed feed, and planner CPU
+// per servo cycle and per queued segment. Also short-segment feed
+// attainment for segment lengths 1 um ... 1 mm.
 //
-//   bench_tp [--quick] [--write-ngc DIR] [--ngc FILE ...] [--only-ngc]
-//            [--limits V,A,J] [--linear V,A,J] [--lookahead N] [--period S]
+// Every program, generated or read (--ngc), is G-code read by the
+// project's interpreter through the task controller's canon and run with
+// the limits the motion controller would have in force, by the same code
+// as `cnc-estimate` (core/task/estimate.hpp): G20, work offsets (G5x with
+// the INI's parameter file), G92, XY rotation and tool length offsets act
+// exactly as under cncd, and programs stop where cncd's task waits for
+// motion (M6, M66, probes...). The limits come from an INI file (--ini, as
+// cncd reads it) or from the built-in profiles (Mill-S, Mill-F, LC), which
+// are INI files too, written from the options and read by the same owners.
+//
+//   bench_tp [--quick] [--ini FILE] [--write-ngc DIR] [--ngc FILE ...] [--only-ngc]
+//            [--limits [L:]V,A,J ...] [--linear V,A,J] [--lookahead N] [--period S]
 //            [--start X,Y,Z]
 //
-// --only-ngc runs only the --ngc programs and prints their end positions;
-// --limits (per-axis X, Y, Z velocity, acceleration, jerk), --linear (the
-// same on the XYZ norm, [TRAJ]MAX_LINEAR_*), --lookahead
-// (segments), --period (s) and --start (where --ngc programs start, the
-// origin by default) set what a configuration would, e.g. to
-// predict what cncd does on it (bench/tp/cncd_program.sh).
+// --ini: the limits, [TRAJ]LOOKAHEAD_SEGMENTS, [EMCMOT]SERVO_PERIOD,
+// units, parameter file, tool table and start-up code of a configuration;
+// --ngc programs start where "home all" leaves that machine.
+// --only-ngc runs only the --ngc programs and prints their end positions
+// (machine coordinates); --limits V,A,J sets velocity, acceleration, jerk of
+// X, Y and Z, --limits X:V,A,J of one axis (repeatable); --linear the same on
+// the XYZ norm ([TRAJ]MAX_LINEAR_*); --lookahead (moves), --period (s) and
+// --start (machine coordinates where --ngc programs start) override the
+// INI's or the profiles'. bench/tp/cncd_program.sh compares the prediction
+// with cncd on configs/sim.
 // --write-ngc writes the generated programs as G-code (for the LinuxCNC
-// side-by-side, bench/tp/compare_linuxcnc.sh); --ngc adds programs read
-// through the project's interpreter (e.g. LinuxCNC's 3D_Chips.ngc).
+// side-by-side, bench/tp/compare_linuxcnc.sh).
 // Figures never fail the run: timing belongs to benchmarks, not tests.
 #include <algorithm>
 #include <cmath>
@@ -29,76 +42,89 @@
 #include <filesystem>
 #include <fstream>
 #include <numbers>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
 
-#include "core/interp/interp.hpp"
-#include "core/interp/text_canon.hpp"
-#include "core/tp/lookahead_planner.hpp"
-#include "core/tp/trajectory_check.hpp"
+#include <unistd.h>
+
+#include "core/ini/ini_file.hpp"
+#include "core/task/estimate.hpp"
+#include "core/tp/curve.hpp"
+#include "core/util/error.hpp"
 
 namespace {
 
 using namespace cnc;
 using namespace cnc::tp;
 
-// Set by --limits / --lookahead: the "custom" profile and the look-ahead
-// of every profile.
-AxisLimits g_custom{100, 1000, 50000};
-int g_lookahead = 2000;
-// Set by --linear: [TRAJ]MAX_LINEAR_* (limits on the XYZ norm), off by default.
+// --- options ---
+// --limits: per-axis X, Y, Z velocity, acceleration, jerk (the "custom" profile).
+AxisLimits g_custom[3] = {{100, 1000, 50000}, {100, 1000, 50000}, {100, 1000, 50000}};
+std::optional<int> g_lookahead;
+std::optional<double> g_period;
+// --linear: [TRAJ]MAX_LINEAR_* (limits on the XYZ norm), off by default.
 double g_linear[3] = {0, 0, 0};
-// Set by --start: where --ngc programs start (the machine's position).
-double g_start[3] = {0, 0, 0};
+std::optional<Pose> g_start;
 
-PlannerConfig profile(const std::string& name, double cycle_s) {
-  PlannerConfig c;
-  c.cycle_time_s = cycle_s;
-  AxisLimits l{100, 1000, 50000};  // LC
-  if (name == "Mill-S") l = {166.7, 2000, 50000};
-  if (name == "Mill-F") l = {500, 5000, 200000};
-  if (name == "custom") l = g_custom;
-  for (int i = 0; i < 3; ++i) c.axes[static_cast<std::size_t>(i)] = l;
-  c.axis_mask = 0x7;
-  c.lookahead_segments = g_lookahead;
-  if (g_linear[0] > 0) {
-    c.max_linear_velocity = g_linear[0];
-    c.max_linear_acceleration = g_linear[1];
-    c.max_linear_jerk = g_linear[2];
+// A profile as the INI file a machine would have: trivkins XYZ, each axis
+// and joint with the profile's limits, homed at the origin (where
+// LinuxCNC's simulated machine starts every program too), tools 1..9
+// (LinuxCNC's sample programs change tools), G64 P0.01 by default.
+estimate::Machine profile_machine(const std::string& name, double cycle_s) {
+  AxisLimits l[3];
+  for (auto& x : l) x = {100, 1000, 50000};  // LC
+  for (auto& x : l) {
+    if (name == "Mill-S") x = {166.7, 2000, 50000};
+    if (name == "Mill-F") x = {500, 5000, 200000};
   }
-  return c;
+  if (name == "custom") std::copy(g_custom, g_custom + 3, l);
+  const auto tbl = std::filesystem::temp_directory_path() / "bench_tp_tools.tbl";
+  if (!std::filesystem::exists(tbl)) {
+    std::ofstream t(tbl);
+    for (int i = 1; i < 10; ++i) t << "T" << i << " P" << i << " D10 ;\n";
+  }
+  std::string ini;
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "[EMCMOT]\nSERVO_PERIOD = %lld\n", static_cast<long long>(std::llround(cycle_s * 1e9)));
+  ini += buf;
+  ini += "[TRAJ]\nCOORDINATES = X Y Z\nLINEAR_UNITS = mm\nANGULAR_UNITS = degree\n";
+  std::snprintf(buf, sizeof buf, "LOOKAHEAD_SEGMENTS = %d\n", g_lookahead.value_or(2000));
+  ini += buf;
+  if (g_linear[0] > 0) {
+    std::snprintf(buf, sizeof buf, "MAX_LINEAR_VELOCITY = %.17g\nMAX_LINEAR_ACCELERATION = %.17g\nMAX_LINEAR_JERK = %.17g\n",
+                  g_linear[0], g_linear[1], g_linear[2]);
+    ini += buf;
+  }
+  ini += "[KINS]\nKINEMATICS = trivkins coordinates=XYZ\nJOINTS = 3\n";
+  for (int i = 0; i < 3; ++i) {
+    for (const char* sec : {"AXIS_", "JOINT_"}) {
+      std::snprintf(buf, sizeof buf, "[%s%c]\nMAX_VELOCITY = %.17g\nMAX_ACCELERATION = %.17g\nMAX_JERK = %.17g\n", sec,
+                    std::strcmp(sec, "AXIS_") == 0 ? "XYZ"[i] : "012"[i], l[i].max_velocity, l[i].max_acceleration,
+                    l[i].max_jerk);
+      ini += buf;
+    }
+  }
+  ini += "[RS274NGC]\nRS274NGC_STARTUP_CODE = G21 G90 G17 G40 G49 G80 G94 G64 P0.01\n";
+  ini += "[EMCIO]\nTOOL_TABLE = " + tbl.string() + "\n";
+  return estimate::load_machine(ini::IniFile::parse(ini, "bench_tp:" + name + ".ini"));
 }
 
-SegmentParams params(double feed_mm_min, double tol, TermCond term = TermCond::Blend) {
-  SegmentParams p;
-  p.type = MotionType::Feed;
-  p.feed = feed_mm_min / 60.0;
-  p.term = term;
-  p.tolerance = tol;
-  // G64 P without Q: LinuxCNC (and the interpreter) take Q = P.
-  if (term == TermCond::Blend) p.naive_cam_tolerance = tol;
-  return p;
+// --ini, with --lookahead / --period on top.
+estimate::Machine ini_machine(const std::string& path) {
+  estimate::Machine m = estimate::load_machine(path);
+  if (g_lookahead) m.planner.lookahead_segments = *g_lookahead;
+  if (g_period) m.planner.cycle_time_s = *g_period;
+  return m;
 }
 
-// A program both as planner moves and as G-code text.
+// --- generated programs (G-code text) ---
 struct Bench {
   std::string name;
-  Program prog;
-  std::string gcode;
+  std::string gcode;                // generated programs
+  std::filesystem::path file;       // --ngc programs
 };
-
-void add_line(Bench& b, double x, double y, double z, const SegmentParams& p) {
-  ProgramMove m;
-  m.end[0] = x;
-  m.end[1] = y;
-  m.end[2] = z;
-  m.params = p;
-  b.prog.moves.push_back(m);
-  char buf[128];
-  std::snprintf(buf, sizeof buf, "G1 X%.6f Y%.6f Z%.6f\n", x, y, z);
-  b.gcode += buf;
-}
 
 std::string header(double feed_mm_min, double tol, bool exact = false) {
   char buf[160];
@@ -110,11 +136,17 @@ std::string header(double feed_mm_min, double tol, bool exact = false) {
   return buf;
 }
 
+void line(std::string& g, double x, double y, double z) {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, "G1 X%.6f Y%.6f Z%.6f\n", x, y, z);
+  g += buf;
+}
+
 Bench short_lines(double seg, double length, double feed) {
-  Bench b{"short " + std::to_string(seg).substr(0, 6) + " mm x" + std::to_string(static_cast<int>(length / seg)), {}, ""};
+  Bench b{"short " + std::to_string(seg).substr(0, 6) + " mm x" + std::to_string(static_cast<int>(length / seg)), "", {}};
   b.gcode = header(feed, 0.001);
   const int n = static_cast<int>(std::lround(length / seg));
-  for (int i = 1; i <= n; ++i) add_line(b, seg * i, 0, 0, params(feed, 0.001));
+  for (int i = 1; i <= n; ++i) line(b.gcode, seg * i, 0, 0);
   b.gcode += "M2\n";
   return b;
 }
@@ -122,8 +154,8 @@ Bench short_lines(double seg, double length, double feed) {
 Bench zigzag(double seg, double amp, int n, double feed, double tol) {
   char nm[80];
   std::snprintf(nm, sizeof nm, "zigzag %g mm/%g x%d", seg, amp, n);
-  Bench b{nm, {}, header(feed, tol)};
-  for (int i = 1; i <= n; ++i) add_line(b, seg * i, (i % 2) * amp, 0, params(feed, tol));
+  Bench b{nm, header(feed, tol), {}};
+  for (int i = 1; i <= n; ++i) line(b.gcode, seg * i, (i % 2) * amp, 0);
   b.gcode += "M2\n";
   return b;
 }
@@ -131,13 +163,13 @@ Bench zigzag(double seg, double amp, int n, double feed, double tol) {
 Bench polygon_circles(double r, double seg, int turns, double feed, double tol) {
   char nm[80];
   std::snprintf(nm, sizeof nm, "circle r%g by %g mm lines", r, seg);
-  Bench b{nm, {}, header(feed, tol)};
+  Bench b{nm, header(feed, tol), {}};
   const int n = static_cast<int>(2 * std::numbers::pi * r / seg);
-  add_line(b, r, 0, 0, params(feed, tol));
+  line(b.gcode, r, 0, 0);
   for (int t = 0; t < turns; ++t) {
     for (int i = 1; i <= n; ++i) {
       const double a = 2 * std::numbers::pi * i / n;
-      add_line(b, r * std::cos(a), r * std::sin(a), 0, params(feed, tol));
+      line(b.gcode, r * std::cos(a), r * std::sin(a), 0);
     }
   }
   b.gcode += "M2\n";
@@ -145,7 +177,7 @@ Bench polygon_circles(double r, double seg, int turns, double feed, double tol) 
 }
 
 Bench random_lines(uint32_t seed, int n, double feed, double tol) {
-  Bench b{"random lines 0.05-5 mm", {}, header(feed, tol)};
+  Bench b{"random lines 0.05-5 mm", header(feed, tol), {}};
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-1, 1);
   double x = 0, y = 0, z = 0;
@@ -156,38 +188,25 @@ Bench random_lines(uint32_t seed, int n, double feed, double tol) {
     x = std::clamp(x + dx / nn * len, -50.0, 50.0);
     y = std::clamp(y + dy / nn * len, -50.0, 50.0);
     z = std::clamp(z + dz / nn * len, -10.0, 10.0);
-    add_line(b, x, y, z, params(feed, tol));
+    line(b.gcode, x, y, z);
   }
   b.gcode += "M2\n";
   return b;
 }
 
 Bench arcs_and_helices(double feed, double tol) {
-  Bench b{"circles and helices", {}, header(feed, tol)};
-  add_line(b, 20, 0, 0, params(feed, tol));
-  auto arc = [&](double x, double y, double z, double cx, double cy, int turns, const char* g) {
-    ProgramMove m;
-    m.kind = ProgramMove::Kind::Circle;
-    m.end[0] = x;
-    m.end[1] = y;
-    m.end[2] = z;
-    m.center = {cx, cy, b.prog.moves.empty() ? 0.0 : b.prog.moves.back().end[2]};
-    m.normal = {0, 0, std::strcmp(g, "G3") == 0 ? 1.0 : -1.0};
-    m.turns = turns;
-    m.params = params(feed, tol);
-    m.params.type = MotionType::Arc;
-    b.prog.moves.push_back(m);
-    char buf[160];
-    std::snprintf(buf, sizeof buf, "%s X%.6f Y%.6f Z%.6f I%.6f J%.6f P%d\n", g, x, y, z, cx - b.prog.moves[b.prog.moves.size() - 2].end[0],
-                  cy - b.prog.moves[b.prog.moves.size() - 2].end[1], turns + 1);
-    b.gcode += buf;
-  };
+  Bench b{"circles and helices", header(feed, tol), {}};
+  line(b.gcode, 20, 0, 0);
+  char buf[160];
   for (int k = 0; k < 6; ++k) {
     const double r = 2 + 3 * k;
     const double z = -1.0 * k;
-    arc(20, 0, z, 20 - r, 0, 1, "G3");          // full circles (two turns)
-    arc(20, 0, z - 1, 20 - r, 0, 2, "G2");      // helix down
-    add_line(b, 20, 0, z - 1, params(feed, tol));
+    // Full circles (two turns), then a helix down (three turns), from X20 Y0.
+    std::snprintf(buf, sizeof buf, "G3 X20 Y0 Z%.6f I%.6f J0 P2\n", z, -r);
+    b.gcode += buf;
+    std::snprintf(buf, sizeof buf, "G2 X20 Y0 Z%.6f I%.6f J0 P3\n", z - 1, -r);
+    b.gcode += buf;
+    line(b.gcode, 20, 0, z - 1);
   }
   b.gcode += "M2\n";
   return b;
@@ -197,120 +216,177 @@ Bench corner(TermCond term, double tol) {
   char nm[80];
   if (term == TermCond::Blend) std::snprintf(nm, sizeof nm, "corner 90 deg G64 P%g", tol);
   else std::snprintf(nm, sizeof nm, "corner 90 deg G61");
-  Bench b{nm, {}, header(6000, tol, term != TermCond::Blend)};
-  add_line(b, 100, 0, 0, params(6000, tol, term));
-  add_line(b, 100, 100, 0, params(6000, tol, term));
+  Bench b{nm, header(6000, tol, term != TermCond::Blend), {}};
+  line(b.gcode, 100, 0, 0);
+  line(b.gcode, 100, 100, 0);
   b.gcode += "M2\n";
   return b;
 }
 
-// Program moves from G-code, through the project's interpreter.
-class MoveCanon : public interp::TextCanon {
- public:
-  MoveCanon(Program& prog, tooltable::ToolTable tools) : TextCanon(nullptr, std::move(tools), interp::Units::Mm), prog_(prog) {}
-  void select_plane(interp::Plane p) override {
-    TextCanon::select_plane(p);
-    plane_ = p;
+// CAM-style: adaptive clearing of a 40 mm slot by trochoidal loops (tool
+// radius 3, loop radius 2, 0.3 mm step): each loop a G3 arc on the cutting
+// side and the way back as 8 short lines (as CAM systems linearise it),
+// at Z-1, F3000, G64 P0.01.
+Bench trochoidal(int loops) {
+  Bench b{"CAM trochoidal slot", header(3000, 0.01), {}};
+  line(b.gcode, 0, 2, 0);
+  line(b.gcode, 0, 2, -1);
+  char buf[160];
+  const double r = 2, step = 0.3;
+  for (int i = 0; i < loops; ++i) {
+    const double cx = i * step;
+    // From (cx, 2) through (cx + 2, 0) to (cx, -2): clockwise around (cx, 0).
+    std::snprintf(buf, sizeof buf, "G2 X%.6f Y%.6f I%.6f J%.6f\n", cx, -r, 0.0, -r);
+    b.gcode += buf;
+    // Back over the left side, advancing by `step`: a half ellipse in 8 lines.
+    for (int k = 1; k <= 8; ++k) {
+      const double a = -std::numbers::pi / 2 - std::numbers::pi * k / 8;
+      line(b.gcode, cx + step * k / 8 + 0.6 * r * std::cos(a), r * std::sin(a), -1);
+    }
   }
-  void set_feed_rate(double rate) override {
-    TextCanon::set_feed_rate(rate);
-    feed_ = rate / 60.0;
-  }
-  void set_motion_control_mode(interp::MotionMode mode, double tolerance) override {
-    TextCanon::set_motion_control_mode(mode, tolerance);
-    term_ = mode == interp::MotionMode::ExactStop   ? TermCond::ExactStop
-            : mode == interp::MotionMode::ExactPath ? TermCond::ExactPath
-                                                    : TermCond::Blend;
-    tol_ = tolerance;
-  }
-  void set_naivecam_tolerance(double tolerance) override {
-    TextCanon::set_naivecam_tolerance(tolerance);
-    naive_tol_ = tolerance;
-  }
-  void straight_traverse(int line, const Pose& end) override {
-    TextCanon::straight_traverse(line, end);
-    push(ProgramMove::Kind::Line, end, line, MotionType::Traverse);
-  }
-  void straight_feed(int line, const Pose& end) override {
-    TextCanon::straight_feed(line, end);
-    push(ProgramMove::Kind::Line, end, line, MotionType::Feed);
-  }
-  void arc_feed(int line, double first_end, double second_end, double first_axis, double second_axis, int rotation,
-                double axis_end, const Pose& end) override {
-    TextCanon::arc_feed(line, first_end, second_end, first_axis, second_axis, rotation, axis_end, end);
-    int a0 = 0, a1 = 1, an = 2;  // G17
-    if (plane_ == interp::Plane::XZ) a0 = 2, a1 = 0, an = 1;
-    if (plane_ == interp::Plane::YZ) a0 = 1, a1 = 2, an = 0;
-    ProgramMove& m = push(ProgramMove::Kind::Circle, end, line, MotionType::Arc);
-    m.center = {pos_[0], pos_[1], pos_[2]};
-    m.center[static_cast<std::size_t>(a0)] = first_axis;
-    m.center[static_cast<std::size_t>(a1)] = second_axis;
-    m.normal = {0, 0, 0};
-    m.normal[static_cast<std::size_t>(an)] = rotation > 0 ? 1 : -1;
-    m.turns = std::abs(rotation) - 1;
-    pos_ = end;
-  }
-  void dwell(double seconds) override {
-    TextCanon::dwell(seconds);
-    ProgramMove m;
-    m.kind = ProgramMove::Kind::Dwell;
-    m.seconds = seconds;
-    m.params.type = MotionType::Dwell;
-    prog_.moves.push_back(m);
-  }
-
- private:
-  ProgramMove& push(ProgramMove::Kind kind, const Pose& end, int line, MotionType type) {
-    ProgramMove m;
-    m.kind = kind;
-    m.end = end;
-    m.params.type = type;
-    m.params.line = line;
-    m.params.feed = type == MotionType::Traverse ? 0 : feed_;
-    m.params.term = term_;
-    m.params.tolerance = tol_;
-    m.params.naive_cam_tolerance = term_ == TermCond::Blend ? naive_tol_ : 0.0;
-    prog_.moves.push_back(m);
-    if (kind == ProgramMove::Kind::Line) pos_ = end;
-    return prog_.moves.back();
-  }
-  Program& prog_;
-  interp::Plane plane_ = interp::Plane::XY;
-  double feed_ = 0;
-  TermCond term_ = TermCond::Blend;
-  double tol_ = 0;
-  double naive_tol_ = 0;
-  Pose pos_;
-};
-
-bool load_ngc(const std::string& path, Bench& b, double default_tol) {
-  b.name = std::filesystem::path(path).filename().string();
-  // Tools 1..9 (LinuxCNC's sample programs change tools).
-  const auto tbl = std::filesystem::temp_directory_path() / "bench_tp_tools.tbl";
-  {
-    std::ofstream t(tbl);
-    for (int i = 1; i < 10; ++i) t << "T" << i << " P" << i << " D10 ;\n";
-  }
-  MoveCanon canon(b.prog, tooltable::ToolTable::load(tbl, tooltable::ChangerKind::NonRandom));
-  interp::Config cfg;
-  char startup[80];
-  std::snprintf(startup, sizeof startup, "G21 G90 G17 G40 G49 G80 G94 G64 P%g", default_tol);
-  cfg.startup_code = startup;
-  interp::Interpreter in(canon, cfg);
-  try {
-    in.init();
-    in.open(path);
-    in.run_to_end();
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "%s: %s\n", path.c_str(), e.what());
-    return false;
-  }
-  // Programs start at the origin (LinuxCNC's driver starts every program
-  // there too), or where --start says.
-  for (int i = 0; i < 3; ++i) b.prog.start[i] = g_start[i];
-  return !b.prog.moves.empty();
+  b.gcode += "G0 Z5\nM2\n";
+  return b;
 }
 
+// CAM-style: 3-D surfacing raster (ball end finishing of z = 2 sin(x/8)
+// cos(y/12)): zig-zag passes along X of 0.5 mm segments, 1 mm stepover,
+// F4000, G64 P0.01.
+Bench surfacing(int passes) {
+  Bench b{"CAM 3-D surfacing raster", header(4000, 0.01), {}};
+  const auto z = [](double x, double y) { return 2 * std::sin(x / 8) * std::cos(y / 12) - 3; };
+  line(b.gcode, 0, 0, z(0, 0));
+  for (int p = 0; p < passes; ++p) {
+    const double y = p * 1.0;
+    if (p > 0) line(b.gcode, p % 2 ? 60 : 0, y, z(p % 2 ? 60 : 0, y));
+    for (int i = 1; i <= 120; ++i) {
+      const double x = p % 2 ? 60 - 0.5 * i : 0.5 * i;
+      line(b.gcode, x, y, z(x, y));
+    }
+  }
+  b.gcode += "M2\n";
+  return b;
+}
+
+// CAM-style: a dense polyline with small direction changes (a contour of
+// r = 30 + 6 sin(5 t) sampled every ~0.1 mm, 0.3-3 degrees per vertex),
+// F6000, G64 P0.01.
+Bench dense_contour(int points) {
+  Bench b{"CAM dense contour 0.1 mm", header(6000, 0.01), {}};
+  for (int i = 0; i <= points; ++i) {
+    const double t = 2 * std::numbers::pi * i / points;
+    const double r = 30 + 6 * std::sin(5 * t);
+    line(b.gcode, r * std::cos(t), r * std::sin(t), 0);
+  }
+  b.gcode += "M2\n";
+  return b;
+}
+
+// --- lower bound of the traverse time ---
+// Minimum time of a rest-to-rest straight move of length L under velocity
+// v, acceleration a and jerk j (third-order profile).
+double rest_to_rest(double L, double v, double a, double j) {
+  if (!(L > 0)) return 0;
+  // Time and distance to reach velocity w from rest (and back).
+  const auto ramp = [&](double w, double& t, double& s) {
+    t = w * j >= a * a ? w / a + a / j : 2 * std::sqrt(w / j);
+    s = w * t / 2;
+  };
+  double t = 0, s = 0;
+  ramp(v, t, s);
+  if (2 * s <= L) return 2 * t + (L - 2 * s) / v;
+  double lo = 0, hi = v;
+  for (int k = 0; k < 100; ++k) {
+    const double w = (lo + hi) / 2;
+    ramp(w, t, s);
+    (2 * s <= L ? lo : hi) = w;
+  }
+  ramp(lo, t, s);
+  return 2 * t;
+}
+
+// A lower bound no planner within the limits can beat: every move takes at
+// least its length over the highest speed it allows (feed, cap, per-axis
+// velocity in its direction); a run of collinear lines between two rests
+// (section ends, exact stops, exact-path corners, dwells) at least the
+// minimum time of one rest-to-rest move over it under the per-axis
+// limits along its direction; dwells their time. Blended corners are
+// taken at full speed, so the bound is low for programs of many corners.
+double lower_bound(const estimate::Moves& moves, const PlannerConfig& cfg) {
+  double total = 0;
+  for (const Program& p : moves.sections) {
+    Pose pos = p.start;
+    double run_len = 0, run_time = 0, run_v = 0, run_a = 0, run_j = 0;
+    std::array<double, 3> run_dir{};
+    bool run_straight = true;
+    const auto close_run = [&] {
+      double t = run_time;
+      if (run_straight && run_len > 0) t = std::max(t, rest_to_rest(run_len, run_v, run_a, run_j));
+      total += t;
+      run_len = run_time = run_v = 0;
+      run_a = run_j = 0;
+      run_straight = true;
+      run_dir = {};
+    };
+    for (std::size_t i = 0; i < p.moves.size(); ++i) {
+      const ProgramMove& m = p.moves[i];
+      if (m.kind == ProgramMove::Kind::Dwell) {
+        close_run();
+        total += m.seconds;
+        continue;
+      }
+      Curve c;
+      const bool ok = m.kind == ProgramMove::Kind::Line ? make_line(pos, m.end, 0, c)
+                                                         : make_helix(pos, m.end, m.center, m.normal, m.turns, 0, c);
+      if (!ok) continue;
+      double v = m.params.feed > 0 ? m.params.feed : 1e300;
+      if (m.params.max_velocity > 0) v = std::min(v, m.params.max_velocity);
+      double a = 1e300, j = 1e300;
+      for (int ax = 0; ax < kNumAxes; ++ax) {
+        if (!(cfg.axis_mask & (1U << ax)) || c.bound1[ax] < 1e-12) continue;
+        const AxisLimits& l = cfg.axes[static_cast<std::size_t>(ax)];
+        v = std::min(v, l.max_velocity / c.bound1[ax]);
+        a = std::min(a, l.max_acceleration / c.bound1[ax]);
+        j = std::min(j, l.max_jerk / c.bound1[ax]);
+      }
+      if (cfg.max_linear_velocity > 0) v = std::min(v, cfg.max_linear_velocity);
+      std::array<double, 3> dir{};
+      if (!c.is_curved()) {
+        for (int k = 0; k < 3; ++k) dir[static_cast<std::size_t>(k)] = c.rate[k];
+      }
+      const bool collinear = !c.is_curved() && (run_len == 0 || std::fabs(dir[0] * run_dir[0] + dir[1] * run_dir[1] +
+                                                                         dir[2] * run_dir[2] - 1) < 1e-9);
+      if (!collinear && run_len > 0) {
+        // A corner or a curve: the run goes on without a rest, no longer straight.
+        run_straight = false;
+      }
+      if (run_len == 0) run_dir = dir;
+      run_straight = run_straight && !c.is_curved();
+      run_len += c.length;
+      run_time += c.length / v;
+      run_v = std::max(run_v, v);
+      run_a = std::max(run_a, a);
+      run_j = std::max(run_j, j);
+      pos = m.end;
+      // Rests: exact stop, and exact path at a change of direction.
+      bool rest = m.params.term == TermCond::ExactStop;
+      if (m.params.term == TermCond::ExactPath && i + 1 < p.moves.size()) {
+        const ProgramMove& n = p.moves[i + 1];
+        Curve cn;
+        if (n.kind == ProgramMove::Kind::Line && !c.is_curved() && make_line(pos, n.end, 0, cn)) {
+          const double d = cn.rate[0] * dir[0] + cn.rate[1] * dir[1] + cn.rate[2] * dir[2];
+          rest = std::fabs(d - 1) > 1e-9;
+        } else {
+          rest = false;  // tangency unknown here: no rest assumed (still a bound)
+        }
+      }
+      if (rest) close_run();
+    }
+    close_run();
+  }
+  return total;
+}
+
+// --- running ---
 double pct(std::vector<double> v, double q) {
   if (v.empty()) return 0;
   const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())));
@@ -326,79 +402,124 @@ double vmax(const std::vector<double>& v) { return v.empty() ? 0 : *std::max_ele
 
 bool g_print_end = false;
 
-void run_one(const Bench& b, const std::string& prof, double T) {
-  const PlannerConfig cfg = profile(prof, T);
-  auto planner = make_planner(cfg, PlannerThreading::Inline);
-  RunOptions opt;
+// The program's G-code in a file (generated programs are written to a
+// temporary one) read through the task canon from `start`.
+estimate::Moves read(const Bench& b, const estimate::Machine& m, const Pose& start) {
+  std::filesystem::path f = b.file;
+  if (f.empty()) {
+    f = std::filesystem::temp_directory_path() / ("bench_tp_" + std::to_string(::getpid()) + ".ngc");
+    std::ofstream(f) << b.gcode;
+  }
+  estimate::Moves mv = estimate::read_program(m, f, start);
+  if (b.file.empty()) std::filesystem::remove(f);
+  return mv;
+}
+
+void run_one(const Bench& b, const estimate::Machine& m, const std::string& prof) {
+  const Pose start = g_start.value_or(m.home);
+  const estimate::Moves mv = read(b, m, start);
+  if (!mv.error.empty()) {
+    std::printf("%-34s %-6s  %s\n", b.name.c_str(), prof.c_str(), mv.error.c_str());
+    return;
+  }
+  estimate::Options opt;
   opt.measure_cpu = true;
   opt.flush_at_end = true;
   opt.moves_per_cycle = 64;  // an interpreter that keeps up
-  const RunResult r = run_program(*planner, cfg, b.prog, opt);
-  std::printf("%-34s %-6s %4.0f %s %9.3f  %5.3f %5.3f %5.3f  %6.3f  %5.1f%%  %6.1f %6.1f %7.1f %7.1f  %6.2f %7.1f\n",
-              b.name.c_str(), prof.c_str(), T * 1e6, r.completed ? "ok" : "NOT DONE", r.stats.time_s, r.stats.ratio_v,
-              r.stats.ratio_a, r.stats.ratio_j, r.stats.deviation_ratio, 100 * r.stats.at_feed_fraction,
-              mean(r.cycle_ns) / 1e3, pct(r.cycle_ns, 0.99) / 1e3, pct(r.cycle_ns, 0.999) / 1e3, vmax(r.cycle_ns) / 1e3,
-              mean(r.add_ns) / 1e3, pct(r.add_ns, 0.999) / 1e3);
+  const estimate::Result r = estimate::run(m, mv, opt);
+  const double T = m.planner.cycle_time_s;
+  std::printf("%-34s %-6s %4.0f %-2s %9.3f %9.3f  %5.3f %5.3f %5.3f  %6.3f  %5.1f%%  %6.1f %6.1f %7.1f %7.1f  %6.2f %7.1f\n",
+              b.name.c_str(), prof.c_str(), T * 1e6, r.completed ? "ok" : "no", r.stats.time_s,
+              lower_bound(mv, m.planner), r.stats.ratio_v, r.stats.ratio_a, r.stats.ratio_j, r.stats.deviation_ratio,
+              100 * r.stats.at_feed_fraction, mean(r.cycle_ns) / 1e3, pct(r.cycle_ns, 0.99) / 1e3,
+              pct(r.cycle_ns, 0.999) / 1e3, vmax(r.cycle_ns) / 1e3, mean(r.add_ns) / 1e3, pct(r.add_ns, 0.999) / 1e3);
   if (g_print_end) {
-    std::printf("  end position X%.6f Y%.6f Z%.6f, end error %.3g\n", r.last.position[0], r.last.position[1],
-                r.last.position[2], r.stats.end_error);
+    std::printf("  end position X%.6f Y%.6f Z%.6f (machine), %zu moves, %zu stops%s%s\n", r.end[0], r.end[1], r.end[2],
+                r.moves, r.stops, r.error.empty() ? "" : ": ", r.error.c_str());
   }
   std::fflush(stdout);
+}
+
+bool parse_triple(const char* s, double& a, double& b, double& c) { return std::sscanf(s, "%lf,%lf,%lf", &a, &b, &c) == 3; }
+
+int usage() {
+  std::fprintf(stderr,
+               "usage: bench_tp [--quick] [--ini FILE] [--write-ngc DIR] [--ngc FILE ...] [--only-ngc]\n"
+               "                [--limits [L:]V,A,J ...] [--linear V,A,J] [--lookahead N] [--period S] [--start X,Y,Z]\n"
+               "  --ini: limits, look-ahead, period, units, offsets and tools of a configuration (as cncd reads it)\n"
+               "  --only-ngc: only the --ngc programs (with their end positions), no attainment table\n"
+               "  --limits V,A,J: velocity, acceleration, jerk of X, Y, Z; X:V,A,J (Y:, Z:) of one axis\n"
+               "  --linear: limits on the XYZ norm ([TRAJ]MAX_LINEAR_VELOCITY, _ACCELERATION, _JERK)\n");
+  return 2;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   bool quick = false;
-  std::string write_dir;
+  std::string write_dir, ini_path;
   std::vector<std::string> ngc;
   bool only_ngc = false;
-  double period = 0;
   bool custom = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
+    const bool has = i + 1 < argc;
     if (a == "--quick") quick = true;
-    else if (a == "--write-ngc" && i + 1 < argc) write_dir = argv[++i];
-    else if (a == "--ngc" && i + 1 < argc) ngc.push_back(argv[++i]);
+    else if (a == "--ini" && has) ini_path = argv[++i];
+    else if (a == "--write-ngc" && has) write_dir = argv[++i];
+    else if (a == "--ngc" && has) ngc.push_back(argv[++i]);
     else if (a == "--only-ngc") only_ngc = true;
-    else if (a == "--lookahead" && i + 1 < argc) g_lookahead = std::atoi(argv[++i]);
-    else if (a == "--period" && i + 1 < argc) period = std::atof(argv[++i]);
-    else if (a == "--limits" && i + 1 < argc &&
-             std::sscanf(argv[++i], "%lf,%lf,%lf", &g_custom.max_velocity, &g_custom.max_acceleration,
-                         &g_custom.max_jerk) == 3) custom = true;
-    else if (a == "--start" && i + 1 < argc &&
-             std::sscanf(argv[++i], "%lf,%lf,%lf", &g_start[0], &g_start[1], &g_start[2]) == 3) {}
-    else if (a == "--linear" && i + 1 < argc &&
-             std::sscanf(argv[++i], "%lf,%lf,%lf", &g_linear[0], &g_linear[1], &g_linear[2]) == 3) {}
-    else {
-      std::fprintf(stderr,
-                   "usage: bench_tp [--quick] [--write-ngc DIR] [--ngc FILE ...] [--only-ngc]\n"
-                   "                [--limits V,A,J] [--linear V,A,J] [--lookahead N] [--period S] [--start X,Y,Z]\n"
-                   "  --only-ngc: only the --ngc programs (with their end positions), no attainment table\n"
-                   "  --limits: per-axis velocity, acceleration, jerk of X, Y, Z (units/s...) instead of the profiles\n"
-                   "  --linear: limits on the XYZ norm ([TRAJ]MAX_LINEAR_VELOCITY, _ACCELERATION, _JERK)\n");
-      return 2;
+    else if (a == "--lookahead" && has) g_lookahead = std::atoi(argv[++i]);
+    else if (a == "--period" && has) g_period = std::atof(argv[++i]);
+    else if (a == "--limits" && has) {
+      const std::string v = argv[++i];
+      int axis = -1;
+      std::string nums = v;
+      if (v.size() > 2 && v[1] == ':') {
+        const char* p = std::strchr("XYZ", std::toupper(static_cast<unsigned char>(v[0])));
+        if (!p) return usage();
+        axis = static_cast<int>(p - "XYZ");
+        nums = v.substr(2);
+      }
+      AxisLimits l;
+      if (!parse_triple(nums.c_str(), l.max_velocity, l.max_acceleration, l.max_jerk)) return usage();
+      for (int k = 0; k < 3; ++k) {
+        if (axis < 0 || axis == k) g_custom[k] = l;
+      }
+      custom = true;
+    } else if (a == "--start" && has) {
+      Pose p;
+      if (!parse_triple(argv[++i], p[0], p[1], p[2])) return usage();
+      g_start = p;
+    } else if (a == "--linear" && has) {
+      if (!parse_triple(argv[++i], g_linear[0], g_linear[1], g_linear[2])) return usage();
+    } else {
+      return usage();
     }
   }
-  if (g_lookahead < 1 || (period != 0 && !(period > 0))) {
+  if ((g_lookahead && *g_lookahead < 1) || (g_period && !(*g_period > 0))) {
     std::fprintf(stderr, "bench_tp: --lookahead must be at least 1 and --period positive\n");
+    return 2;
+  }
+  if (!ini_path.empty() && (custom || g_linear[0] > 0)) {
+    std::fprintf(stderr, "bench_tp: --ini gives the limits; --limits and --linear are for runs without it\n");
     return 2;
   }
   g_print_end = only_ngc;
   std::vector<Bench> progs;
   if (!only_ngc) {
-  progs.push_back(short_lines(0.01, 50, 6000));
-  progs.push_back(zigzag(0.1, 0.01, 2000, 6000, 0.01));
-  progs.push_back(polygon_circles(10, 0.05, 2, 6000, 0.01));
-  progs.push_back(random_lines(7, quick ? 300 : 2000, 6000, 0.01));
-  progs.push_back(arcs_and_helices(3000, 0.01));
-  progs.push_back(corner(TermCond::ExactPath, 0));
-  for (double p : {0.001, 0.01, 0.1}) progs.push_back(corner(TermCond::Blend, p));
+    progs.push_back(short_lines(0.01, 50, 6000));
+    progs.push_back(zigzag(0.1, 0.01, 2000, 6000, 0.01));
+    progs.push_back(polygon_circles(10, 0.05, 2, 6000, 0.01));
+    progs.push_back(random_lines(7, quick ? 300 : 2000, 6000, 0.01));
+    progs.push_back(arcs_and_helices(3000, 0.01));
+    progs.push_back(corner(TermCond::ExactPath, 0));
+    for (double p : {0.001, 0.01, 0.1}) progs.push_back(corner(TermCond::Blend, p));
+    progs.push_back(trochoidal(quick ? 60 : 130));
+    progs.push_back(surfacing(quick ? 20 : 60));
+    progs.push_back(dense_contour(quick ? 2000 : 4000));
   }
-  for (const std::string& f : ngc) {
-    Bench b;
-    if (load_ngc(f, b, 0.01)) progs.push_back(std::move(b));
-  }
+  for (const std::string& f : ngc) progs.push_back(Bench{std::filesystem::path(f).filename().string(), "", f});
   if (!write_dir.empty()) {
     std::filesystem::create_directories(write_dir);
     int k = 0;
@@ -411,40 +532,60 @@ int main(int argc, char** argv) {
     }
   }
 
-  std::printf("\n== traverse time, limits, tolerance, CPU (inline planner; CPU in us)\n");
-  std::printf("%-34s %-6s %4s %s %9s  %5s %5s %5s  %6s  %6s  %6s %6s %7s %7s  %6s %7s\n", "program", "limits", "T_us",
-              "ok", "time_s", "v/V", "a/A", "j/J", "dev/P", "@feed", "cyc_mn", "p99", "p99.9", "max", "seg_mn",
-              "seg999");
-  std::vector<std::string> profs = quick ? std::vector<std::string>{"LC"} : std::vector<std::string>{"LC", "Mill-S", "Mill-F"};
-  std::vector<double> periods = quick ? std::vector<double>{0.001} : std::vector<double>{0.001, 0.00025};
-  if (custom) profs = {"custom"};
-  if (period > 0) periods = {period};
-  for (const Bench& b : progs) {
-    for (const std::string& pr : profs) {
-      for (double T : periods) run_one(b, pr, T);
+  try {
+    std::vector<std::pair<std::string, estimate::Machine>> machines;
+    if (!ini_path.empty()) {
+      machines.emplace_back("ini", ini_machine(ini_path));
+      const estimate::Machine& m = machines.back().second;
+      std::printf("\n%s: %s; look-ahead %d moves, period %g us; per axis v/a/j:", ini_path.c_str(), m.kinematics.c_str(),
+                  m.planner.lookahead_segments, m.planner.cycle_time_s * 1e6);
+      for (int a = 0; a < 3; ++a) {
+        const AxisLimits& l = m.planner.axes[static_cast<std::size_t>(a)];
+        std::printf(" %c %g/%g/%g", "XYZ"[a], l.max_velocity, l.max_acceleration, l.max_jerk);
+      }
+      std::printf("; start X%g Y%g Z%g\n", g_start.value_or(m.home)[0], g_start.value_or(m.home)[1],
+                  g_start.value_or(m.home)[2]);
+    } else {
+      std::vector<std::string> profs = quick ? std::vector<std::string>{"LC"} : std::vector<std::string>{"LC", "Mill-S", "Mill-F"};
+      std::vector<double> periods = quick ? std::vector<double>{0.001} : std::vector<double>{0.001, 0.00025};
+      if (custom) profs = {"custom"};
+      if (g_period) periods = {*g_period};
+      for (const std::string& pr : profs) {
+        for (double T : periods) machines.emplace_back(pr, profile_machine(pr, T));
+      }
     }
-  }
 
-  if (only_ngc) return 0;
-  std::printf("\n== short-segment feed attainment: collinear segments over 100 mm (20 mm for 1 um; F6000 = 100 mm/s, LC limits)\n");
-  std::printf("%-10s %5s %10s %10s %9s %12s\n", "segment", "T_us", "mean/F", "peak/F", "@feed", "LinuxCNC cap");
-  for (double seg : {0.001, 0.01, 0.1, 1.0}) {
-    for (double T : {0.001, 0.00025}) {
-      const double len = seg < 0.005 ? 20.0 : 100.0;
-      Bench b = short_lines(seg, len, 6000);
-      PlannerConfig cfg = profile("LC", T);
-      // Look-ahead over 12 mm: more than the 6 mm a stop from 100 mm/s needs.
-      cfg.lookahead_segments = std::max(2000, static_cast<int>(12.0 / seg));
-      auto planner = make_planner(cfg, PlannerThreading::Inline);
-      RunOptions opt;
-      opt.flush_at_end = true;
-      opt.moves_per_cycle = 1 << 20;
-      const RunResult r = run_program(*planner, cfg, b.prog, opt);
-      // LinuxCNC 2.9: every segment lasts at least 1.02 servo periods.
-      const double cap = std::min(1.0, seg / (1.02 * T) / 100.0);
-      std::printf("%-10g %5.0f %9.1f%% %9.1f%% %8.1f%% %11.1f%%\n", seg, T * 1e6, 100 * r.stats.mean_feed_ratio,
-                  100 * r.stats.max_v[0] / 100.0, 100 * r.stats.at_feed_fraction, 100 * cap);
+    std::printf("\n== traverse time, lower bound, limits, tolerance, CPU (inline planner; CPU in us)\n");
+    std::printf("%-34s %-6s %4s %-2s %9s %9s  %5s %5s %5s  %6s  %6s  %6s %6s %7s %7s  %6s %7s\n", "program", "limits",
+                "T_us", "ok", "time_s", "bound_s", "v/V", "a/A", "j/J", "dev/P", "@feed", "cyc_mn", "p99", "p99.9", "max",
+                "seg_mn", "seg999");
+    for (const Bench& b : progs) {
+      for (const auto& [name, m] : machines) run_one(b, m, name);
     }
+
+    if (only_ngc) return 0;
+    std::printf("\n== short-segment feed attainment: collinear segments over 100 mm (20 mm for 1 um; F6000 = 100 mm/s, LC limits)\n");
+    std::printf("%-10s %5s %10s %10s %9s %12s\n", "segment", "T_us", "mean/F", "peak/F", "@feed", "LinuxCNC cap");
+    for (double seg : {0.001, 0.01, 0.1, 1.0}) {
+      for (double T : {0.001, 0.00025}) {
+        const double len = seg < 0.005 ? 20.0 : 100.0;
+        estimate::Machine m = profile_machine("LC", T);
+        // Look-ahead over 12 mm: more than the 6 mm a stop from 100 mm/s needs.
+        m.planner.lookahead_segments = std::max(2000, static_cast<int>(12.0 / seg));
+        const estimate::Moves mv = read(short_lines(seg, len, 6000), m, Pose{});
+        estimate::Options opt;
+        opt.flush_at_end = true;
+        opt.moves_per_cycle = 1 << 20;
+        const estimate::Result r = estimate::run(m, mv, opt);
+        // LinuxCNC 2.9: every segment lasts at least 1.02 servo periods.
+        const double cap = std::min(1.0, seg / (1.02 * T) / 100.0);
+        std::printf("%-10g %5.0f %9.1f%% %9.1f%% %8.1f%% %11.1f%%\n", seg, T * 1e6, 100 * r.stats.mean_feed_ratio,
+                    100 * r.stats.max_v[0] / 100.0, 100 * r.stats.at_feed_fraction, 100 * cap);
+      }
+    }
+  } catch (const ConfigError& e) {
+    std::fprintf(stderr, "bench_tp: %s\n", e.what());
+    return 2;
   }
   return 0;
 }

@@ -21,9 +21,13 @@ using namespace detail;
 tp::PlannerConfig planner_config(const MotionConfig& c, uint32_t axis_mask) {
   tp::PlannerConfig p;
   p.cycle_time_s = c.servo_period_s;
-  p.max_linear_velocity = c.max_linear_velocity;
-  p.max_linear_acceleration = c.max_linear_acceleration;
-  p.max_linear_jerk = c.max_linear_jerk;
+  // No [TRAJ] key (1e99 here) is the planner's 0, "no limit": passing 1e99
+  // made it take max_linear_acceleration / max_linear_jerk = 1 s as its
+  // smoothing time when both were missing.
+  const auto limit = [](double v) { return v < 1e98 ? v : 0.0; };
+  p.max_linear_velocity = limit(c.max_linear_velocity);
+  p.max_linear_acceleration = limit(c.max_linear_acceleration);
+  p.max_linear_jerk = limit(c.max_linear_jerk);
   p.axis_mask = axis_mask;
   p.lookahead_segments = c.lookahead_segments;
   p.blend_span_segments = c.blend_span_segments;

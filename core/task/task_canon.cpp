@@ -1,6 +1,10 @@
 #include "core/task/task_canon.hpp"
 
+#include <algorithm>
 #include <cmath>
+
+#include "core/ini/ini_file.hpp"
+#include "core/util/strings.hpp"
 
 namespace cnc::task {
 namespace {
@@ -8,6 +12,38 @@ namespace {
 bool is_linear(int axis) noexcept { return axis < 3 || axis > 5; }  // XYZ and UVW; ABC are angles
 
 }  // namespace
+
+CanonConfig canon_config(const ini::IniFile& ini, const motion::MotionConfig& m, uint32_t axis_mask) {
+  CanonConfig c;
+  c.machine_units_per_mm = m.linear_units_per_mm;
+  c.axis_mask = axis_mask;
+  if (const auto pos = ini.find("EMCIO", "TOOL_CHANGE_POSITION")) {
+    const auto words = split_blanks(*pos);
+    c.has_tool_change_position = true;
+    for (std::size_t i = 0; i < words.size() && i < static_cast<std::size_t>(kNumAxes); ++i) {
+      const auto v = parse_double(words[i]);
+      if (!v) ini.fail(ini.find_entry("EMCIO", "TOOL_CHANGE_POSITION"), "expected numbers X Y Z [A B C ...]");
+      c.tool_change_position[static_cast<int>(i)] = *v;
+    }
+  }
+  c.tool_change_quill_up = ini.get_bool("EMCIO", "TOOL_CHANGE_QUILL_UP", false);
+  return c;
+}
+
+void view_limits(const motion::MotionStatus& ms, MachineView& view) {
+  view.max_linear_velocity = ms.traj.max_linear_velocity;
+  view.max_linear_acceleration = ms.traj.max_linear_acceleration;
+  // The fastest an axis may go bounds rapids when [TRAJ] gives no maximum.
+  double rapid = ms.traj.max_linear_velocity;
+  if (!(rapid < 1e98)) {
+    rapid = 0;
+    for (int a = 0; a < kNumAxes; ++a) {
+      if (ms.traj.axis_mask & (1u << a)) rapid = std::max(rapid, ms.axes[a].velocity_limit);
+    }
+  }
+  view.rapid_velocity = rapid > 0 ? rapid : 1;
+  if (!(view.max_linear_velocity < 1e98)) view.max_linear_velocity = view.rapid_velocity;
+}
 
 TaskCanon::TaskCanon(CanonConfig config, std::deque<Item>& items, const MachineView& machine)
     : cfg_(config), items_(items), machine_(machine) {}
@@ -28,7 +64,21 @@ interp::Units TaskCanon::machine_length_units() const {
   return cfg_.machine_units_per_mm < 0.5 ? interp::Units::Inch : interp::Units::Mm;
 }
 
-void TaskCanon::use_length_units(interp::Units u) { units_ = u; }
+void TaskCanon::use_length_units(interp::Units u) {
+  // The offsets were given in the program units of their time (the
+  // interpreter converts its own copies and does not send them again, as
+  // LinuxCNC's canon keeps them converted): carry them over to the new unit.
+  const double before = length_factor();
+  units_ = u;
+  const double k = before / length_factor();
+  if (k == 1.0) return;
+  for (int a = 0; a < kNumAxes; ++a) {
+    if (!is_linear(a)) continue;
+    g5x_[a] *= k;
+    g92_[a] *= k;
+    tool_offset_[a] *= k;
+  }
+}
 
 void TaskCanon::set_g5x_offset(int origin, const Pose& offset) {
   g5x_index_ = origin;

@@ -12,7 +12,12 @@
 
 #include "core/interp/canon.hpp"
 #include "core/motion/config.hpp"
+#include "core/motion/motion_status.hpp"
 #include "core/task/item.hpp"
+
+namespace cnc::ini {
+class IniFile;
+}
 
 namespace cnc::task {
 
@@ -37,6 +42,14 @@ struct CanonConfig {
   Pose tool_change_position;           // [EMCIO]TOOL_CHANGE_POSITION (machine)
   bool tool_change_quill_up = false;   // [EMCIO]TOOL_CHANGE_QUILL_UP
 };
+
+// The canon's configuration from the INI file ([TRAJ]LINEAR_UNITS through
+// the motion configuration, [EMCIO]TOOL_CHANGE_*). Throws ConfigError.
+CanonConfig canon_config(const ini::IniFile& ini, const motion::MotionConfig& m, uint32_t axis_mask);
+
+// The path limits motion has in force (its status), into a canon's view of
+// the machine: the cap of every move and the speed of rapids.
+void view_limits(const motion::MotionStatus& status, MachineView& view);
 
 class TaskCanon : public interp::Canon {
  public:

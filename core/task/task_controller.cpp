@@ -96,20 +96,7 @@ TaskController::~TaskController() {
 
 void TaskController::post(MessageKind kind, const std::string& text) { messages_.post(kind, "task", text); }
 
-void TaskController::view_limits(MachineView& view) const {
-  view.max_linear_velocity = ms_.traj.max_linear_velocity;
-  view.max_linear_acceleration = ms_.traj.max_linear_acceleration;
-  // The fastest an axis may go bounds rapids when [TRAJ] gives no maximum.
-  double rapid = ms_.traj.max_linear_velocity;
-  if (!(rapid < 1e98)) {
-    rapid = 0;
-    for (int a = 0; a < kNumAxes; ++a) {
-      if (ms_.traj.axis_mask & (1u << a)) rapid = std::max(rapid, ms_.axes[a].velocity_limit);
-    }
-  }
-  view.rapid_velocity = rapid > 0 ? rapid : 1;
-  if (!(view.max_linear_velocity < 1e98)) view.max_linear_velocity = view.rapid_velocity;
-}
+void TaskController::view_limits(MachineView& view) const { task::view_limits(ms_, view); }
 
 void TaskController::report_spindle_limits() {
   for (int s = 0; s < ms_.traj.spindles && s < ipc::kMaxSpindles; ++s) {

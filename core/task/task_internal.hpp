@@ -22,23 +22,6 @@
 namespace cnc::task {
 namespace detail {
 
-inline CanonConfig canon_config(const ini::IniFile& ini, const motion::MotionConfig& m, uint32_t axis_mask) {
-  CanonConfig c;
-  c.machine_units_per_mm = m.linear_units_per_mm;
-  c.axis_mask = axis_mask;
-  if (const auto pos = ini.find("EMCIO", "TOOL_CHANGE_POSITION")) {
-    const auto words = split_blanks(*pos);
-    c.has_tool_change_position = true;
-    for (std::size_t i = 0; i < words.size() && i < static_cast<std::size_t>(kNumAxes); ++i) {
-      const auto v = parse_double(words[i]);
-      if (!v) ini.fail(ini.find_entry("EMCIO", "TOOL_CHANGE_POSITION"), "expected numbers X Y Z [A B C ...]");
-      c.tool_change_position[static_cast<int>(i)] = *v;
-    }
-  }
-  c.tool_change_quill_up = ini.get_bool("EMCIO", "TOOL_CHANGE_QUILL_UP", false);
-  return c;
-}
-
 // A figure for a message: six significant digits ("55000", not "55000.00000000001").
 inline std::string figure(double v) {
   char buf[32];
