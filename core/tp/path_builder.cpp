@@ -11,9 +11,14 @@ namespace {
 // Moves one merged chord may take: the builder holds back up to about
 // 5 x span chords, and what it holds counts against the queue, so chords
 // of kMaxMergedMoves moves would fill a short queue with moves nobody may
-// execute yet (the queue full, nothing published: a dead stop).
+// execute yet (the queue full, nothing published: a dead stop). A quarter
+// of the queue over the worst hold-back: on a straight run (held back
+// span + 2 chords, the merge's open chord and the vertex smoothing's
+// three) 0.01 mm moves at the default 1000 moves of look-ahead keep about
+// 8.5 mm of path published (chords of 12 moves held 1.5 mm more back and
+// capped the speed at 89-93 % of F6000).
 int merge_cap(const PlannerConfig& c, int span) noexcept {
-  return std::clamp(c.lookahead_segments / (2 * (5 * span + 1)), 1, kMaxMergedMoves - 1);
+  return std::clamp(c.lookahead_segments / (4 * (5 * span + 1)), 1, kMaxMergedMoves - 1);
 }
 
 constexpr double kTangentEps = 1e-9;

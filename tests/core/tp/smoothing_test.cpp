@@ -190,9 +190,9 @@ TEST(TpSmoothing, RandomWigglyBandsHoldLimitsAndTolerance) {
 // 10 000 collinear 0.01 mm moves (G64 P0.001 with Q = P, as the
 // interpreter gives) at the product's default look-ahead of 1000 moves:
 // the builder holds back only what windows may still reach (none on a
-// straight run), so the machine sees enough of the path to approach
-// F6000 (peak 89 % before, goal 95 %).
-TEST(TpSmoothing, TenMicronMovesAtTheDefaultLookaheadNearlyReachTheFeed) {
+// straight run) and chords of at most 6 moves, so the machine sees
+// enough of the path to reach F6000 (peak 89 % before, goal 95 %).
+TEST(TpSmoothing, TenMicronMovesAtTheDefaultLookaheadReachTheFeed) {
   PlannerConfig cfg = profile("lc", 0.001);
   cfg.lookahead_segments = 1000;
   SegmentParams p = feed_params(100, 0.001);
@@ -201,7 +201,7 @@ TEST(TpSmoothing, TenMicronMovesAtTheDefaultLookaheadNearlyReachTheFeed) {
   for (int i = 1; i <= 10000; ++i) prog.moves.push_back(line_to(0.01 * i, 0, 0, p));
   const RunResult r = run(cfg, prog);
   expect_clean(r);
-  EXPECT_GT(r.stats.max_v[0], 0.93 * 100);
+  EXPECT_GT(r.stats.max_v[0], 0.95 * 100);
 }
 
 }  // namespace
