@@ -4,9 +4,12 @@
 // inside add_line() on the servo thread or on a planner thread of its own;
 // either way it never allocates after construction and never blocks.
 //
-// It holds back the newest moves until the windows that may reach into them
-// are known (at most 5 x blend_span_segments moves, or up to the next exact
-// stop), and plans to the end of the queue when flushed.
+// Stages: the G64 Q merge of nearly collinear moves, the vertex smoothing
+// of bands of G64 P lines (smoothing.hpp), the corner windows (blend.hpp),
+// the pieces. It holds back the newest moves until the windows that may
+// reach into them are known (at most 5 x blend_span_segments moves, or up
+// to the next exact stop; a straight run only blend_span_segments + 2), and
+// plans to the end of the queue when flushed.
 #pragma once
 
 #include <array>
