@@ -1,5 +1,7 @@
 #include "core/tp/path_builder.hpp"
 
+#include "core/tp/smoothing.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -9,9 +11,14 @@ namespace {
 // Moves one merged chord may take: the builder holds back up to about
 // 5 x span chords, and what it holds counts against the queue, so chords
 // of kMaxMergedMoves moves would fill a short queue with moves nobody may
-// execute yet (the queue full, nothing published: a dead stop).
+// execute yet (the queue full, nothing published: a dead stop). A quarter
+// of the queue over the worst hold-back: on a straight run (held back
+// span + 2 chords, the merge's open chord and the vertex smoothing's
+// three) 0.01 mm moves at the default 1000 moves of look-ahead keep about
+// 8.5 mm of path published (chords of 12 moves held 1.5 mm more back and
+// capped the speed at 89-93 % of F6000).
 int merge_cap(const PlannerConfig& c, int span) noexcept {
-  return std::clamp(c.lookahead_segments / (2 * (5 * span + 1)), 1, kMaxMergedMoves - 1);
+  return std::clamp(c.lookahead_segments / (4 * (5 * span + 1)), 1, kMaxMergedMoves - 1);
 }
 
 constexpr double kTangentEps = 1e-9;
@@ -22,26 +29,14 @@ constexpr double kTolShare = 0.9;
 // along the path: slowly varying windows give slowly varying curvature.
 constexpr double kWidthSlope = 0.5;
 // Naive-CAM merging (G64 Q) uses at most this share of G64 P: the rest is
-// for the corner smoothing (the total stays within P).
-constexpr double kMergeShare = 0.5;
+// for the corner smoothing (the total stays within P). Small: the merge
+// only joins nearly collinear moves; a chord that cuts across a curve
+// leaves sharper corners and less tolerance for the windows (circle as
+// 0.05 mm lines: 2.38 s with half of P, 1.84 s with 5 %; the vertex
+// smoothing stage and the windows follow such a band better).
+constexpr double kMergeShare = 0.05;
 // Pieces a move may become (see emit_pieces).
 constexpr std::size_t kMaxPiecesPerMove = 40;
-
-double dist_point_segment(const Pose& p, const Pose& a, const Pose& b) {
-  double ab2 = 0, t = 0;
-  for (int i = 0; i < kNumAxes; ++i) {
-    const double d = b[i] - a[i];
-    ab2 += d * d;
-    t += (p[i] - a[i]) * d;
-  }
-  t = ab2 > 0 ? std::clamp(t / ab2, 0.0, 1.0) : 0.0;
-  double r = 0;
-  for (int i = 0; i < kNumAxes; ++i) {
-    const double d = p[i] - (a[i] + t * (b[i] - a[i]));
-    r += d * d;
-  }
-  return std::sqrt(r);
-}
 
 double norm(const AxisVec& v) {
   double s = 0;
@@ -95,6 +90,25 @@ struct PathBuilder::Held {
   bool final = false;       // vx.half is final
 };
 
+// The vertex smoothing stage (smoothing.hpp): the newest lines of a band,
+// held until the vertices around them are known.
+struct PathBuilder::Fit {
+  struct Item {
+    Pose end;  // programmed end (the merged chord's, with G64 Q)
+    SegmentParams params;
+    uint32_t inputs = 0;
+    double err = 0;  // the merge's error of this chord
+  };
+  static constexpr int kItems = 3;
+  Item items[kItems];
+  int count = 0;
+  Pose start;      // where the first held line starts (its vertex already placed)
+  Pose raw_start;  // programmed start of the first held line
+  Pose before;     // programmed point before raw_start (valid if has_before)
+  bool has_before = false;
+  uint32_t carry = 0;  // inputs of a line that smoothing left without length
+};
+
 struct PathBuilder::Merge {
   bool active = false;
   Pose start;
@@ -107,7 +121,7 @@ struct PathBuilder::Merge {
 };
 
 PathBuilder::PathBuilder(const PlannerConfig& config, PathStore& store)
-    : cfg_(config), store_(store), merge_(std::make_unique<Merge>()) {
+    : cfg_(config), store_(store), merge_(std::make_unique<Merge>()), fit_(std::make_unique<Fit>()) {
   span_ = std::clamp(cfg_.blend_span_segments, 1, 32);
   std::size_t c = 2;
   while (c < static_cast<std::size_t>(8 * span_ + 64)) c *= 2;
@@ -132,13 +146,17 @@ void PathBuilder::set_position(const Pose& pose) noexcept {
 }
 
 bool PathBuilder::can_accept() const noexcept {
-  return next_seq_ - first_seq_ + 4 < held_mask_ + 1 && store_.segs.has_room(2);
+  return next_seq_ - first_seq_ + 4 + Fit::kItems < held_mask_ + 1 && store_.segs.has_room(2 + Fit::kItems);
 }
 
-bool PathBuilder::has_held() const noexcept { return merge_->active || first_unfinal_ < next_seq_; }
+bool PathBuilder::has_held() const noexcept {
+  return merge_->active || fit_->count > 0 || first_unfinal_ < next_seq_;
+}
 
 void PathBuilder::reset(uint32_t epoch) noexcept {
   merge_->active = false;
+  fit_->count = 0;
+  fit_->carry = 0;
   epoch_ = epoch;
   first_seq_ = first_unfinal_ = next_seq_ = next_tent_ = next_final_ = store_.segs.head();
   // The vertex ring stays aligned with the segment ring.
@@ -180,9 +198,9 @@ Result PathBuilder::add_line(const Pose& end, const SegmentParams& params) noexc
     position_ = end;
     return Result::Ok;
   }
-  const Result r = append(probe_curve, params, 1, 0);
-  if (r == Result::Ok) position_ = end;
-  return r;
+  push_line(position_, end, params, 1, 0);
+  position_ = end;
+  return Result::Ok;
 }
 
 // G64 Q (LinuxCNC's naive-CAM detector): collinear-enough feed moves become
@@ -200,10 +218,10 @@ bool PathBuilder::try_merge(const Pose& end, const SegmentParams& p) noexcept {
   }
   double tol = q.naive_cam_tolerance;
   if (q.tolerance > 0) tol = std::min(tol, kMergeShare * q.tolerance);
-  double err = dist_point_segment(m.end, m.start, end);
+  double err = distance_to_segment(m.end, m.start, end);
   if (err > tol) return false;
   for (int i = 0; i < m.count; ++i) {
-    err = std::max(err, dist_point_segment(m.points[i], m.start, end));
+    err = std::max(err, distance_to_segment(m.points[i], m.start, end));
     if (err > tol) return false;
   }
   // Must keep going forward along the chord.
@@ -225,9 +243,94 @@ void PathBuilder::flush_merge() noexcept {
   Merge& m = *merge_;
   if (!m.active) return;
   m.active = false;
-  Curve c;
-  if (make_line(m.start, m.end, cfg_.max_blend_half_width, c)) append(c, m.params, m.inputs, m.err);
+  push_line(m.start, m.end, m.params, m.inputs, m.err);
 }
+
+// A programmed line (or merged chord) from `start` to `end`: into the
+// vertex smoothing stage when it belongs to a band (a G64 P feed line with
+// the parameters of the band held), else straight to the segments.
+void PathBuilder::push_line(const Pose& start, const Pose& end, const SegmentParams& p, uint32_t inputs,
+                            double merge_err) noexcept {
+  Fit& f = *fit_;
+  const bool band = p.type == MotionType::Feed && p.term == TermCond::Blend && p.tolerance > 0;
+  if (f.count > 0) {
+    const SegmentParams& q = f.items[0].params;
+    const bool same = band && p.feed == q.feed && p.max_velocity == q.max_velocity &&
+                      p.max_acceleration == q.max_acceleration && p.tolerance == q.tolerance &&
+                      p.naive_cam_tolerance == q.naive_cam_tolerance &&
+                      p.feed_override_allowed == q.feed_override_allowed;
+    if (!same) flush_fit();
+  }
+  if (!band) {
+    Curve c;
+    if (make_line(start, end, cfg_.max_blend_half_width, c)) append(c, p, inputs, merge_err);
+    return;
+  }
+  if (f.count == 0) {
+    // A new band starts where the path is: its first point stays.
+    f.start = f.raw_start = start;
+  }
+  Fit::Item& it = f.items[f.count++];
+  it.end = end;
+  it.params = p;
+  it.inputs = inputs;
+  it.err = merge_err;
+  if (f.count == Fit::kItems) fit_emit(1);
+}
+
+// Places the vertex at the end of the first held line (the last one of a
+// band keeps its programmed end when `count` is what is held) and appends
+// that line; `count` times.
+void PathBuilder::fit_emit(int count) noexcept {
+  Fit& f = *fit_;
+  for (int n = 0; n < count && f.count > 0; ++n) {
+    const Fit::Item& a = f.items[0];
+    Pose q = a.end;
+    if (f.count >= 2) {
+      const Fit::Item& b = f.items[1];
+      const double tol = a.params.tolerance;
+      const double budget = kFitShare * tol - std::max(a.err, b.err);
+      q = smooth_vertex(f.has_before ? &f.before : nullptr, f.raw_start, a.end, b.end,
+                        f.count >= 3 ? &f.items[2].end : nullptr, budget, tol);
+    }
+    // The new line lies within its ends' larger distance from the
+    // programmed one (convexity).
+    const double e = std::max(distance_to_segment(f.start, f.raw_start, a.end), distance_to_segment(q, f.raw_start, a.end));
+    Curve c;
+    if (make_line(f.start, q, cfg_.max_blend_half_width, c)) {
+      append(c, a.params, a.inputs + f.carry, a.err + e);
+      f.carry = 0;
+      f.start = q;
+    } else {
+      f.carry += a.inputs;  // counted with the next line
+    }
+    f.before = f.raw_start;
+    f.has_before = true;
+    f.raw_start = a.end;
+    for (int i = 1; i < f.count; ++i) f.items[i - 1] = f.items[i];
+    --f.count;
+  }
+  if (f.count == 0) {
+    f.has_before = false;
+    if (f.carry > 0) {
+      // Moves left without length at the band's end still count as done
+      // where the band ends (a stop point if that segment is already out).
+      if (next_seq_ > first_unfinal_) {
+        held(next_seq_ - 1).inputs += f.carry;
+      } else {
+        Curve pt;
+        pt.start = pt.end = f.start;
+        SegmentParams sp = f.items[0].params;
+        sp.type = MotionType::Dwell;
+        sp.term = TermCond::ExactStop;
+        append(pt, sp, f.carry, 0);
+      }
+    }
+    f.carry = 0;
+  }
+}
+
+void PathBuilder::flush_fit() noexcept { fit_emit(Fit::kItems); }
 
 Result PathBuilder::add_circle(const Pose& end, const std::array<double, 3>& center,
                                const std::array<double, 3>& normal, int turns, const SegmentParams& params) noexcept {
@@ -242,6 +345,7 @@ Result PathBuilder::add_circle(const Pose& end, const std::array<double, 3>& cen
   }
   if (!can_accept()) return Result::QueueFull;
   flush_merge();
+  flush_fit();
   const Result r = append(c, params, 1, 0);
   if (r == Result::Ok) position_ = end;
   return r;
@@ -251,6 +355,7 @@ Result PathBuilder::add_dwell(double seconds, const SegmentParams& params) noexc
   if (!(seconds >= 0) || !std::isfinite(seconds)) return Result::InvalidSegment;
   if (!can_accept()) return Result::QueueFull;
   flush_merge();
+  flush_fit();
   if (next_seq_ > first_unfinal_ && held(next_seq_ - 1).junction == Junction::Unknown) {
     Held& h = held(next_seq_ - 1);
     h.junction = Junction::Stop;
@@ -274,6 +379,7 @@ Result PathBuilder::add_dwell(double seconds, const SegmentParams& params) noexc
 
 void PathBuilder::flush() noexcept {
   flush_merge();
+  flush_fit();
   if (next_seq_ > first_unfinal_ && held(next_seq_ - 1).junction == Junction::Unknown) {
     held(next_seq_ - 1).junction = Junction::Stop;
   }
@@ -629,7 +735,10 @@ void PathBuilder::finalize(bool flushing) noexcept {
   }
   while (next_final_ < next_tent_) {
     const uint64_t j = next_final_;
-    if (horizon(j, 2 * span + 1) >= next_tent_) break;
+    // A corner's window is checked against the corners after it; a junction
+    // without a window (collinear, tangent, a stop) has nothing to check and
+    // is final at once, so a straight run is not held back for them.
+    if (held(j).junction == Junction::Window && horizon(j, 2 * span + 1) >= next_tent_) break;
     final_half(j);
     ++next_final_;
   }

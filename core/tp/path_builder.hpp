@@ -4,9 +4,12 @@
 // inside add_line() on the servo thread or on a planner thread of its own;
 // either way it never allocates after construction and never blocks.
 //
-// It holds back the newest moves until the windows that may reach into them
-// are known (at most 5 x blend_span_segments moves, or up to the next exact
-// stop), and plans to the end of the queue when flushed.
+// Stages: the G64 Q merge of nearly collinear moves, the vertex smoothing
+// of bands of G64 P lines (smoothing.hpp), the corner windows (blend.hpp),
+// the pieces. It holds back the newest moves until the windows that may
+// reach into them are known (at most 5 x blend_span_segments moves, or up
+// to the next exact stop; a straight run only blend_span_segments + 2), and
+// plans to the end of the queue when flushed.
 #pragma once
 
 #include <array>
@@ -53,11 +56,16 @@ class PathBuilder {
  private:
   struct Held;
   struct Merge;
+  struct Fit;
   enum class Junction : uint8_t { Unknown, Smooth, Window, Stop };
 
   Result append(const Curve& curve, const SegmentParams& params, uint32_t inputs, double merge_err) noexcept;
   Result append_point(const SegmentParams& params) noexcept;
   void flush_merge() noexcept;
+  void push_line(const Pose& start, const Pose& end, const SegmentParams& params, uint32_t inputs,
+                 double merge_err) noexcept;
+  void fit_emit(int count) noexcept;
+  void flush_fit() noexcept;
   bool try_merge(const Pose& end, const SegmentParams& params) noexcept;
   void finalize(bool flushing) noexcept;
   uint64_t horizon(uint64_t j, uint64_t n) const noexcept;
@@ -78,6 +86,7 @@ class PathBuilder {
   std::unique_ptr<Held[]> held_;
   std::size_t held_mask_ = 0;
   std::unique_ptr<Merge> merge_;
+  std::unique_ptr<Fit> fit_;
   Pose position_;
   uint64_t first_seq_ = 0;       // oldest segment still kept (history)
   uint64_t next_seq_ = 0;        // next segment number (== store_.segs.head())
