@@ -18,8 +18,10 @@
 namespace cnc::tp {
 namespace {
 
+using test::expect_clean;
 using test::feed_params;
 using test::line_to;
+using test::pose;
 using test::profile;
 
 ProgramMove arc_to(const Pose& end, std::array<double, 3> center, std::array<double, 3> normal,
@@ -35,28 +37,8 @@ ProgramMove arc_to(const Pose& end, std::array<double, 3> center, std::array<dou
   return m;
 }
 
-Pose pose(double x, double y, double z) {
-  Pose p;
-  p[0] = x;
-  p[1] = y;
-  p[2] = z;
-  return p;
-}
-
-void expect_clean(const RunResult& r, double end_tol = 1e-9) {
-  ASSERT_TRUE(r.completed) << "cycles " << r.cycles;
-  EXPECT_LE(r.stats.ratio_v, 1 + 1e-9);
-  EXPECT_LE(r.stats.ratio_a, 1 + 1e-9);
-  EXPECT_LE(r.stats.ratio_j, 1 + 1e-9);
-  EXPECT_LE(r.stats.deviation_ratio, 1 + 1e-6) << "max deviation " << r.stats.max_deviation;
-  EXPECT_LT(r.stats.end_error, end_tol);
-  EXPECT_TRUE(r.monotone);
-  EXPECT_EQ(r.overruns, 0u);
-}
-
 RunResult run(const PlannerConfig& cfg, const Program& prog, RunOptions opt = {}) {
-  auto planner = make_planner(cfg, PlannerThreading::Inline);
-  return run_program(*planner, cfg, prog, opt);
+  return test::run_inline(cfg, prog, opt);
 }
 
 // --- limits on every kind of move ------------------------------------------

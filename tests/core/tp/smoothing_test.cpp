@@ -14,6 +14,7 @@
 namespace cnc::tp {
 namespace {
 
+using test::expect_clean;
 using test::feed_params;
 using test::line_to;
 using test::profile;
@@ -25,22 +26,10 @@ Pose pt(double x, double y) {
   return p;
 }
 
-void expect_clean(const RunResult& r) {
-  ASSERT_TRUE(r.completed) << "cycles " << r.cycles;
-  EXPECT_LE(r.stats.ratio_v, 1 + 1e-9);
-  EXPECT_LE(r.stats.ratio_a, 1 + 1e-9);
-  EXPECT_LE(r.stats.ratio_j, 1 + 1e-9);
-  EXPECT_LE(r.stats.deviation_ratio, 1 + 1e-6) << "max deviation " << r.stats.max_deviation;
-  EXPECT_LT(r.stats.end_error, 1e-9);
-  EXPECT_TRUE(r.monotone);
-  EXPECT_EQ(r.overruns, 0u);
-}
-
 RunResult run(const PlannerConfig& cfg, const Program& prog) {
-  auto planner = make_planner(cfg, PlannerThreading::Inline);
   RunOptions opt;
   opt.flush_at_end = true;
-  return run_program(*planner, cfg, prog, opt);
+  return test::run_inline(cfg, prog, opt);
 }
 
 TEST(TpSmoothVertex, AZigZagVertexMovesToTheMidline) {

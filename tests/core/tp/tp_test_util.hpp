@@ -2,6 +2,8 @@
 // program generators.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdint>
 #include <numbers>
@@ -12,6 +14,34 @@
 #include "core/tp/trajectory_check.hpp"
 
 namespace cnc::tp::test {
+
+inline Pose pose(double x, double y, double z) {
+  Pose p;
+  p[0] = x;
+  p[1] = y;
+  p[2] = z;
+  return p;
+}
+
+// What every run must keep: completed, per-axis |v|, |a|, |j| within the
+// limits on every sample, deviation within P, the end point, a monotone
+// path parameter and no overrun.
+inline void expect_clean(const RunResult& r, double end_tol = 1e-9) {
+  ASSERT_TRUE(r.completed) << "cycles " << r.cycles;
+  EXPECT_LE(r.stats.ratio_v, 1 + 1e-9);
+  EXPECT_LE(r.stats.ratio_a, 1 + 1e-9);
+  EXPECT_LE(r.stats.ratio_j, 1 + 1e-9);
+  EXPECT_LE(r.stats.deviation_ratio, 1 + 1e-6) << "max deviation " << r.stats.max_deviation;
+  EXPECT_LT(r.stats.end_error, end_tol);
+  EXPECT_TRUE(r.monotone);
+  EXPECT_EQ(r.overruns, 0u);
+}
+
+// `prog` on an inline planner.
+inline RunResult run_inline(const PlannerConfig& cfg, const Program& prog, RunOptions opt = {}) {
+  auto planner = make_planner(cfg, PlannerThreading::Inline);
+  return run_program(*planner, cfg, prog, opt);
+}
 
 // Per-axis v (units/s), a (units/s^2), j (units/s^3) on X Y Z; the issue's
 // profiles.
