@@ -33,6 +33,7 @@
 #include "hmi/preview_path.hpp"
 #include "hmi/preview_widget.hpp"
 #include "hmi/program_text.hpp"
+#include "hmi/readouts.hpp"
 
 namespace cnc::hmi {
 namespace {
@@ -217,6 +218,11 @@ MainWindow::~MainWindow() {
     }
   }
   if (filter_) filter_->disconnect();
+  if (estimate_) {
+    estimate_->disconnect();
+    estimate_->kill();
+    estimate_->waitForFinished(1000);
+  }
   alarms_.on_log = nullptr;
   if (log_file_) std::fclose(log_file_);
 }
@@ -588,7 +594,54 @@ void MainWindow::load_program(const QString& path) {
   start_preview(path);
 }
 
+void MainWindow::start_estimate(const QString& path) {
+  const QString canonical = QFileInfo(path).canonicalFilePath();
+  screen_.estimate_s = -1;
+  screen_.estimate_file = canonical.toStdString();
+  if (estimate_) {
+    estimate_->disconnect();
+    estimate_->kill();
+    estimate_->waitForFinished(1000);
+    estimate_->deleteLater();
+    estimate_ = nullptr;
+  }
+  // cnc-estimate beside this program (build/bin, /usr/bin), else on PATH
+  const QString beside = QCoreApplication::applicationDirPath() + "/cnc-estimate";
+  const QString program = QFileInfo(beside).isExecutable() ? beside : QString("cnc-estimate");
+  QStringList args{"--ini", QString::fromStdString(config_.ini_path.string())};
+  if (connected_) {
+    const auto& p = screen_.status.motion.position;
+    args << "--start" << QString("%1,%2,%3").arg(p[0], 0, 'f', 6).arg(p[1], 0, 'f', 6).arg(p[2], 0, 'f', 6);
+  }
+  args << path;
+  estimate_ = new QProcess(this);
+  estimate_->setProcessChannelMode(QProcess::MergedChannels);
+  const std::string file = screen_.estimate_file;
+  connect(estimate_, &QProcess::finished, this, [this, file, path](int code, QProcess::ExitStatus st) {
+    const std::string out = estimate_->readAll().toStdString();
+    estimate_->deleteLater();
+    estimate_ = nullptr;
+    if (file != screen_.estimate_file) return;  // another program was opened since
+    const std::optional<double> seconds =
+        st == QProcess::NormalExit && code == 0 ? parse_estimate_output(out) : std::nullopt;
+    if (seconds) {
+      screen_.estimate_s = *seconds;
+      return;
+    }
+    const std::string first = out.substr(0, out.find('\n'));
+    screen_.log(LogLevel::Info, "no time estimate for " + path.toStdString() + ": " + (first.empty() ? "cnc-estimate failed" : first));
+  });
+  connect(estimate_, &QProcess::errorOccurred, this, [this, path](QProcess::ProcessError e) {
+    if (e != QProcess::FailedToStart || estimate_ == nullptr) return;
+    estimate_->deleteLater();
+    estimate_ = nullptr;
+    screen_.log(LogLevel::Info, "no time estimate for " + path.toStdString() + ": cnc-estimate could not be started");
+  });
+  estimate_->start(program, args);
+}
+
 void MainWindow::start_preview(const QString& path) {
+  start_estimate(path);
   if (preview_cancel_) preview_cancel_->store(true);
   if (preview_thread_.joinable()) preview_thread_.join();
   const QFileInfo info(path);

@@ -90,6 +90,9 @@ class MainWindow : public QMainWindow {
   void on_connected();
   void load_program(const QString& path);
   void start_preview(const QString& path);
+  // The planner's motion time of the program (cnc-estimate, in the
+  // background), shown with the program's progress.
+  void start_estimate(const QString& path);
   void preview_ready(std::shared_ptr<const PreviewResult> result, unsigned generation);
   void run_filter(const QString& path, const struct FilterProgram& filter);
   void choose_program();
@@ -149,6 +152,7 @@ class MainWindow : public QMainWindow {
   unsigned preview_generation_ = 0;
   bool preview_running_ = false;
   QProcess* filter_ = nullptr;
+  QProcess* estimate_ = nullptr;
   std::vector<QProcess*> embedded_;
   std::FILE* log_file_ = nullptr;
 };

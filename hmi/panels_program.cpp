@@ -117,7 +117,10 @@ void ProgramBar::refresh() {
     return;
   }
   const QString name = QFileInfo(ui::qs(st.task.file.view())).fileName();
-  QString text = name + " · " + ui::qs(progress_readout(st));
+  // the planner's estimate, when it is for the program the controller has open
+  const bool estimate_for_it =
+      !s_.estimate_file.empty() && QFileInfo(ui::qs(st.task.file.view())).canonicalFilePath().toStdString() == s_.estimate_file;
+  QString text = name + " · " + ui::qs(progress_readout(st, estimate_for_it ? s_.estimate_s : -1));
   ui::set_text(progress_, text);
 }
 

@@ -1,8 +1,10 @@
 #include "hmi/readouts.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
 namespace cnc::hmi {
 
@@ -80,19 +82,40 @@ std::string format_duration(double seconds) {
   return b;
 }
 
-std::string progress_readout(const ipc::Status& s) {
+std::string progress_readout(const ipc::Status& s, double estimate_s) {
   if (s.task.file.empty()) return "no program open";
   const ProgramProgress p = program_progress(s);
   std::string out = "line " + std::to_string(s.task.current_line) + " of " + std::to_string(s.task.total_lines);
   if (p.percent >= 0) out += " · " + std::to_string(p.percent) + "%";
   const bool running = s.task.interp_state != ipc::InterpState::Idle && s.task.mode == ipc::TaskMode::Auto;
   if (running || s.task.program_elapsed_ns > 0) out += " · " + format_duration(p.elapsed_s);
-  if (p.remaining_s >= 0) out += " · about " + format_duration(p.remaining_s) + " left (from lines)";
+  if (estimate_s >= 0 && running) {
+    out += " · about " + format_duration(std::max(0.0, estimate_s - p.elapsed_s)) + " left (planner)";
+  } else if (estimate_s >= 0) {
+    out += " · planned " + format_duration(estimate_s) + " of motion";
+  } else if (p.remaining_s >= 0) {
+    out += " · about " + format_duration(p.remaining_s) + " left (from lines)";
+  }
   // Errors of a program that ran (not MDI's, not before any program).
   if (s.task.program_started_ns != 0 && s.task.errors_since_start > 0) {
     out += " · errors: " + std::to_string(s.task.errors_since_start);
   }
   return out;
+}
+
+std::optional<double> parse_estimate_output(std::string_view output) {
+  const std::size_t at = output.find(" s of motion");
+  if (at == std::string_view::npos) return std::nullopt;
+  std::size_t start = at;
+  while (start > 0 && (std::isdigit(static_cast<unsigned char>(output[start - 1])) != 0 || output[start - 1] == '.')) {
+    --start;
+  }
+  if (start == at) return std::nullopt;
+  const std::string number(output.substr(start, at - start));
+  char* end = nullptr;
+  const double v = std::strtod(number.c_str(), &end);
+  if (end == number.c_str() || *end != '\0' || !(v >= 0)) return std::nullopt;
+  return v;
 }
 
 std::vector<std::string> statusword_bits(uint16_t sw) {

@@ -5,7 +5,9 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/ipc/status.hpp"
@@ -36,8 +38,15 @@ struct ProgramProgress {
   double remaining_s = -1;  // -1: not estimated yet (too early) or not running
 };
 ProgramProgress program_progress(const ipc::Status& s);
-// "line 120 of 400 · 30% · 0:01:10 · about 0:02:43 left · errors: 1"
-std::string progress_readout(const ipc::Status& s);
+// "line 120 of 400 · 30% · 0:01:10 · about 0:02:43 left · errors: 1".
+// With the planner's estimate of the program's motion time (`estimate_s`
+// >= 0, cnc-estimate): "planned 0:03:53 of motion" before and after a run,
+// "about 0:02:43 left (planner)" while it runs (the estimate less the time
+// run so far; tool changes and waits are not in the estimate).
+std::string progress_readout(const ipc::Status& s, double estimate_s = -1);
+// The motion time from cnc-estimate's output ("PROG: 66.319 s of motion
+// (1:06.319), ..."), if it has one.
+std::optional<double> parse_estimate_output(std::string_view output);
 std::string format_duration(double seconds);  // "1:02:03"
 
 // CiA 402 statusword (0x6041) bits that are set, by name ("ready to switch

@@ -35,6 +35,10 @@ struct Screen {
   ipc::Liveness liveness{};  // how fresh `status` is (a stalled task cycle, motion not running)
   tooltable::ToolTable tools;  // as last read from [EMCIO]TOOL_TABLE, for display
   std::function<int64_t()> now_ns;  // CLOCK_REALTIME, for log entries
+  // The planner's motion time of the program last opened (cnc-estimate),
+  // -1 until known; `estimate_file` is the program it is for.
+  double estimate_s = -1;
+  std::string estimate_file;
 
   Screen(const HmiConfig& c, CommandTracker& t, JogController& j, AlarmLog& a) : config(c), tracker(t), jog(j), alarms(a) {}
 

@@ -256,6 +256,10 @@ class E2eTests : public QObject {
     // The path is in machine coordinates with G54 X100 Y50 Z-80 from the program.
     QVERIFY(near(w_->preview()->path()->max[0], 140));
     QCOMPARE(w_->tabs()->currentWidget()->objectName(), QString("programPage"));  // opening shows the program
+    // the planner's motion time (cnc-estimate run by the screen) beside the progress
+    auto* progress = w_->findChild<QLabel*>("programProgress");
+    QVERIFY(progress != nullptr);
+    QTRY_VERIFY2_WITH_TIMEOUT(progress->text().contains("planned 0:0"), qPrintable(progress->text()), 20000);
     shot("program-loaded");
     w_->preview()->set_view(PreviewWidget::View::Z);
     shot("preview-top-view");

@@ -506,6 +506,30 @@ class LogicTests : public QObject {
     s.task.errors_since_start = 2;
     QVERIFY(progress_readout(s).find("errors: 2") != std::string::npos);
   }
+  void readout_progress_with_the_planners_estimate() {
+    ipc::Status s = on_status(true, ipc::TaskMode::Auto);
+    s.task.file.assign("/tmp/p.ngc");
+    s.task.total_lines = 400;
+    // before the run: the planned motion time
+    QCOMPARE(progress_readout(s, 233.4), std::string("line 0 of 400 · 0% · planned 0:03:53 of motion"));
+    // while it runs: the estimate less the time run so far, not the lines
+    s.task.interp_state = ipc::InterpState::Reading;
+    s.task.current_line = 100;
+    s.task.program_started_ns = 1;
+    s.task.program_elapsed_ns = 60'000'000'000;
+    QCOMPARE(progress_readout(s, 233.4), std::string("line 100 of 400 · 25% · 0:01:00 · about 0:02:53 left (planner)"));
+    // a run longer than the estimate (tool changes, waits): nothing left, not negative
+    s.task.program_elapsed_ns = 300'000'000'000;
+    QVERIFY(progress_readout(s, 233.4).find("about 0:00:00 left (planner)") != std::string::npos);
+  }
+  void parse_estimate_reads_cnc_estimates_motion_time() {
+    const auto v = parse_estimate_output(
+        "configs/sim/nc_files/demo.ngc: 66.319 s of motion (1:06.319), 63 moves, 4 stops\nend position X180 Y110 Z0\n");
+    QVERIFY(v.has_value());
+    QCOMPARE(*v, 66.319);
+    QVERIFY(!parse_estimate_output("cnc-estimate: demo.ngc:3: Unknown g code used\n").has_value());
+    QVERIFY(!parse_estimate_output("").has_value());
+  }
   void readout_statusword_names_the_cia402_bits() {
     // Operation enabled: 0x0237 = ready, switched on, enabled, voltage, quick stop off, remote.
     QCOMPARE(statusword_readout(0x1637),
