@@ -319,7 +319,9 @@ bool TaskController::execute_item(Item& it, int64_t now_ns) {
       view_.probe_tripped = ms_.traj.probe_tripped;
       view_.probed_position = ms_.traj.probed_position;
       if (it.probe_must_touch && !ms_.traj.probe_tripped) {
-        program_error(file_ + ":" + std::to_string(it.line) + ": the probe move ended without contact");
+        // an MDI line's error names the line, not the program that happens to be open
+        program_error((running_mdi_ ? "MDI " + mdi_text_ : file_ + ":" + std::to_string(it.line)) +
+                      ": the probe move ended without contact");
         return false;
       }
       return true;

@@ -690,3 +690,14 @@ TEST(TaskPython, AnMdiCallOfAPythonOwordFunctionMovesTheMachineAndReturnsItsValu
   EXPECT_NEAR(m.status().motion.position[0], 9, 1e-9);
   EXPECT_EQ(m.errors(), "");
 }
+
+TEST(TaskMdi, AProbeWithoutContactInMdiIsRejectedNamingTheLineNotAProgram) {
+  // motion.probe-input is not connected in this mill: the probe never trips
+  TaskMachine m;
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  m.ok(m.mdi("G0 X10 Y10 Z-5"), "start");
+  const auto r = m.mdi("G38.2 Z-15 F600");
+  EXPECT_EQ(r.first, CommandState::Rejected);
+  EXPECT_EQ(r.second, "MDI G38.2 Z-15 F600: the probe move ended without contact");
+}
