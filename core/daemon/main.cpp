@@ -3,6 +3,9 @@
 #include <cstring>
 #include <string>
 
+#include <pthread.h>
+#include <signal.h>
+
 #include "core/daemon/controller.hpp"
 #include "core/daemon/plugins.hpp"
 #include "core/ipc/segment.hpp"
@@ -60,6 +63,16 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "cncd: %s loads\n", opt.ini_file.c_str());
       return 0;
     }
+    // SIGINT and SIGTERM blocked before the controller starts any thread,
+    // so that every thread inherits the mask and only run()'s sigtimedwait
+    // takes them. Blocked in the main thread only, a signal arriving while
+    // it was not waiting went to another thread and killed the process
+    // (exit status 143 instead of a clean stop).
+    sigset_t stop_signals;
+    sigemptyset(&stop_signals);
+    sigaddset(&stop_signals, SIGINT);
+    sigaddset(&stop_signals, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
     cnc::daemon::Controller controller(opt);
     controller.run(true);
   } catch (const std::exception& e) {

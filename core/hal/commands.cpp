@@ -394,6 +394,11 @@ std::string CommandInterpreter::cmd_loadusr(const std::vector<std::string>& w) {
   const pid_t pid = ::fork();
   if (pid < 0) throw HalError("loadusr: fork failed");
   if (pid == 0) {
+    // the program starts with no signal blocked (cncd blocks SIGINT and
+    // SIGTERM in all its threads, and exec keeps the mask)
+    sigset_t none;
+    sigemptyset(&none);
+    ::sigprocmask(SIG_SETMASK, &none, nullptr);
     ::execv(program.c_str(), argv.data());
     std::fprintf(stderr, "loadusr: cannot run %s\n", program.c_str());
     ::_exit(127);

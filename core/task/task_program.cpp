@@ -438,6 +438,9 @@ bool TaskController::execute_item(Item& it, int64_t now_ns) {
         const std::string p = format_double(it.d0), q = format_double(it.d1);
         user_m_pid_ = ::fork();
         if (user_m_pid_ == 0) {
+          sigset_t none;  // no signal blocked in the program (cncd blocks SIGINT and SIGTERM)
+          sigemptyset(&none);
+          ::sigprocmask(SIG_SETMASK, &none, nullptr);
           ::execl(prog.c_str(), prog.c_str(), p.c_str(), q.c_str(), nullptr);
           ::_exit(127);
         }

@@ -22,6 +22,17 @@ run_case() {
   "$bin/cncd" "$work/m/$ini" 2>"$work/cncd.log" &
   daemon=$!
   "$bin/cnc" --timeout 30 wait-ready || fail "$config: controller did not start"
+  # Every thread blocks SIGINT (bit 2) and SIGTERM (bit 15): only the main
+  # thread's wait takes them. A thread that did not (blocked in the main
+  # thread only, after the others had started) let a signal arriving while
+  # the main thread worked kill the process (exit status 143, seen in CI).
+  local t blk
+  for t in /proc/"$daemon"/task/*; do
+    # the main thread: its sigtimedwait unblocks them while it waits
+    [ "$(basename "$t")" = "$daemon" ] && continue
+    blk=$(awk '/^SigBlk:/ { print $2 }' "$t/status")
+    (( (16#$blk & 0x4002) == 0x4002 )) || fail "$config: thread $(basename "$t") ($(cat "$t/comm")) does not block SIGINT and SIGTERM (SigBlk $blk)"
+  done
   "$bin/cnc" estop-reset || fail "$config: estop-reset"
   "$bin/cnc" on || fail "$config: machine on"
   "$bin/cnc" --timeout 120 home all || fail "$config: home all"
