@@ -14,6 +14,7 @@
 
 #include "commission/config_writer.hpp"
 #include "commission/controller.hpp"
+#include "commission/lss_assign.hpp"
 #include "commission/scan.hpp"
 #include "commission/state.hpp"
 #include "commission/steps.hpp"
@@ -35,6 +36,9 @@ const char* kHelp =
     "       [--first ID] [--last ID] [--timeout-ms MS]\n"
     "      scan the CANopen bus (socketcan:can0): identity, name, firmware, CiA 402\n"
     "      modes, faults, encoder and gear objects; match each node with an EDS\n"
+    "  lss --interface SPEC [--first ID] [--bitrate BIT/S] [--window-ms MS]\n"
+    "      give every device without node-ID one (LSS fastscan, CiA 305), from ID up,\n"
+    "      skipping the node-IDs the last scan found; the devices store it\n"
     "  scan-ethercat --interface raw:IF [--esi-dir DIR]\n"
     "      scan the EtherCAT segment: each slave's SII identity, CoE, DC; match each\n"
     "      with an ESI file\n"
@@ -142,6 +146,31 @@ int cmd_scan(State& s, Args& a) {
   for (const auto& p : r.problems) std::cout << "problem: " << p << "\n";
   std::cout << r.nodes.size() << " node(s) on " << spec << (r.ok() ? ", no problems\n" : ", problems above\n");
   s.log.push_back("scan " + spec + ": " + std::to_string(r.nodes.size()) + " node(s)");
+  return r.ok() ? 0 : 1;
+}
+
+int cmd_lss(State& s, Args& a) {
+  LssOptions o;
+  std::string spec;
+  while (a.more()) {
+    const std::string k = a.next("option");
+    if (k == "--interface") spec = a.next("interface");
+    else if (k == "--first") o.first = static_cast<int>(number(a.next("node-ID"), "--first"));
+    else if (k == "--bitrate") o.bitrate = static_cast<uint32_t>(number(a.next("bit rate"), "--bitrate"));
+    else if (k == "--window-ms") o.window_ns = static_cast<int64_t>(number(a.next("ms"), "--window-ms") * 1e6);
+    else usage("lss: unknown option " + k);
+  }
+  if (spec.empty()) spec = s.interface;
+  if (spec.empty()) usage("lss: --interface SPEC (e.g. socketcan:can0)");
+  if (o.first < 1 || o.first > 127) usage("lss: --first must be a node-ID 1-127");
+  for (const auto& n : s.nodes) o.taken.insert(n.node_id);
+  auto bus = cnc::can::open_transport(spec);
+  const LssResult r = assign_node_ids(*bus, o);
+  for (const auto& x : r.assigned) std::cout << describe(x) << " (stored)\n";
+  for (const auto& p : r.problems) std::cout << "problem: " << p << "\n";
+  std::cout << r.assigned.size() << " device(s) given a node-ID on " << spec
+            << (r.assigned.empty() ? "" : "; scan again to read them") << "\n";
+  s.log.push_back("lss " + spec + ": " + std::to_string(r.assigned.size()) + " device(s) given a node-ID");
   return r.ok() ? 0 : 1;
 }
 
@@ -363,6 +392,7 @@ int main(int argc, char** argv) {
     State s = load_state(state_file);
     int rc = 0;
     if (cmd == "scan") rc = cmd_scan(s, a);
+    else if (cmd == "lss") rc = cmd_lss(s, a);
     else if (cmd == "scan-ethercat") rc = cmd_scan_ethercat(s, a);
     else if (cmd == "show") {
       show(s);

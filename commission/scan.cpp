@@ -1,4 +1,5 @@
 #include "commission/scan.hpp"
+#include "commission/lss_assign.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -253,6 +254,11 @@ ScanResult scan_canopen(can::Transport& bus, const ScanOptions& o) {
       r.problems.push_back("node " + std::to_string(id) + " does not answer on " + bus.name() +
                            ": check its power, the cable and termination (120 ohm at both ends), its bit rate and "
                            "its node-ID");
+  }
+  if (o.lss_window_ns > 0 && unconfigured_devices_present(bus, o.lss_window_ns)) {
+    r.problems.push_back("one or more devices without node-ID answer LSS on " + bus.name() +
+                         ": give them node-IDs with 'cnc-commission lss' (or on the devices themselves), then scan "
+                         "again");
   }
   return r;
 }

@@ -26,6 +26,9 @@ struct ScanOptions {
   int64_t settle_ns = 50'000'000;     // time left for second answers (two nodes on one ID)
   std::vector<int> expected;          // node-IDs that must answer (else a problem is reported)
   std::filesystem::path eds_dir;      // "" : no matching
+  // After the SDO scan, one LSS fastscan request (lss_assign.hpp): devices
+  // without node-ID are reported (0: not asked).
+  int64_t lss_window_ns = 10'000'000;
 };
 
 struct ScanResult {

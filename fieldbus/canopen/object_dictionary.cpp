@@ -206,4 +206,17 @@ void ObjectDictionary::restore_defaults(uint16_t first, uint16_t last) noexcept 
   }
 }
 
+uint64_t ObjectDictionary::default_bits(const OdEntry& e) const noexcept {
+  uint64_t v = 0;
+  for (std::size_t i = 0; i < e.capacity && i < 8; ++i) v |= static_cast<uint64_t>(defaults_[e.default_offset + i]) << (8 * i);
+  return v;
+}
+
+bool ObjectDictionary::set_default_bits(ObjectAddress a, uint64_t bits) noexcept {
+  const OdEntry* e = find(a);
+  if (!e || e->capacity > 8) return false;
+  for (uint32_t i = 0; i < e->capacity; ++i) defaults_[e->default_offset + i] = static_cast<uint8_t>(bits >> (8 * i));
+  return true;
+}
+
 }  // namespace cnc::canopen

@@ -120,6 +120,10 @@ class ObjectDictionary {
   // Restores default values of the entries with index in [first, last]
   // (NMT reset communication: 0x1000-0x1FFF; reset node: everything).
   void restore_defaults(uint16_t first, uint16_t last) noexcept;
+  // Replaces the default value of a fixed-size entry (the identifiers that
+  // derive from a node-ID LSS changed); false when the entry is missing.
+  bool set_default_bits(ObjectAddress a, uint64_t bits) noexcept;
+  uint64_t default_bits(const OdEntry& e) const noexcept;
 
  private:
   struct Hooks {

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cstring>
+#include <stdexcept>
+#include <string>
 
 #include "fieldbus/canopen/sdo_abort.hpp"
 
@@ -75,7 +77,14 @@ SlaveNode::SlaveNode(ObjectDictionary& od, can::Transport& transport, SlaveOptio
     : od_((add_communication_objects(od, options), od)),
       transport_(transport),
       options_(std::move(options)),
-      sdo_(od_, transport_, cob::sdo_request(options_.node_id), cob::sdo_response(options_.node_id)) {
+      sdo_(od_, transport_, cob::sdo_request(options_.node_id), cob::sdo_response(options_.node_id)),
+      lss_(lss::Address{options_.identity.vendor_id, options_.identity.product_code, options_.identity.revision,
+                        options_.identity.serial},
+           options_.node_id) {
+  if (options_.node_id == lss::kUnconfigured ? !options_.lss : (options_.node_id < 1 || options_.node_id > kMaxNodeId)) {
+    throw std::invalid_argument("CANopen device: node-ID " + std::to_string(options_.node_id) +
+                                " is not 1-127 (255, unconfigured, only for a device with LSS)");
+  }
   install_checks();
   reconfigure();
 }
@@ -297,7 +306,48 @@ void SlaveNode::boot(int64_t now_ns) noexcept {
   set_state(NmtState::PreOperational, now_ns);
 }
 
-void SlaveNode::start(int64_t now_ns) noexcept { boot(now_ns); }
+void SlaveNode::start(int64_t now_ns) noexcept {
+  now_ns_ = now_ns;
+  // A device without node-ID stays silent (Initialising) until LSS gives
+  // it one.
+  if (options_.node_id != lss::kUnconfigured) boot(now_ns);
+}
+
+void SlaveNode::change_node_id(uint8_t id) noexcept {
+  const unsigned old = options_.node_id;
+  if (id == old) return;
+  // An identifier moves only where it still is the one derived from the
+  // old node-ID (the application or a DCF may have set its own).
+  auto move = [&](ObjectAddress a, uint32_t from, uint32_t to) {
+    const OdEntry* e = od_.find(a);
+    if (!e) return;
+    const uint32_t v = od_.get<uint32_t>(a);
+    if ((v & 0x7FF) == (from & 0x7FF)) od_.set<uint32_t>(a, (v & ~0x7FFu) | (to & 0x7FF));
+    const uint32_t d = static_cast<uint32_t>(od_.default_bits(*e));
+    if ((d & 0x7FF) == (from & 0x7FF)) od_.set_default_bits(a, (d & ~0x7FFu) | (to & 0x7FF));
+  };
+  move({0x1014, 0}, cob::emcy(old), cob::emcy(id));
+  move({0x1200, 1}, cob::sdo_request(old), cob::sdo_request(id));
+  move({0x1200, 2}, cob::sdo_response(old), cob::sdo_response(id));
+  for (unsigned n = 1; n <= kMaxPdos; ++n) {
+    if (const uint32_t from = default_pdo_cob(false, n, old)) move({rpdo_comm_index(n), 1}, from, default_pdo_cob(false, n, id));
+    if (const uint32_t from = default_pdo_cob(true, n, old)) move({tpdo_comm_index(n), 1}, from, default_pdo_cob(true, n, id));
+  }
+  options_.node_id = id;
+  sdo_.set_cob_ids(cob::sdo_request(id), cob::sdo_response(id));
+}
+
+void SlaveNode::handle_lss(const can::Frame& f, int64_t now_ns) noexcept {
+  can::Frame reply;
+  if (lss_.on_frame(f, reply)) send(reply);
+  uint8_t id = 0;
+  if (lss_.take_node_id_change(id)) {
+    // Given a node-ID while it had none: reset communication under it.
+    change_node_id(id);
+    od_.restore_defaults(0x1000, 0x1FFF);
+    boot(now_ns);
+  }
+}
 
 void SlaveNode::handle_nmt(const can::Frame& f, int64_t now_ns) noexcept {
   if (f.len < 2) return;
@@ -314,12 +364,20 @@ void SlaveNode::handle_nmt(const can::Frame& f, int64_t now_ns) noexcept {
       set_state(NmtState::PreOperational, now_ns);
       break;
     case NmtCommand::ResetNode:
+      if (options_.lss) {
+        lss_.on_nmt_reset();
+        change_node_id(lss_.active_node_id());
+      }
       if (on_reset_application) on_reset_application();
       od_.restore_defaults(0x2000, 0xFFFF);
       od_.restore_defaults(0x1000, 0x1FFF);
       boot(now_ns);
       break;
     case NmtCommand::ResetCommunication:
+      if (options_.lss) {
+        lss_.on_nmt_reset();
+        change_node_id(lss_.active_node_id());
+      }
       od_.restore_defaults(0x1000, 0x1FFF);
       boot(now_ns);
       break;
@@ -330,6 +388,10 @@ void SlaveNode::handle_nmt(const can::Frame& f, int64_t now_ns) noexcept {
 
 void SlaveNode::on_frame(const can::Frame& f, int64_t now_ns) noexcept {
   now_ns_ = now_ns;
+  if (options_.lss && f.id == lss::kMasterCob && !f.is_error() && !f.is_extended()) {
+    handle_lss(f, now_ns);
+    return;
+  }
   if (f.is_error() || f.is_extended() || state_ == NmtState::Initialising) return;
   const uint32_t id = f.id;
   if (id == cob::kNmt) {

@@ -14,6 +14,7 @@
 
 #include "fieldbus/can/transport.hpp"
 #include "fieldbus/canopen/emcy.hpp"
+#include "fieldbus/canopen/lss.hpp"
 #include "fieldbus/canopen/object_dictionary.hpp"
 #include "fieldbus/canopen/pdo.hpp"
 #include "fieldbus/canopen/sdo_server.hpp"
@@ -30,7 +31,12 @@ struct SlaveIdentity {
 };
 
 struct SlaveOptions {
+  // 1-127, or lss::kUnconfigured (0xFF, only with `lss`): the device then
+  // stays silent until an LSS master gives it a node-ID.
   uint8_t node_id = 1;
+  // The device answers LSS (CiA 305) on 0x7E5/0x7E4, addressed by its
+  // identity (vendor, product, revision, serial).
+  bool lss = false;
   uint8_t rpdo_count = 4;
   uint8_t tpdo_count = 4;
   SlaveIdentity identity;
@@ -64,6 +70,8 @@ class SlaveNode {
   void process(int64_t now_ns) noexcept;
 
   uint8_t node_id() const noexcept { return options_.node_id; }
+  // The LSS side of the device (nullptr when it does not support LSS).
+  const lss::Slave* lss() const noexcept { return options_.lss ? &lss_ : nullptr; }
   NmtState state() const noexcept { return state_; }
   ObjectDictionary& od() noexcept { return od_; }
   SdoServer& sdo_server() noexcept { return sdo_; }
@@ -144,6 +152,10 @@ class SlaveNode {
   uint32_t check_mapping(const OdEntry& e, const uint8_t* d, std::size_t n, bool tpdo) const noexcept;
   uint32_t check_comm(const OdEntry& e, const uint8_t* d, std::size_t n, bool tpdo) const noexcept;
   void handle_nmt(const can::Frame& f, int64_t now_ns) noexcept;
+  void handle_lss(const can::Frame& f, int64_t now_ns) noexcept;
+  // Moves every identifier that derives from the node-ID (EMCY, SDO, the
+  // predefined PDOs), in value and default, to `id`.
+  void change_node_id(uint8_t id) noexcept;
   void handle_sync(const can::Frame& f, int64_t now_ns) noexcept;
   void handle_rpdo(Pdo& p, unsigned number, const can::Frame& f, int64_t now_ns) noexcept;
   void pack(Pdo& p) noexcept;
@@ -157,6 +169,7 @@ class SlaveNode {
   can::Transport& transport_;
   SlaveOptions options_;
   SdoServer sdo_;
+  lss::Slave lss_;
   NmtState state_ = NmtState::Initialising;
   bool muted_ = false;
   int64_t now_ns_ = 0;

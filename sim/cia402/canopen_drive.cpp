@@ -7,7 +7,8 @@ namespace cnc::cia402::sim {
 CanopenDrive::CanopenDrive(const SimNodeConfig& config, can::Transport& transport)
     : config_(config), model_(config.drive, od_) {
   canopen::SlaveOptions o;
-  o.node_id = config_.node_id;
+  o.node_id = config_.lss_unconfigured ? canopen::lss::kUnconfigured : config_.node_id;
+  o.lss = config_.lss || config_.lss_unconfigured;
   o.identity = config_.identity;
   o.heartbeat_ms = config_.heartbeat_ms;
   o.sync_response_ns = config_.sync_response_ns;
@@ -46,7 +47,7 @@ void CanopenDrive::on_frame(const can::Frame& f, int64_t now_ns) noexcept {
   now_ns_ = now_ns;
   if (drop_ > 0 && !f.is_error() && !f.is_extended()) {
     const uint32_t id = f.id;
-    const uint8_t n = config_.node_id;
+    const uint8_t n = node_->node_id();
     const bool rpdo = id == canopen::cob::rpdo(1, n) || id == canopen::cob::rpdo(2, n) ||
                       id == canopen::cob::rpdo(3, n) || id == canopen::cob::rpdo(4, n);
     if (id == canopen::cob::kSync || rpdo) {

@@ -22,6 +22,11 @@ struct SimNodeConfig {
   canopen::SlaveIdentity identity{0x00020192, 0x00000CC1, 0x00000402, 0x00010000, 0, "cnc simulated servo drive"};
   uint16_t heartbeat_ms = 0;  // default of 0x1017 (the master configures it)
   int64_t sync_response_ns = 0;  // SYNC_RESPONSE_US: SYNC to the synchronous TPDOs queued
+  // LSS (CiA 305): the drive answers it (LSS); with lss_unconfigured it
+  // starts without node-ID (silent until an LSS master gives it one),
+  // node_id then only names it.
+  bool lss = true;
+  bool lss_unconfigured = false;
   DriveSimConfig drive;
 };
 
@@ -31,7 +36,8 @@ class CanopenDrive {
   CanopenDrive(const CanopenDrive&) = delete;
   CanopenDrive& operator=(const CanopenDrive&) = delete;
 
-  uint8_t node_id() const noexcept { return config_.node_id; }
+  // The node-ID it has on the bus now (0xFF while LSS-unconfigured).
+  uint8_t node_id() const noexcept { return node_->node_id(); }
   const std::string& name() const noexcept { return config_.drive.name; }
   // Power on: the drive initialises, the node sends its boot-up message.
   void start(int64_t now_ns) noexcept;

@@ -24,6 +24,9 @@ SimNodeConfig load_node(const ini::IniFile& ini, const std::string& s, int id, d
   n.identity.revision = static_cast<uint32_t>(ini.get_int(s, "REVISION", 0x00010000, {0, 4294967295.0}));
   n.identity.serial = static_cast<uint32_t>(ini.get_int(s, "SERIAL", id, {0, 4294967295.0}));
   n.heartbeat_ms = static_cast<uint16_t>(ini.get_int(s, "HEARTBEAT_MS", 0, {0, 65535}));
+  n.lss = ini.get_bool(s, "LSS", true);
+  n.lss_unconfigured = ini.get_bool(s, "LSS_UNCONFIGURED", false);
+  if (n.lss_unconfigured && !n.lss) ini.fail(ini.find_entry(s, "LSS"), "a drive without LSS cannot start LSS_UNCONFIGURED");
   n.sync_response_ns = ini.get_int(s, "SYNC_RESPONSE_US", 0, {0, 100000}) * 1000;
 
   // Millimetres (linear) or degrees (rotary) in the file; metres or radians here.

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <thread>
 
+#include "commission/lss_assign.hpp"
 #include "commission/scan.hpp"
 #include "sim/can/virtual_bus.hpp"
 #include "sim/cia402/sim_host.hpp"
@@ -28,9 +29,10 @@ struct Bus {
     scanner = bus->open_port("scanner");
     host = std::make_unique<cia402::sim::SimHost>(*host_port);
   }
-  void add(uint8_t node, uint32_t product = 0x402, uint32_t serial = 0) {
+  void add(uint8_t node, uint32_t product = 0x402, uint32_t serial = 0, bool lss_unconfigured = false) {
     cia402::sim::SimNodeConfig c;
     c.node_id = node;
+    c.lss_unconfigured = lss_unconfigured;
     c.identity.product_code = product;
     c.identity.serial = serial ? serial : node;
     c.drive.name = "drive " + std::to_string(node);
@@ -79,6 +81,49 @@ TEST(CommissionScan, FindsEveryDriveWithIdentityModesEncoderAndEds) {
   EXPECT_FALSE(n.fault);
   EXPECT_EQ(n.encoder_increments.value_or(0), 10000u);
   EXPECT_EQ(n.eds, "servo.eds");
+}
+
+// Drives that come without node-ID (LSS, CiA 305): the scan says so, LSS
+// gives them the free node-IDs after those in use, and the next scan finds
+// them as drives like the others.
+TEST(CommissionScan, DrivesWithoutNodeIdAreReportedThenGivenFreeIdsByLss) {
+  Bus b;
+  b.add(1);
+  b.add(2);
+  b.add(20, 0x402, 0x5000, /*lss_unconfigured=*/true);
+  b.add(21, 0x402, 0x4000, /*lss_unconfigured=*/true);
+  b.start();
+  ScanOptions o = options();
+  o.last = 10;
+  o.lss_window_ns = 50'000'000;
+  const ScanResult before = scan_canopen(*b.scanner, o);
+  ASSERT_EQ(before.nodes.size(), 2u);
+  ASSERT_EQ(before.problems.size(), 1u);
+  EXPECT_NE(before.problems[0].find("without node-ID answer LSS"), std::string::npos) << before.problems[0];
+
+  LssOptions lo;
+  lo.first = 1;
+  lo.taken = {1, 2};
+  lo.window_ns = 20'000'000;  // a loaded test host (a real bus: 10 ms)
+  lo.timeout_ns = 500'000'000;
+  const LssResult r = assign_node_ids(*b.scanner, lo);
+  ASSERT_TRUE(r.ok()) << r.problems[0];
+  ASSERT_EQ(r.assigned.size(), 2u);
+  // Fastscan finds the lower serial first.
+  EXPECT_EQ(r.assigned[0].address.serial, 0x4000u);
+  EXPECT_EQ(r.assigned[0].node_id, 3);
+  EXPECT_EQ(r.assigned[1].address.serial, 0x5000u);
+  EXPECT_EQ(r.assigned[1].node_id, 4);
+  EXPECT_NE(describe(r.assigned[0]).find("serial 0x00004000 -> node-ID 3"), std::string::npos) << describe(r.assigned[0]);
+
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // their boot-up
+  const ScanResult after = scan_canopen(*b.scanner, o);
+  EXPECT_TRUE(after.ok()) << (after.problems.empty() ? "" : after.problems[0]);
+  ASSERT_EQ(after.nodes.size(), 4u);
+  EXPECT_EQ(after.nodes[2].node_id, 3);
+  EXPECT_EQ(after.nodes[2].serial, 0x4000u);
+  EXPECT_TRUE(after.nodes[2].cia402);
+  EXPECT_EQ(after.nodes[3].node_id, 4);
 }
 
 TEST(CommissionScan, NamesASilentExpectedNode) {

@@ -31,6 +31,9 @@ void usage() {
                "usage: cnc-canopen-node --interface IF --node ID [--node ID ...] [options]\n"
                "  --interface IF        socketcan:vcan0, virtual:<bus> (same process only)\n"
                "  --node ID             a device with this node-ID (repeatable)\n"
+               "  --lss-unconfigured SERIAL  a device without node-ID (LSS, CiA 305) with this\n"
+               "                        serial number, waiting for an LSS master (repeatable)\n"
+               "  --lss                 the devices of --node answer LSS too\n"
                "  --eds FILE            its object dictionary (default: a built-in CiA-402-like one)\n"
                "  --echo A=B            at each SYNC copy object A to B (index:sub), repeatable\n"
                "  --heartbeat-ms N      default producer heartbeat time (0x1017)\n"
@@ -77,6 +80,8 @@ void builtin_dictionary(ObjectDictionary& od) {
 int main(int argc, char** argv) {
   std::string interface, eds_file;
   std::vector<uint8_t> ids;
+  std::vector<uint32_t> lss_serials;  // devices without node-ID
+  bool lss = false;
   std::vector<Echo> echoes;
   uint16_t heartbeat_ms = 0;
   double duration_s = 0;
@@ -107,7 +112,10 @@ int main(int argc, char** argv) {
         return 2;
       }
       ids.push_back(static_cast<uint8_t>(id));
-    } else if (a == "--eds") eds_file = next();
+    } else if (a == "--lss-unconfigured") {
+      lss_serials.push_back(static_cast<uint32_t>(number(next())));
+    } else if (a == "--lss") lss = true;
+    else if (a == "--eds") eds_file = next();
     else if (a == "--echo") {
       const std::string v = next();
       const auto eq = v.find('=');
@@ -129,7 +137,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (interface.empty() || ids.empty()) {
+  if (interface.empty() || (ids.empty() && lss_serials.empty())) {
     usage();
     return 2;
   }
@@ -139,7 +147,11 @@ int main(int argc, char** argv) {
     auto transport = can::open_transport(interface);
     SlaveRunner runner(*transport);
     std::vector<Device> devices;
-    for (uint8_t id : ids) {
+    // Devices without node-ID are 0xFF until LSS gives them one.
+    std::vector<std::pair<uint8_t, uint32_t>> devs;
+    for (uint8_t id : ids) devs.emplace_back(id, id);
+    for (uint32_t serial : lss_serials) devs.emplace_back(lss::kUnconfigured, serial);
+    for (const auto& [id, serial] : devs) {
       Device d;
       d.od = std::make_unique<ObjectDictionary>();
       if (eds) eds->build_dictionary(*d.od, id);
@@ -148,7 +160,8 @@ int main(int argc, char** argv) {
       SlaveOptions o;
       o.node_id = id;
       o.identity = identity;
-      o.identity.serial = id;
+      o.identity.serial = serial;
+      o.lss = lss || id == lss::kUnconfigured;
       o.heartbeat_ms = heartbeat_ms;
       d.node = std::make_unique<SlaveNode>(*d.od, *transport, o);
       for (const Echo& e : echoes) {
