@@ -15,6 +15,8 @@ class Pin {
   void set(T v) const noexcept { p_->cell.load(std::memory_order_relaxed)->template set<T>(v); }
   bool valid() const noexcept { return p_ != nullptr; }
   const std::string& name() const noexcept { return p_->name; }
+  // Whether the pin is linked to a signal now (realtime-safe).
+  bool linked() const noexcept { return p_->cell.load(std::memory_order_relaxed) != &p_->own; }
 
  private:
   detail::PinObj* p_ = nullptr;

@@ -104,6 +104,7 @@ struct TrajStatus {
   bool queue_full = false;
   bool probing = false;
   bool probe_tripped = false;
+  bool probe_latch_pending = false;  // tripped, a drive's touch-probe latch not yet in (at most 0.1 s)
   bool probe_input = false;
   bool carte_fb_valid = false;   // forward kinematics usable: actual_position is meaningful
   bool watchdog_enabled = false;

@@ -30,6 +30,7 @@ struct JointInputs {
   // far (cia402 drive.NN.probe-position/-count); unconnected: 0, unused.
   double probe_position = 0;
   uint32_t probe_count = 0;
+  bool probe_latch_wired = false;  // probe-count is linked: a touch probe latches for this joint
   bool is_unlocked = false;   // joint.N.is-unlocked (locking indexer)
   bool drive_home_busy = false;   // joint.N.drive-home-busy
   bool drive_home_done = false;   // joint.N.drive-home-done

@@ -439,6 +439,7 @@ void MotionComponent::read_pins() noexcept {
     ji.index_position = p.index_position.get();
     ji.probe_position = p.probe_position.get();
     ji.probe_count = p.probe_count.get();
+    ji.probe_latch_wired = p.probe_count.linked();
     ji.is_unlocked = p.is_unlocked.get();
     ji.drive_home_busy = p.drive_home_busy.get();
     ji.drive_home_done = p.drive_home_done.get();

@@ -230,6 +230,13 @@ class MotionController {
   std::array<double, kMaxJoints> probe_latched_joint_{};
   Pose probe_tp_pos_;
   void take_probe_latches() noexcept;
+  // After a trip, the probe result waits (status probe_latch_pending) for
+  // the latch of every joint whose probe-count is wired, at most
+  // kProbeLatchWait: a latch's PDO may come after the move has stopped.
+  static constexpr double kProbeLatchWait = 0.1;  // s
+  bool probe_latch_pending_ = false;
+  int probe_latch_cycles_ = 0;
+  void wait_for_probe_latches() noexcept;
   uint64_t probe_serial_ = 0;
   // homing sequence
   int home_sequence_ = -1;            // |sequence| being homed by "home all", -1 none

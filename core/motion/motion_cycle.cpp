@@ -272,6 +272,27 @@ void MotionController::take_probe_latches() noexcept {
   if (kins_.forward(q, p) == kin::KinResult::Ok) probed_pos_ = p;
 }
 
+void MotionController::wait_for_probe_latches() noexcept {
+  if (!probe_latch_pending_) return;
+  uint32_t missing = 0;
+  for (int j = 0; j < cfg_.num_joints; ++j) {
+    if (in_.joints[static_cast<std::size_t>(j)].probe_latch_wired && !((probe_latched_mask_ >> j) & 1u)) missing |= 1u << j;
+  }
+  if (missing == 0) {
+    probe_latch_pending_ = false;
+    return;
+  }
+  if (++probe_latch_cycles_ * dt_ < kProbeLatchWait) return;
+  probe_latch_pending_ = false;
+  for (int j = 0; j < cfg_.num_joints; ++j) {
+    if ((missing >> j) & 1u) {
+      post_text("probe: joint %d's touch probe latched nothing within %.0f ms of the trip: its probed position is the "
+                "commanded one at the trip (check the probe wiring to its drive and the latch's PDO)",
+                j, kProbeLatchWait * 1000);
+    }
+  }
+}
+
 void MotionController::apply_inverse_kinematics() noexcept {
   double hint[kMaxJoints], q[kMaxJoints];
   for (int j = 0; j < kMaxJoints; ++j) hint[j] = q[j] = joints_[static_cast<std::size_t>(j)].pos_cmd;
@@ -321,9 +342,12 @@ void MotionController::run_coord(double dt) noexcept {
     probe_tripped_ = true;
     probed_pos_ = probe_tp_pos_ = tp_out_.probed_position;
     probe_latched_mask_ = 0;
+    probe_latch_pending_ = true;
+    probe_latch_cycles_ = 0;
   }
   if (probe_tripped_) {
     take_probe_latches();
+    wait_for_probe_latches();
   } else {
     for (int j = 0; j < cfg_.num_joints; ++j) {
       probe_count_before_[static_cast<std::size_t>(j)] = in_.joints[static_cast<std::size_t>(j)].probe_count;

@@ -25,6 +25,7 @@ void MotionController::fill_status(MotionStatus& s) const noexcept {
   t.queue_full = tp_.is_queue_full();
   t.probing = false;
   t.probe_tripped = probe_tripped_;
+  t.probe_latch_pending = probe_tripped_ && probe_latch_pending_;
   t.probe_input = in_.probe_input;
   t.probed_position = probed_pos_;
   t.carte_fb_valid = carte_fb_valid_;

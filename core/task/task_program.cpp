@@ -316,6 +316,9 @@ bool TaskController::execute_item(Item& it, int64_t now_ns) {
       send(it.motion);
       return true;
     case Item::Kind::ProbeCheck:
+      // A drive's latch may arrive after the move stopped: motion says
+      // when it is still waiting for one (bounded there).
+      if (ms_.traj.probe_latch_pending) return false;
       view_.probe_tripped = ms_.traj.probe_tripped;
       view_.probed_position = ms_.traj.probed_position;
       if (it.probe_must_touch && !ms_.traj.probe_tripped) {

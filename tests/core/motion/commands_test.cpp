@@ -401,6 +401,69 @@ TEST(MotionProbe, StopsOnContactAndRecordsThePosition) {
   EXPECT_FALSE(m.status().traj.probe_tripped);
 }
 
+// A drive's touch-probe latch whose PDO comes after the probe move has
+// stopped: the result waits for it (probe_latch_pending) and takes it.
+TEST(MotionProbe, ALatchArrivingAfterTheMoveStoppedIsWaitedForAndTaken) {
+  Machine m;
+  m.enable_home_coord();
+  m.mc().in().joints[2].probe_latch_wired = true;
+  motion::MotionCommand p;
+  p.type = Cmd::Probe;
+  p.end[2] = -8;
+  p.segment.feed = 5;
+  ASSERT_TRUE(m.send(p).accepted);
+  ASSERT_TRUE(m.run_until([&] { return m.joint(2).pos_cmd < -3; }));
+  m.mc().in().probe_input = true;
+  ASSERT_TRUE(m.run_until([&] { return m.status().tp_done; }));
+  EXPECT_TRUE(m.status().traj.probe_tripped);
+  EXPECT_TRUE(m.status().traj.probe_latch_pending) << "no latch yet: the result is not final";
+  m.step(20);
+  EXPECT_TRUE(m.status().traj.probe_latch_pending);
+  // The latch arrives, 20 ms after the move ended.
+  m.mc().in().joints[2].probe_position = -3.0021;
+  m.mc().in().joints[2].probe_count += 1;
+  m.step(1);
+  const auto s = m.status();
+  EXPECT_FALSE(s.traj.probe_latch_pending);
+  const double offset = m.joint(2).motor_pos_cmd - m.joint(2).pos_cmd;  // motor offset, backlash, compensation
+  EXPECT_NEAR(s.traj.probed_position[2], -3.0021 - offset, 1e-9);
+}
+
+TEST(MotionProbe, ALatchThatNeverComesEndsTheWaitWithAMessageNamingTheJoint) {
+  Machine m;
+  m.enable_home_coord();
+  m.mc().in().joints[2].probe_latch_wired = true;
+  motion::MotionCommand p;
+  p.type = Cmd::Probe;
+  p.end[2] = -8;
+  p.segment.feed = 5;
+  ASSERT_TRUE(m.send(p).accepted);
+  ASSERT_TRUE(m.run_until([&] { return m.joint(2).pos_cmd < -3; }));
+  m.mc().in().probe_input = true;
+  ASSERT_TRUE(m.run_until([&] { return m.status().tp_done; }));
+  (void)m.all_messages();
+  ASSERT_TRUE(m.run_until([&] { return !m.status().traj.probe_latch_pending; }));
+  EXPECT_TRUE(m.status().traj.probe_tripped);
+  EXPECT_NEAR(m.status().traj.probed_position[2], -3, 0.01) << "the commanded position at the trip";
+  const std::string msgs = m.all_messages();
+  EXPECT_NE(msgs.find("joint 2's touch probe latched nothing within 100 ms"), std::string::npos) << msgs;
+}
+
+// Without a wired latch nothing is waited for.
+TEST(MotionProbe, NoWiredLatchMeansNoWait) {
+  Machine m;
+  m.enable_home_coord();
+  motion::MotionCommand p;
+  p.type = Cmd::Probe;
+  p.end[2] = -8;
+  p.segment.feed = 5;
+  ASSERT_TRUE(m.send(p).accepted);
+  ASSERT_TRUE(m.run_until([&] { return m.joint(2).pos_cmd < -3; }));
+  m.mc().in().probe_input = true;
+  m.step(1);
+  EXPECT_FALSE(m.status().traj.probe_latch_pending);
+}
+
 TEST(MotionParameters, OneTableSetsJointAxisAndTrajectoryParameters) {
   Machine m;
   const auto idx = motion::find_param("joint.max-velocity");

@@ -186,6 +186,13 @@ class Machine {
     }
     return out;
   }
+  // Every message posted so far, any kind, one per line (consumes them).
+  std::string all_messages() {
+    std::string s;
+    Message m;
+    while (messages_.pop(m)) s += std::string(m.text.c_str()) + "\n";
+    return s;
+  }
   std::string all_errors() {
     std::string s;
     for (const auto& e : errors()) s += e + "\n";
