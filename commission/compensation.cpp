@@ -147,6 +147,13 @@ std::vector<CompPoint> points_from_readings(const std::vector<CycleStop>& stops,
   for (std::size_t i = 0; i < stops.size(); ++i) {
     if (!std::isfinite(r[i])) throw std::invalid_argument("reading " + std::to_string(i + 1) + " is not a number");
     const double dev_mm = (r[i] - r[0]) - (stops[i].target - stops[0].target);
+    // As comp/'s measurement files: a deviation above 1 mm is a mistake
+    // (scaling, units, a laser that lost its beam), not an error to trim.
+    if (std::fabs(dev_mm) > 1.0)
+      throw std::invalid_argument("stop " + std::to_string(i + 1) + " (" + num(stops[i].target, "%.3f") + " mm moving " +
+                                  (stops[i].direction > 0 ? "+" : "-") + "): the reading is " + num(dev_mm, "%.4f") +
+                                  " mm off the target (relative to the first stop): more than 1 mm; check the axis's "
+                                  "scaling and direction (step 4), and that the readings are in mm");
     v.push_back({stops[i].target, stops[i].run, stops[i].direction, dev_mm * 1000});
   }
   return v;

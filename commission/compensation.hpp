@@ -47,7 +47,8 @@ std::string describe_stops(char axis, const std::vector<CycleStop>& stops);
 
 // Points from laser readings (mm, the laser's position at each stop, any
 // zero): deviations = reading - target, both relative to the first stop
-// (as a laser zeroed at the first target).
+// (as a laser zeroed at the first target). A deviation above 1 mm is
+// refused naming the stop (wrong scaling or units, as comp/'s files).
 std::vector<CompPoint> points_from_readings(const std::vector<CycleStop>& stops, const std::vector<double>& readings_mm);
 // A laser's CSV file: '#' comments, then either one reading (mm) per line,
 // or a header naming the columns, `reading_mm` (or `position_mm`) required,

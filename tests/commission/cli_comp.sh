@@ -26,6 +26,13 @@ cc axis X assign --node 1 --joint 0 >/dev/null
 cc axis X scaling --lead 5 >/dev/null
 cc axis X limits --min -50 --max 50 --velocity 20 --acceleration 200
 cc include --ini sim-machine.ini --hal-before-bus sim-machine.hal --hal-after-bus sim-machine-run.hal
+# Step 4 first (the dial plays from the simulator's truth): the cycle needs the right scaling.
+dial=$(python3 -c "
+import json
+t = json.load(open('$work/m/sim-truth.json'))['axes'][0]
+s = json.load(open('$work/state.json'))['axes'][0]['scaling']
+print(10 * s['counts_per_mm'] / t['counts_per_mm'] * (-1 if t['motor_reversed'] else 1))")
+cc axis X direction-test --distance 10 --velocity 5 --dial "$dial" --bring-up "$work/m" >/dev/null || fail "direction test"
 
 # The cycle: outside the soft limits refused (usage or problem, nothing saved), then written.
 before="$(cat "$work/state.json")"
@@ -48,6 +55,7 @@ grep -q "3 value(s) for the cycle's $stops stops" "$work/err" || fail "no count 
 
 # Ctrl-C during the cycle: aborted, machine off, state unchanged.
 cc bring-up --dir "$work/m" | grep -q "cncd runs on" || fail "bring-up"
+before="$(cat "$work/state.json")"
 "$bin/cnc-commission" --state "$work/state.json" axis X comp-run --laser-pin cia402-sim.0.node.01.table-position \
   >"$work/out" 2>&1 &
 pid=$!

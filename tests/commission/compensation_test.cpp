@@ -100,6 +100,16 @@ TEST(CommissionCompensation, LaserReadingsBecomeDeviationsRelativeToTheFirstStop
   for (std::size_t i = 0; i < points.size(); ++i)
     EXPECT_NEAR(points[i].deviation_um, truth_um(stops[i].target, stops[i].direction) - zero, 1e-6) << i;
   EXPECT_EQ(points.back().run, c.runs);
+  // An axis whose scaling is 1 % off reads millimetres off at the far end: refused naming the stop.
+  std::vector<double> off = laser_readings(stops);
+  for (std::size_t i = 0; i < off.size(); ++i) off[i] *= 1.01;
+  try {
+    points_from_readings(stops, off);
+    FAIL() << "accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("more than 1 mm"), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()).rfind("stop ", 0), 0u) << e.what();
+  }
 }
 
 TEST(CommissionCompensation, LaserCsvErrorsNameFileAndLine) {
