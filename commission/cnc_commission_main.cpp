@@ -291,6 +291,9 @@ int cmd_axis_comp(State& s, char letter, const std::string& step, Args& a) {
       s.log.push_back("axis " + L + " comp-run (no readings)");
       return 0;
     }
+    if (!check && ax->compensation->install)
+      std::cout << "note: axis " << L << " had a table installed; this measurement replaces the fit's and drops it. On a "
+                   "controller running with the table it measures the compensated machine: use --check for that\n";
     const CompFigures& f = set_measurement(s, letter, points, source, check);
     std::cout << "axis " << L << (check ? " check: " : ": ") << describe(f) << "\n";
     if (check && ax->compensation->fitted)
@@ -327,6 +330,9 @@ int cmd_axis_comp(State& s, char letter, const std::string& step, Args& a) {
         source = "laser file " + csv.string();
       }
     }
+    if (!check && ax->compensation->install)
+      std::cout << "note: axis " << L << " had a table installed; this measurement replaces the fit's and drops it "
+                   "(--check keeps a measurement of the compensated machine beside it)\n";
     const CompFigures& f = set_measurement(s, letter, points, source, check);
     std::cout << "axis " << L << (check ? " check: " : ": ") << points.size() << " points, " << describe(f) << "\n";
     s.log.push_back("axis " + L + " comp-measurements (" + source + ")");

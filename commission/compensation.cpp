@@ -421,11 +421,18 @@ CompRunResult run_comp_cycle(const Controller& ctl, const Axis& a, const AxisCom
     if (!ctl.estop_chain_ok())
       throw std::runtime_error(n + ": the E-stop chain is open: close it before the measurement cycle");
     ctl.cnc({"on"});
-    if (!client.status().joints[joint].homed) {
+    // Every joint homed (auto mode needs them all; the table applies once homed).
+    auto all_homed = [&client]() {
+      const ipc::Status st = client.status();
+      for (int j = 0; j < st.motion.joints && j < kMaxJoints; ++j)
+        if (!st.joints[j].homed) return false;
+      return true;
+    };
+    if (!all_homed()) {
       ctl.cnc({"mode", "manual"});
       ctl.cnc({"home", "all"});
       const auto t0 = clock::now();
-      while (!client.status().joints[joint].homed) {
+      while (!all_homed()) {
         if (abort_requested()) throw std::runtime_error(n + ": aborted while homing");
         if (clock::now() - t0 > std::chrono::seconds(120)) throw std::runtime_error(n + ": homing did not end within 120 s");
         std::this_thread::sleep_for(std::chrono::milliseconds(50));

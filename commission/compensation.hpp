@@ -93,8 +93,8 @@ std::string comp_ini_keys(const Axis& a, const std::string& name);
 bool any_compensation(const State& s);
 std::vector<GeneratedFile> compensation_files(const State& s, const std::filesystem::path& dir, const std::string& name);
 
-// The cycle on the running controller: homes the machine when it is not
-// homed, opens `program` (the cycle of `c`) in auto mode and runs it,
+// The cycle on the running controller: homes the machine when a joint is
+// not homed, opens `program` (the cycle of `c`) in auto mode and runs it,
 // watching the joint's command (the controller's status) for the stops;
 // at each stop, once the command has stood still for 40 % of the dwell,
 // reads HAL pin `laser_pin` (a laser's reading, mm; "" none: the stops
