@@ -75,6 +75,19 @@ const AxisCompensation& need_comp(const Axis& a) {
   return *a.compensation;
 }
 
+// A table belongs to the scaling it was measured with: after a new
+// direction test or scaling the axis moves differently, and the table would
+// correct errors the axis no longer has.
+void check_scaling(const Axis& a, const AxisCompensation& c) {
+  const double now = a.scaling.counts_per_mm();
+  if (c.scaling_counts_per_mm > 0 &&
+      (std::fabs(now / c.scaling_counts_per_mm - 1) > 1e-9 || a.scaling.reverse != c.scaling_reverse))
+    throw std::invalid_argument(axis_name(a.letter) + ": the compensation was measured at " +
+                                num(c.scaling_counts_per_mm) + " counts/mm" + (c.scaling_reverse ? " REVERSE" : "") + ", the scaling is now " + num(now) +
+                                " counts/mm" + (a.scaling.reverse ? " REVERSE" : "") +
+                                ": measure again (comp-run), or leave the table out (comp-fit without --install)");
+}
+
 }  // namespace
 
 AxisCompensation default_compensation(const Axis& a) {
@@ -293,6 +306,8 @@ const CompFigures& set_measurement(State& s, char letter, std::vector<CompPoint>
   }
   c.points = std::move(points);
   c.source = source;
+  c.scaling_counts_per_mm = a->scaling.counts_per_mm();
+  c.scaling_reverse = a->scaling.reverse;
   c.measured = f;
   c.fitted = false;  // a new measurement: the old fit no longer belongs to it
   c.install = false;
@@ -311,6 +326,7 @@ std::string fit_compensation(State& s, char letter, const std::filesystem::path&
   AxisCompensation& c = *a->compensation;
   if (c.points.empty())
     throw std::invalid_argument(axis_name(letter) + " has no measurement: comp-run, or comp-measurements, first");
+  check_scaling(*a, c);
   const comp::Measurement m = to_measurement(letter, c.points);
   comp::FitOptions fo;
   fo.lead_mm = 0;        // the ISO cycle's targets alias a lead-periodic error: no periodic term
@@ -376,6 +392,7 @@ std::vector<GeneratedFile> compensation_files(const State& s, const std::filesys
   for (const Axis& a : s.axes) {
     if (comp_ini_keys(a, name).empty()) continue;
     const AxisCompensation& c = *a.compensation;
+    check_scaling(a, c);
     comp::CompTable t;
     t.nominal = c.nominal;
     t.forward = c.forward;

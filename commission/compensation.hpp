@@ -87,7 +87,9 @@ std::string fit_compensation(State& s, char letter, const std::filesystem::path&
 // For the configuration writer: the table's file name in the configuration
 // folder ("<name>-x.comp"), the [JOINT_n] keys that load it ("" when the
 // axis has no installed table), whether any axis has one (the HAL file then
-// loads screwcomp), and the table files themselves.
+// loads screwcomp), and the table files themselves; these throw
+// std::invalid_argument when the axis's scaling changed since the
+// measurement (the table belongs to the old one), as comp-fit does.
 std::string comp_file_name(const Axis& a, const std::string& name);
 std::string comp_ini_keys(const Axis& a, const std::string& name);
 bool any_compensation(const State& s);

@@ -146,7 +146,8 @@ json compensation_json(const AxisCompensation& c) {
             {"overshoot_mm", c.overshoot_mm}, {"dwell_s", c.dwell_s}, {"feed_mm_min", c.feed_mm_min},
             {"seed", c.seed}, {"program", c.program}, {"source", c.source}, {"points", points_json(c.points)},
             {"check_points", points_json(c.check_points)}, {"fitted", c.fitted}, {"fit_dir", c.fit_dir},
-            {"install", c.install}};
+            {"install", c.install}, {"scaling_counts_per_mm", c.scaling_counts_per_mm},
+            {"scaling_reverse", c.scaling_reverse}};
   if (c.measured) j["measured"] = figures_json(*c.measured);
   if (c.checked) j["checked"] = figures_json(*c.checked);
   if (c.fitted) {
@@ -171,6 +172,8 @@ AxisCompensation compensation_from(const json& j, const std::string& origin) {
   get(j, "fitted", c.fitted);
   get(j, "fit_dir", c.fit_dir);
   get(j, "install", c.install);
+  get(j, "scaling_counts_per_mm", c.scaling_counts_per_mm);
+  get(j, "scaling_reverse", c.scaling_reverse);
   if (j.contains("points")) c.points = points_from(j["points"], origin, "points");
   if (j.contains("check_points")) c.check_points = points_from(j["check_points"], origin, "check_points");
   if (j.contains("measured")) c.measured = figures_from(j["measured"]);

@@ -90,6 +90,8 @@ struct AxisCompensation {
   std::string program;                  // the .ngc written (absolute path)
   std::vector<CompPoint> points;        // the measurement the fit uses
   std::string source;                   // where its readings came from
+  double scaling_counts_per_mm = 0;     // the axis's scaling when it was measured
+  bool scaling_reverse = false;         //   (a table belongs to that scaling)
   std::optional<CompFigures> measured;  // its figures
   std::vector<CompPoint> check_points;  // a check measurement (comp-run --check), on the compensated machine
   std::optional<CompFigures> checked;

@@ -220,6 +220,17 @@ TEST(CommissionCompensation, TheFitOnAScrewWithPitchErrorAndBacklashLowersAAndTh
       EXPECT_EQ(comp::parse_comp_table(f.content, comp::CompFileType::Trims, "machine-x.comp").size(), c.nominal.size());
     }
   EXPECT_TRUE(table);
+  // A new scaling (another direction test) leaves the table behind: write refuses it, naming the axis.
+  s.axes[0].scaling.correction = 1.001;
+  try {
+    generate_config(s, dir.path(), "machine");
+    FAIL() << "a table of the old scaling was written";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("axis X: the compensation was measured at 2000 counts/mm"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(fit_compensation(s, 'X', dir / "fit", true), std::invalid_argument);
+  s.axes[0].scaling.correction = 1;
   // A new measurement drops the fit that belonged to the old one.
   set_measurement(s, 'X', points_from_readings(stops, laser_readings(stops)), "again");
   EXPECT_FALSE(s.axes[0].compensation->fitted);
