@@ -12,12 +12,15 @@
 #include <string>
 #include <vector>
 
+#include "commission/backup.hpp"
+#include "commission/compensation.hpp"
 #include "commission/config_writer.hpp"
 #include "commission/controller.hpp"
 #include "commission/lss_assign.hpp"
 #include "commission/scan.hpp"
 #include "commission/state.hpp"
 #include "commission/steps.hpp"
+#include "core/util/atomic_file.hpp"
 #include "core/util/strings.hpp"
 #include "fieldbus/can/transport.hpp"
 
@@ -60,6 +63,24 @@ const char* kHelp =
     "      the dial indicator's reading of the last test: flips REVERSE, corrects scale\n"
     "  axis L enable|disable\n"
     "      keep the axis in, or leave it out of, the written configuration\n"
+    "  axis L comp-program --out FILE.ngc [--min MM] [--max MM] [--targets N] [--runs N]\n"
+    "                      [--overshoot MM] [--dwell S] [--feed MM/MIN] [--seed N]\n"
+    "      the ISO 230-2 cycle of the axis (comp/), inside its soft limits; lists its stops\n"
+    "  axis L comp-run [--laser-pin PIN | --laser CSV] [--check] [--out FILE.ngc]\n"
+    "                  [--bin DIR] [--bring-up DIR]\n"
+    "      run the cycle on the controller (time-limited, switched off afterwards); the\n"
+    "      position at each stop from HAL pin PIN (a laser's reading, mm) or from the\n"
+    "      laser's CSV file after the run; without either, enter them with comp-measurements;\n"
+    "      --check: a measurement of the compensated machine, kept beside the fit's\n"
+    "  axis L comp-measurements (--csv FILE | --values UM,UM,...) [--check]\n"
+    "      the measurement from a file (comp/'s measurement CSV or a laser's readings) or\n"
+    "      entered deviations (um, one per stop in the cycle's order)\n"
+    "  axis L comp-fit [--out-dir DIR] [--install]\n"
+    "      fit the error model (comp/), ISO 230-2 figures measured and predicted, the table;\n"
+    "      --install: write puts the table and its COMP_FILE keys into the configuration\n"
+    "  backup --dir DIR [--interface SPEC] [--timeout-ms MS]\n"
+    "      SDO upload of the parameters that matter from every enabled axis's drive, a\n"
+    "      file per drive (DCF-like); write copies it into DIR/drive-backup/\n"
     "  include [--ini FILE] [--hal-before-bus FILE] [--hal-after-bus FILE]\n"
     "      files the written configuration keeps (site I/O, a simulated machine)\n"
     "  bring-up --dir DIR [--name NAME] [--log FILE]\n"
@@ -204,8 +225,200 @@ void show(const State& s) {
       std::cout << ", " << a.scaling.counts_per_mm() << " counts/mm" << (a.scaling.reverse ? ", REVERSE" : "");
     std::cout << ", limits " << a.min_limit << ".." << a.max_limit << " mm\n";
     if (a.direction) std::cout << "  direction test: " << a.direction->verdict << "\n";
+    if (a.compensation && a.compensation->measured)
+      std::cout << "  compensation: measured " << describe(*a.compensation->measured)
+                << (a.compensation->fitted ? ", predicted A " + std::to_string(a.compensation->predicted.A) + " um" : "")
+                << (a.compensation->install ? ", installed" : "") << "\n";
   }
 }
+
+// --- Steps 8 (compensation) and 9 (drive-parameter backup), helper C ---
+std::filesystem::path g_state_dir = ".";
+
+void print_progress(int done, int total, const std::string& what) {
+  std::cout << "progress: " << done << "/" << total << " " << what << std::endl;
+}
+
+int cmd_axis_comp(State& s, char letter, const std::string& step, Args& a) {
+  Axis* ax = s.axis(letter);
+  if (!ax) usage(std::string("axis ") + letter + " has no drive yet");
+  const std::string L(1, letter), l(1, static_cast<char>(std::tolower(static_cast<unsigned char>(letter))));
+  AxisCompensation c = ax->compensation ? *ax->compensation : default_compensation(*ax);
+  if (step == "comp-program") {
+    std::filesystem::path out;
+    while (a.more()) {
+      const std::string k = a.next("option");
+      if (k == "--out") out = a.next("file");
+      else if (k == "--min") c.x_min = number(a.next("mm"), "--min");
+      else if (k == "--max") c.x_max = number(a.next("mm"), "--max");
+      else if (k == "--targets") c.targets = static_cast<int>(number(a.next("count"), "--targets"));
+      else if (k == "--runs") c.runs = static_cast<int>(number(a.next("count"), "--runs"));
+      else if (k == "--overshoot") c.overshoot_mm = number(a.next("mm"), "--overshoot");
+      else if (k == "--dwell") c.dwell_s = number(a.next("s"), "--dwell");
+      else if (k == "--feed") c.feed_mm_min = number(a.next("mm/min"), "--feed");
+      else if (k == "--seed") c.seed = static_cast<uint64_t>(number(a.next("seed"), "--seed"));
+      else usage("comp-program: unknown option " + k);
+    }
+    if (out.empty()) usage("comp-program: --out FILE.ngc");
+    check_cycle(*ax, c);
+    c.program = std::filesystem::absolute(out).string();
+    cnc::write_file_atomically(out, cnc::comp::iso_cycle_gcode(cycle_options(*ax, c)));
+    const auto stops = cycle_stops(*ax, c);
+    std::cout << describe_stops(letter, stops);
+    std::cout << "axis " << L << ": ISO 230-2 cycle " << c.x_min << ".." << c.x_max << " mm, " << stops.size()
+              << " stops (" << c.runs << " runs each way), feed " << c.feed_mm_min << " mm/min, written to "
+              << out.string() << "\n";
+    const bool changed = !ax->compensation || ax->compensation->x_min != c.x_min || ax->compensation->x_max != c.x_max ||
+                         ax->compensation->targets != c.targets || ax->compensation->runs != c.runs ||
+                         ax->compensation->seed != c.seed;
+    if (changed) {  // other stops: the measurement of the old cycle no longer fits them
+      c.points.clear();
+      c.measured.reset();
+    }
+    ax->compensation = c;
+    s.log.push_back("axis " + L + " comp-program " + out.string());
+    return 0;
+  }
+  if (step == "comp-run") {
+    std::filesystem::path laser_csv, out, bin = self_dir(), bring_up;
+    std::string pin;
+    bool check = false;
+    while (a.more()) {
+      const std::string k = a.next("option");
+      if (k == "--laser") laser_csv = a.next("file");
+      else if (k == "--laser-pin") pin = a.next("HAL pin");
+      else if (k == "--check") check = true;
+      else if (k == "--out") out = a.next("file");
+      else if (k == "--bin") bin = a.next("folder");
+      else if (k == "--bring-up") bring_up = a.next("folder");
+      else usage("comp-run: unknown option " + k);
+    }
+    if (!laser_csv.empty() && !pin.empty()) usage("comp-run: --laser-pin or --laser, not both");
+    check_cycle(*ax, c);
+    if (!out.empty() || c.program.empty()) {
+      if (out.empty()) out = g_state_dir / ("comp-" + l + ".ngc");
+      c.program = std::filesystem::absolute(out).string();
+    }
+    cnc::write_file_atomically(c.program, cnc::comp::iso_cycle_gcode(cycle_options(*ax, c)));
+    std::unique_ptr<ControllerProcess> own;
+    if (!bring_up.empty()) own = bring_up_controller(s, bin, bring_up, "commission", bring_up / "cncd.log");
+    const CompRunResult r = run_comp_cycle(Controller(bin), *ax, c, c.program, pin, print_progress);
+    if (own && own->stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
+    std::cout << "axis " << L << ": the cycle ran (" << r.stops.size() << " stops); the machine is off again\n";
+    ax->compensation = c;
+    std::vector<CompPoint> points;
+    std::string source;
+    if (!pin.empty()) {
+      points = points_from_readings(r.stops, r.readings_mm);
+      source = "laser pin " + pin;
+    } else if (!laser_csv.empty()) {
+      points = points_from_readings(r.stops, load_laser_csv(laser_csv, r.stops));
+      source = "laser file " + laser_csv.string();
+    } else {
+      std::cout << describe_stops(letter, r.stops) << "enter the deviation at each stop: cnc-commission axis " << L
+                << " comp-measurements --values UM,UM,... (or --csv FILE)\n";
+      s.log.push_back("axis " + L + " comp-run (no readings)");
+      return 0;
+    }
+    if (!check && ax->compensation->install)
+      std::cout << "note: axis " << L << " had a table installed; this measurement replaces the fit's and drops it. On a "
+                   "controller running with the table it measures the compensated machine: use --check for that\n";
+    const CompFigures& f = set_measurement(s, letter, points, source, check);
+    std::cout << "axis " << L << (check ? " check: " : ": ") << describe(f) << "\n";
+    if (check && ax->compensation->fitted)
+      std::cout << "axis " << L << ": before compensation A " << ax->compensation->before.A << " um, predicted "
+                << ax->compensation->predicted.A << " um, measured now " << f.A << " um\n";
+    s.log.push_back("axis " + L + " comp-run" + (check ? " --check" : "") + ": A " + std::to_string(f.A) + " um");
+    return 0;
+  }
+  if (step == "comp-measurements") {
+    std::filesystem::path csv;
+    std::string values;
+    bool check = false;
+    while (a.more()) {
+      const std::string k = a.next("option");
+      if (k == "--csv") csv = a.next("file");
+      else if (k == "--values") values = a.next("values");
+      else if (k == "--check") check = true;
+      else usage("comp-measurements: unknown option " + k);
+    }
+    if (csv.empty() == values.empty()) usage("comp-measurements: --csv FILE or --values UM,UM,...");
+    ax->compensation = c;
+    std::vector<CompPoint> points;
+    std::string source;
+    if (!values.empty()) {
+      points = points_from_values(cycle_stops(*ax, c), values);
+      source = "entered";
+    } else {
+      const std::string text = cnc::read_file(csv);
+      if (text.find("deviation_um") != std::string::npos) {
+        points = points_from_measurement_file(*ax, csv);
+        source = "measurement file " + csv.string();
+      } else {
+        points = points_from_readings(cycle_stops(*ax, c), load_laser_csv(csv, cycle_stops(*ax, c)));
+        source = "laser file " + csv.string();
+      }
+    }
+    if (!check && ax->compensation->install)
+      std::cout << "note: axis " << L << " had a table installed; this measurement replaces the fit's and drops it "
+                   "(--check keeps a measurement of the compensated machine beside it)\n";
+    const CompFigures& f = set_measurement(s, letter, points, source, check);
+    std::cout << "axis " << L << (check ? " check: " : ": ") << points.size() << " points, " << describe(f) << "\n";
+    s.log.push_back("axis " + L + " comp-measurements (" + source + ")");
+    return 0;
+  }
+  if (step == "comp-fit") {
+    std::filesystem::path dir = g_state_dir / ("comp-" + l);
+    bool install = false;
+    while (a.more()) {
+      const std::string k = a.next("option");
+      if (k == "--out-dir") dir = a.next("folder");
+      else if (k == "--install") install = true;
+      else usage("comp-fit: unknown option " + k);
+    }
+    std::cout << fit_compensation(s, letter, dir, install);
+    const AxisCompensation& r = *ax->compensation;
+    std::cout << "axis " << L << ": ISO 230-2 A " << r.before.A << " um measured, " << r.predicted.A
+              << " um predicted with the table (" << r.nominal.size() << " entries); files in " << r.fit_dir << "\n"
+              << (install ? "the table is marked for the configuration: cnc-commission write puts it in\n"
+                          : "(--install marks the table for cnc-commission write)\n");
+    s.log.push_back("axis " + L + " comp-fit" + (install ? " --install" : ""));
+    return 0;
+  }
+  usage("axis: unknown step " + step);
+}
+
+int cmd_backup(State& s, Args& a) {
+  std::filesystem::path dir;
+  std::string spec = s.interface;
+  BackupOptions o;
+  while (a.more()) {
+    const std::string k = a.next("option");
+    if (k == "--dir") dir = a.next("folder");
+    else if (k == "--interface") spec = a.next("interface");
+    else if (k == "--timeout-ms") o.timeout_ns = static_cast<int64_t>(number(a.next("ms"), "--timeout-ms") * 1e6);
+    else usage("backup: unknown option " + k);
+  }
+  if (dir.empty()) usage("backup: --dir DIR");
+  if (spec.empty()) usage("backup: no bus: scan first, or --interface SPEC");
+  if (s.axes.empty()) throw std::invalid_argument("backup: no axis has a drive yet: assign them first");
+  auto bus = cnc::can::open_transport(spec);
+  BackupResult r = backup_drives(*bus, s, o);
+  for (const auto& k : r.skipped) std::cout << k << "\n";
+  for (const auto& n : r.nodes) {
+    std::cout << "node " << n.node << " (axis " << n.axis << "): " << n.values.size() << " values, "
+              << n.missing.size() << " object(s) the drive lacks\n";
+    for (const auto& m : n.missing) std::cout << "  missing: " << m << "\n";
+  }
+  if (!r.ok()) {
+    for (const auto& p : r.problems) std::cout << "problem: " << p << "\n";
+    return 1;
+  }
+  for (const auto& f : write_backup(s, r, dir)) std::cout << "wrote " << f.string() << "\n";
+  s.log.push_back("backup of " + std::to_string(r.nodes.size()) + " drive(s) to " + dir.string());
+  return 0;
+}
+// --- end of helper C's block ---
 
 int cmd_axis(State& s, Args& a) {
   const std::string l = a.next("axis letter");
@@ -289,6 +502,8 @@ int cmd_axis(State& s, Args& a) {
     const DirectionTest t = *ax->direction;
     std::cout << apply_direction_test(s, letter, t.commanded_mm, t.feedback_mm, dial, true).verdict << "\n";
     s.log.push_back("axis " + std::string(1, letter) + " dial " + l);
+  } else if (step.rfind("comp-", 0) == 0) {
+    return cmd_axis_comp(s, letter, step, a);  // step 8
   } else if (step == "enable" || step == "disable") {
     Axis* ax = s.axis(letter);
     if (!ax) usage(std::string("axis ") + letter + " has no drive yet");
@@ -388,6 +603,7 @@ int main(int argc, char** argv) {
     state_file = a.next("state file");
   }
   const std::string cmd = a.next("command");
+  g_state_dir = std::filesystem::absolute(state_file).parent_path();
   try {
     State s = load_state(state_file);
     int rc = 0;
@@ -408,6 +624,7 @@ int main(int argc, char** argv) {
       }
     } else if (cmd == "write") rc = cmd_write(s, a);
     else if (cmd == "bring-up") rc = cmd_bring_up(s, a);
+    else if (cmd == "backup") rc = cmd_backup(s, a);
     else if (cmd == "shutdown") {
       Controller(self_dir()).cnc({"shutdown"});
       return 0;

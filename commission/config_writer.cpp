@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <sys/wait.h>
 
+#include "commission/backup.hpp"
+#include "commission/compensation.hpp"
 #include "core/util/atomic_file.hpp"
 
 namespace cnc::commission {
@@ -99,7 +101,8 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
     ini << "[JOINT_" << a->joint << "]\nTYPE = LINEAR\nMIN_LIMIT = " << num(a->min_limit)
         << "\nMAX_LIMIT = " << num(a->max_limit) << "\nMAX_VELOCITY = " << num(a->max_velocity * 1.05)
         << "\nMAX_ACCELERATION = " << num(a->max_acceleration * 1.1)
-        << "\nFERROR = 1.0\nMIN_FERROR = 0.2\nHOME = 0\nHOME_OFFSET = 0\nHOME_SEQUENCE = 0\n\n";
+        << "\nFERROR = 1.0\nMIN_FERROR = 0.2\nHOME = 0\nHOME_OFFSET = 0\nHOME_SEQUENCE = 0\n"
+        << comp_ini_keys(*a, name) << "\n";  // step 8: the screw-compensation table, when installed
   }
   ini << "[EMCIO]\nEMCIO = io\nTOOL_TABLE = tool.tbl\nTOOL_PREPARE_TIMEOUT = 10\nTOOL_CHANGE_TIMEOUT = 30\n\n";
   ini << "[CANOPEN]\nINTERFACE = " << s.interface << "\nBITRATE = " << s.bitrate << "\nNODE = " << nodes
@@ -143,6 +146,7 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
          "# master and the CiA 402 drives of the commissioned axes.\n\n"
          "loadrt [KINS]KINEMATICS\n"
          "loadrt [EMCMOT]EMCMOT servo_period_nsec=[EMCMOT]SERVO_PERIOD num_joints=[KINS]JOINTS\n";
+  if (any_compensation(s)) hal << "# Screw compensation tables ([JOINT_n]COMP_FILE).\nloadrt screwcomp\n";
   for (const auto& f : s.hal_before_bus) hal << "source " << f << "\n";
   hal << "loadrt canopen buses=CANOPEN\nloadrt cia402 sections=CIA402\n\n"
          "addf canopen.0.read servo-thread\naddf cia402.0.read servo-thread\n"
@@ -179,6 +183,9 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
     out.push_back({dir / "tool.tbl",
                    "T1 P1 D6.000 Z+35.000 ;6 mm end mill\nT2 P2 D10.000 Z+42.500 ;10 mm end mill\n"
                    "T3 P3 D5.000 Z+55.000 ;5 mm drill\n"});
+  // Steps 8 and 9: compensation tables, and the drive-parameter backup when one was taken.
+  for (auto& f : compensation_files(s, dir, name)) out.push_back(std::move(f));
+  for (auto& f : backup_files(s, dir)) out.push_back(std::move(f));
   return out;
 }
 
@@ -212,6 +219,7 @@ std::vector<std::filesystem::path> write_config(const std::vector<GeneratedFile>
     const std::string old = exists ? read_text(f.path) : std::string();
     if (exists && old == f.content) continue;
     if (exists) write_file_atomically(f.path.string() + ".bak", old);
+    if (!exists && f.path.has_parent_path()) std::filesystem::create_directories(f.path.parent_path());
     write_file_atomically(f.path, f.content);
     changed.push_back(f.path);
   }

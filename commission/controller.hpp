@@ -58,6 +58,10 @@ class ControllerProcess {
 // error saying it was aborted). Async-signal-safe: the command-line program
 // calls it from its SIGINT and SIGTERM handlers.
 void request_abort() noexcept;
+// Whether request_abort() was called since the motion began (longer
+// motions of other files poll it); clear_abort() at their start.
+bool abort_requested() noexcept;
+void clear_abort() noexcept;
 
 struct JogResult {
   double commanded_mm = 0;

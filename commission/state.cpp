@@ -108,6 +108,98 @@ ScannedSlave slave_from(const json& j) {
   return n;
 }
 
+// --- Step 8, compensation; step 9, backup (helper C) ---
+json points_json(const std::vector<CompPoint>& v) {
+  json a = json::array();
+  for (const CompPoint& p : v) a.push_back({p.target, p.run, p.direction, p.deviation_um});
+  return a;
+}
+std::vector<CompPoint> points_from(const json& a, const std::string& origin, const char* key) {
+  std::vector<CompPoint> v;
+  for (const json& p : a) {
+    if (!p.is_array() || p.size() != 4)
+      throw std::runtime_error(origin + ": axes[].compensation." + key + ": expected [target, run, direction, deviation_um]");
+    v.push_back({p[0].get<double>(), p[1].get<int>(), p[2].get<int>(), p[3].get<double>()});
+  }
+  return v;
+}
+json figures_json(const CompFigures& f) {
+  return {{"A", f.A}, {"A_up", f.A_up}, {"A_down", f.A_down}, {"E", f.E}, {"E_up", f.E_up}, {"E_down", f.E_down},
+          {"R", f.R}, {"B", f.B}, {"B_mean", f.B_mean}, {"M", f.M}};
+}
+CompFigures figures_from(const json& j) {
+  CompFigures f;
+  get(j, "A", f.A);
+  get(j, "A_up", f.A_up);
+  get(j, "A_down", f.A_down);
+  get(j, "E", f.E);
+  get(j, "E_up", f.E_up);
+  get(j, "E_down", f.E_down);
+  get(j, "R", f.R);
+  get(j, "B", f.B);
+  get(j, "B_mean", f.B_mean);
+  get(j, "M", f.M);
+  return f;
+}
+json compensation_json(const AxisCompensation& c) {
+  json j = {{"x_min", c.x_min}, {"x_max", c.x_max}, {"targets", c.targets}, {"runs", c.runs},
+            {"overshoot_mm", c.overshoot_mm}, {"dwell_s", c.dwell_s}, {"feed_mm_min", c.feed_mm_min},
+            {"seed", c.seed}, {"program", c.program}, {"source", c.source}, {"points", points_json(c.points)},
+            {"check_points", points_json(c.check_points)}, {"fitted", c.fitted}, {"fit_dir", c.fit_dir},
+            {"install", c.install}, {"scaling_counts_per_mm", c.scaling_counts_per_mm},
+            {"scaling_reverse", c.scaling_reverse}};
+  if (c.measured) j["measured"] = figures_json(*c.measured);
+  if (c.checked) j["checked"] = figures_json(*c.checked);
+  if (c.fitted) {
+    j["before"] = figures_json(c.before);
+    j["predicted"] = figures_json(c.predicted);
+    j["table"] = {{"nominal", c.nominal}, {"forward", c.forward}, {"reverse", c.reverse}};
+  }
+  return j;
+}
+AxisCompensation compensation_from(const json& j, const std::string& origin) {
+  AxisCompensation c;
+  get(j, "x_min", c.x_min);
+  get(j, "x_max", c.x_max);
+  get(j, "targets", c.targets);
+  get(j, "runs", c.runs);
+  get(j, "overshoot_mm", c.overshoot_mm);
+  get(j, "dwell_s", c.dwell_s);
+  get(j, "feed_mm_min", c.feed_mm_min);
+  get(j, "seed", c.seed);
+  get(j, "program", c.program);
+  get(j, "source", c.source);
+  get(j, "fitted", c.fitted);
+  get(j, "fit_dir", c.fit_dir);
+  get(j, "install", c.install);
+  get(j, "scaling_counts_per_mm", c.scaling_counts_per_mm);
+  get(j, "scaling_reverse", c.scaling_reverse);
+  if (j.contains("points")) c.points = points_from(j["points"], origin, "points");
+  if (j.contains("check_points")) c.check_points = points_from(j["check_points"], origin, "check_points");
+  if (j.contains("measured")) c.measured = figures_from(j["measured"]);
+  if (j.contains("checked")) c.checked = figures_from(j["checked"]);
+  if (j.contains("before")) c.before = figures_from(j["before"]);
+  if (j.contains("predicted")) c.predicted = figures_from(j["predicted"]);
+  if (j.contains("table")) {
+    const json& t = j["table"];
+    get(t, "nominal", c.nominal);
+    get(t, "forward", c.forward);
+    get(t, "reverse", c.reverse);
+    if (c.forward.size() != c.nominal.size() || c.reverse.size() != c.nominal.size())
+      throw std::runtime_error(origin + ": axes[].compensation.table: nominal, forward and reverse differ in length");
+  }
+  return c;
+}
+json backup_json(const DriveBackup& b) { return {{"dir", b.dir}, {"time", b.time}, {"files", b.files}}; }
+DriveBackup backup_from(const json& j) {
+  DriveBackup b;
+  get(j, "dir", b.dir);
+  get(j, "time", b.time);
+  get(j, "files", b.files);
+  return b;
+}
+// --- end of helper C's block ---
+
 json axis_json(const Axis& a) {
   json j = {{"letter", std::string(1, a.letter)}, {"joint", a.joint}, {"node", a.node},
             {"gantry_with", a.gantry_with}, {"min_limit", a.min_limit}, {"max_limit", a.max_limit},
@@ -123,6 +215,7 @@ json axis_json(const Axis& a) {
                            {"dial_mm", d.dial_mm}, {"has_dial", d.has_dial}, {"reversed", d.reversed},
                            {"correction", d.correction}, {"verdict", d.verdict}};
   }
+  if (a.compensation) j["compensation"] = compensation_json(*a.compensation);
   return j;
 }
 
@@ -161,6 +254,7 @@ Axis axis_from(const json& j, const std::string& origin) {
     get(d, "verdict", t.verdict);
     a.direction = t;
   }
+  if (j.contains("compensation")) a.compensation = compensation_from(j["compensation"], origin);
   return a;
 }
 
@@ -185,6 +279,7 @@ std::string to_json_text(const State& s) {
   j["hal_before_bus"] = s.hal_before_bus;
   j["hal_after_bus"] = s.hal_after_bus;
   j["log"] = s.log;
+  if (s.backup) j["backup"] = backup_json(*s.backup);
   return j.dump(2) + "\n";
 }
 
@@ -217,6 +312,7 @@ State from_json_text(const std::string& text, const std::string& origin) {
     get(j, "hal_before_bus", s.hal_before_bus);
     get(j, "hal_after_bus", s.hal_after_bus);
     get(j, "log", s.log);
+    if (j.contains("backup")) s.backup = backup_from(j["backup"]);
     return s;
   } catch (const json::exception& e) {
     throw std::runtime_error(origin + ": " + e.what());

@@ -68,6 +68,47 @@ struct DirectionTest {
   std::string verdict;
 };
 
+// --- Step 8, compensation (commission/compensation.hpp) ---
+// One measured point of the ISO 230-2 cycle (as comp::MeasurementPoint).
+struct CompPoint {
+  double target = 0;        // mm, machine coordinates
+  int run = 1;              // per target and direction
+  int direction = 1;        // +1 approached moving +, -1 moving -
+  double deviation_um = 0;  // position reached minus target
+};
+// The ISO 230-2 figures of one measurement (comp::Iso230Result), um.
+struct CompFigures {
+  double A = 0, A_up = 0, A_down = 0, E = 0, E_up = 0, E_down = 0, R = 0, B = 0, B_mean = 0, M = 0;
+};
+struct AxisCompensation {
+  // The cycle (comp::CycleOptions): first and last target, targets (0:
+  // comp/'s choice), runs each way, overshoot, dwell, feed (mm/min), seed.
+  double x_min = 0, x_max = 0;
+  int targets = 0, runs = 5;
+  double overshoot_mm = 2, dwell_s = 0.8, feed_mm_min = 1000;
+  uint64_t seed = 1;
+  std::string program;                  // the .ngc written (absolute path)
+  std::vector<CompPoint> points;        // the measurement the fit uses
+  std::string source;                   // where its readings came from
+  double scaling_counts_per_mm = 0;     // the axis's scaling when it was measured
+  bool scaling_reverse = false;         //   (a table belongs to that scaling)
+  std::optional<CompFigures> measured;  // its figures
+  std::vector<CompPoint> check_points;  // a check measurement (comp-run --check), on the compensated machine
+  std::optional<CompFigures> checked;
+  bool fitted = false;
+  CompFigures before, predicted;        // of the fit: measured, and predicted with the table
+  std::vector<double> nominal, forward, reverse;  // the table (mm; COMP_FILE_TYPE 1 trims)
+  std::string fit_dir;                  // where comp-fit wrote its files
+  bool install = false;                 // write puts the table into the configuration
+};
+
+// --- Step 9, drive-parameter backup (commission/backup.hpp) ---
+struct DriveBackup {
+  std::string dir;                      // absolute
+  std::string time;                     // UTC, ISO 8601
+  std::vector<std::string> files;       // one per drive, names in dir
+};
+
 struct Axis {
   char letter = 'X';            // X Y Z A B C U V W
   int joint = 0;
@@ -78,6 +119,7 @@ struct Axis {
   double min_limit = -10, max_limit = 10;  // provisional soft limits (mm)
   double max_velocity = 10, max_acceleration = 100;  // provisional
   bool enabled = true;          // false: left out of the written configuration
+  std::optional<AxisCompensation> compensation;  // step 8
 };
 
 struct State {
@@ -98,6 +140,7 @@ struct State {
   std::vector<std::string> ini_includes;
   std::vector<std::string> hal_before_bus, hal_after_bus;
   std::vector<std::string> log;  // one line per step done, oldest first
+  std::optional<DriveBackup> backup;  // step 9: the last drive-parameter backup
 
   const ScannedNode* node(int id) const noexcept;
   Axis* axis(char letter) noexcept;

@@ -68,4 +68,10 @@ CompTable make_comp_table(const ErrorModel& model, const TableOptions& o) {
   return sample(model, x0, x1, hi, offset, o.um_per_unit);
 }
 
+Measurement predicted_after(const Measurement& m, const CompTable& t, double um_per_unit) {
+  Measurement p = m;
+  for (MeasurementPoint& q : p.points) q.deviation_um += t.at(q.target, q.direction) * um_per_unit;
+  return p;
+}
+
 }  // namespace cnc::comp

@@ -7,6 +7,7 @@
 
 #include "comp/comp_table.hpp"
 #include "comp/error_model.hpp"
+#include "comp/measurement.hpp"
 
 namespace cnc::comp {
 
@@ -30,5 +31,10 @@ double interpolation_error_um(const CompTable& table, const ErrorModel& model, d
 // The correction offset (um) that make_comp_table applies for `options`
 // (minus the mean deviation at the reference position, or 0).
 double reference_offset_um(const ErrorModel& model, const TableOptions& options);
+
+// The measurement as the compensated machine would show it: every
+// deviation plus the table's correction at its target and direction
+// (`um_per_unit` micrometres per machine unit).
+Measurement predicted_after(const Measurement& m, const CompTable& table, double um_per_unit = 1000);
 
 }  // namespace cnc::comp

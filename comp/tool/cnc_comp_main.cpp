@@ -163,14 +163,6 @@ int cmd_compare(const Args& a) {
   return 0;
 }
 
-// The measurement as the compensated machine would show it: every
-// deviation plus the table's correction at its target and direction.
-Measurement predicted_after(const Measurement& m, const CompTable& t) {
-  Measurement p = m;
-  for (MeasurementPoint& q : p.points) q.deviation_um += t.at(q.target, q.direction) * 1000;
-  return p;
-}
-
 int cmd_fit(const Args& a) {
   check_known(a, {"out-dir", "axis", "lead", "harmonics", "knot-spacing", "smoothness", "loss", "noise", "reference",
                   "range", "spacing", "points", "tolerance", "type", "max-deviation", "fanuc-axis",

@@ -1,0 +1,345 @@
+#include "commission/backup.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <map>
+#include <memory>
+#include <stdexcept>
+
+#include "core/util/atomic_file.hpp"
+#include "fieldbus/canopen/eds.hpp"
+#include "fieldbus/canopen/sdo_client.hpp"
+
+namespace cnc::commission {
+
+namespace co = cnc::canopen;
+using D = co::DataType;
+
+namespace {
+
+constexpr uint32_t kAbortTimeout = 0x05040000;
+
+std::string hex(uint32_t v, int digits) {
+  char b[16];
+  std::snprintf(b, sizeof b, "0x%0*X", digits, v);
+  return b;
+}
+
+// "6099sub1", or "6098" for sub-index 0 of a plain variable.
+std::string section(const co::ObjectAddress& a, bool plain) {
+  char b[16];
+  if (plain) std::snprintf(b, sizeof b, "%04X", a.index);
+  else std::snprintf(b, sizeof b, "%04Xsub%X", a.index, a.sub);
+  return b;
+}
+
+std::string value_text(D type, const std::vector<uint8_t>& d) {
+  if (type == D::VisibleString) {
+    std::string s(d.begin(), d.end());
+    while (!s.empty() && (s.back() == '\0')) s.pop_back();
+    return s;
+  }
+  const std::size_t size = co::data_type_size(type);
+  if (size == 0 || size > 8 || type == D::OctetString || type == D::Domain) {
+    std::string s;
+    char b[4];
+    for (uint8_t c : d) {
+      std::snprintf(b, sizeof b, "%02X", c);
+      s += b;
+    }
+    return s.empty() ? "" : s;
+  }
+  uint64_t u = 0;
+  for (std::size_t i = 0; i < d.size() && i < 8; ++i) u |= static_cast<uint64_t>(d[i]) << (8 * i);
+  if (type == D::Real32 && d.size() >= 4) {
+    float f;
+    const uint32_t bits = static_cast<uint32_t>(u);
+    std::memcpy(&f, &bits, 4);
+    char b[32];
+    std::snprintf(b, sizeof b, "%.9g", f);
+    return b;
+  }
+  if (type == D::Real64 && d.size() >= 8) {
+    double f;
+    std::memcpy(&f, &u, 8);
+    char b[32];
+    std::snprintf(b, sizeof b, "%.17g", f);
+    return b;
+  }
+  if (co::is_signed(type)) {
+    const unsigned bits = static_cast<unsigned>(8 * std::min(size, d.size()));
+    int64_t v = static_cast<int64_t>(u);
+    if (bits > 0 && bits < 64 && (u >> (bits - 1)) & 1) v = static_cast<int64_t>(u | (~uint64_t{0} << bits));
+    return std::to_string(v);
+  }
+  char b[32];
+  std::snprintf(b, sizeof b, "0x%0*llX", static_cast<int>(2 * size), static_cast<unsigned long long>(u));
+  return b;
+}
+
+struct Channel {
+  int node = 0;
+  std::unique_ptr<co::SdoClient> sdo;
+  bool silent = false;
+};
+
+// Runs the bus until every client is idle.
+void run(can::Transport& bus, std::vector<Channel>& ch) {
+  std::map<uint32_t, Channel*> by_cob;
+  for (auto& c : ch) by_cob[c.sdo->response_cob()] = &c;
+  for (;;) {
+    can::Frame f;
+    while (bus.receive(f)) {
+      auto it = by_cob.find(f.id);
+      if (it == by_cob.end() || f.is_error() || f.is_remote()) continue;
+      it->second->sdo->on_frame(f, bus.now_ns());
+    }
+    bool idle = true;
+    const int64_t now = bus.now_ns();
+    for (auto& c : ch) {
+      c.sdo->poll(now);
+      if (!c.sdo->idle()) idle = false;
+    }
+    if (idle) return;
+    bus.wait(1'000'000);
+  }
+}
+
+}  // namespace
+
+const std::vector<BackupObject>& backup_objects() {
+  static const std::vector<BackupObject> list = [] {
+    std::vector<BackupObject> v = {
+        {{0x1000, 0}, D::Unsigned32, "Device type"},
+        {{0x1008, 0}, D::VisibleString, "Manufacturer device name"},
+        {{0x1009, 0}, D::VisibleString, "Manufacturer hardware version"},
+        {{0x100A, 0}, D::VisibleString, "Manufacturer software version"},
+        {{0x1017, 0}, D::Unsigned16, "Producer heartbeat time"},
+        {{0x1018, 1}, D::Unsigned32, "Vendor-ID"},
+        {{0x1018, 2}, D::Unsigned32, "Product code"},
+        {{0x1018, 3}, D::Unsigned32, "Revision number"},
+        {{0x1018, 4}, D::Unsigned32, "Serial number"},
+    };
+    for (uint16_t n = 0; n < 4; ++n) {
+      v.push_back({{static_cast<uint16_t>(0x1400 + n), 1}, D::Unsigned32, "RPDO" + std::to_string(n + 1) + " COB-ID"});
+      v.push_back({{static_cast<uint16_t>(0x1400 + n), 2}, D::Unsigned8, "RPDO" + std::to_string(n + 1) + " transmission type"});
+      v.push_back({{static_cast<uint16_t>(0x1600 + n), 0}, D::Unsigned8, "RPDO" + std::to_string(n + 1) + " mapped objects"});
+      v.push_back({{static_cast<uint16_t>(0x1800 + n), 1}, D::Unsigned32, "TPDO" + std::to_string(n + 1) + " COB-ID"});
+      v.push_back({{static_cast<uint16_t>(0x1800 + n), 2}, D::Unsigned8, "TPDO" + std::to_string(n + 1) + " transmission type"});
+      v.push_back({{static_cast<uint16_t>(0x1800 + n), 3}, D::Unsigned16, "TPDO" + std::to_string(n + 1) + " inhibit time"});
+      v.push_back({{static_cast<uint16_t>(0x1800 + n), 5}, D::Unsigned16, "TPDO" + std::to_string(n + 1) + " event timer"});
+      v.push_back({{static_cast<uint16_t>(0x1A00 + n), 0}, D::Unsigned8, "TPDO" + std::to_string(n + 1) + " mapped objects"});
+    }
+    const std::vector<BackupObject> drive = {
+        {{0x6007, 0}, D::Integer16, "Abort connection option code"},
+        {{0x605A, 0}, D::Integer16, "Quick stop option code"},
+        {{0x605B, 0}, D::Integer16, "Shutdown option code"},
+        {{0x605C, 0}, D::Integer16, "Disable operation option code"},
+        {{0x605D, 0}, D::Integer16, "Halt option code"},
+        {{0x605E, 0}, D::Integer16, "Fault reaction option code"},
+        {{0x6060, 0}, D::Integer8, "Modes of operation"},
+        {{0x6065, 0}, D::Unsigned32, "Following error window"},
+        {{0x6066, 0}, D::Unsigned16, "Following error time out"},
+        {{0x6067, 0}, D::Unsigned32, "Position window"},
+        {{0x6068, 0}, D::Unsigned16, "Position window time"},
+        {{0x6072, 0}, D::Unsigned16, "Max torque"},
+        {{0x607C, 0}, D::Integer32, "Home offset"},
+        {{0x607D, 1}, D::Integer32, "Min position limit"},
+        {{0x607D, 2}, D::Integer32, "Max position limit"},
+        {{0x607E, 0}, D::Unsigned8, "Polarity"},
+        {{0x6080, 0}, D::Unsigned32, "Max motor speed"},
+        {{0x6085, 0}, D::Unsigned32, "Quick stop deceleration"},
+        {{0x608F, 1}, D::Unsigned32, "Encoder increments"},
+        {{0x608F, 2}, D::Unsigned32, "Motor revolutions"},
+        {{0x6091, 1}, D::Unsigned32, "Gear ratio: motor shaft revolutions"},
+        {{0x6091, 2}, D::Unsigned32, "Gear ratio: driving shaft revolutions"},
+        {{0x6092, 1}, D::Unsigned32, "Feed constant: feed"},
+        {{0x6092, 2}, D::Unsigned32, "Feed constant: shaft revolutions"},
+        {{0x6098, 0}, D::Integer8, "Homing method"},
+        {{0x6099, 1}, D::Unsigned32, "Homing speed during search for switch"},
+        {{0x6099, 2}, D::Unsigned32, "Homing speed during search for zero"},
+        {{0x609A, 0}, D::Unsigned32, "Homing acceleration"},
+        {{0x60C2, 1}, D::Unsigned8, "Interpolation time period value"},
+        {{0x60C2, 2}, D::Integer8, "Interpolation time index"},
+        {{0x6502, 0}, D::Unsigned32, "Supported drive modes"},
+    };
+    v.insert(v.end(), drive.begin(), drive.end());
+    return v;
+  }();
+  return list;
+}
+
+BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOptions& o) {
+  BackupResult r;
+  co::SdoClientOptions so;
+  so.timeout_ns = o.timeout_ns;
+  std::vector<Channel> ch;
+  std::vector<NodeBackup> nodes;
+  std::vector<std::vector<BackupObject>> lists;
+  for (const Axis& a : s.axes) {
+    if (!a.enabled) {
+      r.skipped.push_back(std::string("axis ") + a.letter + " (node " + std::to_string(a.node) +
+                          ") is disabled: its drive is not backed up");
+      continue;
+    }
+    NodeBackup b;
+    b.node = a.node;
+    b.axis = a.letter;
+    std::vector<BackupObject> list = backup_objects();
+    if (const ScannedNode* n = s.node(a.node); n && !n->eds.empty() && !s.eds_dir.empty()) {
+      b.eds = n->eds;
+      const std::filesystem::path eds = std::filesystem::path(s.eds_dir) / n->eds;
+      try {
+        const co::DeviceDescription d = co::load_eds(eds);
+        for (const co::EdsEntry& e : d.entries)
+          if (e.addr.index >= 0x2000 && e.addr.index <= 0x5FFF && co::is_readable(e.access))
+            list.push_back({e.addr, e.type, e.name});
+      } catch (const std::exception& e) {
+        r.problems.push_back("node " + std::to_string(a.node) + " (axis " + std::string(1, a.letter) +
+                             "): its EDS cannot be read: " + e.what());
+      }
+    }
+    char f[32];
+    std::snprintf(f, sizeof f, "node-%02d-%c.dcf", a.node, static_cast<char>(std::tolower(a.letter)));
+    b.file = f;
+    nodes.push_back(b);
+    lists.push_back(list);
+    Channel c;
+    c.node = a.node;
+    c.sdo = std::make_unique<co::SdoClient>(bus, static_cast<uint8_t>(a.node), so);
+    ch.push_back(std::move(c));
+  }
+  if (!r.ok()) return r;
+
+  // Phase 1: does each node answer (its device type)?
+  for (auto& c : ch) {
+    Channel* cp = &c;
+    c.sdo->upload({0x1000, 0}, [cp](const co::SdoResult& res) {
+      if (!res.ok() && res.aborted_by_client && res.abort_code == kAbortTimeout) cp->silent = true;
+    });
+  }
+  run(bus, ch);
+  for (std::size_t i = 0; i < ch.size(); ++i) {
+    if (ch[i].silent)
+      r.problems.push_back("node " + std::to_string(ch[i].node) + " (axis " + std::string(1, nodes[i].axis) +
+                           ") does not answer on " + bus.name() +
+                           ": check its power, the cable and termination, its bit rate and node-ID; nothing was written");
+  }
+  if (!r.ok()) return r;
+
+  // Phase 2: the list, then (phase 3) the PDO mapping entries their
+  // sub-index 0 announced.
+  auto post = [&](std::size_t i, const BackupObject& obj) {
+    NodeBackup* b = &nodes[i];
+    Channel* cp = &ch[i];
+    cp->sdo->upload(obj.addr, [b, cp, obj](const co::SdoResult& res) {
+      if (res.ok()) {
+        b->values.push_back({obj, res.data});
+      } else if (res.aborted_by_client && res.abort_code == kAbortTimeout) {
+        cp->silent = true;
+      } else {
+        b->missing.push_back(section(obj.addr, false) + " " + obj.name + ": " + res.abort_text());
+      }
+    });
+  };
+  for (std::size_t i = 0; i < ch.size(); ++i)
+    for (const BackupObject& obj : lists[i]) post(i, obj);
+  run(bus, ch);
+  for (std::size_t i = 0; i < ch.size(); ++i) {
+    std::vector<BackupObject> more;
+    for (const BackedUpValue& v : nodes[i].values) {
+      const uint16_t idx = v.object.addr.index;
+      const bool mapping = (idx >= 0x1600 && idx <= 0x1603) || (idx >= 0x1A00 && idx <= 0x1A03);
+      if (!mapping || v.object.addr.sub != 0 || v.data.empty()) continue;
+      for (uint8_t k = 1; k <= std::min<uint8_t>(v.data[0], 64); ++k)
+        more.push_back({{idx, k}, D::Unsigned32, v.object.name.substr(0, 5) + " mapping entry " + std::to_string(k)});
+    }
+    for (const BackupObject& obj : more) post(i, obj);
+  }
+  run(bus, ch);
+  for (std::size_t i = 0; i < ch.size(); ++i) {
+    if (ch[i].silent)
+      r.problems.push_back("node " + std::to_string(ch[i].node) + " (axis " + std::string(1, nodes[i].axis) +
+                           ") stopped answering during the backup on " + bus.name() +
+                           ": check its power and the cable; nothing was written");
+    std::sort(nodes[i].values.begin(), nodes[i].values.end(),
+              [](const BackedUpValue& a, const BackedUpValue& b) { return a.object.addr < b.object.addr; });
+    std::sort(nodes[i].missing.begin(), nodes[i].missing.end());
+  }
+  r.nodes = std::move(nodes);
+  return r;
+}
+
+std::string format_backup(const NodeBackup& b, const State& s, const std::string& time) {
+  std::string o;
+  o += "; Drive-parameter backup of node " + std::to_string(b.node) + " (axis " + std::string(1, b.axis) +
+       "), SDO upload by cnc-commission backup, " + time + "\n";
+  o += "; Bus " + s.interface + ". Sections [index] and [indexsubN] as in a DCF (CiA 306); ParameterValue as read.\n";
+  o += "; A restore writes the writable ones back with SDO downloads (cnc-canopen write IF NODE INDEX:SUB:TYPE VALUE)\n; and stores them in the drive (0x1010:1, signature \"save\").\n";
+  o += "\n[DeviceComissioning]\nNodeID=" + std::to_string(b.node) + "\nNodeName=" +
+       std::string(1, static_cast<char>(std::tolower(b.axis))) + "-axis\nBaudrate=" + std::to_string(s.bitrate / 1000) +
+       "\n";
+  if (!b.eds.empty()) o += "; described by " + b.eds + "\n";
+  for (const BackedUpValue& v : b.values) {
+    const bool plain = v.object.addr.sub == 0 && std::none_of(b.values.begin(), b.values.end(), [&](const BackedUpValue& w) {
+                         return w.object.addr.index == v.object.addr.index && w.object.addr.sub != 0;
+                       });
+    o += "\n[" + section(v.object.addr, plain) + "]\nParameterName=" + v.object.name + "\nDataType=" +
+         hex(static_cast<uint32_t>(v.object.type), 4) + "\nParameterValue=" + value_text(v.object.type, v.data) + "\n";
+  }
+  o += "\n[Missing]\n; objects the drive does not have, or would not give (SDO abort)\n";
+  for (std::size_t i = 0; i < b.missing.size(); ++i) o += std::to_string(i + 1) + "=" + b.missing[i] + "\n";
+  return o;
+}
+
+std::vector<std::filesystem::path> write_backup(State& s, BackupResult& r, const std::filesystem::path& dir) {
+  if (!r.ok()) {
+    std::string m = "drive-parameter backup not written:";
+    for (const auto& p : r.problems) m += "\n  " + p;
+    throw std::runtime_error(m);
+  }
+  std::filesystem::create_directories(dir);
+  const std::string time = utc_now();
+  DriveBackup rec;
+  rec.dir = std::filesystem::absolute(dir).string();
+  rec.time = time;
+  std::vector<std::filesystem::path> out;
+  for (const NodeBackup& b : r.nodes) {
+    write_file_atomically(dir / b.file, format_backup(b, s, time));
+    out.push_back(dir / b.file);
+    rec.files.push_back(b.file);
+  }
+  s.backup = rec;
+  return out;
+}
+
+std::vector<GeneratedFile> backup_files(const State& s, const std::filesystem::path& dir) {
+  std::vector<GeneratedFile> out;
+  if (!s.backup) return out;
+  for (const std::string& f : s.backup->files) {
+    const std::filesystem::path from = std::filesystem::path(s.backup->dir) / f;
+    std::string text;
+    try {
+      text = read_file(from);
+    } catch (const std::exception& e) {
+      throw std::runtime_error(std::string(e.what()) + ": the drive-parameter backup of " + s.backup->time +
+                               " is gone: take it again (cnc-commission backup --dir DIR)");
+    }
+    out.push_back({dir / "drive-backup" / f, text});
+  }
+  return out;
+}
+
+std::string utc_now() {
+  const std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char b[32];
+  std::strftime(b, sizeof b, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return b;
+}
+
+}  // namespace cnc::commission

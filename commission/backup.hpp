@@ -1,0 +1,85 @@
+// Step 9's drive-parameter backup: an SDO upload, from the CANopen drive of
+// every enabled axis, of the parameters that make the drive behave as
+// commissioned (identity 0x1018 and device type, names and versions, the
+// heartbeat 0x1017, the CiA 402 mode and option codes 0x6060, 0x6007,
+// 0x605A-0x605E, quick stop deceleration 0x6085, polarity 0x607E, software
+// limits 0x607D, factor group 0x608F/0x6091/0x6092, following-error window
+// 0x6065/0x6066, position window 0x6067/0x6068, homing 0x6098/0x6099/
+// 0x609A and home offset 0x607C, interpolation period 0x60C2, the PDO
+// communication parameters 0x1400-0x1403/0x1800-0x1803 and mappings
+// 0x1600-0x1603/0x1A00-0x1A03, and the readable objects of 0x2000-0x5FFF
+// that the drive's EDS lists). One DCF-like file per drive ([index] or
+// [indexsubN] sections with ParameterValue), written atomically. An object
+// the drive lacks is listed in the file's [Missing] section; a node that
+// does not answer is a problem naming it, and then nothing is written.
+// Works on any can::Transport, as the bus scan. Non-realtime.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "commission/config_writer.hpp"
+#include "commission/state.hpp"
+#include "fieldbus/can/transport.hpp"
+#include "fieldbus/canopen/types.hpp"
+
+namespace cnc::commission {
+
+struct BackupObject {
+  canopen::ObjectAddress addr;
+  canopen::DataType type = canopen::DataType::Unsigned32;
+  std::string name;
+};
+
+// The fixed list read from every drive (the PDO mapping entries are added
+// after their sub-index 0 is read, the EDS's manufacturer objects per drive).
+const std::vector<BackupObject>& backup_objects();
+
+struct BackedUpValue {
+  BackupObject object;
+  std::vector<uint8_t> data;
+};
+
+struct NodeBackup {
+  int node = 0;
+  char axis = 'X';
+  std::string eds;                      // the matched EDS ("" none)
+  std::vector<BackedUpValue> values;    // in address order
+  std::vector<std::string> missing;     // "1009: 0x06020000 object does not exist..." (address: abort)
+  std::string file;                     // its file name
+};
+
+struct BackupResult {
+  std::vector<NodeBackup> nodes;
+  std::vector<std::string> skipped;     // disabled axes, said so
+  std::vector<std::string> problems;    // silent nodes, unreadable EDS: nothing is written
+  bool ok() const noexcept { return problems.empty(); }
+};
+
+struct BackupOptions {
+  int64_t timeout_ns = 500'000'000;     // per SDO transfer
+};
+
+// Reads the drives of the state's enabled axes over `bus`.
+BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOptions& options = {});
+
+// The file of one drive (DCF-like INI text); `time` and `interface` go into
+// its header.
+std::string format_backup(const NodeBackup& b, const State& s, const std::string& time);
+
+// Writes every drive's file to `dir` atomically (when the result has no
+// problem; else throws std::runtime_error listing them) and records the
+// backup in the state. Returns the files written.
+std::vector<std::filesystem::path> write_backup(State& s, BackupResult& r, const std::filesystem::path& dir);
+
+// The backup's files as the configuration writer adds them to its folder
+// (<dir>/drive-backup/<file>), read from where `backup` wrote them; throws
+// std::runtime_error naming a file that is gone. None when no backup was taken.
+std::vector<GeneratedFile> backup_files(const State& s, const std::filesystem::path& dir);
+
+// Now, UTC, ISO 8601 ("2026-11-27T07:15:02Z").
+std::string utc_now();
+
+}  // namespace cnc::commission
