@@ -12,8 +12,20 @@
 #include "core/ipc/segment.hpp"
 #include "hmi/link.hpp"
 
+const char* kUsage =
+    "usage: cnc-commission-wizard [--state FILE] [--dir CONFIG_DIR] [--instance NAME] [--program PATH]\n"
+    "The commissioning steps of cnc-commission as a Qt wizard: one page per step\n"
+    "(1 bus scan, 2 axes, 3 scaling, 4 direction test, 5 limits and switches,\n"
+    "6 homing, 7 tuning, 8 compensation, 9 write), back/next, the steps done, and\n"
+    "a status strip of the running controller (E-stop chain, drives, positions).\n"
+    "\n"
+    "  --state FILE       the state file of cnc-commission (default commission.json)\n"
+    "  --dir CONFIG_DIR   where the configuration is written and brought up\n"
+    "                     (default commission-config beside the state file)\n"
+    "  --instance NAME    the controller's instance (default $CNC_INSTANCE)\n"
+    "  --program PATH     cnc-commission (default: beside this program)\n";
+
 int main(int argc, char** argv) {
-  QApplication app(argc, argv);
   cnc::commission::wizard::WizardOptions o;
   o.instance = QString::fromStdString(cnc::ipc::default_instance());
   for (int i = 1; i < argc; ++i) {
@@ -23,13 +35,15 @@ int main(int argc, char** argv) {
     else if (a == "--dir" && has_value) o.config_dir = argv[++i];
     else if (a == "--instance" && has_value) o.instance = argv[++i];
     else if (a == "--program" && has_value) o.program = argv[++i];
-    else {
-      std::fprintf(stderr,
-                   "usage: cnc-commission-wizard [--state FILE] [--dir CONFIG_DIR] [--instance NAME] [--program "
-                   "CNC_COMMISSION]\n");
-      return a == "--help" || a == "-h" ? 0 : 2;
+    else if (a == "--help" || a == "-h") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    } else {
+      std::fprintf(stderr, "cnc-commission-wizard: unknown argument %s\n%s", a.c_str(), kUsage);
+      return 2;
     }
   }
+  QApplication app(argc, argv);
   qputenv("CNC_INSTANCE", o.instance.toUtf8());  // the subcommands reach the same controller
   cnc::commission::wizard::WizardWindow w(o, std::make_unique<cnc::hmi::ClientLink>(o.instance.toStdString()));
   w.resize(1200, 860);

@@ -3,6 +3,7 @@
 #include <QCheckBox>
 #include <QComboBox>
 #include <QDir>
+#include <QFile>
 #include <QDoubleSpinBox>
 #include <QFileDialog>
 #include <QFormLayout>
@@ -153,8 +154,16 @@ class AxesPage : public StepPage {
                                    gantry_->text().toStdString());
       });
     });
-    connect(identify, &QPushButton::clicked, this,
-            [this] { run([this] { return w_.builder().identify(letter_->currentText().at(0).toLatin1()); }); });
+    connect(identify, &QPushButton::clicked, this, [this] {
+      run([this] {
+        // On a copy of the state: the jog's result is not the axis' direction test.
+        const QString scratch = w_.options().state_file + ".identify";
+        QFile::remove(scratch);
+        if (!QFile::copy(w_.options().state_file, scratch))
+          throw std::invalid_argument(("cannot copy the state to " + scratch).toStdString());
+        return w_.builder().identify(letter_->currentText().at(0).toLatin1(), scratch.toStdString());
+      });
+    });
   }
   void refresh(const State& s) override {
     axes_->clear();

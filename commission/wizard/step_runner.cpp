@@ -101,8 +101,11 @@ Argv CommandBuilder::assign(char letter, int node, int joint, const std::string&
   return a;
 }
 
-Argv CommandBuilder::identify(char letter, const std::string& bring_up_dir) const {
-  return direction_test(letter, kIdentifyDistance, kIdentifyVelocity, bring_up_dir);
+Argv CommandBuilder::identify(char letter, const std::filesystem::path& scratch_state) const {
+  if (scratch_state.empty() || scratch_state == state_)
+    throw std::invalid_argument("identify: needs a scratch copy of the state, not the state itself");
+  Argv a = CommandBuilder(scratch_state).direction_test(letter, kIdentifyDistance, kIdentifyVelocity);
+  return a;
 }
 
 Argv CommandBuilder::scaling(char letter, double lead, double counts, double gear_motor, double gear_load) const {

@@ -48,8 +48,11 @@ class CommandBuilder {
   // Step 2.
   Argv assign(char letter, int node, int joint, const std::string& gantry_with = "") const;
   // Step 2's identification aid: a tiny, slow, time-limited jog of the
-  // axis' drive (a direction test of kIdentifyDistance mm).
-  Argv identify(char letter, const std::string& bring_up_dir = "") const;
+  // axis' drive (a direction test of kIdentifyDistance mm) on the running
+  // controller, run on `scratch_state` (a copy of the state the caller
+  // makes) so that the jog's result never replaces the axis' real
+  // direction test.
+  Argv identify(char letter, const std::filesystem::path& scratch_state) const;
   // Step 3. counts <= 0 / gear <= 0: from the drive.
   Argv scaling(char letter, double lead, double counts, double gear_motor, double gear_load) const;
   // Step 4 (hold-to-run) and its dial reading.

@@ -42,7 +42,10 @@ TEST(WizardCommands, ScanRefusesAMissingInterfaceAndBadExpectedNodes) {
 TEST(WizardCommands, AssignAndIdentifyNameTheAxisNodeAndJoint) {
   EXPECT_EQ(b.assign('x', 3, 0), with_state({"axis", "X", "assign", "--node", "3", "--joint", "0"}));
   EXPECT_EQ(b.assign('Y', 2, 1, "Y2"), with_state({"axis", "Y", "assign", "--node", "2", "--joint", "1", "--gantry-with", "Y2"}));
-  EXPECT_EQ(b.identify('Z'), with_state({"axis", "Z", "direction-test", "--distance", "0.5", "--velocity", "1"}));
+  EXPECT_EQ(b.identify('Z', "/m/scratch.json"),
+            (Argv{"--state", "/m/scratch.json", "axis", "Z", "direction-test", "--distance", "0.5", "--velocity", "1"}));
+  EXPECT_THROW(b.identify('Z', "/m/commission.json"), std::invalid_argument);  // never the real state
+  EXPECT_THROW(b.identify('Z', ""), std::invalid_argument);
   EXPECT_THROW(b.assign('Q', 1, 0), std::invalid_argument);
   EXPECT_THROW(b.assign('X', 0, 0), std::invalid_argument);
   EXPECT_THROW(b.assign('X', 1, -1), std::invalid_argument);
