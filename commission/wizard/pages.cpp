@@ -441,6 +441,8 @@ QChartView* trace_chart(const char* name, const QString& title, const QString& u
   chart->addSeries(series);
   auto* x = new QValueAxis;
   x->setTitleText("s");
+  x->setLabelFormat("%.2f");
+  x->setTickCount(5);
   auto* y = new QValueAxis;
   y->setTitleText(unit);
   chart->addAxis(x, Qt::AlignBottom);
@@ -449,7 +451,7 @@ QChartView* trace_chart(const char* name, const QString& title, const QString& u
   series->attachAxis(y);
   auto* v = new QChartView(chart);
   v->setObjectName(name);
-  v->setMinimumHeight(150);
+  v->setMinimumHeight(260);
   v->setRenderHint(QPainter::Antialiasing);
   return v;
 }
@@ -498,7 +500,7 @@ class TuningPage : public StepPage {
     charts->addWidget(ferror_ = trace_chart("ferrorChart", "following error", "mm"));
     charts->addWidget(torque_ = trace_chart("torqueChart", "torque", "%"));
     charts->addWidget(velocity_ = trace_chart("velocityChart", "velocity", "mm/s"));
-    v->addLayout(charts);
+    v->addLayout(charts, 1);
     connect(tb, &QPushButton::clicked, this, [this] {
       run([this] {
         return w_.builder().tune(letter_of(axis_), maxv_->value(), maxa_->value(), margin_->value(),

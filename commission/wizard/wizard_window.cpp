@@ -108,7 +108,7 @@ StepPage::StepPage(WizardWindow& w, int step, const QString& intro) : w_(w), ste
   text->setWordWrap(true);
   v->addWidget(text);
   inputs_ = new QWidget;
-  v->addWidget(inputs_);
+  v->addWidget(inputs_, 3);
   progress_ = new QProgressBar;
   progress_->setObjectName("stepProgress");
   progress_->setRange(0, 1);
@@ -124,6 +124,7 @@ StepPage::StepPage(WizardWindow& w, int step, const QString& intro) : w_(w), ste
   output_->setObjectName("stepOutput");
   output_->setReadOnly(true);
   output_->setMaximumBlockCount(2000);
+  output_->setMinimumHeight(120);
   v->addWidget(output_, 1);
   child_ = new ChildRun(this);
   connect(child_, &ChildRun::progress, this, [this](int i, int n, const QString& t) {
