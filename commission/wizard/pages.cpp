@@ -4,6 +4,7 @@
 #include <QComboBox>
 #include <QDir>
 #include <QFile>
+#include <QFileInfo>
 #include <QDoubleSpinBox>
 #include <QFileDialog>
 #include <QFormLayout>
@@ -350,7 +351,7 @@ class LimitsPage : public StepPage {
     r2->addWidget(sb);
     f->addRow("Switch search (0: default)", r2);
     auto* r3 = new QHBoxLayout;
-    r3->addWidget(margin_ = number("softLimitMargin", 0, 1000, 1, 3, " mm"));
+    r3->addWidget(margin_ = number("softLimitMargin", 0, 1000, 2, 3, " mm"));
     auto* mb = button("Soft limits from switches", "softLimitsButton");
     r3->addWidget(mb);
     f->addRow("Margin", r3);
@@ -567,7 +568,7 @@ class CompensationPage : public StepPage {
     f->addRow("Cycle", r1);
     values_ = new QPlainTextEdit;
     values_->setObjectName("compValues");
-    values_->setPlaceholderText("measured positions (mm), one per line or separated by commas");
+    values_->setPlaceholderText("measured deviations (um), one per stop in the cycle's order, one per line or separated by commas");
     values_->setMaximumHeight(70);
     f->addRow("Measurements", values_);
     auto* r2 = new QHBoxLayout;
@@ -634,7 +635,8 @@ class WritePage : public StepPage {
       : StepPage(w, 8,
                  "Show the difference between the configuration of the state and the files in the folder; "
                  "Write writes them (old ones kept as .bak, checked with cncd --check --strict) after you "
-                 "confirm. Backup uploads the drives' parameters into the folder.") {
+                 "confirm. Backup uploads the drives' parameters (into drive-backup beside the state file); Write copies the "
+                 "last backup into the configuration.") {
     auto* v = new QVBoxLayout(inputs());
     auto* f = new QFormLayout;
     v->addLayout(f);
@@ -664,8 +666,12 @@ class WritePage : public StepPage {
         return;
       run([this] { return w_.builder().write(dir_->text().toStdString(), name_->text().toStdString(), true); });
     });
-    connect(bb, &QPushButton::clicked, this,
-            [this] { run([this] { return w_.builder().backup((dir_->text() + "/drive-backup").toStdString()); }); });
+    // Beside the state; write copies the last backup into the configuration.
+    connect(bb, &QPushButton::clicked, this, [this] {
+      run([this] {
+        return w_.builder().backup((QFileInfo(w_.options().state_file).absolutePath() + "/drive-backup").toStdString());
+      });
+    });
   }
   void show_diff(const StepResult& r) {
     QString html = "<pre style='font-size: 9pt'>";

@@ -221,7 +221,7 @@ Argv CommandBuilder::comp_measurements(char letter, const std::string& csv, cons
     double d = 0;
     const auto r = std::from_chars(t.data(), t.data() + t.size(), d);
     if (r.ec != std::errc() || r.ptr != t.data() + t.size())
-      throw std::invalid_argument("measurement \"" + t + "\": expected a number (mm)");
+      throw std::invalid_argument("measurement \"" + t + "\": expected a number (deviation in um)");
     joined += (joined.empty() ? "" : ",") + t;
   }
   if (c.empty() == joined.empty())

@@ -68,7 +68,9 @@ class CommandBuilder {
   // Step 7. record_dir: where the test recordings (CSV) go.
   Argv tune(char letter, double max_velocity, double max_acceleration, double margin_pct,
             const std::string& record_dir) const;
-  // Step 8. values: "V,V,..." (entered) or csv: a measurement file; one of them.
+  // Step 8. values: the deviations entered (um, one per stop of the cycle;
+  // separated by commas, blanks or new lines) or csv: a measurement file;
+  // one of them.
   Argv comp_program(char letter, const std::string& out_ngc) const;
   Argv comp_run(char letter, const std::string& laser_csv = "") const;
   Argv comp_measurements(char letter, const std::string& csv, const std::string& values) const;

@@ -352,13 +352,15 @@ TEST(WizardTuneCsv, ErrorsNameTheFileLineAndColumn) {
 
 TEST(WizardHomingMethods, ControllerAndDriveMethodsAreTakenFromTheLines) {
   const auto m = parse_homing_methods({"controller  the joint's homing sequence (HOME_* keys)", "",
+                                       "drive:1     negative limit switch, then the first index pulse",
                                        "drive:35  current position is home", "  17 negative limit switch",
                                        "methods of the drive (CiA 402 0x6098):"});
-  ASSERT_EQ(m.size(), 3u);
+  ASSERT_EQ(m.size(), 4u);
   EXPECT_EQ(m[0].method, "controller");
-  EXPECT_EQ(m[1].method, "drive:35");
-  EXPECT_EQ(m[2].method, "drive:17");
-  EXPECT_EQ(m[2].description, "17 negative limit switch");
+  EXPECT_EQ(m[1].method, "drive:1");
+  EXPECT_EQ(m[2].method, "drive:35");
+  EXPECT_EQ(m[3].method, "drive:17");
+  EXPECT_EQ(m[3].description, "17 negative limit switch");
 }
 
 // ------------------------------------------------------------ status strip

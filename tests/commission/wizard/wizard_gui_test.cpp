@@ -324,7 +324,7 @@ class WizardGuiTests : public QObject {
   void t10_compensation_page() {
     QTest::mouseClick(find<QPushButton>("nextButton"), Qt::LeftButton);
     QCOMPARE(w_->current_step(), 7);
-    find<QPlainTextEdit>("compValues")->setPlainText("0.002\n0.004, 0.001");
+    find<QPlainTextEdit>("compValues")->setPlainText("2\n4, -1.5");
     click_and_wait("compMeasurementsButton");
     check_result_shown();
     find<QLineEdit>("compCsv")->setText("/tmp/laser.csv");
