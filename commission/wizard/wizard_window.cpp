@@ -114,7 +114,14 @@ StepPage::StepPage(WizardWindow& w, int step, const QString& intro) : w_(w), ste
   progress_->setRange(0, 1);
   progress_->setValue(0);
   progress_->setFormat("%p%");
-  v->addWidget(progress_);
+  auto* prow = new QHBoxLayout;
+  prow->addWidget(progress_, 1);
+  // Any running step stops as a released hold-to-run button stops it.
+  stop_ = new QPushButton("Stop");
+  stop_->setObjectName("stopButton");
+  stop_->setEnabled(false);
+  prow->addWidget(stop_);
+  v->addLayout(prow);
   result_ = new QLabel;
   result_->setObjectName("stepResult");
   result_->setWordWrap(true);
@@ -127,6 +134,8 @@ StepPage::StepPage(WizardWindow& w, int step, const QString& intro) : w_(w), ste
   output_->setMinimumHeight(120);
   v->addWidget(output_, 1);
   child_ = new ChildRun(this);
+  connect(stop_, &QPushButton::clicked, child_, &ChildRun::interrupt);
+  connect(child_, &ChildRun::started, this, [this] { stop_->setEnabled(true); });
   connect(child_, &ChildRun::progress, this, [this](int i, int n, const QString& t) {
     progress_->setRange(0, n);
     progress_->setValue(i);
@@ -134,6 +143,7 @@ StepPage::StepPage(WizardWindow& w, int step, const QString& intro) : w_(w), ste
   });
   connect(child_, &ChildRun::output, this, [this](const QString& l) { output_->appendPlainText(l); });
   connect(child_, &ChildRun::finished, this, [this](const StepResult& r) {
+    stop_->setEnabled(false);
     if (!r.error.empty()) output_->appendPlainText(QString::fromStdString(r.error));
     if (progress_->maximum() == 0) progress_->setRange(0, 1);
     if (r.ok()) progress_->setValue(progress_->maximum());

@@ -143,6 +143,7 @@ class StepPage : public QWidget {
   int step_;
   QWidget* inputs_;
   QProgressBar* progress_;
+  QPushButton* stop_;
   QLabel* result_;
   QPlainTextEdit* output_;
   ChildRun* child_;

@@ -260,6 +260,24 @@ class WizardGuiTests : public QObject {
     shot("direction-released");
   }
 
+  void t05b_stop_button_aborts_a_running_step() {
+    const std::string saved = to_json_text(w_->state());
+    find<QDoubleSpinBox>("testDistance")->setValue(20);
+    find<QDoubleSpinBox>("testVelocity")->setValue(1);
+    // A held button, then Stop pressed (with the keyboard: the mouse holds the other button).
+    auto* hold = find<QPushButton>("holdToRunButton");
+    QTest::mousePress(hold, Qt::LeftButton);
+    auto* stop = find<QPushButton>("stopButton");
+    QTRY_VERIFY_WITH_TIMEOUT(stop->isEnabled(), 5000);
+    QTest::qWait(1500);
+    stop->click();
+    wait_child();
+    QTest::mouseRelease(hold, Qt::LeftButton);
+    QVERIFY2(result().startsWith("aborted"), qPrintable(result()));
+    QVERIFY(!stop->isEnabled());
+    QCOMPARE(to_json_text(w_->state()), saved);
+  }
+
   void t06_axes_page_identifies_the_drive_with_a_small_jog() {
     w_->show_step(1);
     const double before = table_position();
