@@ -295,10 +295,11 @@ class DirectionPage : public StepPage {
             [this] { run([this] { return w_.builder().bring_up(w_.options().config_dir.toStdString()); }); });
     connect(down, &QPushButton::clicked, this, [this] { run([this] { return w_.builder().shutdown(); }); });
     connect(hold_, &HoldToRunButton::startRequested, this, [this] {
-      run([this] { return w_.builder().direction_test(letter_of(axis_), distance_->value(), velocity_->value()); },
-          [this](const StepResult&) { hold_->protocol().finished(); });
-      if (child().running()) hold_->protocol().started();
-      else hold_->protocol().finished();
+      const bool started =
+          run([this] { return w_.builder().direction_test(letter_of(axis_), distance_->value(), velocity_->value()); },
+              [this](const StepResult&) { hold_->protocol().finished(); });
+      if (started) hold_->protocol().started();
+      else hold_->protocol().finished();  // refused: the next press starts again
     });
     connect(hold_, &HoldToRunButton::interruptRequested, this, [this] { child().interrupt(); });
     connect(db, &QPushButton::clicked, this,

@@ -159,23 +159,17 @@ void StepPage::show_error(const QString& text) {
   result_->setText(text);
 }
 
-void StepPage::run(const std::function<Argv()>& build, std::function<void(const StepResult&)> then) {
+bool StepPage::run(const std::function<Argv()>& build, std::function<void(const StepResult&)> then) {
   if (child_->running()) {
     show_error("a step is still running");
-    return;
+    return false;
   }
   Argv args;
   try {
     args = build();
   } catch (const std::exception& e) {
     show_error(QString("input: ") + e.what());
-    if (then) {
-      StepResult r;
-      r.outcome = StepResult::Outcome::Usage;
-      r.error = e.what();
-      then(r);
-    }
-    return;
+    return false;
   }
   then_ = std::move(then);
   output_->clear();
@@ -184,6 +178,7 @@ void StepPage::run(const std::function<Argv()>& build, std::function<void(const 
   child_->start(w_.options().program, args);
   result_->setText("running: " + child_->command_line());
   output_->appendPlainText("$ " + child_->command_line());
+  return true;
 }
 
 // ------------------------------------------------------------ WizardWindow

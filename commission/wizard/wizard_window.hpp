@@ -133,8 +133,9 @@ class StepPage : public QWidget {
  protected:
   // Runs a subcommand; `build` makes its command line (an input error is
   // shown and nothing starts); `then` sees the result after the state is
-  // reloaded.
-  void run(const std::function<Argv()>& build, std::function<void(const StepResult&)> then = {});
+  // reloaded. False when nothing started (an input error, a run still
+  // going; `then` is not called then).
+  bool run(const std::function<Argv()>& build, std::function<void(const StepResult&)> then = {});
   void show_error(const QString& text);
   QWidget* inputs() const { return inputs_; }
   WizardWindow& w_;

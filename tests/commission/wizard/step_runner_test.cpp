@@ -231,6 +231,15 @@ TEST(WizardHoldToRun, ReleaseAfterTheRunEndedSendsNothingAndAPressDuringARunStar
   EXPECT_EQ(h.press(), HoldToRun::Action::Start);
 }
 
+TEST(WizardHoldToRun, ARefusedStartLeavesTheButtonReadyForTheNextPress) {
+  HoldToRun h;
+  EXPECT_EQ(h.press(), HoldToRun::Action::Start);
+  h.finished();  // the page refused to start (bad input, another step running)
+  EXPECT_FALSE(h.running());
+  EXPECT_EQ(h.release(), HoldToRun::Action::None);  // nothing to interrupt
+  EXPECT_EQ(h.press(), HoldToRun::Action::Start);
+}
+
 // ------------------------------------------------------------ done steps
 
 State machine_with_axes() {
