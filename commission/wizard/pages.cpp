@@ -227,19 +227,21 @@ class ScalingPage : public StepPage {
     sc.encoder_counts = counts_->value();
     sc.gear_motor_revs = gm_->value();
     sc.gear_load_revs = gl_->value();
+    QStringList sources;
     QString from;
     if (const Axis* a = s.axis(letter_of(axis_))) {
       const ScannedNode* n = s.node(a->node);
       if (sc.encoder_counts <= 0 && n && n->encoder_increments && n->encoder_motor_revs && *n->encoder_motor_revs > 0) {
         sc.encoder_counts = static_cast<double>(*n->encoder_increments) / *n->encoder_motor_revs;
-        from += " counts from the drive";
+        sources << "counts/rev from the drive";
       }
       if ((sc.gear_motor_revs <= 0 || sc.gear_load_revs <= 0) && n && n->gear_motor_revs && n->gear_shaft_revs &&
           *n->gear_shaft_revs > 0) {
         sc.gear_motor_revs = *n->gear_motor_revs;
         sc.gear_load_revs = *n->gear_shaft_revs;
-        from += " gear from the drive";
+        sources << "gear from the drive";
       }
+      if (!sources.isEmpty()) from = " (" + sources.join(", ") + ")";
       if (a->scaling.counts_per_mm() > 0)
         from += QString("; the state has %1 counts/mm").arg(a->scaling.counts_per_mm(), 0, 'f', 3);
     }
