@@ -63,6 +63,7 @@ cnc_install_program(cnc-vision comp "camera measurement: glass scales, calibrati
 cnc_install_program(cnc-mtconnect connectivity "MTConnect agent of the CNC controller")
 cnc_install_program(cnc-mqtt connectivity "MQTT bridge of the CNC controller")
 cnc_install_program(cnc-hmi screen "the Qt operator screen of the CNC controller")
+cnc_install_program(cnc-commission-wizard screen "the Qt commissioning wizard of the CNC controller")
 cnc_install_program(cnc-commission controller "commissioning: bus scan, axes, scaling, direction test, configuration")
 
 # Scripts: the configuration picker and the CAN interface helper, copied
@@ -159,7 +160,8 @@ set(CPACK_DEBIAN_SCREEN_PACKAGE_DEPENDS "cnc (= ${PROJECT_VERSION})")
 set(CPACK_COMPONENT_SCREEN_DESCRIPTION
   "fieldbus-first CNC controller: the operator screen\n"
   "The Qt operator screen (cnc-hmi) of the cnc controller: positions,\n"
-  "jogging, MDI, programs with a preview, tools, offsets and alarms.")
+  "jogging, MDI, programs with a preview, tools, offsets and alarms; and\n"
+  "the commissioning wizard (cnc-commission-wizard).")
 
 set(CPACK_DEBIAN_COMP_PACKAGE_NAME cnc-comp)
 set(CPACK_DEBIAN_COMP_PACKAGE_DEPENDS "cnc (= ${PROJECT_VERSION})")

@@ -1,7 +1,11 @@
 // cnc-commission: the commissioning steps as subcommands for people and
 // scripts, over the commissioning library (docs/commissioning.md). Every
 // subcommand reads the state file, does its step and saves the state.
+#include <unistd.h>
+
 #include <cctype>
+#include <cerrno>
+#include <cstring>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -91,6 +95,9 @@ const char* kHelp =
     "  write --dir DIR [--name NAME] [--yes] [--cncd PATH]\n"
     "      generate INI and HAL, show the difference; with --yes write them\n"
     "      (old ones kept as .bak) and check them with cncd --check --strict\n"
+    "  wizard [--dir DIR] [--instance NAME]\n"
+    "      the Qt wizard over these steps and the same state file\n"
+    "      (cnc-commission-wizard)\n"
     "\n"
     "exit status: 0 done, 1 the step found a problem (nothing written), 2 usage\n";
 
@@ -604,6 +611,19 @@ int main(int argc, char** argv) {
   }
   const std::string cmd = a.next("command");
   g_state_dir = std::filesystem::absolute(state_file).parent_path();
+  if (cmd == "wizard") {
+    // The wizard runs these subcommands itself: it replaces this process.
+    const std::string wizard = (self_dir() / "cnc-commission-wizard").string();
+    std::vector<std::string> args{wizard, "--state", state_file.string()};
+    args.insert(args.end(), a.v.begin() + static_cast<std::ptrdiff_t>(a.i), a.v.end());
+    std::vector<char*> argv2;
+    for (auto& s : args) argv2.push_back(s.data());
+    argv2.push_back(nullptr);
+    ::execv(wizard.c_str(), argv2.data());
+    std::fprintf(stderr, "cnc-commission: cannot start %s: %s (built only with Qt 6 Widgets and Charts)\n",
+                 wizard.c_str(), std::strerror(errno));
+    return 1;
+  }
   try {
     State s = load_state(state_file);
     int rc = 0;

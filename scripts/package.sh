@@ -35,7 +35,7 @@ fi
 targets=(cncd cnc halcmd cnc-rs274 cnc-canopen cnc-ethercat cnc-comp cnc-commission cnc-cia402-sim ecat-sim cnc-modbus-sim
          cnc-canopen-node cnc_man_pages cnc_deb_changelog)
 if grep -q '^cnc-hmi:' <(cmake --build "$build" --target help 2>/dev/null | sed 's/^\([^:]*\):.*/\1:/'); then
-  targets+=(cnc-hmi)
+  targets+=(cnc-hmi cnc-commission-wizard)
 fi
 cmake --build "$build" -j"$(nproc)" --target "${targets[@]}"
 mkdir -p "$out"

@@ -1,0 +1,710 @@
+// The nine pages of the wizard: each collects its inputs, runs the step's
+// subcommand through StepPage::run and shows what the state holds after it.
+#include <QCheckBox>
+#include <QComboBox>
+#include <QDir>
+#include <QFile>
+#include <QFileInfo>
+#include <QDoubleSpinBox>
+#include <QFileDialog>
+#include <QFormLayout>
+#include <QHBoxLayout>
+#include <QLabel>
+#include <QLineEdit>
+#include <QListWidget>
+#include <QMessageBox>
+#include <QPlainTextEdit>
+#include <QPushButton>
+#include <QSpinBox>
+#include <QTextEdit>
+#include <QVBoxLayout>
+#include <QtCharts/QChart>
+#include <QtCharts/QChartView>
+#include <QtCharts/QLineSeries>
+#include <QtCharts/QValueAxis>
+#include <cmath>
+
+#include "commission/scan.hpp"
+#include "commission/wizard/wizard_window.hpp"
+
+namespace cnc::commission::wizard {
+
+namespace {
+
+QPushButton* button(const QString& text, const char* name) {
+  auto* b = new QPushButton(text);
+  b->setObjectName(name);
+  return b;
+}
+
+QDoubleSpinBox* number(const char* name, double min, double max, double value, int decimals, const QString& suffix) {
+  auto* s = new QDoubleSpinBox;
+  s->setObjectName(name);
+  s->setRange(min, max);
+  s->setDecimals(decimals);
+  s->setValue(value);
+  s->setSuffix(suffix);
+  return s;
+}
+
+QLineEdit* line(const char* name, const QString& text = "", const QString& placeholder = "") {
+  auto* l = new QLineEdit(text);
+  l->setObjectName(name);
+  l->setPlaceholderText(placeholder);
+  return l;
+}
+
+// The axis chooser of pages 3-8: the axes of the state.
+QComboBox* axis_choice() {
+  auto* c = new QComboBox;
+  c->setObjectName("axisLetter");
+  return c;
+}
+
+void fill_axes(QComboBox* c, const State& s) {
+  const QString keep = c->currentText();
+  c->clear();
+  for (const auto& a : s.axes) c->addItem(QString(QChar(a.letter)));
+  if (c->count() == 0) c->addItem("X");
+  const int i = c->findText(keep);
+  if (i >= 0) c->setCurrentIndex(i);
+}
+
+char letter_of(const QComboBox* c) {
+  const QString t = c->currentText();
+  return t.isEmpty() ? '?' : t.at(0).toLatin1();
+}
+
+// ------------------------------------------------------------ 1 bus
+
+class BusPage : public StepPage {
+ public:
+  explicit BusPage(WizardWindow& w)
+      : StepPage(w, 0,
+                 "Scan the bus: every CANopen node 1-127 (identity, name, firmware, CiA 402 modes) or every "
+                 "EtherCAT slave (SII identity), each matched with a description file (EDS/ESI) of the folder.") {
+    auto* f = new QFormLayout(inputs());
+    kind_ = new QComboBox;
+    kind_->setObjectName("busKind");
+    kind_->addItems({"CANopen", "EtherCAT"});
+    f->addRow("Bus", kind_);
+    f->addRow("Interface", iface_ = line("busInterface", "", "socketcan:can0 or raw:eth0"));
+    f->addRow("EDS/ESI folder", dir_ = line("descriptionDir"));
+    f->addRow("Expected node-IDs", expect_ = line("expectNodes", "", "1,2,3 (optional)"));
+    auto* b = button("Scan", "scanButton");
+    f->addRow(b);
+    found_ = new QListWidget;
+    found_->setObjectName("foundDevices");
+    f->addRow("Found", found_);
+    connect(b, &QPushButton::clicked, this, [this] {
+      run([this] {
+        return w_.builder().scan(kind_->currentIndex() == 1, iface_->text().toStdString(), dir_->text().toStdString(),
+                                 expect_->text().toStdString());
+      });
+    });
+  }
+  void refresh(const State& s) override {
+    found_->clear();
+    for (const auto& n : s.nodes) found_->addItem(QString::fromStdString(describe(n)));
+    for (const auto& n : s.slaves) found_->addItem(QString::fromStdString(describe(n)));
+    if (iface_->text().isEmpty()) iface_->setText(QString::fromStdString(s.interface));
+    if (dir_->text().isEmpty()) dir_->setText(QString::fromStdString(s.eds_dir));
+  }
+
+ private:
+  QComboBox* kind_;
+  QLineEdit *iface_, *dir_, *expect_;
+  QListWidget* found_;
+};
+
+// ------------------------------------------------------------ 2 axes
+
+class AxesPage : public StepPage {
+ public:
+  explicit AxesPage(WizardWindow& w)
+      : StepPage(w, 1,
+                 "Assign each drive to an axis and joint. Identify moves the axis' drive 0.5 mm at 1 mm/s "
+                 "(time-limited, the machine switched off afterwards) so you can see which one it is; it needs a "
+                 "running controller (Bring up on page 4 or your own).") {
+    auto* f = new QFormLayout(inputs());
+    letter_ = new QComboBox;
+    letter_->setObjectName("assignLetter");
+    letter_->addItems({"X", "Y", "Z", "A", "B", "C", "U", "V", "W"});
+    f->addRow("Axis", letter_);
+    node_ = new QSpinBox;
+    node_->setObjectName("nodeId");
+    node_->setRange(1, 127);
+    f->addRow("Drive (node-ID)", node_);
+    joint_ = new QSpinBox;
+    joint_->setObjectName("jointNumber");
+    joint_->setRange(0, 15);
+    f->addRow("Joint", joint_);
+    f->addRow("Gantry partner", gantry_ = line("gantryWith", "", "e.g. Y2 (optional)"));
+    auto* row = new QHBoxLayout;
+    auto* assign = button("Assign", "assignButton");
+    auto* identify = button("Identify (jog 0.5 mm)", "identifyButton");
+    row->addWidget(assign);
+    row->addWidget(identify);
+    f->addRow(row);
+    axes_ = new QListWidget;
+    axes_->setObjectName("axesList");
+    f->addRow("Axes", axes_);
+    connect(assign, &QPushButton::clicked, this, [this] {
+      run([this] {
+        return w_.builder().assign(letter_->currentText().at(0).toLatin1(), node_->value(), joint_->value(),
+                                   gantry_->text().toStdString());
+      });
+    });
+    connect(identify, &QPushButton::clicked, this, [this] {
+      run([this] {
+        // On a copy of the state: the jog's result is not the axis' direction test.
+        const QString scratch = w_.options().state_file + ".identify";
+        QFile::remove(scratch);
+        if (!QFile::copy(w_.options().state_file, scratch))
+          throw std::invalid_argument(("cannot copy the state to " + scratch).toStdString());
+        return w_.builder().identify(letter_->currentText().at(0).toLatin1(), scratch.toStdString());
+      });
+    });
+  }
+  void refresh(const State& s) override {
+    axes_->clear();
+    for (const auto& a : s.axes) {
+      const ScannedNode* n = s.node(a.node);
+      axes_->addItem(QString("%1: joint %2, node %3%4%5")
+                         .arg(QChar(a.letter))
+                         .arg(a.joint)
+                         .arg(a.node)
+                         .arg(n && !n->name.empty() ? " (" + QString::fromStdString(n->name) + ")" : "")
+                         .arg(a.enabled ? "" : ", disabled"));
+    }
+    joint_->setValue(static_cast<int>(s.axes.size()));
+  }
+
+ private:
+  QComboBox* letter_;
+  QSpinBox *node_, *joint_;
+  QLineEdit* gantry_;
+  QListWidget* axes_;
+};
+
+// ------------------------------------------------------------ 3 scaling
+
+class ScalingPage : public StepPage {
+ public:
+  explicit ScalingPage(WizardWindow& w)
+      : StepPage(w, 2,
+                 "Counts per mm = encoder increments per motor revolution x motor revolutions per screw "
+                 "revolution / screw lead. Leave counts and gear at 0 to take them from the drive (0x608F, "
+                 "0x6091).") {
+    auto* f = new QFormLayout(inputs());
+    f->addRow("Axis", axis_ = axis_choice());
+    f->addRow("Screw lead", lead_ = number("screwLead", 0, 1000, 5, 4, " mm"));
+    f->addRow("Encoder counts/rev", counts_ = number("encoderCounts", 0, 1e9, 0, 0, ""));
+    f->addRow("Gear motor revs", gm_ = number("gearMotor", 0, 1000, 0, 3, ""));
+    f->addRow("Gear load revs", gl_ = number("gearLoad", 0, 1000, 0, 3, ""));
+    cpm_ = new QLabel;
+    cpm_->setObjectName("countsPerMm");
+    f->addRow("Counts per mm", cpm_);
+    auto* b = button("Set scaling", "scalingButton");
+    f->addRow(b);
+    for (auto* s : {lead_, counts_, gm_, gl_})
+      connect(s, &QDoubleSpinBox::valueChanged, this, [this] { update_live(); });
+    connect(axis_, &QComboBox::currentIndexChanged, this, [this] { update_live(); });
+    connect(b, &QPushButton::clicked, this, [this] {
+      run([this] { return w_.builder().scaling(letter_of(axis_), lead_->value(), counts_->value(), gm_->value(), gl_->value()); });
+    });
+  }
+  void refresh(const State& s) override {
+    fill_axes(axis_, s);
+    update_live();
+  }
+  // The live figure, as set_scaling would compute it (drive values where
+  // the fields are 0).
+  void update_live() {
+    const State& s = w_.state();
+    AxisScaling sc;
+    sc.screw_lead = lead_->value();
+    sc.encoder_counts = counts_->value();
+    sc.gear_motor_revs = gm_->value();
+    sc.gear_load_revs = gl_->value();
+    QStringList sources;
+    QString from;
+    if (const Axis* a = s.axis(letter_of(axis_))) {
+      const ScannedNode* n = s.node(a->node);
+      if (sc.encoder_counts <= 0 && n && n->encoder_increments && n->encoder_motor_revs && *n->encoder_motor_revs > 0) {
+        sc.encoder_counts = static_cast<double>(*n->encoder_increments) / *n->encoder_motor_revs;
+        sources << "counts/rev from the drive";
+      }
+      if ((sc.gear_motor_revs <= 0 || sc.gear_load_revs <= 0) && n && n->gear_motor_revs && n->gear_shaft_revs &&
+          *n->gear_shaft_revs > 0) {
+        sc.gear_motor_revs = *n->gear_motor_revs;
+        sc.gear_load_revs = *n->gear_shaft_revs;
+        sources << "gear from the drive";
+      }
+      if (!sources.isEmpty()) from = " (" + sources.join(", ") + ")";
+      if (a->scaling.counts_per_mm() > 0)
+        from += QString("; the state has %1 counts/mm").arg(a->scaling.counts_per_mm(), 0, 'f', 3);
+    }
+    if (sc.gear_motor_revs <= 0 || sc.gear_load_revs <= 0) sc.gear_motor_revs = sc.gear_load_revs = 1;
+    const double cpm = sc.nominal_counts_per_mm();
+    cpm_->setText(cpm > 0 && std::isfinite(cpm) ? QString("<b>%1</b>%2").arg(cpm, 0, 'f', 3).arg(from)
+                                                : QString("(needs the lead and the counts)") + from);
+  }
+
+ private:
+  QComboBox* axis_;
+  QDoubleSpinBox *lead_, *counts_, *gm_, *gl_;
+  QLabel* cpm_;
+};
+
+// ------------------------------------------------------------ 4 direction
+
+class DirectionPage : public StepPage {
+ public:
+  explicit DirectionPage(WizardWindow& w)
+      : StepPage(w, 3,
+                 "Zero a dial indicator on the table, then HOLD the button: the axis jogs the distance at low "
+                 "speed while it is held; releasing it stops the motion and switches the machine off. Enter the "
+                 "dial's reading (in the axis' positive direction): REVERSE flips and the scaling is corrected "
+                 "when they disagree. The test runs on the running controller; Bring up starts one on the "
+                 "configuration of the state.") {
+    auto* f = new QFormLayout(inputs());
+    auto* ctl = new QHBoxLayout;
+    auto* up = button("Bring up controller", "bringUpButton");
+    auto* down = button("Shut down controller", "shutdownButton");
+    ctl->addWidget(up);
+    ctl->addWidget(down);
+    f->addRow(ctl);
+    f->addRow("Axis", axis_ = axis_choice());
+    f->addRow("Distance", distance_ = number("testDistance", -kMaxTestTravel, kMaxTestTravel, 5, 3, " mm"));
+    f->addRow("Velocity", velocity_ = number("testVelocity", 0.01, kMaxTestVelocity, 2, 2, " mm/s"));
+    hold_ = new HoldToRunButton("HOLD TO RUN");
+    hold_->setObjectName("holdToRunButton");
+    hold_->setMinimumHeight(48);
+    hold_->setStyleSheet("QPushButton { font-weight: bold; } QPushButton:pressed { background: #ffd24d; }");
+    f->addRow(hold_);
+    auto* dial_row = new QHBoxLayout;
+    dial_ = number("dialValue", -1000, 1000, 0, 4, " mm");
+    auto* db = button("Apply dial reading", "dialButton");
+    dial_row->addWidget(dial_);
+    dial_row->addWidget(db);
+    f->addRow("Dial indicator", dial_row);
+    verdict_ = new QLabel;
+    verdict_->setObjectName("directionVerdict");
+    verdict_->setWordWrap(true);
+    f->addRow("Last test", verdict_);
+    connect(up, &QPushButton::clicked, this,
+            [this] { run([this] { return w_.builder().bring_up(w_.options().config_dir.toStdString()); }); });
+    connect(down, &QPushButton::clicked, this, [this] { run([this] { return w_.builder().shutdown(); }); });
+    connect(hold_, &HoldToRunButton::startRequested, this, [this] {
+      const bool started =
+          run([this] { return w_.builder().direction_test(letter_of(axis_), distance_->value(), velocity_->value()); },
+              [this](const StepResult&) { hold_->protocol().finished(); });
+      if (started) hold_->protocol().started();
+      else hold_->protocol().finished();  // refused: the next press starts again
+    });
+    connect(hold_, &HoldToRunButton::interruptRequested, this, [this] { child().interrupt(); });
+    connect(db, &QPushButton::clicked, this,
+            [this] { run([this] { return w_.builder().dial(letter_of(axis_), dial_->value()); }); });
+    connect(axis_, &QComboBox::currentIndexChanged, this, [this] { show_verdict(w_.state()); });
+  }
+  void refresh(const State& s) override {
+    fill_axes(axis_, s);
+    show_verdict(s);
+  }
+  void show_verdict(const State& s) {
+    const Axis* a = s.axis(letter_of(axis_));
+    if (!a || !a->direction) {
+      verdict_->setText("(no test yet)");
+      return;
+    }
+    verdict_->setText(QString::fromStdString(a->direction->verdict) +
+                      QString("\n%1 counts/mm%2").arg(a->scaling.counts_per_mm(), 0, 'f', 3).arg(a->scaling.reverse ? ", REVERSE" : ""));
+  }
+
+ private:
+  QComboBox* axis_;
+  QDoubleSpinBox *distance_, *velocity_, *dial_;
+  HoldToRunButton* hold_;
+  QLabel* verdict_;
+};
+
+// ------------------------------------------------------------ 5 limits
+
+class LimitsPage : public StepPage {
+ public:
+  explicit LimitsPage(WizardWindow& w)
+      : StepPage(w, 4,
+                 "Provisional limits and speeds; then find the limit and home switches (each seen, where, with "
+                 "which polarity) and derive the soft limits from them less a margin.") {
+    auto* f = new QFormLayout(inputs());
+    f->addRow("Axis", axis_ = axis_choice());
+    auto* r1 = new QHBoxLayout;
+    r1->addWidget(min_ = number("minLimit", -1e5, 1e5, -10, 3, " mm"));
+    r1->addWidget(max_ = number("maxLimit", -1e5, 1e5, 10, 3, " mm"));
+    r1->addWidget(vel_ = number("maxVelocity", 0.001, 1e5, 10, 3, " mm/s"));
+    r1->addWidget(acc_ = number("maxAcceleration", 0.001, 1e6, 100, 3, " mm/s2"));
+    auto* lb = button("Set limits", "limitsButton");
+    r1->addWidget(lb);
+    f->addRow("Limits, speed", r1);
+    auto* r2 = new QHBoxLayout;
+    r2->addWidget(search_ = number("searchDistance", 0, 1e5, 0, 2, " mm"));
+    r2->addWidget(svel_ = number("searchVelocity", 0, 1000, 0, 2, " mm/s"));
+    auto* sb = button("Find switches", "switchesButton");
+    r2->addWidget(sb);
+    f->addRow("Switch search (0: default)", r2);
+    auto* r3 = new QHBoxLayout;
+    r3->addWidget(margin_ = number("softLimitMargin", 0, 1000, 2, 3, " mm"));
+    auto* mb = button("Soft limits from switches", "softLimitsButton");
+    r3->addWidget(mb);
+    f->addRow("Margin", r3);
+    shown_ = new QLabel;
+    shown_->setObjectName("limitsShown");
+    f->addRow("State", shown_);
+    connect(lb, &QPushButton::clicked, this, [this] {
+      run([this] { return w_.builder().limits(letter_of(axis_), min_->value(), max_->value(), vel_->value(), acc_->value()); });
+    });
+    connect(sb, &QPushButton::clicked, this, [this] {
+      run([this] { return w_.builder().switches(letter_of(axis_), search_->value(), svel_->value()); });
+    });
+    connect(mb, &QPushButton::clicked, this,
+            [this] { run([this] { return w_.builder().soft_limits(letter_of(axis_), margin_->value()); }); });
+    connect(axis_, &QComboBox::currentIndexChanged, this, [this] { refresh_axis(w_.state()); });
+  }
+  void refresh(const State& s) override {
+    fill_axes(axis_, s);
+    refresh_axis(s);
+  }
+  void refresh_axis(const State& s) {
+    if (const Axis* a = s.axis(letter_of(axis_)))
+      shown_->setText(QString("limits %1 .. %2 mm, %3 mm/s, %4 mm/s2")
+                          .arg(a->min_limit)
+                          .arg(a->max_limit)
+                          .arg(a->max_velocity)
+                          .arg(a->max_acceleration));
+  }
+
+ private:
+  QComboBox* axis_;
+  QDoubleSpinBox *min_, *max_, *vel_, *acc_, *search_, *svel_, *margin_;
+  QLabel* shown_;
+};
+
+// ------------------------------------------------------------ 6 homing
+
+class HomingPage : public StepPage {
+ public:
+  explicit HomingPage(WizardWindow& w)
+      : StepPage(w, 5,
+                 "Choose controller homing (the joint's homing sequence) or one of the drive's CiA 402 methods, "
+                 "run it and repeat it: the reference position of each run and their spread are shown.") {
+    auto* f = new QFormLayout(inputs());
+    f->addRow("Axis", axis_ = axis_choice());
+    auto* r = new QHBoxLayout;
+    method_ = new QComboBox;
+    method_->setObjectName("homingMethod");
+    method_->addItem("controller: the joint's homing sequence (HOME_* of the INI)", "controller");
+    auto* lb = button("List methods", "methodsButton");
+    r->addWidget(method_, 1);
+    r->addWidget(lb);
+    f->addRow("Method", r);
+    repeat_ = new QSpinBox;
+    repeat_->setObjectName("homingRepeat");
+    repeat_->setRange(1, 20);
+    repeat_->setValue(5);
+    f->addRow("Repeat", repeat_);
+    auto* hb = button("Home", "homingButton");
+    f->addRow(hb);
+    connect(lb, &QPushButton::clicked, this, [this] {
+      run([this] { return w_.builder().homing_methods(); },
+          [this](const StepResult& r) {
+            if (!r.ok()) return;
+            method_->clear();
+            for (const auto& m : parse_homing_methods(r.lines))
+              method_->addItem(QString::fromStdString(m.description), QString::fromStdString(m.method));
+          });
+    });
+    connect(hb, &QPushButton::clicked, this, [this] {
+      run([this] { return w_.builder().homing(letter_of(axis_), method_->currentData().toString().toStdString(), repeat_->value()); });
+    });
+  }
+  void refresh(const State& s) override { fill_axes(axis_, s); }
+
+ private:
+  QComboBox *axis_, *method_;
+  QSpinBox* repeat_;
+};
+
+// ------------------------------------------------------------ 7 tuning
+
+QChartView* trace_chart(const char* name, const QString& title, const QString& unit) {
+  auto* chart = new QChart;
+  chart->setTitle(title);
+  chart->legend()->hide();
+  auto* series = new QLineSeries;
+  chart->addSeries(series);
+  auto* x = new QValueAxis;
+  x->setTitleText("s");
+  x->setLabelFormat("%.2f");
+  x->setTickCount(5);
+  auto* y = new QValueAxis;
+  y->setTitleText(unit);
+  chart->addAxis(x, Qt::AlignBottom);
+  chart->addAxis(y, Qt::AlignLeft);
+  series->attachAxis(x);
+  series->attachAxis(y);
+  auto* v = new QChartView(chart);
+  v->setObjectName(name);
+  v->setMinimumHeight(260);
+  v->setRenderHint(QPainter::Antialiasing);
+  return v;
+}
+
+void plot(QChartView* v, const std::vector<double>& t, const std::vector<double>& y) {
+  auto* s = static_cast<QLineSeries*>(v->chart()->series().at(0));
+  QList<QPointF> pts;
+  double lo = 0, hi = 0;
+  for (std::size_t i = 0; i < t.size() && i < y.size(); ++i) {
+    pts.append(QPointF(t[i], y[i]));
+    lo = i == 0 ? y[i] : std::min(lo, y[i]);
+    hi = i == 0 ? y[i] : std::max(hi, y[i]);
+  }
+  s->replace(pts);
+  const double pad = hi > lo ? (hi - lo) * 0.05 : 1.0;
+  v->chart()->axes(Qt::Horizontal).at(0)->setRange(t.empty() ? 0 : t.front(), t.empty() ? 1 : t.back());
+  v->chart()->axes(Qt::Vertical).at(0)->setRange(lo - pad, hi + pad);
+}
+
+class TuningPage : public StepPage {
+ public:
+  explicit TuningPage(WizardWindow& w)
+      : StepPage(w, 6,
+                 "Move tests at rising speed and acceleration, recording following error, torque and velocity; "
+                 "the recommended MAX_VELOCITY, MAX_ACCELERATION, MAX_JERK and FERROR/MIN_FERROR keep the stated "
+                 "margin. Pick a recording to plot it.") {
+    auto* v = new QVBoxLayout(inputs());
+    auto* f = new QFormLayout;
+    v->addLayout(f);
+    f->addRow("Axis", axis_ = axis_choice());
+    auto* r = new QHBoxLayout;
+    r->addWidget(maxv_ = number("tuneMaxVelocity", 0, 1e5, 0, 2, " mm/s"));
+    r->addWidget(maxa_ = number("tuneMaxAcceleration", 0, 1e6, 0, 1, " mm/s2"));
+    r->addWidget(margin_ = number("tuneMargin", 0, 99, 20, 1, " %"));
+    auto* tb = button("Tune", "tuneButton");
+    r->addWidget(tb);
+    f->addRow("Test up to (0: default), margin", r);
+    recordings_ = new QComboBox;
+    recordings_->setObjectName("tuneRecordings");
+    f->addRow("Recording", recordings_);
+    trace_error_ = new QLabel;
+    trace_error_->setObjectName("traceError");
+    trace_error_->setStyleSheet("color: #c00000");
+    f->addRow(trace_error_);
+    auto* charts = new QHBoxLayout;
+    charts->addWidget(ferror_ = trace_chart("ferrorChart", "following error", "mm"));
+    charts->addWidget(torque_ = trace_chart("torqueChart", "torque", "%"));
+    charts->addWidget(velocity_ = trace_chart("velocityChart", "velocity", "mm/s"));
+    v->addLayout(charts, 1);
+    connect(tb, &QPushButton::clicked, this, [this] {
+      run([this] {
+        return w_.builder().tune(letter_of(axis_), maxv_->value(), maxa_->value(), margin_->value(),
+                                 record_dir().toStdString());
+      });
+    });
+    connect(recordings_, &QComboBox::currentIndexChanged, this, [this] { show_recording(); });
+    connect(axis_, &QComboBox::currentIndexChanged, this, [this] { list_recordings(); });
+  }
+  QString record_dir() const { return w_.options().config_dir + "/tune-" + QString(QChar(letter_of(axis_))); }
+  void refresh(const State& s) override {
+    fill_axes(axis_, s);
+    list_recordings();
+  }
+  void list_recordings() {
+    const QString keep = recordings_->currentText();
+    recordings_->clear();
+    for (const QString& f : QDir(record_dir()).entryList({"*.csv"}, QDir::Files, QDir::Name))
+      recordings_->addItem(f, record_dir() + "/" + f);
+    const int i = recordings_->findText(keep);
+    if (i >= 0) recordings_->setCurrentIndex(i);
+    show_recording();
+  }
+  void show_recording() {
+    trace_error_->clear();
+    const QString file = recordings_->currentData().toString();
+    TuneTrace t;
+    if (!file.isEmpty()) {
+      try {
+        t = load_tune_csv(file.toStdString());
+      } catch (const std::exception& e) {
+        trace_error_->setText(e.what());
+      }
+    }
+    plot(ferror_, t.time_s, t.ferror_mm);
+    plot(torque_, t.time_s, t.torque_pct);
+    plot(velocity_, t.time_s, t.velocity_mm_s);
+  }
+
+ private:
+  QComboBox *axis_, *recordings_;
+  QDoubleSpinBox *maxv_, *maxa_, *margin_;
+  QLabel* trace_error_;
+  QChartView *ferror_, *torque_, *velocity_;
+};
+
+// ------------------------------------------------------------ 8 compensation
+
+class CompensationPage : public StepPage {
+ public:
+  explicit CompensationPage(WizardWindow& w)
+      : StepPage(w, 7,
+                 "Generate and run the ISO 230-2 measurement cycle, enter the measured positions by hand or "
+                 "import a laser file (CSV), fit the compensation and compare the figures before and after; "
+                 "Install puts the tables into the state for Write.") {
+    auto* f = new QFormLayout(inputs());
+    f->addRow("Axis", axis_ = axis_choice());
+    auto* r1 = new QHBoxLayout;
+    r1->addWidget(program_ = line("compProgramFile", "", "cycle.ngc"), 1);
+    auto* pb = button("Generate cycle", "compProgramButton");
+    auto* rb = button("Run cycle", "compRunButton");
+    r1->addWidget(pb);
+    r1->addWidget(rb);
+    f->addRow("Cycle", r1);
+    values_ = new QPlainTextEdit;
+    values_->setObjectName("compValues");
+    values_->setPlaceholderText("measured deviations (um), one per stop in the cycle's order, one per line or separated by commas");
+    values_->setMaximumHeight(70);
+    f->addRow("Measurements", values_);
+    auto* r2 = new QHBoxLayout;
+    r2->addWidget(csv_ = line("compCsv", "", "laser file (CSV)"), 1);
+    auto* ib = button("Import...", "compImportButton");
+    auto* mb = button("Take measurements", "compMeasurementsButton");
+    r2->addWidget(ib);
+    r2->addWidget(mb);
+    f->addRow("or a file", r2);
+    auto* r3 = new QHBoxLayout;
+    install_ = new QCheckBox("install the tables");
+    install_->setObjectName("compInstall");
+    auto* fb = button("Fit", "compFitButton");
+    r3->addWidget(install_);
+    r3->addWidget(fb);
+    f->addRow(r3);
+    figures_ = new QLabel;
+    figures_->setObjectName("compFigures");
+    figures_->setWordWrap(true);
+    f->addRow("Before / after", figures_);
+    connect(pb, &QPushButton::clicked, this, [this] {
+      run([this] {
+        QString out = program_->text().trimmed();
+        if (out.isEmpty()) out = w_.options().config_dir + "/comp-" + QString(QChar(letter_of(axis_))) + ".ngc";
+        return w_.builder().comp_program(letter_of(axis_), out.toStdString());
+      });
+    });
+    connect(rb, &QPushButton::clicked, this,
+            [this] { run([this] { return w_.builder().comp_run(letter_of(axis_), csv_->text().toStdString()); }); });
+    connect(ib, &QPushButton::clicked, this, [this] {
+      const QString f = QFileDialog::getOpenFileName(this, "Laser measurement file", QString(), "CSV (*.csv);;All (*)");
+      if (!f.isEmpty()) csv_->setText(f);
+    });
+    connect(mb, &QPushButton::clicked, this, [this] {
+      run([this] {
+        return w_.builder().comp_measurements(letter_of(axis_), csv_->text().toStdString(),
+                                              values_->toPlainText().toStdString());
+      });
+    });
+    connect(fb, &QPushButton::clicked, this, [this] {
+      run([this] { return w_.builder().comp_fit(letter_of(axis_), install_->isChecked()); },
+          [this](const StepResult& r) {
+            QStringList l;
+            for (const auto& s : r.lines) l << QString::fromStdString(s);
+            figures_->setText(r.ok() ? l.join("\n") : QString());
+          });
+    });
+  }
+  void refresh(const State& s) override { fill_axes(axis_, s); }
+
+ private:
+  QComboBox* axis_;
+  QLineEdit *program_, *csv_;
+  QPlainTextEdit* values_;
+  QCheckBox* install_;
+  QLabel* figures_;
+};
+
+// ------------------------------------------------------------ 9 write
+
+class WritePage : public StepPage {
+ public:
+  explicit WritePage(WizardWindow& w)
+      : StepPage(w, 8,
+                 "Show the difference between the configuration of the state and the files in the folder; "
+                 "Write writes them (old ones kept as .bak, checked with cncd --check --strict) after you "
+                 "confirm. Backup uploads the drives' parameters (into drive-backup beside the state file); Write copies the "
+                 "last backup into the configuration.") {
+    auto* v = new QVBoxLayout(inputs());
+    auto* f = new QFormLayout;
+    v->addLayout(f);
+    f->addRow("Folder", dir_ = line("configDir", w.options().config_dir));
+    f->addRow("Name", name_ = line("configName", "machine"));
+    auto* r = new QHBoxLayout;
+    auto* db = button("Show difference", "diffButton");
+    auto* wb = button("Write...", "writeButton");
+    auto* bb = button("Backup drive parameters", "backupButton");
+    r->addWidget(db);
+    r->addWidget(wb);
+    r->addWidget(bb);
+    f->addRow(r);
+    diff_ = new QTextEdit;
+    diff_->setObjectName("diffView");
+    diff_->setReadOnly(true);
+    diff_->setMinimumHeight(200);
+    v->addWidget(diff_);
+    connect(db, &QPushButton::clicked, this, [this] {
+      run([this] { return w_.builder().write(dir_->text().toStdString(), name_->text().toStdString(), false); },
+          [this](const StepResult& r) { show_diff(r); });
+    });
+    connect(wb, &QPushButton::clicked, this, [this] {
+      if (QMessageBox::question(this, "Write the configuration",
+                                "Write the configuration to " + dir_->text() + "? Changed files are kept as .bak.") !=
+              QMessageBox::Yes)
+        return;
+      run([this] { return w_.builder().write(dir_->text().toStdString(), name_->text().toStdString(), true); });
+    });
+    // Beside the state; write copies the last backup into the configuration.
+    connect(bb, &QPushButton::clicked, this, [this] {
+      run([this] {
+        return w_.builder().backup((QFileInfo(w_.options().state_file).absolutePath() + "/drive-backup").toStdString());
+      });
+    });
+  }
+  void show_diff(const StepResult& r) {
+    QString html = "<pre style='font-size: 9pt'>";
+    for (const auto& s : r.lines) {
+      const QString l = QString::fromStdString(s).toHtmlEscaped();
+      if (l.startsWith('+') && !l.startsWith("+++")) html += "<span style='color:#1a7f1a'>" + l + "</span>\n";
+      else if (l.startsWith('-') && !l.startsWith("---")) html += "<span style='color:#c00000'>" + l + "</span>\n";
+      else html += l + "\n";
+    }
+    diff_->setHtml(html + "</pre>");
+  }
+ private:
+  QLineEdit *dir_, *name_;
+  QTextEdit* diff_;
+};
+
+}  // namespace
+
+StepPage* make_page(WizardWindow& w, int step) {
+  switch (step) {
+    case 0: return new BusPage(w);
+    case 1: return new AxesPage(w);
+    case 2: return new ScalingPage(w);
+    case 3: return new DirectionPage(w);
+    case 4: return new LimitsPage(w);
+    case 5: return new HomingPage(w);
+    case 6: return new TuningPage(w);
+    case 7: return new CompensationPage(w);
+    default: return new WritePage(w);
+  }
+}
+
+}  // namespace cnc::commission::wizard
