@@ -93,6 +93,19 @@ class BusPage : public StepPage {
     f->addRow("Expected node-IDs", expect_ = line("expectNodes", "", "1,2,3 (optional)"));
     auto* b = button("Scan", "scanButton");
     f->addRow(b);
+    // Drives that come without node-ID get free ones by LSS (CANopen).
+    auto* lss_row = new QHBoxLayout;
+    first_ = new QSpinBox;
+    first_->setObjectName("lssFirst");
+    first_->setRange(1, 127);
+    auto* lss = button("Give node-IDs (LSS)", "lssButton");
+    lss_row->addWidget(new QLabel("from node-ID"));
+    lss_row->addWidget(first_);
+    lss_row->addWidget(lss, 1);
+    f->addRow("Without node-ID", lss_row);
+    connect(lss, &QPushButton::clicked, this, [this] {
+      run([this] { return w_.builder().lss(iface_->text().toStdString(), first_->value()); });
+    });
     found_ = new QListWidget;
     found_->setObjectName("foundDevices");
     f->addRow("Found", found_);
@@ -114,6 +127,7 @@ class BusPage : public StepPage {
  private:
   QComboBox* kind_;
   QLineEdit *iface_, *dir_, *expect_;
+  QSpinBox* first_;
   QListWidget* found_;
 };
 

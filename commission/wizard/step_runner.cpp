@@ -92,6 +92,14 @@ Argv CommandBuilder::scan(bool ethercat, const std::string& interface, const std
   return a;
 }
 
+Argv CommandBuilder::lss(const std::string& interface, int first) const {
+  require(interface, "CAN interface");
+  if (first < 1 || first > 127) throw std::invalid_argument("first node-ID " + std::to_string(first) + ": expected 1-127");
+  Argv a = base();
+  a.insert(a.end(), {"lss", "--interface", trim_copy(interface), "--first", std::to_string(first)});
+  return a;
+}
+
 Argv CommandBuilder::assign(char letter, int node, int joint, const std::string& gantry_with) const {
   if (node < 1 || node > 127) throw std::invalid_argument("node-ID " + std::to_string(node) + ": expected 1-127");
   if (joint < 0 || joint > 15) throw std::invalid_argument("joint " + std::to_string(joint) + ": expected 0-15");

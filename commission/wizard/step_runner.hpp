@@ -45,6 +45,8 @@ class CommandBuilder {
   // EtherCAT: `scan-ethercat --interface SPEC [--esi-dir DIR]`.
   Argv scan(bool ethercat, const std::string& interface, const std::string& description_dir,
             const std::string& expect = "") const;
+  // Step 1, drives without node-ID: `lss --interface SPEC --first ID`.
+  Argv lss(const std::string& interface, int first) const;
   // Step 2.
   Argv assign(char letter, int node, int joint, const std::string& gantry_with = "") const;
   // Step 2's identification aid: a tiny, slow, time-limited jog of the

@@ -39,6 +39,13 @@ TEST(WizardCommands, ScanRefusesAMissingInterfaceAndBadExpectedNodes) {
   EXPECT_THROW(b.scan(false, "socketcan:can0", "", "128"), std::invalid_argument);
 }
 
+TEST(WizardCommands, LssGivesNodeIdsFromTheFirstOneAndRefusesBadInput) {
+  EXPECT_EQ(b.lss(" socketcan:can0", 4), with_state({"lss", "--interface", "socketcan:can0", "--first", "4"}));
+  EXPECT_THROW(b.lss("", 1), std::invalid_argument);
+  EXPECT_THROW(b.lss("socketcan:can0", 0), std::invalid_argument);
+  EXPECT_THROW(b.lss("socketcan:can0", 128), std::invalid_argument);
+}
+
 TEST(WizardCommands, AssignAndIdentifyNameTheAxisNodeAndJoint) {
   EXPECT_EQ(b.assign('x', 3, 0), with_state({"axis", "X", "assign", "--node", "3", "--joint", "0"}));
   EXPECT_EQ(b.assign('Y', 2, 1, "Y2"), with_state({"axis", "Y", "assign", "--node", "2", "--joint", "1", "--gantry-with", "Y2"}));
