@@ -51,7 +51,7 @@ const char* kHelp =
     "      with an ESI file\n"
     "  show\n"
     "      print the state: nodes, axes, scaling, tests\n"
-    "  axis L assign --node ID [--joint J] [--gantry-with L2]\n"
+    "  axis L assign (--node ID | --slave POSITION) [--joint J] [--gantry-with L2]\n"
     "      drive node ID moves axis L (X Y Z A B C U V W) on joint J\n"
     "  axis L scaling --lead MM [--counts N] [--gear MOTOR:LOAD]\n"
     "      screw lead; counts per revolution and gear from the drive unless given\n"
@@ -433,17 +433,24 @@ int cmd_axis(State& s, Args& a) {
   const char letter = static_cast<char>(std::toupper(static_cast<unsigned char>(l[0])));
   const std::string step = a.next("axis step");
   if (step == "assign") {
-    int node = -1, joint = -1;
+    int node = -1, joint = -1, slave = -1;
     std::string gantry;
     while (a.more()) {
       const std::string k = a.next("option");
       if (k == "--node") node = static_cast<int>(number(a.next("node-ID"), "--node"));
+      else if (k == "--slave") slave = static_cast<int>(number(a.next("slave position"), "--slave"));
       else if (k == "--joint") joint = static_cast<int>(number(a.next("joint"), "--joint"));
       else if (k == "--gantry-with") gantry = a.next("axis");
       else usage("assign: unknown option " + k);
     }
-    if (node < 0) usage("assign: --node ID");
+    if ((node < 0) == (slave < 0)) usage("assign: --node ID (CANopen) or --slave POSITION (EtherCAT)");
     if (joint < 0) joint = s.axis(letter) ? s.axis(letter)->joint : static_cast<int>(s.axes.size());
+    if (slave >= 0) {
+      const Axis& ax = assign_axis_ethercat(s, letter, joint, slave, gantry);
+      std::cout << "axis " << letter << ": EtherCAT slave " << ax.slave << " on joint " << ax.joint << "\n";
+      s.log.push_back("axis " + std::string(1, letter) + " assigned to EtherCAT slave " + std::to_string(slave));
+      return 0;
+    }
     const Axis& ax = assign_axis(s, letter, joint, node, gantry);
     std::cout << "axis " << letter << ": node " << ax.node << " on joint " << ax.joint << "\n";
     s.log.push_back("axis " + std::string(1, letter) + " assigned to node " + std::to_string(node));

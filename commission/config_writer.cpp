@@ -58,13 +58,25 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
     if (a.enabled && !(a.scaling.counts_per_mm() > 0))
       throw std::invalid_argument(std::string("axis ") + a.letter + " has no scaling yet: run its scaling step");
   }
-  if (s.interface.empty()) throw std::invalid_argument("no CAN interface in the state: run the bus scan first");
+  // One bus for all axes: CANopen drives (node-IDs) or EtherCAT drives
+  // (slave positions).
+  const bool ethercat = axes.front()->slave > 0;
+  for (const Axis* a : axes) {
+    if ((a->slave > 0) != ethercat)
+      throw std::invalid_argument(std::string("axis ") + a->letter + " is on " + (ethercat ? "CANopen" : "EtherCAT") +
+                                  " and axis " + axes.front()->letter + " on " + (ethercat ? "EtherCAT" : "CANopen") +
+                                  ": the writer puts every axis on one bus");
+  }
+  if (!ethercat && s.interface.empty()) throw std::invalid_argument("no CAN interface in the state: run the bus scan first");
+  if (ethercat && s.ethercat_interface.empty())
+    throw std::invalid_argument("no EtherCAT interface in the state: run scan-ethercat first");
+  const std::string bus = ethercat ? "ethercat.0" : "canopen.0";
 
   std::string coords, drives, nodes;
   for (std::size_t i = 0; i < axes.size(); ++i) {
     coords += (i ? " " : "") + std::string(1, axes[i]->letter);
     drives += (i ? " " : "") + std::to_string(i);
-    nodes += (i ? " " : "") + std::to_string(axes[i]->node);
+    nodes += (i ? " " : "") + std::to_string(ethercat ? axes[i]->slave : axes[i]->node);
   }
   double max_v = 0, max_a = 0;
   for (const Axis* a : axes) {
@@ -81,8 +93,9 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
       << "[TASK]\nTASK = milltask\nCYCLE_TIME = 0.001\n\n"
       << "[RS274NGC]\nPARAMETER_FILE = " << name << ".var\n\n"
       << "[EMCMOT]\nEMCMOT = motmod\n"
-      << "# Two axis drives per millisecond fit one 1 Mbit/s bus (cnc-canopen load prints the plan).\n"
-      << "SERVO_PERIOD = " << servo_period_ns(axes.size()) << "\nCOMM_TIMEOUT = 1.0\n\n"
+      << (ethercat ? "# One EtherCAT frame per millisecond carries every drive.\n"
+                   : "# Two axis drives per millisecond fit one 1 Mbit/s bus (cnc-canopen load prints the plan).\n")
+      << "SERVO_PERIOD = " << (ethercat ? 1'000'000L : servo_period_ns(axes.size())) << "\nCOMM_TIMEOUT = 1.0\n\n"
       << "[HAL]\nHALFILE = " << name << ".hal\n\n"
       << "[TRAJ]\nCOORDINATES = " << coords << "\nLINEAR_UNITS = mm\nANGULAR_UNITS = degree\n"
       << "MAX_LINEAR_VELOCITY = " << num(max_v) << "\nMAX_LINEAR_ACCELERATION = " << num(max_a) << "\n\n"
@@ -105,6 +118,23 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
         << comp_ini_keys(*a, name) << "\n";  // step 8: the screw-compensation table, when installed
   }
   ini << "[EMCIO]\nEMCIO = io\nTOOL_TABLE = tool.tbl\nTOOL_PREPARE_TIMEOUT = 10\nTOOL_CHANGE_TIMEOUT = 30\n\n";
+  if (ethercat) {
+    ini << "[ETHERCAT]\nINTERFACE = " << s.ethercat_interface << "\nSLAVE = " << nodes << "\n\n";
+    for (const Axis* a : axes) {
+      const ScannedSlave* sl = nullptr;
+      for (const ScannedSlave& x : s.slaves)
+        if (static_cast<int>(x.position) == a->slave) sl = &x;
+      char id[64];
+      std::snprintf(id, sizeof id, "VENDOR_ID = 0x%08X\nPRODUCT_CODE = 0x%08X\n", sl ? sl->vendor_id : 0u,
+                    sl ? sl->product_code : 0u);
+      ini << "[ETHERCAT_SLAVE_" << a->slave << "]\nNAME = " << static_cast<char>(std::tolower(a->letter)) << "-axis\n";
+      if (sl && !sl->esi.empty() && !s.esi_dir.empty())
+        ini << "ESI = " << (std::filesystem::path(s.esi_dir) / sl->esi).string() << "\n";
+      if (sl) ini << id;
+      if (!a->enabled) ini << "# Disabled for commissioning: it may be missing.\n";
+      ini << "\n";
+    }
+  } else {
   ini << "[CANOPEN]\nINTERFACE = " << s.interface << "\nBITRATE = " << s.bitrate << "\nNODE = " << nodes
       << "\nMASTER_HEARTBEAT_MS = 100\nPDO_MISS_LIMIT = 50\n\n";
   for (const Axis* a : axes) {
@@ -118,7 +148,8 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
            "TPDO2 = 0x6061:0:s8 0x60FD:0:u32 0x603F:0:u16\nTPDO2_TRANSMISSION = 255\n"
            "TPDO2_INHIBIT_100US = 20\nTPDO2_EVENT_MS = 100\n\n";
   }
-  ini << "[CIA402]\nBUS = canopen.0\nDRIVE = " << drives << "\nWATCHDOG_CYCLES = 5\nSTALE_LIMIT = 50\n\n";
+  }
+  ini << "[CIA402]\nBUS = " << bus << "\nDRIVE = " << drives << "\nWATCHDOG_CYCLES = 5\nSTALE_LIMIT = 50\n\n";
   for (std::size_t i = 0; i < axes.size(); ++i) {
     const Axis& a = *axes[i];
     AxisScaling sc = a.scaling;
@@ -132,7 +163,7 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
     // ENCODER_COUNTS x GEAR_MOTOR_REVS / GEAR_LOAD_REVS / SCREW_LEAD.
     ini << "[CIA402_DRIVE_" << i << "]\n# " << sc.source << "; " << num(sc.counts_per_mm()) << " counts/mm";
     if (sc.correction != 1.0) ini << " (nominal lead " << num(sc.screw_lead) << " mm, measured x" << num(sc.correction) << ")";
-    ini << "\nADDRESS = " << a.node << "\nNAME = " << static_cast<char>(std::tolower(a.letter)) << "-axis\nJOINT = "
+    ini << "\nADDRESS = " << (ethercat ? a.slave : a.node) << "\nNAME = " << static_cast<char>(std::tolower(a.letter)) << "-axis\nJOINT = "
         << a.joint << "\nENCODER_COUNTS = " << num(sc.encoder_counts) << "\nGEAR_MOTOR_REVS = "
         << num(sc.gear_motor_revs) << "\nGEAR_LOAD_REVS = " << num(sc.gear_load_revs)
         << "\nSCREW_LEAD = " << num(sc.screw_lead / sc.correction) << "\nREVERSE = " << (sc.reverse ? "YES" : "NO")
@@ -148,10 +179,10 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
          "loadrt [EMCMOT]EMCMOT servo_period_nsec=[EMCMOT]SERVO_PERIOD num_joints=[KINS]JOINTS\n";
   if (any_compensation(s)) hal << "# Screw compensation tables ([JOINT_n]COMP_FILE).\nloadrt screwcomp\n";
   for (const auto& f : s.hal_before_bus) hal << "source " << f << "\n";
-  hal << "loadrt canopen buses=CANOPEN\nloadrt cia402 sections=CIA402\n\n"
-         "addf canopen.0.read servo-thread\naddf cia402.0.read servo-thread\n"
-         "addf motion-command-handler servo-thread\naddf motion-controller servo-thread\n"
-         "addf cia402.0.write servo-thread\naddf canopen.0.write servo-thread\n";
+  hal << (ethercat ? "loadrt ethercat\n" : "loadrt canopen buses=CANOPEN\n") << "loadrt cia402 sections=CIA402\n\n"
+      << "addf " << bus << ".read servo-thread\naddf cia402.0.read servo-thread\n"
+      << "addf motion-command-handler servo-thread\naddf motion-controller servo-thread\n"
+      << "addf cia402.0.write servo-thread\naddf " << bus << ".write servo-thread\n";
   for (const auto& f : s.hal_after_bus) hal << "source " << f << "\n";
   hal << "\n";
   for (std::size_t i = 0; i < axes.size(); ++i) {
@@ -169,8 +200,8 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
   hal << "\n# The drives stop by themselves when the motion watchdog stops.\n"
          "net watchdog motion.watchdog => cia402.0.watchdog\n"
          "net watchdog-on motion.watchdog-enabled => cia402.0.watchdog-enabled\n"
-         "net bus-0-enable cia402.0.watchdog-ok => canopen.0.enable\n\n"
-         "# E-stop: wire your E-stop chain to iocontrol.0.emc-enable-in (here it closes at once).\n"
+         "net bus-0-enable cia402.0.watchdog-ok => " << bus << ".enable\n\n"
+      << "# E-stop: wire your E-stop chain to iocontrol.0.emc-enable-in (here it closes at once).\n"
          "net estop-loop iocontrol.0.user-enable-out => iocontrol.0.emc-enable-in\n"
          "# Tool changes: acknowledged at once (a manual change).\n"
          "net tool-prepare-loop iocontrol.0.tool-prepare => iocontrol.0.tool-prepared\n"

@@ -201,7 +201,7 @@ DriveBackup backup_from(const json& j) {
 // --- end of helper C's block ---
 
 json axis_json(const Axis& a) {
-  json j = {{"letter", std::string(1, a.letter)}, {"joint", a.joint}, {"node", a.node},
+  json j = {{"letter", std::string(1, a.letter)}, {"joint", a.joint}, {"node", a.node}, {"slave", a.slave},
             {"gantry_with", a.gantry_with}, {"min_limit", a.min_limit}, {"max_limit", a.max_limit},
             {"max_velocity", a.max_velocity}, {"max_acceleration", a.max_acceleration}, {"enabled", a.enabled}};
   const AxisScaling& s = a.scaling;
@@ -226,6 +226,7 @@ Axis axis_from(const json& j, const std::string& origin) {
   a.letter = letter[0];
   get(j, "joint", a.joint);
   get(j, "node", a.node);
+  if (j.contains("slave")) get(j, "slave", a.slave);
   get(j, "gantry_with", a.gantry_with);
   get(j, "min_limit", a.min_limit);
   get(j, "max_limit", a.max_limit);

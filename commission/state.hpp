@@ -112,7 +112,8 @@ struct DriveBackup {
 struct Axis {
   char letter = 'X';            // X Y Z A B C U V W
   int joint = 0;
-  int node = 0;                 // CANopen node-ID of its drive
+  int node = 0;                 // CANopen node-ID of its drive (0: an EtherCAT drive)
+  int slave = 0;                // EtherCAT: the drive's position in the segment (1-based); 0: CANopen
   std::string gantry_with;      // "" or the other joint's letter pair, e.g. "Y2"
   AxisScaling scaling;
   std::optional<DirectionTest> direction;

@@ -57,6 +57,44 @@ Axis& assign_axis(State& s, char letter, int joint, int node, const std::string&
   return *a;
 }
 
+Axis& assign_axis_ethercat(State& s, char letter, int joint, int position, const std::string& gantry_with) {
+  const std::string valid = "XYZABCUVW";
+  if (valid.find(letter) == std::string::npos)
+    throw std::invalid_argument(std::string("axis \"") + letter + "\": expected one of X Y Z A B C U V W");
+  if (joint < 0 || joint > 15) throw std::invalid_argument(axis_name(letter) + ": joint " + std::to_string(joint) + " outside 0..15");
+  const ScannedSlave* sl = nullptr;
+  for (const ScannedSlave& x : s.slaves)
+    if (static_cast<int>(x.position) == position) sl = &x;
+  if (!sl)
+    throw std::invalid_argument("EtherCAT slave " + std::to_string(position) +
+                                " was not found by the segment scan: scan-ethercat first, or check its position");
+  if (!sl->coe)
+    throw std::invalid_argument("EtherCAT slave " + std::to_string(position) + " (" + sl->name +
+                                ") has no CoE mailbox: it is not a CiA 402 drive and cannot drive " + axis_name(letter));
+  for (const Axis& a : s.axes) {
+    if (a.letter == letter) continue;
+    if (a.slave == position)
+      throw std::invalid_argument("EtherCAT slave " + std::to_string(position) + " already drives axis " + std::string(1, a.letter));
+    if (a.joint == joint)
+      throw std::invalid_argument("joint " + std::to_string(joint) + " already belongs to axis " + std::string(1, a.letter));
+  }
+  Axis* a = s.axis(letter);
+  if (!a) {
+    s.axes.push_back(Axis{});
+    a = &s.axes.back();
+    a->letter = letter;
+  }
+  if (a->slave != position || a->node != 0) {
+    a->direction.reset();
+    a->scaling = AxisScaling{};
+  }
+  a->joint = joint;
+  a->node = 0;
+  a->slave = position;
+  a->gantry_with = gantry_with;
+  return *a;
+}
+
 double set_scaling(State& s, char letter, double screw_lead, double encoder_counts, double gear_motor_revs,
                    double gear_load_revs) {
   Axis& a = need_axis(s, letter);
@@ -72,7 +110,8 @@ double set_scaling(State& s, char letter, double screw_lead, double encoder_coun
     sc.encoder_counts = static_cast<double>(*n->encoder_increments) / revs;
     src = "counts/rev from the drive (0x608F)";
   } else {
-    throw std::invalid_argument(axis_name(letter) + ": the drive (node " + std::to_string(a.node) +
+    throw std::invalid_argument(axis_name(letter) + ": the drive (" +
+                                (a.slave ? "EtherCAT slave " + std::to_string(a.slave) : "node " + std::to_string(a.node)) +
                                 ") does not give its encoder resolution (0x608F): enter --counts");
   }
   if (gear_motor_revs > 0 || gear_load_revs > 0) {

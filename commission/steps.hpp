@@ -17,6 +17,10 @@ namespace cnc::commission {
 // gantry pair ("" none).
 Axis& assign_axis(State& s, char letter, int joint, int node, const std::string& gantry_with = "");
 
+// The same for an EtherCAT drive: slave `position` of the segment scan,
+// which must have CoE (the CiA 402 drive profile over EtherCAT).
+Axis& assign_axis_ethercat(State& s, char letter, int joint, int position, const std::string& gantry_with = "");
+
 // Sets the axis' scaling: encoder increments per motor revolution from the
 // drive (0x608F) unless given (> 0), gear from the drive (0x6091) unless
 // given (> 0), and the screw lead (mm per screw revolution, required).

@@ -50,6 +50,80 @@ TEST(CommissionWriter, GeneratesDrivesWithTheMeasuredScalingAndDirection) {
   EXPECT_NE(files[1].content.find("net z-pos-fb cia402.0.drive.01.pos-fb => joint.1.motor-pos-fb"), std::string::npos);
 }
 
+State ethercat_machine() {
+  State s;
+  s.ethercat_interface = "raw:eth1";
+  s.esi_dir = "/home/cnc/esi";
+  for (unsigned pos : {1u, 2u, 3u}) {
+    ScannedSlave sl;
+    sl.position = pos;
+    sl.vendor_id = 0xCC1;
+    sl.product_code = pos == 3 ? 0x999 : 0x402;
+    sl.name = "servo " + std::to_string(pos);
+    sl.coe = pos != 3;  // slave 3: an I/O coupler without CoE
+    sl.esi = pos != 3 ? "servo.xml" : "";
+    s.slaves.push_back(sl);
+  }
+  assign_axis_ethercat(s, 'X', 0, 2);
+  assign_axis_ethercat(s, 'Y', 1, 1);
+  set_scaling(s, 'X', 5, 131072);
+  set_scaling(s, 'Y', 10, 8192, 2, 1);
+  return s;
+}
+
+// Drives on EtherCAT: the segment, each slave with its identity and ESI,
+// the CiA 402 drives addressed by slave position, the EtherCAT master's
+// functions in the servo thread.
+TEST(CommissionWriter, WritesEthercatDrivesBySlavePosition) {
+  testing::TempDir dir;
+  const auto files = generate_config(ethercat_machine(), dir.path(), "m");
+  const std::string& ini = files[0].content;
+  EXPECT_NE(ini.find("[ETHERCAT]\nINTERFACE = raw:eth1\nSLAVE = 2 1\n"), std::string::npos) << ini;
+  EXPECT_NE(ini.find("[ETHERCAT_SLAVE_2]\nNAME = x-axis\nESI = /home/cnc/esi/servo.xml\nVENDOR_ID = 0x00000CC1\n"
+                     "PRODUCT_CODE = 0x00000402\n"),
+            std::string::npos)
+      << ini;
+  EXPECT_NE(ini.find("[CIA402]\nBUS = ethercat.0\n"), std::string::npos) << ini;
+  EXPECT_NE(ini.find("ADDRESS = 2\nNAME = x-axis\nJOINT = 0\n"), std::string::npos) << ini;
+  EXPECT_NE(ini.find("ADDRESS = 1\nNAME = y-axis\nJOINT = 1\nENCODER_COUNTS = 8192\nGEAR_MOTOR_REVS = 2"),
+            std::string::npos)
+      << ini;
+  EXPECT_EQ(ini.find("[CANOPEN"), std::string::npos) << ini;
+  const std::string& hal = files[1].content;
+  EXPECT_NE(hal.find("loadrt ethercat\n"), std::string::npos) << hal;
+  EXPECT_NE(hal.find("addf ethercat.0.read servo-thread"), std::string::npos) << hal;
+  EXPECT_NE(hal.find("addf ethercat.0.write servo-thread"), std::string::npos) << hal;
+  EXPECT_NE(hal.find("cia402.0.watchdog-ok => ethercat.0.enable"), std::string::npos) << hal;
+}
+
+TEST(CommissionWriter, EthercatAssignmentRefusesUnknownSlavesSlavesWithoutCoeAndOneBusPerMachine) {
+  State s = ethercat_machine();
+  try {
+    assign_axis_ethercat(s, 'Z', 2, 3);
+    FAIL() << "a slave without CoE accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("EtherCAT slave 3 (servo 3) has no CoE mailbox"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(assign_axis_ethercat(s, 'Z', 2, 7), std::invalid_argument) << "not found by the scan";
+  EXPECT_THROW(assign_axis_ethercat(s, 'Z', 2, 2), std::invalid_argument) << "slave 2 drives X";
+  // A CANopen axis beside EtherCAT ones: refused by the writer, naming both.
+  ScannedNode n;
+  n.node_id = 4;
+  n.cia402 = true;
+  n.encoder_increments = 10000;
+  s.nodes.push_back(n);
+  s.interface = "socketcan:can0";
+  assign_axis(s, 'Z', 2, 4);
+  set_scaling(s, 'Z', 5);
+  testing::TempDir dir;
+  try {
+    generate_config(s, dir.path(), "m");
+    FAIL() << "two buses written";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("the writer puts every axis on one bus"), std::string::npos) << e.what();
+  }
+}
+
 TEST(CommissionWriter, WritesDisabledAxesAsDisabledOptionalDrivesAndRefusesGapsInTheJoints) {
   State s = machine();
   s.axis('Z')->enabled = false;
