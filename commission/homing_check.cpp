@@ -109,6 +109,7 @@ std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, d
   const bool drive = drive_method(h.method) != 0;
   const std::string joint = std::to_string(a.joint);
   const double dir = h.search_velocity < 0 ? -1.0 : 1.0;  // towards the switch
+  const double home = std::clamp(h.home, a.min_limit, a.max_limit);  // as the writer writes it
   std::vector<double> refs;
   clear_abort();
   c.cnc({"estop-reset"});
@@ -128,7 +129,7 @@ std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, d
       nlohmann::json jt;
       for (int i = 0; i < 100; ++i) {
         jt = nlohmann::json::parse(c.cnc({"status", "--json"})).at("joints").at(a.joint);
-        if (jt.value("inpos", false) && std::fabs(jt.at("pos_fb").get<double>() - h.home) < 0.01) break;
+        if (jt.value("inpos", false) && std::fabs(jt.at("pos_fb").get<double>() - home) < 0.01) break;
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
       }
       if (!jt.value("homed", false)) throw std::runtime_error(std::string("axis ") + a.letter + ": run " + std::to_string(k + 1) + " ended but the joint is not homed");
@@ -137,7 +138,7 @@ std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, d
         ref = jt.at("motor_pos_fb").get<double>() - jt.at("pos_fb").get<double>() + h.home_offset;
       } else {
         // Towards the switch at 1 mm/s until the home input changes.
-        const double reach = std::fabs(h.home - h.home_offset) + 3.0;
+        const double reach = std::fabs(home - h.home_offset) + 3.0;
         const auto s = jog_and_sample(c, a, dir * reach, 1.0, &SwitchSample::home);
         if (!first_change(s, &SwitchSample::home, ref))
           throw std::runtime_error(std::string("axis ") + a.letter + ": the home switch did not change within " + mm(reach) +
@@ -147,7 +148,7 @@ std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, d
       if (progress) std::fprintf(progress, "axis %c: run %d: reference %s mm\n", a.letter, k + 1, mm(ref).c_str());
       // Away from the switch (towards the start), forget the home.
       const double now = nlohmann::json::parse(c.cnc({"status", "--json"})).at("joints").at(a.joint).at("pos_cmd").get<double>();
-      jog_and_sample(c, a, (h.home - now) - dir * away_mm, std::max(1.0, std::fabs(h.search_velocity)), nullptr);
+      jog_and_sample(c, a, (home - now) - dir * away_mm, std::max(1.0, std::fabs(h.search_velocity)), nullptr);
       c.cnc({"unhome", joint});
     }
   } catch (const std::exception& e) {

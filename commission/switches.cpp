@@ -181,7 +181,7 @@ std::vector<SwitchSample> leg(const Controller& c, const Axis& a, const std::str
   std::vector<SwitchSample> out;
   Poll p = poll(c, a, prefix);
   out.push_back(p.s);
-  const double target = p.s.position + dist;
+  const double target = p.pos_cmd + dist;  // a jog by a distance starts at the command
   if (std::fabs(dist) < 1e-6) return out;
   c.cnc({"jog", joint, std::to_string(vel), std::to_string(dist)});
   const auto limit = std::chrono::duration<double>(2 * std::fabs(dist) / vel + 5.0);
