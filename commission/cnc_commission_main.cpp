@@ -486,6 +486,9 @@ int main(int argc, char** argv) {
         else if (k == "--hal-after-bus") s.hal_after_bus.push_back(a.next("file"));
         else usage("include: unknown option " + k);
       }
+    } else if (cmd == "homing-methods") {  // step 6
+      for (const auto& m : homing_methods()) std::printf("%-11s %s\n", m.id.c_str(), m.text.c_str());
+      return 0;
     } else if (cmd == "write") rc = cmd_write(s, a);
     else if (cmd == "bring-up") rc = cmd_bring_up(s, a);
     else if (cmd == "shutdown") {

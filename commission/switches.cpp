@@ -140,6 +140,10 @@ Poll poll(const Controller& c, const Axis& a, const std::string& prefix) {
   Poll p;
   const auto j = nlohmann::json::parse(c.cnc({"status", "--json"}));
   const auto& jt = j.at("joints").at(a.joint);
+  // The position comes from the same halcmd read as the inputs (the
+  // drive's pos-fb, which is the joint's motor position), so both are of
+  // one instant; the status gives the joint's offset to it (homing).
+  const double joint_offset = jt.at("pos_fb").get<double>() - jt.at("motor_pos_fb").get<double>();
   p.s.position = jt.at("pos_fb").get<double>();
   p.pos_cmd = jt.at("pos_cmd").get<double>();
   p.enabled = j.at("motion").value("enabled", false);
@@ -154,6 +158,13 @@ Poll poll(const Controller& c, const Axis& a, const std::string& prefix) {
       if (t[i] == prefix + "neg-lim-sw") p.s.neg = truth(t[i - 1]), ++found;
       else if (t[i] == prefix + "pos-lim-sw") p.s.pos = truth(t[i - 1]), ++found;
       else if (t[i] == prefix + "home-sw") p.s.home = truth(t[i - 1]), ++found;
+      else if (t[i] == prefix + "pos-fb") {
+        try {
+          p.s.position = std::stod(t[i - 1]) + joint_offset;
+        } catch (const std::exception&) {
+          // Not a number: the status' position (some ms older) serves.
+        }
+      }
     }
   }
   if (found != 3) throw std::runtime_error(std::string("axis ") + a.letter + ": the controller has no pins " + prefix +

@@ -220,11 +220,15 @@ TEST(CommissionSwitches, StateKeepsSwitchesAndHomingThroughJson) {
 TEST(CommissionWriter, WritesSwitchNetsWithTheirPolarityAndTheHomingKeys) {
   testing::TempDir dir;
   for (bool low : {false, true}) {
-    const auto files = generate_config(machine_with_steps56(low), dir.path(), "m");
+    const State st = machine_with_steps56(low);
+    const auto files = generate_config(st, dir.path(), "m");
     const std::string& ini = files[0].content;
     const std::string& hal = files[1].content;
     EXPECT_NE(ini.find("HOME_SEARCH_VEL = -5\nHOME_LATCH_VEL = 0.5\n"), std::string::npos) << ini;
-    EXPECT_NE(ini.find("HOME_OFFSET = -10"), std::string::npos) << ini;
+    char offset[64];
+    std::snprintf(offset, sizeof offset, "HOME_OFFSET = %.10g\n", st.axis('X')->homing->home_offset);
+    EXPECT_NEAR(st.axis('X')->homing->home_offset, -10, 0.1);
+    EXPECT_NE(ini.find(offset), std::string::npos) << ini;
     if (!low) {
       EXPECT_NE(hal.find("net x-neg-lim cia402.0.drive.00.neg-lim-sw => joint.0.neg-lim-sw-in"), std::string::npos) << hal;
       EXPECT_NE(hal.find("net x-home-sw cia402.0.drive.00.home-sw => joint.0.home-sw-in"), std::string::npos) << hal;
