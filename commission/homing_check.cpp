@@ -80,8 +80,25 @@ AxisHoming plan_homing(const Axis& a, const std::string& method) {
                                 " switches` first (the homing check needs the home switch, also to measure drive methods)");
   const AxisSwitches& s = *a.switches;
   const int dm = drive_method(method);
-  if ((dm == 1 || dm == 17) && !s.neg_limit.seen) throw std::invalid_argument(ax + ": " + method + " needs the negative limit switch, which was not found");
-  if ((dm == 2 || dm == 18) && !s.pos_limit.seen) throw std::invalid_argument(ax + ": " + method + " needs the positive limit switch, which was not found");
+  if ((dm == 1 || dm == 17 || dm == 2 || dm == 18) && !(s.neg_limit.seen && s.pos_limit.seen))
+    throw std::invalid_argument(ax + ": " + method + " homes on a limit switch: the switch search must have found both");
+  // A drive's methods speak of its own direction: with REVERSE the
+  // table's minus is the drive's plus (and its negative limit input is the
+  // table's positive switch). A home switch method must name the side the
+  // switch is on, seen from where the search started.
+  const double table_side = s.home.position < s.start ? -1.0 : 1.0;
+  const double drive_side = a.scaling.reverse ? -table_side : table_side;
+  const int base = dm > 16 && dm < 33 ? dm - 16 : dm;
+  if (base >= 3 && base <= 6) {
+    const double method_side = base <= 4 ? 1.0 : -1.0;
+    if (method_side != drive_side) {
+      const int other = (base == 3 ? 5 : base == 4 ? 6 : base == 5 ? 3 : 4) + (dm > 16 ? 16 : 0);
+      throw std::invalid_argument(ax + ": " + method + " looks for the home switch on the drive's " +
+                                  (method_side > 0 ? "+" : "-") + " side, but it is on the drive's " +
+                                  (drive_side > 0 ? "+" : "-") + " side" + (a.scaling.reverse ? " (the axis is REVERSE)" : "") +
+                                  ": use drive:" + std::to_string(other));
+    }
+  }
   AxisHoming h;
   h.method = method;
   // Towards the home switch from where the switch search started, at the
@@ -91,14 +108,14 @@ AxisHoming plan_homing(const Axis& a, const std::string& method) {
   h.search_velocity = dir * v;
   h.latch_velocity = -dir * std::max(0.1, v / 10);
   h.home_offset = home_switch_reference(s, h.search_velocity);
-  if (dm == 1 || dm == 17) h.home_offset = s.neg_limit.position;
-  if (dm == 2 || dm == 18) h.home_offset = s.pos_limit.position;
+  const bool drive_neg = (dm == 1 || dm == 17) != a.scaling.reverse;  // the drive's limit, in table terms
+  if (dm == 1 || dm == 17 || dm == 2 || dm == 18) h.home_offset = drive_neg ? s.neg_limit.position : s.pos_limit.position;
   if (dm == 35 || dm == 37) h.home_offset = 0;
   // HOME: 5 mm off the home switch towards the start, inside the limits.
   const double edge = home_switch_reference(s, h.search_velocity);
   h.home = std::clamp(edge - dir * 5.0, a.min_limit, a.max_limit);
   h.measured = dm == 0 ? "motor position of the latched home switch edge (mm)"
-                       : "home switch edge in the frame the drive set (mm), crossed at 1 mm/s";
+                       : "home switch edge in the frame the drive set (mm), crossed again slowly until two polls are within 10 um";
   return h;
 }
 
@@ -143,6 +160,7 @@ std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, d
         if (!first_change(s, &SwitchSample::home, ref))
           throw std::runtime_error(std::string("axis ") + a.letter + ": the home switch did not change within " + mm(reach) +
                                    " mm of HOME after run " + std::to_string(k + 1) + ": is the drive's reference far from it?");
+        ref = cross_edge(c, a, &SwitchSample::home, "home switch", ref, dir, std::max(1.0, std::fabs(h.search_velocity)), 0.25, 0.01);
       }
       refs.push_back(ref);
       if (progress) std::fprintf(progress, "axis %c: run %d: reference %s mm\n", a.letter, k + 1, mm(ref).c_str());
@@ -182,8 +200,10 @@ std::string joint_homing_keys(const Axis& a) {
   const double home = std::clamp(h.home, a.min_limit, a.max_limit);
   std::string s = "# Homing commissioned (" + h.method + "), spread " + num(h.spread) + " mm over " +
                   std::to_string(h.references.size()) + " runs.\n";
-  if (drive_method(h.method) != 0) {
+  const int m = drive_method(h.method);
+  if (m != 0) {
     s += "HOME_MODE = DRIVE\n";
+    if (m == 1 || m == 2 || m == 17 || m == 18) s += "HOME_IGNORE_LIMITS = YES\n";  // it homes on one
   } else {
     s += "HOME_SEARCH_VEL = " + num(h.search_velocity) + "\nHOME_LATCH_VEL = " + num(h.latch_velocity) + "\n";
   }
@@ -215,8 +235,19 @@ std::string switch_nets(const std::vector<const Axis*>& axes) {
     if (s.pos_limit.seen) nets.push_back({l + "-pos-lim", d + "pos-lim-sw", j + "pos-lim-sw-in", !s.pos_limit.active_high});
     if (s.home.seen) nets.push_back({l + "-home-sw", d + "home-sw", j + "home-sw-in", !s.home.active_high});
   }
-  if (nets.empty()) return "";
-  std::string out = "\n# Limit and home switches as the switch search found them (cnc-commission axis L\n"
+  // Drive homing: motion's handshake with the drive.
+  std::string handshake;
+  for (const Axis* a : axes) {
+    if (!a->homing || drive_method(a->homing->method) <= 0 || !a->enabled) continue;
+    const std::string l(1, static_cast<char>(std::tolower(static_cast<unsigned char>(a->letter))));
+    const std::string d = drive_pin_prefix(*a), j = "joint." + std::to_string(a->joint) + ".";
+    handshake += "net " + l + "-home-start " + j + "drive-home-start => " + d + "home-start\n";
+    for (const char* k : {"busy", "done", "error"})
+      handshake += "net " + l + "-home-" + k + " " + d + "home-" + k + " => " + j + "drive-home-" + k + "\n";
+  }
+  if (!handshake.empty()) handshake = "\n# Drive homing (HOME_MODE = DRIVE): motion starts it, the drive reports.\n" + handshake;
+  if (nets.empty()) return handshake;
+  std::string out = handshake + "\n# Limit and home switches as the switch search found them (cnc-commission axis L\n"
                     "# switches); an input active low (a normally closed switch) goes through a not.\n";
   std::string inverted;
   for (const Net& n : nets)

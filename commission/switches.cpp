@@ -214,7 +214,15 @@ std::vector<SwitchSample> leg(const Controller& c, const Axis& a, const std::str
       out.push_back(poll(c, a, prefix).s);
       return out;
     }
-    if (!p.enabled) return out;  // the controller stopped the axis
+    if (!p.enabled) {
+      // Switched off with no switch changed: not a switch stop (E-stop, a
+      // stalled servo thread, a following error on the way).
+      if (stop_on)
+        throw std::runtime_error(std::string("axis ") + a.letter + ": the controller switched the machine off at " +
+                                 mm(p.s.position) + " mm before the limit switch changed (see its messages: "
+                                 "E-stop, following error, a stalled servo thread)");
+      return out;
+    }
     if (std::fabs(p.s.position - target) < 0.01 && std::fabs(p.s.position - last) < 1e-4) {
       if (++still >= 2) return out;
     } else {
@@ -245,6 +253,33 @@ std::vector<SwitchSample> jog_and_sample(const Controller& c, const Axis& a, dou
   return leg(c, a, drive_pin_prefix(a), dist, vel, stop_on);
 }
 
+double cross_edge(const Controller& c, const Axis& a, bool SwitchSample::*input, const char* name, double edge,
+                  double dir, double fast, double slow, double tolerance) {
+  const std::string prefix = drive_pin_prefix(a);
+  double at = edge;
+  double backoff = 1.0;  // then twice the last gap: each try is short
+  for (int attempt = 0; attempt < 3; ++attempt, slow /= 4) {
+    Poll p = poll(c, a, prefix);
+    if (!p.enabled) machine_on(c, true);
+    else c.cnc({"override-limits"});
+    p = poll(c, a, prefix);
+    leg(c, a, prefix, (at - dir * backoff) - p.pos_cmd, fast, nullptr);
+    const auto s = leg(c, a, prefix, dir * (2.5 * backoff), slow, input);
+    double gap = 0;
+    for (std::size_t i = 1; i < s.size(); ++i)
+      if (s[i].*input != s[0].*input) {
+        gap = std::fabs(s[i].position - s[i - 1].position);
+        break;
+      }
+    if (!first_change(s, input, at))
+      throw std::runtime_error(std::string("axis ") + a.letter + ": the " + name + " did not change again near " + mm(edge) +
+                               " mm: a loose contact or a bouncing switch? check its wiring");
+    if (gap <= tolerance) break;
+    backoff = std::clamp(2 * gap, 0.05, 1.0);
+  }
+  return at;
+}
+
 AxisSwitches find_switches(const Controller& c, const Axis& a, double search_mm, double velocity, std::FILE* progress) {
   const double vel = std::min(std::fabs(velocity), kMaxSwitchVelocity);
   const double search = std::fabs(search_mm);
@@ -253,7 +288,7 @@ AxisSwitches find_switches(const Controller& c, const Axis& a, double search_mm,
   const std::string joint = std::to_string(a.joint);
   auto say = [&](int i, const std::string& text) {
     if (progress) {
-      std::fprintf(progress, "progress: %d/4 %s\n", i, text.c_str());
+      std::fprintf(progress, "progress: %d/5 %s\n", i, text.c_str());
       std::fflush(progress);
     }
   };
@@ -262,6 +297,7 @@ AxisSwitches find_switches(const Controller& c, const Axis& a, double search_mm,
   if (!c.estop_chain_ok())
     throw std::runtime_error(std::string("axis ") + a.letter + ": the E-stop chain is open: close it before the switch search");
   std::vector<SwitchSample> neg, pos;
+  AxisSwitches r;
   try {
     on_again(c);
     const double start = poll(c, a, prefix).s.position;
@@ -284,7 +320,24 @@ AxisSwitches find_switches(const Controller& c, const Axis& a, double search_mm,
     back();
     say(3, std::string("axis ") + a.letter + ": towards plus, up to " + mm(search) + " mm at " + mm(vel) + " mm/s");
     pos = leg(c, a, prefix, search, vel, &SwitchSample::pos);
-    say(4, std::string("axis ") + a.letter + ": back to the start");
+    // Each edge found crossed again slowly (the polls of the search may be
+    // far apart on a loaded host), in the direction the search crossed it.
+    r = analyse_switch_search(a.letter, neg, pos, search, vel, prefix);
+    const double fast = std::min(3 * vel, std::max(vel, a.max_velocity)), slow = std::min(1.0, vel / 4);
+    say(4, std::string("axis ") + a.letter + ": each edge again at " + mm(slow) + " mm/s");
+    if (r.neg_limit.seen)
+      r.neg_limit.position = cross_edge(c, a, &SwitchSample::neg, "negative limit switch", r.neg_limit.position, -1, fast, slow);
+    if (r.pos_limit.seen)
+      r.pos_limit.position = cross_edge(c, a, &SwitchSample::pos, "positive limit switch", r.pos_limit.position, 1, fast, slow);
+    if (r.home.seen) {
+      const double d_lo = r.home.position < r.start ? -1 : 1;
+      r.home.position = cross_edge(c, a, &SwitchSample::home, "home switch", r.home.position, d_lo, fast, slow);
+      if (r.home.has_high) {
+        const double d_hi = r.home.position_high < r.start ? -1 : 1;
+        r.home.position_high = cross_edge(c, a, &SwitchSample::home, "home switch", r.home.position_high, d_hi, fast, slow);
+      }
+    }
+    say(5, std::string("axis ") + a.letter + ": back to the start");
     back();
   } catch (const std::exception& e) {
     std::string off = "; the machine is off again, the drives disabled";
@@ -296,7 +349,7 @@ AxisSwitches find_switches(const Controller& c, const Axis& a, double search_mm,
     throw std::runtime_error(e.what() + off);
   }
   c.cnc({"off"});
-  return analyse_switch_search(a.letter, neg, pos, search, vel, prefix);
+  return r;
 }
 
 }  // namespace cnc::commission

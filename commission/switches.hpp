@@ -52,7 +52,9 @@ std::string drive_pin_prefix(const Axis& a);
 // The motion of step 5 on a running controller: machine on, free mode,
 // jog at `velocity` (at most kMaxSwitchVelocity) towards minus by up to
 // `search_mm`, polling position and inputs; stop at the negative limit
-// switch; back to the start; the same towards plus; machine off. A limit
+// switch; back to the start; the same towards plus; then each edge found
+// is crossed again slowly (cross_edge, in the direction the search crossed
+// it); back to the start; machine off. A limit
 // switch stops the jog at once (a following-error stop of the controller
 // when the drive halts at its switch is expected and handled: the machine
 // is switched on again and the axis jogged off). Time-limited (each leg:
@@ -71,6 +73,15 @@ std::vector<SwitchSample> jog_and_sample(const Controller& c, const Axis& a, dou
 // Machine on (E-stop reset first) in manual mode; `override_limits`: jog
 // off an active limit switch allowed for the next jog.
 void machine_on(const Controller& c, bool override_limits = false);
+
+// Crosses the edge of `input` (about at `edge`) again moving in `dir`:
+// to 1 mm before it at `fast`, then across at `slow`, stopping at the
+// change; while the polls around the change are more than `tolerance`
+// apart, again at a quarter of the speed from twice that gap before it
+// (three tries). Returns where it
+// changed. Throws naming the switch when it does not change again.
+double cross_edge(const Controller& c, const Axis& a, bool SwitchSample::*input, const char* name, double edge,
+                  double dir, double fast, double slow, double tolerance = 0.02);
 
 inline constexpr double kMaxSwitchVelocity = 20.0;  // mm/s
 

@@ -29,10 +29,11 @@ namespace {
 
 namespace csim = cnc::cia402::sim;
 
-// How close the switch search must come to the simulator's truth at 5 mm/s
-// (a change is placed between two polls some 20-60 ms apart), and the
-// homing spread it must reach (the controller latches in the servo cycle).
-constexpr double kSwitchTolerance = 0.5;   // mm
+// How close the switch search must come to the simulator's truth (each
+// edge is crossed again slowly until two polls around it are within
+// 0.02 mm, at most three tries), and the homing spread it must reach (the
+// controller latches in the servo cycle).
+constexpr double kSwitchTolerance = 0.1;   // mm
 constexpr double kHomingSpreadBound = 0.01;  // mm
 
 void write(const std::filesystem::path& p, const std::string& s) {

@@ -182,6 +182,26 @@ TEST(CommissionHoming, UnknownMethodOrNoHomeSwitchIsRefusedNamingTheAxis) {
   }
 }
 
+TEST(CommissionHoming, ADriveMethodLookingOnTheWrongSideIsRefusedNamingTheRightOne) {
+  Axis a = axis_with_switches();  // home switch below the start
+  EXPECT_NO_THROW(plan_homing(a, "drive:22"));
+  try {
+    plan_homing(a, "drive:20");
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("use drive:22"), std::string::npos) << e.what();
+  }
+  a.scaling.reverse = true;  // the drive's plus is the table's minus
+  EXPECT_NO_THROW(plan_homing(a, "drive:20"));
+  try {
+    plan_homing(a, "drive:21");
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("(the axis is REVERSE): use drive:19"), std::string::npos) << e.what();
+  }
+  EXPECT_NEAR(plan_homing(a, "drive:17").home_offset, 100, 0.1);  // the drive's negative limit: the table's + one
+}
+
 State machine_with_steps56(bool low) {
   State s;
   s.interface = "virtual:w";
@@ -244,12 +264,15 @@ TEST(CommissionWriter, WritesSwitchNetsWithTheirPolarityAndTheHomingKeys) {
 
 TEST(CommissionWriter, DriveHomingWritesHomeModeDriveAndTheMethod) {
   State s = machine_with_steps56(false);
-  s.axis('X')->homing = plan_homing(*s.axis('X'), "drive:21");
+  s.axis('X')->homing = plan_homing(*s.axis('X'), "drive:22");
   testing::TempDir dir;
   const auto files = generate_config(s, dir.path(), "m");
   const std::string& ini = files[0].content;
   EXPECT_NE(ini.find("HOME_MODE = DRIVE"), std::string::npos) << ini;
-  EXPECT_NE(ini.find("HOME_METHOD = 21\nHOME_SEARCH_VEL = 5\nHOME_LATCH_VEL = 0.5\n"), std::string::npos) << ini;
+  EXPECT_NE(ini.find("HOME_METHOD = 22\nHOME_SEARCH_VEL = 5\nHOME_LATCH_VEL = 0.5\n"), std::string::npos) << ini;
+  const std::string& hal = files[1].content;
+  EXPECT_NE(hal.find("net x-home-start joint.0.drive-home-start => cia402.0.drive.00.home-start"), std::string::npos) << hal;
+  EXPECT_NE(hal.find("net x-home-done cia402.0.drive.00.home-done => joint.0.drive-home-done"), std::string::npos) << hal;
 }
 
 }  // namespace
