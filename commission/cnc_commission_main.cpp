@@ -187,6 +187,11 @@ void show(const State& s) {
       std::cout << ", " << a.scaling.counts_per_mm() << " counts/mm" << (a.scaling.reverse ? ", REVERSE" : "");
     std::cout << ", limits " << a.min_limit << ".." << a.max_limit << " mm\n";
     if (a.direction) std::cout << "  direction test: " << a.direction->verdict << "\n";
+    if (a.switches)  // steps 5, 6
+      std::cout << "  switches: limits " << (a.switches->neg_limit.seen ? std::to_string(a.switches->neg_limit.position) : "-")
+                << " / " << (a.switches->pos_limit.seen ? std::to_string(a.switches->pos_limit.position) : "-") << " mm, home "
+                << (a.switches->home.seen ? std::to_string(a.switches->home.position) : "-") << " mm\n";
+    if (a.homing) std::cout << "  homing: " << a.homing->method << ", spread " << a.homing->spread << " mm\n";
   }
 }
 
