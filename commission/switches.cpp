@@ -344,7 +344,10 @@ AxisSwitches find_switches(const Controller& c, const Axis& a, double search_mm,
     try {
       c.cnc({"off"});
     } catch (const std::exception& e2) {
-      off = "; switching the machine off failed too (" + std::string(e2.what()) + "): press E-stop";
+      // Already in E-stop (the controller's own stop): the drives are off.
+      off = std::string(e2.what()).find("in E-stop") != std::string::npos
+                ? "; the machine is in E-stop, the drives disabled"
+                : "; switching the machine off failed too (" + std::string(e2.what()) + "): press E-stop";
     }
     throw std::runtime_error(e.what() + off);
   }
