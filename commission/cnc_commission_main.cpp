@@ -21,6 +21,8 @@
 #include "commission/config_writer.hpp"
 #include "commission/controller.hpp"
 #include "commission/lss_assign.hpp"
+#include "commission/homing_check.hpp"
+#include "commission/switches.hpp"
 #include "commission/scan.hpp"
 #include "commission/state.hpp"
 #include "commission/steps.hpp"
@@ -65,6 +67,16 @@ const char* kHelp =
     "      test on a controller of its own, shut down afterwards\n"
     "  axis L dial MM\n"
     "      the dial indicator's reading of the last test: flips REVERSE, corrects scale\n"
+    "  axis L switches [--search MM] [--velocity MM/S] [--bin DIR] [--bring-up DIR]\n"
+    "      jog towards each end (up to 50 mm, 5 mm/s, time-limited) watching the limit\n"
+    "      and home switch inputs: where each changed, its active level\n"
+    "  axis L soft-limits [--margin MM]\n"
+    "      soft limits = the limit switches found less the margin (2 mm)\n"
+    "  homing-methods\n"
+    "      the homing methods: the controller's sequence, the CiA 402 drive methods\n"
+    "  axis L homing --method controller|drive:N [--repeat N] [--away MM] [--bin DIR]\n"
+    "                [--bring-up DIR]\n"
+    "      home N times (5), moving away between runs: reference of each run, spread\n"
     "  axis L enable|disable\n"
     "      keep the axis in, or leave it out of, the written configuration\n"
     "  axis L comp-program --out FILE.ngc [--min MM] [--max MM] [--targets N] [--runs N]\n"
@@ -236,6 +248,11 @@ void show(const State& s) {
       std::cout << "  compensation: measured " << describe(*a.compensation->measured)
                 << (a.compensation->fitted ? ", predicted A " + std::to_string(a.compensation->predicted.A) + " um" : "")
                 << (a.compensation->install ? ", installed" : "") << "\n";
+    if (a.switches)  // steps 5, 6
+      std::cout << "  switches: limits " << (a.switches->neg_limit.seen ? std::to_string(a.switches->neg_limit.position) : "-")
+                << " / " << (a.switches->pos_limit.seen ? std::to_string(a.switches->pos_limit.position) : "-") << " mm, home "
+                << (a.switches->home.seen ? std::to_string(a.switches->home.position) : "-") << " mm\n";
+    if (a.homing) std::cout << "  homing: " << a.homing->method << ", spread " << a.homing->spread << " mm\n";
   }
 }
 
@@ -427,6 +444,102 @@ int cmd_backup(State& s, Args& a) {
 }
 // --- end of helper C's block ---
 
+// --- Steps 5 and 6 (helper A): switches, soft limits from them, homing. ---
+std::string fmt_mm(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3f", v);
+  return b;
+}
+
+std::string describe_switch(const char* name, const SwitchFinding& f) {
+  if (!f.seen) return std::string(name) + ": not seen (" + f.pin + ")";
+  std::string t = std::string(name) + ": at " + fmt_mm(f.position) + " mm";
+  if (f.has_high) t += " to " + fmt_mm(f.position_high) + " mm";
+  return t + ", active " + (f.active_high ? "high" : "low") + " (" + f.pin + ")";
+}
+
+int axis_steps56(State& s, Args& a, char letter, const std::string& step) {
+  Axis* ax = s.axis(letter);
+  if (!ax) usage(std::string("axis ") + letter + " has no drive yet");
+  const std::string L(1, letter);
+  std::filesystem::path bin = self_dir(), bring_up;
+  if (step == "soft-limits") {
+    double margin = 2;
+    while (a.more()) {
+      const std::string k = a.next("option");
+      if (k == "--margin") margin = number(a.next("mm"), "--margin");
+      else usage("soft-limits: unknown option " + k);
+    }
+    soft_limits_from_switches(*ax, margin);
+    std::cout << "axis " << letter << ": soft limits " << fmt_mm(ax->min_limit) << " .. " << fmt_mm(ax->max_limit)
+              << " mm (limit switches less " << fmt_mm(margin) << " mm)\n";
+    s.log.push_back("axis " + L + " soft limits from the switches");
+    return 0;
+  }
+  if (step == "switches") {
+    double search = 50, velocity = 5;
+    while (a.more()) {
+      const std::string k = a.next("option");
+      if (k == "--search") search = number(a.next("mm"), "--search");
+      else if (k == "--velocity") velocity = number(a.next("mm/s"), "--velocity");
+      else if (k == "--bin") bin = a.next("folder");
+      else if (k == "--bring-up") bring_up = a.next("folder");
+      else usage("switches: unknown option " + k);
+    }
+    if (!(search > 0) || !(velocity > 0)) usage("switches: --search and --velocity must be > 0");
+    std::unique_ptr<ControllerProcess> own;
+    if (!bring_up.empty()) own = bring_up_controller(s, bin, bring_up, "commission", bring_up / "cncd.log");
+    const AxisSwitches r = find_switches(Controller(bin), *ax, search, velocity, stdout);
+    if (own && own->stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
+    std::cout << "axis " << letter << ": searched " << fmt_mm(search) << " mm each way from " << fmt_mm(r.start)
+              << " mm at " << fmt_mm(r.velocity) << " mm/s; the machine is off again\n"
+              << "  " << describe_switch("negative limit", r.neg_limit) << "\n  "
+              << describe_switch("positive limit", r.pos_limit) << "\n  " << describe_switch("home switch", r.home) << "\n";
+    if (!r.problems.empty()) {
+      std::string all;
+      for (const auto& p : r.problems) all += (all.empty() ? "" : "\n") + p;
+      throw std::runtime_error(all + "\n(nothing saved)");
+    }
+    ax->switches = r;
+    s.log.push_back("axis " + L + " switches found");
+    return 0;
+  }
+  // homing
+  std::string method;
+  int repeat = 5;
+  double away = 5;
+  while (a.more()) {
+    const std::string k = a.next("option");
+    if (k == "--method") method = a.next("method");
+    else if (k == "--repeat") repeat = static_cast<int>(number(a.next("count"), "--repeat"));
+    else if (k == "--away") away = number(a.next("mm"), "--away");
+    else if (k == "--bin") bin = a.next("folder");
+    else if (k == "--bring-up") bring_up = a.next("folder");
+    else usage("homing: unknown option " + k);
+  }
+  if (method.empty()) usage("homing: --method controller|drive:N (cnc-commission homing-methods)");
+  if (repeat < 1 || repeat > 100) usage("homing: --repeat 1..100");
+  if (!(away > 0)) usage("homing: --away must be > 0");
+  Axis planned = *ax;
+  planned.homing = plan_homing(*ax, method);
+  std::unique_ptr<ControllerProcess> own;
+  if (!bring_up.empty()) {
+    State with = s;
+    *with.axis(letter) = planned;
+    own = bring_up_controller(with, bin, bring_up, "commission", bring_up / "cncd.log");
+  }
+  const std::vector<double> refs = run_homing(Controller(bin), planned, repeat, away, stdout);
+  if (own && own->stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
+  planned.homing->references = refs;
+  planned.homing->spread = spread(refs);
+  std::cout << "axis " << letter << ": " << method << ", " << refs.size() << " runs, spread "
+            << fmt_mm(planned.homing->spread * 1000) << " um (" << planned.homing->measured << ")\n";
+  *ax = planned;
+  s.log.push_back("axis " + L + " homing " + method);
+  return 0;
+}
+// --- end of steps 5 and 6 ---
+
 int cmd_axis(State& s, Args& a) {
   const std::string l = a.next("axis letter");
   if (l.size() != 1) usage("axis \"" + l + "\": expected one letter");
@@ -518,6 +631,8 @@ int cmd_axis(State& s, Args& a) {
     s.log.push_back("axis " + std::string(1, letter) + " dial " + l);
   } else if (step.rfind("comp-", 0) == 0) {
     return cmd_axis_comp(s, letter, step, a);  // step 8
+  } else if (step == "switches" || step == "soft-limits" || step == "homing") {  // steps 5, 6
+    return axis_steps56(s, a, letter, step);
   } else if (step == "enable" || step == "disable") {
     Axis* ax = s.axis(letter);
     if (!ax) usage(std::string("axis ") + letter + " has no drive yet");
@@ -649,6 +764,9 @@ int main(int argc, char** argv) {
         else if (k == "--hal-after-bus") s.hal_after_bus.push_back(a.next("file"));
         else usage("include: unknown option " + k);
       }
+    } else if (cmd == "homing-methods") {  // step 6
+      for (const auto& m : homing_methods()) std::printf("%-11s %s\n", m.id.c_str(), m.text.c_str());
+      return 0;
     } else if (cmd == "write") rc = cmd_write(s, a);
     else if (cmd == "bring-up") rc = cmd_bring_up(s, a);
     else if (cmd == "backup") rc = cmd_backup(s, a);

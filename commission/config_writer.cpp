@@ -11,6 +11,7 @@
 
 #include "commission/backup.hpp"
 #include "commission/compensation.hpp"
+#include "commission/homing_check.hpp"  // steps 5, 6: homing keys, switch nets
 #include "core/util/atomic_file.hpp"
 
 namespace cnc::commission {
@@ -109,12 +110,12 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
         << "\nMAX_VELOCITY = " << num(a->max_velocity) << "\nMAX_ACCELERATION = " << num(a->max_acceleration) << "\n\n";
   }
   for (const Axis* a : axes) {
-    // Homing: not commissioned yet, the joint takes its position where it
-    // stands (HOME_SEARCH_VEL 0).
+    // Homing: as step 6 chose it; not commissioned yet, the joint takes
+    // its position where it stands (HOME_SEARCH_VEL 0).
     ini << "[JOINT_" << a->joint << "]\nTYPE = LINEAR\nMIN_LIMIT = " << num(a->min_limit)
         << "\nMAX_LIMIT = " << num(a->max_limit) << "\nMAX_VELOCITY = " << num(a->max_velocity * 1.05)
         << "\nMAX_ACCELERATION = " << num(a->max_acceleration * 1.1)
-        << "\nFERROR = 1.0\nMIN_FERROR = 0.2\nHOME = 0\nHOME_OFFSET = 0\nHOME_SEQUENCE = 0\n"
+        << "\nFERROR = 1.0\nMIN_FERROR = 0.2\n" << joint_homing_keys(*a)  // steps 5, 6
         << comp_ini_keys(*a, name) << "\n";  // step 8: the screw-compensation table, when installed
   }
   ini << "[EMCIO]\nEMCIO = io\nTOOL_TABLE = tool.tbl\nTOOL_PREPARE_TIMEOUT = 10\nTOOL_CHANGE_TIMEOUT = 30\n\n";
@@ -167,7 +168,7 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
         << a.joint << "\nENCODER_COUNTS = " << num(sc.encoder_counts) << "\nGEAR_MOTOR_REVS = "
         << num(sc.gear_motor_revs) << "\nGEAR_LOAD_REVS = " << num(sc.gear_load_revs)
         << "\nSCREW_LEAD = " << num(sc.screw_lead / sc.correction) << "\nREVERSE = " << (sc.reverse ? "YES" : "NO")
-        << "\nPROBE = NO\n" << (a.enabled ? "" : "DISABLED = YES\n") << "FERROR_WINDOW = 1\nFERROR_TIMEOUT_MS = 20\nQUICK_STOP_DECEL = "
+        << "\nPROBE = NO\n" << drive_homing_keys(a) << (a.enabled ? "" : "DISABLED = YES\n") << "FERROR_WINDOW = 1\nFERROR_TIMEOUT_MS = 20\nQUICK_STOP_DECEL = "
         << num(a.max_acceleration * 2) << "\n\n";
   }
   for (const auto& inc : s.ini_includes) ini << "#INCLUDE " << inc << "\n";
@@ -197,6 +198,7 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
         << "net " << l << "-fault " << d << "amp-fault => " << j << "amp-fault-in\n"
         << "net " << l << "-ready " << d << "enabled => " << j << "amp-ready-in\n";
   }
+  hal << switch_nets(axes);  // steps 5, 6
   hal << "\n# The drives stop by themselves when the motion watchdog stops.\n"
          "net watchdog motion.watchdog => cia402.0.watchdog\n"
          "net watchdog-on motion.watchdog-enabled => cia402.0.watchdog-enabled\n"

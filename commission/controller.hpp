@@ -20,6 +20,8 @@ class Controller {
   // Runs `cnc <args>`; its standard output. Throws std::runtime_error with
   // the command and its output when it fails.
   std::string cnc(const std::vector<std::string>& args) const;
+  // Runs `halcmd <args>`; its standard output (throws as cnc()).
+  std::string halcmd(const std::vector<std::string>& args) const { return run(bin_ / "halcmd", args); }
   // `halcmd getp <name>` as a number.
   double getp(const std::string& name) const;
   // A joint's motor position feedback (machine units) from the status.
@@ -58,8 +60,8 @@ class ControllerProcess {
 // error saying it was aborted). Async-signal-safe: the command-line program
 // calls it from its SIGINT and SIGTERM handlers.
 void request_abort() noexcept;
-// Whether request_abort() was called since the motion began (longer
-// motions of other files poll it); clear_abort() at their start.
+// Whether request_abort() was called since the last clear_abort() (the
+// motions of steps 5 and 6 poll it).
 bool abort_requested() noexcept;
 void clear_abort() noexcept;
 

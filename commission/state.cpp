@@ -199,6 +199,63 @@ DriveBackup backup_from(const json& j) {
   return b;
 }
 // --- end of helper C's block ---
+// --- Steps 5 and 6 (helper A) ---
+json switch_json(const SwitchFinding& f) {
+  return {{"seen", f.seen}, {"position", f.position}, {"position_high", f.position_high}, {"has_high", f.has_high},
+          {"active_high", f.active_high}, {"pin", f.pin}};
+}
+SwitchFinding switch_from(const json& j) {
+  SwitchFinding f;
+  get(j, "seen", f.seen);
+  get(j, "position", f.position);
+  get(j, "position_high", f.position_high);
+  get(j, "has_high", f.has_high);
+  get(j, "active_high", f.active_high);
+  get(j, "pin", f.pin);
+  return f;
+}
+void put_steps56(json& j, const Axis& a) {
+  if (a.switches) {
+    const AxisSwitches& w = *a.switches;
+    j["switches"] = {{"search_mm", w.search_mm}, {"velocity", w.velocity}, {"start", w.start},
+                     {"neg_limit", switch_json(w.neg_limit)}, {"pos_limit", switch_json(w.pos_limit)},
+                     {"home", switch_json(w.home)}, {"problems", w.problems}};
+  }
+  if (a.homing) {
+    const AxisHoming& h = *a.homing;
+    j["homing"] = {{"method", h.method}, {"references", h.references}, {"spread", h.spread},
+                   {"search_velocity", h.search_velocity}, {"latch_velocity", h.latch_velocity},
+                   {"home_offset", h.home_offset}, {"home", h.home}, {"measured", h.measured}};
+  }
+}
+void get_steps56(const json& j, Axis& a) {
+  if (j.contains("switches")) {
+    const json& w = j["switches"];
+    AxisSwitches s;
+    get(w, "search_mm", s.search_mm);
+    get(w, "velocity", s.velocity);
+    get(w, "start", s.start);
+    if (w.contains("neg_limit")) s.neg_limit = switch_from(w["neg_limit"]);
+    if (w.contains("pos_limit")) s.pos_limit = switch_from(w["pos_limit"]);
+    if (w.contains("home")) s.home = switch_from(w["home"]);
+    get(w, "problems", s.problems);
+    a.switches = s;
+  }
+  if (j.contains("homing")) {
+    const json& w = j["homing"];
+    AxisHoming h;
+    get(w, "method", h.method);
+    get(w, "references", h.references);
+    get(w, "spread", h.spread);
+    get(w, "search_velocity", h.search_velocity);
+    get(w, "latch_velocity", h.latch_velocity);
+    get(w, "home_offset", h.home_offset);
+    get(w, "home", h.home);
+    get(w, "measured", h.measured);
+    a.homing = h;
+  }
+}
+// --- end of steps 5 and 6 ---
 
 json axis_json(const Axis& a) {
   json j = {{"letter", std::string(1, a.letter)}, {"joint", a.joint}, {"node", a.node}, {"slave", a.slave},
@@ -216,6 +273,7 @@ json axis_json(const Axis& a) {
                            {"correction", d.correction}, {"verdict", d.verdict}};
   }
   if (a.compensation) j["compensation"] = compensation_json(*a.compensation);
+  put_steps56(j, a);
   return j;
 }
 
@@ -256,6 +314,7 @@ Axis axis_from(const json& j, const std::string& origin) {
     a.direction = t;
   }
   if (j.contains("compensation")) a.compensation = compensation_from(j["compensation"], origin);
+  get_steps56(j, a);
   return a;
 }
 

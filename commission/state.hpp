@@ -108,6 +108,39 @@ struct DriveBackup {
   std::string time;                     // UTC, ISO 8601
   std::vector<std::string> files;       // one per drive, names in dir
 };
+// --- Steps 5 and 6 (helper A): switches and homing. ---
+// One switch as the switch search saw it: `seen` it change, at which joint
+// position (mm, in the frame the controller had during the search; for
+// the home switch the edge on its negative side, `position_high` the one on
+// its positive side when both were seen), and its active level (true: the
+// input reads 1 when the switch is actuated).
+struct SwitchFinding {
+  bool seen = false;
+  double position = 0;
+  double position_high = 0;     // home switch: its positive edge (0: not seen)
+  bool has_high = false;
+  bool active_high = true;
+  std::string pin;              // the HAL pin watched
+};
+struct AxisSwitches {
+  double search_mm = 0, velocity = 0;  // how they were searched
+  double start = 0;                    // where the search started (joint mm)
+  SwitchFinding neg_limit, pos_limit, home;
+  std::vector<std::string> problems;   // switches that never changed, ...
+};
+// Homing repeatability: `method` "controller" (motion's homing sequence on
+// the home switch) or "drive:N" (CiA 402 method N in the drive);
+// `references` the reference position of each run (mm, see
+// docs/commissioning.md for what is measured), `spread` max - min.
+struct AxisHoming {
+  std::string method;
+  std::vector<double> references;
+  double spread = 0;
+  double search_velocity = 0, latch_velocity = 0;  // mm/s, signed as written
+  double home_offset = 0, home = 0;   // HOME_OFFSET, HOME (joint mm)
+  std::string measured;         // what `references` are
+};
+// --- end of steps 5 and 6 ---
 
 struct Axis {
   char letter = 'X';            // X Y Z A B C U V W
@@ -121,6 +154,8 @@ struct Axis {
   double max_velocity = 10, max_acceleration = 100;  // provisional
   bool enabled = true;          // false: left out of the written configuration
   std::optional<AxisCompensation> compensation;  // step 8
+  std::optional<AxisSwitches> switches;  // step 5
+  std::optional<AxisHoming> homing;      // step 6
 };
 
 struct State {

@@ -370,8 +370,8 @@ void DriveModel::process_controlword(uint16_t cw) noexcept {
     }
     if (mode_ == Mode::Homing) {
       HomingEngine::Inputs in;
-      in.neg_limit = plant_.neg_limit();
-      in.pos_limit = plant_.pos_limit();
+      in.neg_limit = drive_neg_limit();
+      in.pos_limit = drive_pos_limit();
       in.home = plant_.home_switch();
       in.counts = encoder_counts();
       if (start_edge && !halted_) {
@@ -689,8 +689,8 @@ void DriveModel::step(double dt) noexcept {
         break;
       case Mode::Homing: {
         HomingEngine::Inputs in;
-        in.neg_limit = plant_.neg_limit();
-        in.pos_limit = plant_.pos_limit();
+        in.neg_limit = drive_neg_limit();
+        in.pos_limit = drive_pos_limit();
         in.home = plant_.home_switch();
         in.index = last_events_.index;
         in.index_counts = last_events_.index_counts;
@@ -727,13 +727,13 @@ void DriveModel::step(double dt) noexcept {
   // Travel limits: never further into an active limit switch (not while
   // homing, which uses them as references); software limits clamp the demand.
   if (power && position_loop && !(mode_ == Mode::Homing && state_ == State::OperationEnabled)) {
-    if (plant_.pos_limit() && demand_ > measured_) {
+    if (drive_pos_limit() && demand_ > measured_) {
       demand_ = measured_;
       vff_ = std::min(vff_, 0.0);
       aff_ = 0;
       internal_limit_ = true;
     }
-    if (plant_.neg_limit() && demand_ < measured_) {
+    if (drive_neg_limit() && demand_ < measured_) {
       demand_ = measured_;
       vff_ = std::max(vff_, 0.0);
       aff_ = 0;
@@ -806,9 +806,9 @@ void DriveModel::step(double dt) noexcept {
   velocity_actual_.set(static_cast<int32_t>(std::clamp(velocity_report_, -2.0e9, 2.0e9)));
   torque_actual_.set(static_cast<int16_t>(std::clamp(motor_sign() * plant_.torque() / cfg_.plant.rated_torque * 1000.0, -32768.0, 32767.0)));
   uint32_t din = 0;
-  if (plant_.neg_limit()) din |= din::kNegativeLimit;
-  if (plant_.pos_limit()) din |= din::kPositiveLimit;
-  if (plant_.home_switch()) din |= din::kHomeSwitch;
+  if (drive_neg_limit() != cfg_.switches_active_low) din |= din::kNegativeLimit;
+  if (drive_pos_limit() != cfg_.switches_active_low) din |= din::kPositiveLimit;
+  if (plant_.home_switch() != cfg_.switches_active_low) din |= din::kHomeSwitch;
   if (plant_.probe_input()) din |= din::kProbeInput;
   digital_inputs_.set(din);
   temperature_obj_.set(static_cast<int16_t>(std::clamp(temperature() * 10.0, -32768.0, 32767.0)));

@@ -56,10 +56,16 @@ struct DriveSimConfig {
   // The motor mounted the other way round (or wired with its phases and
   // encoder swapped): positive increments and torque move the table towards
   // minus. What commissioning's direction test must find (REVERSE). The
-  // switch inputs stay where the table is; the drive's own hardware-limit
-  // stop then guards the wrong side, so keep limit switches out of such a
-  // machine's simulation.
+  // limit switches are wired by the motor's direction, as a drive expects
+  // them: the switch at the table's + end is then the drive's negative
+  // limit input (0x60FD bit 0), and the drive's own limit stop and homing
+  // guard the right side.
   bool motor_reversed = false;
+  // The limit and home switch inputs read inverted in 0x60FD (normally
+  // closed switches on inputs set for normally open): what commissioning's
+  // switch search must find (the active level). The drive's own limit
+  // stop and homing still act on the actuated switch.
+  bool switches_active_low = false;
 };
 
 class DriveModel {
@@ -134,7 +140,10 @@ class DriveModel {
   void update_probes(const StepEvents& ev) noexcept;
   void update_statusword() noexcept;
   double encoder_counts() const noexcept;
-  double motor_sign() const noexcept { return cfg_.motor_reversed ? -1.0 : 1.0; }  // exact counts the drive sees (frozen on encoder loss)
+  double motor_sign() const noexcept { return cfg_.motor_reversed ? -1.0 : 1.0; }
+  // The limit switches in the motor's direction (see motor_reversed).
+  bool drive_neg_limit() const noexcept { return cfg_.motor_reversed ? plant_.pos_limit() : plant_.neg_limit(); }
+  bool drive_pos_limit() const noexcept { return cfg_.motor_reversed ? plant_.neg_limit() : plant_.pos_limit(); }  // exact counts the drive sees (frozen on encoder loss)
 
   DriveSimConfig cfg_;
   canopen::ObjectDictionary& od_;

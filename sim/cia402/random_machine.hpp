@@ -1,6 +1,7 @@
 // A randomised simulated machine for commissioning tests: per axis drive a
-// random encoder resolution, gear, screw lead, motor direction, backlash
-// and pitch error, drawn from a seed. The machine is written as the
+// random encoder resolution, gear, screw lead, motor direction, backlash,
+// pitch error, limit and home switch positions and the switches' active
+// level, drawn from a seed. The machine is written as the
 // simulator's INI sections ([CIA402_SIM], docs/configuration.md) and HAL
 // lines, plus its truth as JSON for the test's final checks; the
 // commissioning code under test never reads the truth. Simulation only.
@@ -21,6 +22,11 @@ struct RandomAxis {
   bool motor_reversed = false;
   double backlash_mm = 0;
   std::vector<std::pair<double, double>> pitch_error;  // (position mm, error mm)
+  // Switches at table positions (mm from where the table stands at
+  // power-on): limits active at or beyond, home active in [min, max].
+  double neg_limit_mm = -15, pos_limit_mm = 215;
+  double home_min_mm = -10, home_max_mm = -6;
+  bool switches_active_low = false;  // the inputs read 0 when actuated
   double counts_per_mm() const noexcept { return encoder_counts * gear / lead_mm; }
 };
 
@@ -30,7 +36,12 @@ struct RandomMachine {
   std::vector<RandomAxis> axes;
 };
 
-// Axes on nodes `nodes`, drawn from `seed` (the same seed, the same machine).
+// Axes on nodes `nodes`, drawn from `seed` (the same seed, the same
+// machine). The travel fits configs/sim/nc_files/demo.ngc: the first,
+// fourth... axis (X-like) has its limits near -30 and +215 mm, the second
+// (Y-like) near -30 and +135, the third (Z-like) near -65 and +30, each a
+// few mm off at random (a 20 mm direction test either way stays clear), the home switch (4 to 6 mm long) 2 to 4 mm inside
+// the negative limit (the Z-like axis: inside the positive one).
 RandomMachine make_random_machine(uint64_t seed, const std::vector<int>& nodes, const std::string& interface);
 
 // The simulator's INI sections (section [CIA402_SIM], CLOCK = SERVO).
@@ -40,7 +51,7 @@ std::string sim_ini(const RandomMachine& m);
 std::string sim_hal_load();
 std::string sim_hal_run();
 // The truth, as JSON: seed, and per axis node, counts, gear, lead,
-// reversed, counts per mm.
+// reversed, counts per mm, switch positions and active level.
 std::string truth_json(const RandomMachine& m);
 
 }  // namespace cnc::cia402::sim

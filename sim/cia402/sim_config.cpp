@@ -87,6 +87,7 @@ SimNodeConfig load_node(const ini::IniFile& ini, const std::string& s, int id, d
   d.ferror_window = static_cast<uint32_t>(ini.get_int(s, "FERROR_WINDOW_COUNTS", 0, {0, 4294967295.0}));
   d.ferror_timeout_ms = static_cast<uint16_t>(ini.get_int(s, "FERROR_TIMEOUT_MS", 10, {0, 65535}));
   d.motor_reversed = ini.get_bool(s, "MOTOR_REVERSED", false);
+  d.switches_active_low = ini.get_bool(s, "SWITCHES_ACTIVE_LOW", false);
   d.sync_timeout_ns = ini.get_int(s, "SYNC_TIMEOUT_MS", 200, {1, 600'000}) * 1'000'000;
   d.trip_c = ini.get_double(s, "TRIP_TEMPERATURE", d.trip_c, {0, 1000});
   d.warning_c = ini.get_double(s, "WARNING_TEMPERATURE", d.warning_c, {0, 1000});

@@ -631,6 +631,33 @@ TEST(Cia402Sim, LimitSwitchStopsMotionIntoItAndSetsTheInternalLimitBit) {
   EXPECT_NEAR(d.table_mm(), 30, 0.01);
 }
 
+TEST(Cia402Sim, AReversedMotorSeesTheTablesPlusSwitchAsItsNegativeLimitAndStopsAtIt) {
+  DriveSimConfig c = base_config();
+  c.motor_reversed = true;  // positive increments move the table towards minus
+  SimDrive d(c);
+  d.enable();
+  d.move_to(-45, 20);  // the table runs towards its + switch at 40 mm
+  EXPECT_GT(d.table_mm(), 39.0);
+  EXPECT_LT(d.table_mm(), 41.0);
+  EXPECT_TRUE(d.od.get<uint32_t>({0x60FD, 0}) & din::kNegativeLimit);
+  EXPECT_FALSE(d.od.get<uint32_t>({0x60FD, 0}) & din::kPositiveLimit);
+  d.move_to(-30, 20);  // away from it is allowed
+  EXPECT_NEAR(d.table_mm(), 30, 0.01);
+}
+
+TEST(Cia402Sim, SwitchesActiveLowReadInvertedButStillStopTheDrive) {
+  DriveSimConfig c = base_config();
+  c.switches_active_low = true;
+  SimDrive d(c);
+  d.enable();
+  d.syncs(2);
+  const uint32_t all = din::kNegativeLimit | din::kPositiveLimit | din::kHomeSwitch;
+  EXPECT_EQ(d.od.get<uint32_t>({0x60FD, 0}) & all, all);  // none actuated at 0
+  d.move_to(45, 20);
+  EXPECT_LT(d.table_mm(), 41.0);
+  EXPECT_EQ(d.od.get<uint32_t>({0x60FD, 0}) & all, din::kNegativeLimit);  // + limit and home actuated
+}
+
 TEST(Cia402Sim, SoftwareLimitsClampTheDemand) {
   SimDrive d;
   ASSERT_EQ(d.sdo_write(0x607D, 1, static_cast<uint32_t>(-10'000), 4), 0u);

@@ -1,0 +1,70 @@
+// Step 6 of commissioning: homing. The methods there are (the controller's
+// own homing sequence on the home switch, and the CiA 402 methods of the
+// drives), the HOME_* keys a chosen method needs (the configuration
+// writer writes them from Axis::homing), and the repeatability run: home
+// N times, moving away between runs, recording the reference position of
+// each run and its spread. Non-realtime.
+#pragma once
+
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "commission/controller.hpp"
+#include "commission/state.hpp"
+
+namespace cnc::commission {
+
+struct HomingMethod {
+  std::string id;     // "controller", "drive:17"
+  std::string text;   // one line
+};
+
+// The methods, in the order shown: the controller's sequence, then the
+// CiA 402 methods the drives of this project support (docs/cia402.md).
+const std::vector<HomingMethod>& homing_methods();
+
+// Checks `method` ("controller" or "drive:N" with N one of the list) for
+// axis `a`, and fills Axis::homing's method and speeds from the switch
+// search (the controller's sequence needs the home switch found; drive
+// methods on a switch need that switch). Throws std::invalid_argument
+// naming the axis and what is missing.
+AxisHoming plan_homing(const Axis& a, const std::string& method);
+
+// The CiA 402 method number of "drive:N" (0 for "controller").
+int drive_method(const std::string& method);
+
+// The joint position of the home switch edge the controller latches (the
+// edge nearer the start of the switch search), which becomes HOME_OFFSET.
+double home_switch_reference(const AxisSwitches& s, double search_velocity);
+
+// Spread (max - min) of the references; 0 for fewer than two.
+double spread(const std::vector<double>& v) noexcept;
+
+// The repeatability run on a controller configured with Axis::homing
+// (written by the writer): machine on, `repeat` times: home the joint,
+// record the reference, move away by `away_mm` (towards the start of the
+// switch search); machine off at the end whatever happens; time-limited
+// (each homing 120 s); request_abort() stops it. What is recorded:
+//   controller: the motor position of the latched switch edge (motor
+//     position feedback - joint position + HOME_OFFSET, read at rest
+//     after homing): exact, the position frame of the motor does not move;
+//   drive:N: the drive sets its own position at the reference, so the
+//     reference is measured against the switch: the joint position (in the
+//     frame the drive just set) where the method's switch changes while
+//     the axis moves away at 1 mm/s (resolution about 1 mm/s x the poll
+//     interval, some 0.03 mm).
+std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, double away_mm, std::FILE* progress);
+
+}  // namespace cnc::commission
+
+namespace cnc::commission {
+// The configuration writer's part of steps 5 and 6 (each "" when the step
+// was not done): the HOME_* keys of [JOINT_n] (controller or drive homing;
+// without homing: the joint homes where it stands), the drive-homing keys
+// of [CIA402_DRIVE_n], and the HAL nets of the switches found (each drive
+// input to its joint pin, through a `not` when it is active low).
+std::string joint_homing_keys(const Axis& a);
+std::string drive_homing_keys(const Axis& a);
+std::string switch_nets(const std::vector<const Axis*>& axes);
+}  // namespace cnc::commission

@@ -1,0 +1,358 @@
+#include "commission/switches.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+#include <thread>
+
+namespace cnc::commission {
+
+namespace {
+
+std::string mm(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3f", v);
+  return b;
+}
+
+// Which bit of 0x60FD each input is (CiA 402): what to check in the drive.
+const char* kBit[] = {"bit 0 (negative limit)", "bit 1 (positive limit)", "bit 2 (home switch)"};
+
+std::string never_changed(char letter, const char* which, const std::string& pin, double search_mm, int bit) {
+  return std::string("axis ") + letter + ": the " + which + " never changed within " + mm(search_mm) +
+         " mm of the start (" + pin + "): check its wiring and supply, its polarity (normally open or closed), "
+         "and the drive's input mapping (0x60FD " + kBit[bit] + ")";
+}
+
+}  // namespace
+
+std::string drive_pin_prefix(const Axis& a) {
+  char b[48];
+  std::snprintf(b, sizeof b, "cia402.0.drive.%02d.", a.joint);
+  return b;
+}
+
+bool first_change(const std::vector<SwitchSample>& samples, bool SwitchSample::*input, double& position) {
+  for (std::size_t i = 1; i < samples.size(); ++i) {
+    if (samples[i].*input != samples[0].*input) {
+      position = 0.5 * (samples[i - 1].position + samples[i].position);
+      return true;
+    }
+  }
+  return false;
+}
+
+AxisSwitches analyse_switch_search(char letter, const std::vector<SwitchSample>& towards_neg,
+                                   const std::vector<SwitchSample>& towards_pos, double search_mm, double velocity,
+                                   const std::string& pin_prefix) {
+  AxisSwitches r;
+  r.search_mm = search_mm;
+  r.velocity = velocity;
+  if (towards_neg.empty() || towards_pos.empty())
+    throw std::invalid_argument(std::string("axis ") + letter + ": no samples of the switch search");
+  r.start = towards_neg.front().position;
+  r.neg_limit.pin = pin_prefix + "neg-lim-sw";
+  r.pos_limit.pin = pin_prefix + "pos-lim-sw";
+  r.home.pin = pin_prefix + "home-sw";
+
+  // Limits: inactive at the start; active is the level changed to.
+  r.neg_limit.seen = first_change(towards_neg, &SwitchSample::neg, r.neg_limit.position);
+  r.neg_limit.active_high = !towards_neg.front().neg;
+  if (!r.neg_limit.seen) r.problems.push_back(never_changed(letter, "negative limit switch", r.neg_limit.pin, search_mm, 0));
+  r.pos_limit.seen = first_change(towards_pos, &SwitchSample::pos, r.pos_limit.position);
+  r.pos_limit.active_high = !towards_pos.front().pos;
+  if (!r.pos_limit.seen) r.problems.push_back(never_changed(letter, "positive limit switch", r.pos_limit.pin, search_mm, 1));
+  // Each limit must stay quiet on the way to the other end.
+  double p = 0;
+  if (first_change(towards_pos, &SwitchSample::neg, p))
+    r.problems.push_back(std::string("axis ") + letter + ": the negative limit switch (" + r.neg_limit.pin +
+                         ") changed at " + mm(p) + " mm on the way to the positive end: are the limit inputs swapped, "
+                         "or is REVERSE wrong (run the direction test)?");
+  if (first_change(towards_neg, &SwitchSample::pos, p))
+    r.problems.push_back(std::string("axis ") + letter + ": the positive limit switch (" + r.pos_limit.pin +
+                         ") changed at " + mm(p) + " mm on the way to the negative end: are the limit inputs swapped, "
+                         "or is REVERSE wrong (run the direction test)?");
+
+  // Home: the whole travel searched, in position order.
+  std::vector<SwitchSample> line(towards_neg.rbegin(), towards_neg.rend());
+  line.insert(line.end(), towards_pos.begin(), towards_pos.end());
+  std::stable_sort(line.begin(), line.end(), [](const SwitchSample& a, const SwitchSample& b) { return a.position < b.position; });
+  std::vector<double> edges;
+  double len_high = 0, len_low = 0;
+  for (std::size_t i = 1; i < line.size(); ++i) {
+    const double d = line[i].position - line[i - 1].position;
+    if (line[i].home != line[i - 1].home) {
+      edges.push_back(0.5 * (line[i].position + line[i - 1].position));
+      len_high += 0.5 * d;
+      len_low += 0.5 * d;
+    } else {
+      (line[i].home ? len_high : len_low) += d;
+    }
+  }
+  r.home.seen = !edges.empty();
+  if (r.home.seen) {
+    r.home.active_high = len_high <= len_low;
+    r.home.position = edges.front();
+    if (edges.size() >= 2) {
+      r.home.has_high = true;
+      r.home.position_high = edges.back();
+    }
+  } else {
+    r.problems.push_back(never_changed(letter, "home switch", r.home.pin, search_mm, 2));
+  }
+  return r;
+}
+
+void soft_limits_from_switches(Axis& a, double margin_mm) {
+  const std::string ax = std::string("axis ") + a.letter;
+  if (!a.switches) throw std::invalid_argument(ax + ": no switch search yet: run `cnc-commission axis " + a.letter + " switches` first");
+  if (!(margin_mm >= 0)) throw std::invalid_argument(ax + ": the margin must be >= 0");
+  const AxisSwitches& s = *a.switches;
+  if (!s.neg_limit.seen || !s.pos_limit.seen)
+    throw std::invalid_argument(ax + ": the " + std::string(!s.neg_limit.seen ? "negative" : "positive") +
+                                " limit switch was not found: soft limits need both (see the switch search's problems)");
+  const double lo = s.neg_limit.position + margin_mm, hi = s.pos_limit.position - margin_mm;
+  if (!(lo < hi))
+    throw std::invalid_argument(ax + ": a margin of " + mm(margin_mm) + " mm leaves no travel between the switches at " +
+                                mm(s.neg_limit.position) + " and " + mm(s.pos_limit.position) + " mm");
+  a.min_limit = lo;
+  a.max_limit = hi;
+}
+
+// ---------------------------------------------------------------------------
+// The motion.
+
+namespace {
+
+struct Poll {
+  SwitchSample s;
+  bool enabled = false;   // the machine is on
+  double pos_cmd = 0;
+};
+
+bool truth(const std::string& v) { return v == "TRUE" || v == "1" || v == "true"; }
+
+Poll poll(const Controller& c, const Axis& a, const std::string& prefix) {
+  Poll p;
+  const auto j = nlohmann::json::parse(c.cnc({"status", "--json"}));
+  const auto& jt = j.at("joints").at(a.joint);
+  // The position comes from the same halcmd read as the inputs (the
+  // drive's pos-fb, which is the joint's motor position), so both are of
+  // one instant; the status gives the joint's offset to it (homing).
+  const double joint_offset = jt.at("pos_fb").get<double>() - jt.at("motor_pos_fb").get<double>();
+  p.s.position = jt.at("pos_fb").get<double>();
+  p.pos_cmd = jt.at("pos_cmd").get<double>();
+  p.enabled = j.at("motion").value("enabled", false);
+  std::istringstream in(c.halcmd({"show", "pin", prefix}));
+  std::string line;
+  int found = 0;
+  while (std::getline(in, line)) {
+    std::istringstream w(line);
+    std::vector<std::string> t;
+    for (std::string x; w >> x;) t.push_back(x);
+    for (std::size_t i = 1; i < t.size(); ++i) {
+      if (t[i] == prefix + "neg-lim-sw") p.s.neg = truth(t[i - 1]), ++found;
+      else if (t[i] == prefix + "pos-lim-sw") p.s.pos = truth(t[i - 1]), ++found;
+      else if (t[i] == prefix + "home-sw") p.s.home = truth(t[i - 1]), ++found;
+      else if (t[i] == prefix + "pos-fb") {
+        try {
+          p.s.position = std::stod(t[i - 1]) + joint_offset;
+        } catch (const std::exception&) {
+          // Not a number: the status' position (some ms older) serves.
+        }
+      }
+    }
+  }
+  if (found != 3) throw std::runtime_error(std::string("axis ") + a.letter + ": the controller has no pins " + prefix +
+                                           "neg-lim-sw, pos-lim-sw, home-sw (is it a cia402 drive on joint " +
+                                           std::to_string(a.joint) + "?)");
+  return p;
+}
+
+void abort_check(const Controller& c, const Axis& a, const Poll& p) {
+  if (!abort_requested()) return;
+  try {
+    c.cnc({"jog-stop", std::to_string(a.joint)});
+  } catch (const std::exception&) {
+  }
+  throw std::runtime_error(std::string("axis ") + a.letter + ": the switch search was aborted at " + mm(p.s.position) + " mm");
+}
+
+// Jogs by `dist` and samples until it ends, the stop input changes (then
+// a jog stop), the machine goes off (the controller stopped it), or the
+// time limit. Returns the samples.
+std::vector<SwitchSample> leg(const Controller& c, const Axis& a, const std::string& prefix, double dist, double vel,
+                              bool SwitchSample::*stop_on) {
+  if (!(vel > 0)) throw std::invalid_argument("jog: no speed given");
+  const std::string joint = std::to_string(a.joint);
+  std::vector<SwitchSample> out;
+  Poll p = poll(c, a, prefix);
+  out.push_back(p.s);
+  const double target = p.pos_cmd + dist;  // a jog by a distance starts at the command
+  if (std::fabs(dist) < 1e-6) return out;
+  c.cnc({"jog", joint, std::to_string(vel), std::to_string(dist)});
+  const auto limit = std::chrono::duration<double>(2 * std::fabs(dist) / vel + 5.0);
+  const auto start = std::chrono::steady_clock::now();
+  int still = 0;
+  double last = p.s.position;
+  for (;;) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    p = poll(c, a, prefix);
+    out.push_back(p.s);
+    abort_check(c, a, p);
+    if (stop_on && p.s.*stop_on != out.front().*stop_on) {
+      try {
+        c.cnc({"jog-stop", joint});
+      } catch (const std::exception&) {
+        // The controller may have switched off already (its own stop).
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(300));
+      out.push_back(poll(c, a, prefix).s);
+      return out;
+    }
+    if (!p.enabled) {
+      // Switched off with no switch changed: not a switch stop (E-stop, a
+      // stalled servo thread, a following error on the way).
+      if (stop_on)
+        throw std::runtime_error(std::string("axis ") + a.letter + ": the controller switched the machine off at " +
+                                 mm(p.s.position) + " mm before the limit switch changed (see its messages: "
+                                 "E-stop, following error, a stalled servo thread)");
+      return out;
+    }
+    if (std::fabs(p.s.position - target) < 0.01 && std::fabs(p.s.position - last) < 1e-4) {
+      if (++still >= 2) return out;
+    } else {
+      still = 0;
+    }
+    last = p.s.position;
+    if (std::chrono::steady_clock::now() - start > limit) {
+      c.cnc({"jog-stop", joint});
+      throw std::runtime_error(std::string("axis ") + a.letter + ": the jog did not end within " + mm(limit.count()) +
+                               " s (at " + mm(p.s.position) + " mm, target " + mm(target) + "): stopped");
+    }
+  }
+}
+
+void on_again(const Controller& c) { machine_on(c, false); }
+
+}  // namespace
+
+void machine_on(const Controller& c, bool override_limits) {
+  c.cnc({"estop-reset"});
+  c.cnc({"on"});
+  c.cnc({"mode", "manual"});
+  if (override_limits) c.cnc({"override-limits"});
+}
+
+std::vector<SwitchSample> jog_and_sample(const Controller& c, const Axis& a, double dist, double vel,
+                                         bool SwitchSample::*stop_on) {
+  return leg(c, a, drive_pin_prefix(a), dist, vel, stop_on);
+}
+
+double cross_edge(const Controller& c, const Axis& a, bool SwitchSample::*input, const char* name, double edge,
+                  double dir, double fast, double slow, double tolerance) {
+  const std::string prefix = drive_pin_prefix(a);
+  double at = edge;
+  double backoff = 1.0;  // then twice the last gap: each try is short
+  for (int attempt = 0; attempt < 3; ++attempt, slow /= 4) {
+    Poll p = poll(c, a, prefix);
+    if (!p.enabled) machine_on(c, true);
+    else c.cnc({"override-limits"});
+    p = poll(c, a, prefix);
+    leg(c, a, prefix, (at - dir * backoff) - p.pos_cmd, fast, nullptr);
+    const auto s = leg(c, a, prefix, dir * (2.5 * backoff), slow, input);
+    double gap = 0;
+    for (std::size_t i = 1; i < s.size(); ++i)
+      if (s[i].*input != s[0].*input) {
+        gap = std::fabs(s[i].position - s[i - 1].position);
+        break;
+      }
+    if (!first_change(s, input, at))
+      throw std::runtime_error(std::string("axis ") + a.letter + ": the " + name + " did not change again near " + mm(edge) +
+                               " mm: a loose contact or a bouncing switch? check its wiring");
+    if (gap <= tolerance) break;
+    backoff = std::clamp(2 * gap, 0.05, 1.0);
+  }
+  return at;
+}
+
+AxisSwitches find_switches(const Controller& c, const Axis& a, double search_mm, double velocity, std::FILE* progress) {
+  const double vel = std::min(std::fabs(velocity), kMaxSwitchVelocity);
+  const double search = std::fabs(search_mm);
+  if (!(vel > 0) || !(search > 0)) throw std::invalid_argument("switches: --search and --velocity must be > 0");
+  const std::string prefix = drive_pin_prefix(a);
+  const std::string joint = std::to_string(a.joint);
+  auto say = [&](int i, const std::string& text) {
+    if (progress) {
+      std::fprintf(progress, "progress: %d/5 %s\n", i, text.c_str());
+      std::fflush(progress);
+    }
+  };
+  clear_abort();
+  c.cnc({"estop-reset"});
+  if (!c.estop_chain_ok())
+    throw std::runtime_error(std::string("axis ") + a.letter + ": the E-stop chain is open: close it before the switch search");
+  std::vector<SwitchSample> neg, pos;
+  AxisSwitches r;
+  try {
+    on_again(c);
+    const double start = poll(c, a, prefix).s.position;
+    // Back to the start at up to three times the search speed (known ground).
+    auto back = [&]() {
+      Poll p = poll(c, a, prefix);
+      if (!p.enabled) {
+        machine_on(c, true);
+        p = poll(c, a, prefix);
+      } else {
+        c.cnc({"override-limits"});
+      }
+      leg(c, a, prefix, start - p.pos_cmd, std::min(3 * vel, std::max(vel, a.max_velocity)), nullptr);
+      if (!poll(c, a, prefix).enabled)
+        throw std::runtime_error(std::string("axis ") + a.letter + ": the controller stopped the axis on its way back to the start");
+    };
+    say(1, std::string("axis ") + a.letter + ": towards minus, up to " + mm(search) + " mm at " + mm(vel) + " mm/s");
+    neg = leg(c, a, prefix, -search, vel, &SwitchSample::neg);
+    say(2, std::string("axis ") + a.letter + ": back to the start");
+    back();
+    say(3, std::string("axis ") + a.letter + ": towards plus, up to " + mm(search) + " mm at " + mm(vel) + " mm/s");
+    pos = leg(c, a, prefix, search, vel, &SwitchSample::pos);
+    // Each edge found crossed again slowly (the polls of the search may be
+    // far apart on a loaded host), in the direction the search crossed it.
+    r = analyse_switch_search(a.letter, neg, pos, search, vel, prefix);
+    const double fast = std::min(3 * vel, std::max(vel, a.max_velocity)), slow = std::min(1.0, vel / 4);
+    say(4, std::string("axis ") + a.letter + ": each edge again at " + mm(slow) + " mm/s");
+    if (r.neg_limit.seen)
+      r.neg_limit.position = cross_edge(c, a, &SwitchSample::neg, "negative limit switch", r.neg_limit.position, -1, fast, slow);
+    if (r.pos_limit.seen)
+      r.pos_limit.position = cross_edge(c, a, &SwitchSample::pos, "positive limit switch", r.pos_limit.position, 1, fast, slow);
+    if (r.home.seen) {
+      const double d_lo = r.home.position < r.start ? -1 : 1;
+      r.home.position = cross_edge(c, a, &SwitchSample::home, "home switch", r.home.position, d_lo, fast, slow);
+      if (r.home.has_high) {
+        const double d_hi = r.home.position_high < r.start ? -1 : 1;
+        r.home.position_high = cross_edge(c, a, &SwitchSample::home, "home switch", r.home.position_high, d_hi, fast, slow);
+      }
+    }
+    say(5, std::string("axis ") + a.letter + ": back to the start");
+    back();
+  } catch (const std::exception& e) {
+    std::string off = "; the machine is off again, the drives disabled";
+    try {
+      c.cnc({"off"});
+    } catch (const std::exception& e2) {
+      // Already in E-stop (the controller's own stop): the drives are off.
+      off = std::string(e2.what()).find("in E-stop") != std::string::npos
+                ? "; the machine is in E-stop, the drives disabled"
+                : "; switching the machine off failed too (" + std::string(e2.what()) + "): press E-stop";
+    }
+    throw std::runtime_error(e.what() + off);
+  }
+  c.cnc({"off"});
+  return r;
+}
+
+}  // namespace cnc::commission

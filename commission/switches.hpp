@@ -1,0 +1,88 @@
+// Step 5 of commissioning: the limit and home switches of an axis. A slow,
+// time-limited jog towards each end of the axis (free mode) watches the
+// drive's switch inputs (0x60FD through the cia402 pins neg-lim-sw,
+// pos-lim-sw, home-sw) at every poll; the analysis turns the samples into
+// where each switch changed and its active level, and the soft limits
+// follow from the limit switches. The analysis functions are pure (unit
+// tested); find_switches() moves the machine. Non-realtime.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "commission/controller.hpp"
+#include "commission/state.hpp"
+
+namespace cnc::commission {
+
+// One poll during a search: the joint's position and the three inputs as
+// the HAL pins read (not yet interpreted by polarity).
+struct SwitchSample {
+  double position = 0;
+  bool neg = false, pos = false, home = false;
+};
+
+// The analysis of a switch search of axis `letter`: `towards_neg` and
+// `towards_pos` are the samples of the two jogs, each starting at the
+// start position. Rules (docs/commissioning.md): a limit switch is
+// inactive where the search starts (the axis starts between its limits),
+// so its active level is the level it changed to; a change is placed
+// halfway between the last sample before it and the first after it. The
+// home switch's active level is the level held over the shorter part of
+// the travel searched. A switch that never changed is a problem naming
+// the axis, the switch, its pin and what to check. `pin_prefix` names the
+// drive's pins (e.g. "cia402.0.drive.00.").
+AxisSwitches analyse_switch_search(char letter, const std::vector<SwitchSample>& towards_neg,
+                                   const std::vector<SwitchSample>& towards_pos, double search_mm, double velocity,
+                                   const std::string& pin_prefix);
+
+// The first change of one input along `samples` (member selects it): the
+// position halfway between the samples around it; false when none.
+bool first_change(const std::vector<SwitchSample>& samples, bool SwitchSample::*input, double& position);
+
+// Soft limits from the limit switches found: min = negative switch +
+// margin, max = positive switch - margin. Throws std::invalid_argument
+// naming the axis when a switch was not found or the margin leaves no
+// travel.
+void soft_limits_from_switches(Axis& a, double margin_mm);
+
+// The drive pins of an axis (the writer puts axis on joint J on drive J).
+std::string drive_pin_prefix(const Axis& a);
+
+// The motion of step 5 on a running controller: machine on, free mode,
+// jog at `velocity` (at most kMaxSwitchVelocity) towards minus by up to
+// `search_mm`, polling position and inputs; stop at the negative limit
+// switch; back to the start; the same towards plus; then each edge found
+// is crossed again slowly (cross_edge, in the direction the search crossed
+// it); back to the start; machine off. A limit
+// switch stops the jog at once (a following-error stop of the controller
+// when the drive halts at its switch is expected and handled: the machine
+// is switched on again and the axis jogged off). Time-limited (each leg:
+// twice its travel time + 5 s); request_abort() stops it; the machine is
+// off at the end whatever happens. Prints "progress: I/N text" lines to
+// `progress` (may be null).
+AxisSwitches find_switches(const Controller& c, const Axis& a, double search_mm, double velocity,
+                           std::FILE* progress = nullptr);
+
+// Jogs joint `a.joint` by `dist` at `vel` and samples position and inputs
+// until the jog ends, `stop_on` (may be null) changes (then a jog stop),
+// the machine goes off (the controller stopped it) or a time limit
+// (twice the travel time + 5 s: throws). request_abort() throws.
+std::vector<SwitchSample> jog_and_sample(const Controller& c, const Axis& a, double dist, double vel,
+                                         bool SwitchSample::*stop_on);
+// Machine on (E-stop reset first) in manual mode; `override_limits`: jog
+// off an active limit switch allowed for the next jog.
+void machine_on(const Controller& c, bool override_limits = false);
+
+// Crosses the edge of `input` (about at `edge`) again moving in `dir`:
+// to 1 mm before it at `fast`, then across at `slow`, stopping at the
+// change; while the polls around the change are more than `tolerance`
+// apart, again at a quarter of the speed from twice that gap before it
+// (three tries). Returns where it
+// changed. Throws naming the switch when it does not change again.
+double cross_edge(const Controller& c, const Axis& a, bool SwitchSample::*input, const char* name, double edge,
+                  double dir, double fast, double slow, double tolerance = 0.02);
+
+inline constexpr double kMaxSwitchVelocity = 20.0;  // mm/s
+
+}  // namespace cnc::commission
