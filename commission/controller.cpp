@@ -117,6 +117,8 @@ int ControllerProcess::stop() {
 }
 
 void request_abort() noexcept { g_abort.store(true, std::memory_order_relaxed); }
+bool abort_requested() noexcept { return g_abort.load(std::memory_order_relaxed); }
+void clear_abort() noexcept { g_abort.store(false, std::memory_order_relaxed); }
 
 JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, double velocity) {
   const double dist = std::copysign(std::min(std::fabs(distance_mm), kMaxTestTravel), distance_mm);
