@@ -336,7 +336,7 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
     // runs at the highest clean velocity. The jerk lets the acceleration
     // swing across its range in eight servo periods (the free planner
     // allows four).
-    const int total = 2 * o.steps + 4;  // at most: both series and their refinements
+    const int total = 2 * o.steps + 10;  // at most: both series, their refinements and repeats
     int index = 0;
     const double window = hi - lo;
     // The jerk: the test's acceleration over four servo periods, never
@@ -344,12 +344,14 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
     const double jerk_cap = before.max_jerk > 0 ? before.max_jerk : 1e300;
     auto run_one = [&](const std::string& series, double v, double acc) -> const TuningTest* {
       // From where the joint stands towards the farther end of the window
-      // (first into the window when it stands between it and a limit).
+      // (first into the window when it stands between it and a limit, or
+      // where a fault left it: at the first test's speed and acceleration).
       double p0 = joint_now(c, a.joint).pos;
       if (p0 < lo || p0 > hi) {
         const double edge = p0 < lo ? lo : hi;
-        set_limits(c, a.joint, v, acc, std::min(acc / (4 * period), jerk_cap));
-        if (!move(c, a, v, edge - p0, 2 * std::fabs(edge - p0) / v + 5))
+        const double v_in = std::min(v, o.max_velocity / 16), a_in = std::min(acc, o.max_acceleration / 4);
+        set_limits(c, a.joint, v_in, a_in, std::min(a_in / (4 * period), jerk_cap));
+        if (!move(c, a, v_in, edge - p0, 2 * std::fabs(edge - p0) / v_in + 5))
           throw std::runtime_error(axis_name(a) + ": motion stopped on the way into the test travel");
         p0 = joint_now(c, a.joint).pos;
       }
@@ -436,6 +438,19 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
       return &tests.back();
     };
 
+    // A saturation without a fault is confirmed by repeating the test: a
+    // host stall (a late servo cycle jolts the drive) must not end a
+    // series. One that does not repeat is dropped (its file stays).
+    auto run_checked = [&](const std::string& series, double v, double acc) -> const TuningTest* {
+      const TuningTest* t = run_one(series, v, acc);
+      if (!t || !t->saturated || t->fault) return t;
+      const TuningTest first = *t;
+      const TuningTest* again = run_one(series, v, acc);
+      if (!again || again->saturated) return again;
+      tests.erase(tests.end() - 2);
+      report("the saturation of " + first.csv + " did not repeat: that test is ignored");
+      return &tests.back();
+    };
     // Each series: geometric from a sixteenth of its ceiling to the
     // ceiling, then two tests halving the gap (geometrically) between the
     // last clean and the saturated one.
@@ -444,7 +459,7 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
     double v_clean = 0, v_bad = 0;
     for (int k = 0; k < o.steps; ++k) {
       const double v = o.max_velocity * std::pow(16.0, -static_cast<double>(o.steps - 1 - k) / (o.steps - 1));
-      const TuningTest* t = run_one("velocity", v, a_v);
+      const TuningTest* t = run_checked("velocity", v, a_v);
       if (!t) {
         velocity_note = "the travel (" + fmt("%.0f", window) + " mm between the soft limits less 5 %) is too short to test " +
                         fmt("%.0f", v) + " mm/s";
@@ -461,7 +476,7 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
                                                ": lower the ceilings");
     for (int r = 0; r < 2 && v_bad > 0; ++r) {
       const double v = std::sqrt(v_clean * v_bad);
-      const TuningTest* t = run_one("velocity", v, a_v);
+      const TuningTest* t = run_checked("velocity", v, a_v);
       if (!t) break;
       if (t->saturated) v_bad = v;
       else v_clean = std::max(v_clean, std::min(t->velocity, t->reached_velocity));
@@ -471,7 +486,7 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
     for (int k = 0; k < o.steps; ++k) {
       const double acc = a_start * std::pow(o.max_acceleration / a_start, static_cast<double>(k) / (o.steps - 1));
       if (acc <= a_v * 1.0001 && k + 1 < o.steps) continue;  // tested in the velocity series
-      const TuningTest* t = run_one("acceleration", v_clean, acc);
+      const TuningTest* t = run_checked("acceleration", v_clean, acc);
       if (!t) break;
       if (t->saturated) {
         a_bad = acc;
@@ -481,7 +496,7 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
     }
     for (int r = 0; r < 2 && a_bad > 0; ++r) {
       const double acc = std::sqrt(a_clean * a_bad);
-      const TuningTest* t = run_one("acceleration", v_clean, acc);
+      const TuningTest* t = run_checked("acceleration", v_clean, acc);
       if (!t) break;
       if (t->saturated) a_bad = acc;
       else a_clean = acc;

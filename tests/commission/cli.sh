@@ -101,6 +101,7 @@ set +e; cc axis X tune --max-velocity -3 2>"$work/err"; rc=$?; set -e
 [ $rc -eq 2 ] || fail "tune --max-velocity -3: status $rc"
 [ "$before" = "$(cat "$work/state.json")" ] || fail "a refused tune changed the state"
 cc bring-up --dir "$work/m" >/dev/null || fail "bring-up for the tune abort"
+before="$(cat "$work/state.json")"
 "$bin/cnc-commission" --state "$work/state.json" axis X tune --max-velocity 10 --max-acceleration 100 \
   --record "$work/tune-abort" >"$work/out" 2>&1 &
 pid=$!
@@ -111,7 +112,7 @@ set +e; wait $pid; rc=$?; set -e
 [ "$before" = "$(cat "$work/state.json")" ] || fail "the aborted tune changed the state"
 [ "$("$bin/halcmd" getp cia402.0.drive.00.enabled)" = "FALSE" ] || fail "the drive is still enabled after the aborted tune"
 cc shutdown
-cc axis X tune --max-velocity 60 --max-acceleration 1200 --steps 3 --record "$work/tune" --bring-up "$work/t" \
+cc axis X tune --max-velocity 60 --max-acceleration 1200 --steps 3 --record "$work/tune" --bring-up "$work/m" \
   > "$work/out" || fail "tune: $(cat "$work/out")"
 grep -q "^progress: 1/" "$work/out" || fail "tune: no progress lines: $(cat "$work/out")"
 grep -q "^recommended (margin 20 %): MAX_VELOCITY = " "$work/out" || fail "tune: no recommendation: $(cat "$work/out")"
