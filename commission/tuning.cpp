@@ -347,7 +347,7 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
       // (first into the window when it stands between it and a limit, or
       // where a fault left it: at the first test's speed and acceleration).
       double p0 = joint_now(c, a.joint).pos;
-      if (p0 < lo || p0 > hi) {
+      if (p0 < lo - 1e-3 || p0 > hi + 1e-3) {
         const double edge = p0 < lo ? lo : hi;
         const double v_in = std::min(v, o.max_velocity / 16), a_in = std::min(acc, o.max_acceleration / 4);
         set_limits(c, a.joint, v_in, a_in, std::min(a_in / (4 * period), jerk_cap));
@@ -356,7 +356,7 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
         p0 = joint_now(c, a.joint).pos;
       }
       const double sign = hi - p0 >= p0 - lo ? 1.0 : -1.0;
-      const double room = sign > 0 ? hi - p0 : p0 - lo;
+      const double room = std::max(0.0, sign > 0 ? hi - p0 : p0 - lo);
       const double cruise = 0.1;
       double j = std::min(acc / (4 * period), jerk_cap);
       double need = v * v / acc + v * acc / j + cruise * v;
