@@ -155,7 +155,10 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
         << num(sc.gear_motor_revs) << "\nGEAR_LOAD_REVS = " << num(sc.gear_load_revs)
         << "\nSCREW_LEAD = " << num(sc.screw_lead / sc.correction) << "\nREVERSE = " << (sc.reverse ? "YES" : "NO")
         << "\nPROBE = NO\n" << (a.enabled ? "" : "DISABLED = YES\n") << "FERROR_WINDOW = 1\nFERROR_TIMEOUT_MS = 20\nQUICK_STOP_DECEL = "
-        << num(a.max_acceleration * 2) << "\n\n";
+        << num(a.tuning && a.tuning->max_acceleration > 0  // tuned: the highest clean test's acceleration
+                   ? limits(a).a / (1 - a.tuning->margin_pct / 100)
+                   : a.max_acceleration * 2)
+        << "\n\n";
   }
   for (const auto& inc : s.ini_includes) ini << "#INCLUDE " << inc << "\n";
 

@@ -378,7 +378,8 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
                " mm/s, " + fmt("%.0f", acc) + " mm/s2 over " + fmt("%.1f", dist) + " mm");
       set_limits(c, a.joint, v, acc, j);
       const double t_move = std::fabs(dist) / v + v / acc + acc / j + 0.3;
-      const auto samples = static_cast<long>(std::ceil((2 * t_move * 1.2 + 0.5) / period));
+      // At most the buffer the written configuration loads (loadrt scope samples=60000).
+      const auto samples = std::min(60000L, static_cast<long>(std::ceil((2 * t_move * 1.2 + 0.5) / period)));
       const auto pins = tuning_scope_pins(a.joint, a.joint);
       std::string list;
       for (const auto& p : pins) list += (list.empty() ? "" : ",") + p;
@@ -421,7 +422,7 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
         if (reset.rfind("reset failed", 0) == 0) {
           analyse_test(t, record, o.rule, 0);
           tests.push_back(t);
-          throw std::runtime_error(axis_name(a) + ": " + t.finding + ": check the drive (its error code: cnc-commission show)");
+          throw std::runtime_error(axis_name(a) + ": " + t.finding + ": check the drive (its display, the error code in `cnc messages`)");
         }
       }
       double reference = 0;
@@ -526,6 +527,7 @@ State tuning_configuration(const State& s, char letter, const TuneOptions& o) {
   Axis* a = t.axis(letter);
   if (!a) throw std::invalid_argument(std::string("axis ") + letter + " has no drive yet");
   AxisTuning cfg;
+  cfg.margin_pct = 0;  // the ceilings themselves
   cfg.max_velocity = o.max_velocity;
   cfg.max_acceleration = o.max_acceleration;
   // The free planner caps the jerk itself (four periods per swing).

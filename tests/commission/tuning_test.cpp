@@ -236,6 +236,7 @@ TEST(TuningWriter, JointAndAxisLimitsAreTheRecommendationAndTheScopeAndTorqueAre
             std::string::npos) << ini;
   EXPECT_NE(ini.find("MAX_LINEAR_VELOCITY = 123.5\nMAX_LINEAR_ACCELERATION = 4321\n"), std::string::npos) << ini;
   EXPECT_NE(ini.find("TPDO1 = 0x6041:0:u16 0x6064:0:s32 0x6077:0:s16\n"), std::string::npos) << ini;
+  EXPECT_NE(ini.find("QUICK_STOP_DECEL = 5761.333333\n"), std::string::npos) << ini;  // 4321 / (1 - 25 %)
   EXPECT_NE(hal.find("loadrt scope samples=60000\naddf scope.sample servo-thread\n"), std::string::npos) << hal;
 }
 
