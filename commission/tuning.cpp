@@ -504,14 +504,24 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
     }
     result = recommend_tuning(tests, o.margin_pct, a.scaling.counts_per_mm());
     if (!velocity_note.empty() && result.velocity_limit.rfind("saturation", 0) != 0) result.velocity_limit = velocity_note;
-  } catch (...) {
+  } catch (const std::exception& e) {
     // Whatever stopped the tests: the machine off, the joint's limits back.
+    std::string off = "; the machine is off again, the drives disabled";
     try {
       c.cnc({"off"});
+    } catch (const std::exception& e2) {
+      off = "; switching the machine off failed too (" + std::string(e2.what()) + "): press E-stop";
+    }
+    try {
       set_limits(c, a.joint, before.max_velocity, before.max_acceleration, before.max_jerk);
     } catch (const std::exception&) {
+      off += " (the joint's run-time limits were not restored: restart the controller)";
     }
-    throw;
+    // Ctrl-C reaches the halcmd or cnc child too: its failure means the abort.
+    std::string why = e.what();
+    if (abort_requested() && why.find("aborted") == std::string::npos)
+      why = axis_name(a) + ": the tuning tests were aborted (" + why + ")";
+    throw std::runtime_error(why + off);
   }
   c.cnc({"off"});
   try {
