@@ -55,7 +55,7 @@ std::vector<std::string> tuning_scope_pins(int joint, int drive);
 struct SaturationRule {
   double torque_limit_pct = 300;   // the drive's torque limit (0x6072), % of rated
   double torque_share = 0.9;       // saturated at this share of it
-  int limit_cycles = 3;            // statusword bit 11 in this many cycles or more
+  int limit_cycles = 10;           // statusword bit 11 in this many cycles or more (sustained)
   double ferror_growth = 2.0;      // ferror per velocity above this times the first test's
   double ferror_floor_mm = 0.02;   // ... and the peak above this (quantisation of slow tests)
 };

@@ -117,14 +117,14 @@ TEST(TuningAnalysis, TorqueNearTheDrivesLimitIsSaturation) {
   EXPECT_FALSE(ok.saturated) << ok.finding;
 }
 
-TEST(TuningAnalysis, TheDrivesLimitBitInThreeCyclesIsSaturationInTwoItIsNot) {
+TEST(TuningAnalysis, TheDrivesLimitBitInTenCyclesIsSaturationInNineItIsNot) {
   auto r = synthetic(100, 1000, 0.002, 0.02);
-  r[10].limit = r[20].limit = true;
+  for (int i = 0; i < 9; ++i) r[static_cast<std::size_t>(10 + 3 * i)].limit = true;
   EXPECT_FALSE(analysed("velocity", 100, 1000, r).saturated);
-  r[30].limit = true;
+  r[60].limit = true;
   const TuningTest t = analysed("velocity", 100, 1000, r);
   EXPECT_TRUE(t.saturated);
-  EXPECT_EQ(t.limit_cycles, 3);
+  EXPECT_EQ(t.limit_cycles, 10);
   EXPECT_NE(t.finding.find("bit 11"), std::string::npos) << t.finding;
 }
 
