@@ -27,6 +27,7 @@
 #include "commission/state.hpp"
 #include "commission/steps.hpp"
 #include "core/util/atomic_file.hpp"
+#include "commission/tuning.hpp"
 #include "core/util/strings.hpp"
 #include "fieldbus/can/transport.hpp"
 
@@ -65,6 +66,12 @@ const char* kHelp =
     "      limited, switched off afterwards) and compare the drive's feedback;\n"
     "      --bring-up writes the configuration of the state to DIR and runs the\n"
     "      test on a controller of its own, shut down afterwards\n"
+    "  axis L tune [--max-velocity MM/S] [--max-acceleration MM/S2] [--margin PCT]\n"
+    "              [--record DIR] [--steps N] [--torque-limit PCT] [--bin DIR] [--bring-up DIR]\n"
+    "      move tests at rising velocity, then acceleration (back and forth inside the\n"
+    "      soft limits, recorded every servo cycle as CSV in DIR), stopped at the first\n"
+    "      saturation; recommends MAX_VELOCITY, MAX_ACCELERATION, MAX_JERK, FERROR and\n"
+    "      MIN_FERROR (the highest clean test less PCT, default 20 %) for write\n"
     "  axis L dial MM\n"
     "      the dial indicator's reading of the last test: flips REVERSE, corrects scale\n"
     "  axis L switches [--search MM] [--velocity MM/S] [--bin DIR] [--bring-up DIR]\n"
@@ -253,6 +260,10 @@ void show(const State& s) {
                 << " / " << (a.switches->pos_limit.seen ? std::to_string(a.switches->pos_limit.position) : "-") << " mm, home "
                 << (a.switches->home.seen ? std::to_string(a.switches->home.position) : "-") << " mm\n";
     if (a.homing) std::cout << "  homing: " << a.homing->method << ", spread " << a.homing->spread << " mm\n";
+    if (a.tuning)
+      std::cout << "  tuning: MAX_VELOCITY " << a.tuning->max_velocity << ", MAX_ACCELERATION " << a.tuning->max_acceleration
+                << ", MAX_JERK " << a.tuning->max_jerk << ", FERROR " << a.tuning->ferror << ", MIN_FERROR "
+                << a.tuning->min_ferror << " (" << a.tuning->tests.size() << " tests, margin " << a.tuning->margin_pct << " %)\n";
   }
 }
 
@@ -540,6 +551,50 @@ int axis_steps56(State& s, Args& a, char letter, const std::string& step) {
 }
 // --- end of steps 5 and 6 ---
 
+// --- step 7, tuning (helper B) ---
+std::filesystem::path g_state_file = "commission.json";
+
+int cmd_tune(State& s, Args& a, char letter) {
+  TuneOptions o;
+  std::filesystem::path bin = self_dir(), bring_up;
+  while (a.more()) {
+    const std::string k = a.next("option");
+    if (k == "--max-velocity") o.max_velocity = number(a.next("mm/s"), "--max-velocity");
+    else if (k == "--max-acceleration") o.max_acceleration = number(a.next("mm/s2"), "--max-acceleration");
+    else if (k == "--margin") o.margin_pct = number(a.next("percent"), "--margin");
+    else if (k == "--record") o.record_dir = a.next("folder");
+    else if (k == "--steps") o.steps = static_cast<int>(number(a.next("count"), "--steps"));
+    else if (k == "--torque-limit") o.rule.torque_limit_pct = number(a.next("percent"), "--torque-limit");
+    else if (k == "--bin") bin = a.next("folder");
+    else if (k == "--bring-up") bring_up = a.next("folder");
+    else usage("tune: unknown option " + k);
+  }
+  Axis* ax = s.axis(letter);
+  if (!ax) usage(std::string("axis ") + letter + " has no drive yet");
+  if (!(o.max_velocity > 0) || !(o.max_acceleration > 0)) usage("tune: --max-velocity and --max-acceleration must be > 0");
+  if (!(o.margin_pct >= 10 && o.margin_pct < 90)) usage("tune: --margin PCT: 10 to 90");
+  if (o.steps < 2 || o.steps > 20) usage("tune: --steps N: 2 to 20");
+  if (!(o.rule.torque_limit_pct > 0)) usage("tune: --torque-limit PCT must be > 0");
+  if (o.record_dir.empty())
+    o.record_dir = g_state_file.parent_path() / ("tuning-" + std::string(1, static_cast<char>(std::tolower(letter))));
+  o.progress = [](const std::string& l) { std::cout << "progress: " << l << std::endl; };
+  o.report = [](const std::string& l) { std::cout << l << std::endl; };
+  std::unique_ptr<ControllerProcess> own;
+  if (!bring_up.empty())
+    own = bring_up_controller(tuning_configuration(s, letter, o), bin, bring_up, "commission-tune", bring_up / "cncd.log");
+  const AxisTuning t = run_tuning(Controller(bin), *ax, o);
+  if (own && own->stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
+  std::cout << "axis " << letter << ": the machine is off again\n"
+            << "velocity: " << t.velocity_limit << "\nacceleration: " << t.acceleration_limit << "\n"
+            << "recommended (margin " << t.margin_pct << " %): MAX_VELOCITY = " << t.max_velocity
+            << ", MAX_ACCELERATION = " << t.max_acceleration << ", MAX_JERK = " << t.max_jerk
+            << ", FERROR = " << t.ferror << ", MIN_FERROR = " << t.min_ferror << "\n";
+  ax->tuning = t;
+  s.log.push_back("axis " + std::string(1, letter) + " tuned");
+  return 0;
+}
+// --- end of step 7 ---
+
 int cmd_axis(State& s, Args& a) {
   const std::string l = a.next("axis letter");
   if (l.size() != 1) usage("axis \"" + l + "\": expected one letter");
@@ -622,6 +677,8 @@ int cmd_axis(State& s, Args& a) {
               << " mm; the machine is off again\n";
     std::cout << apply_direction_test(s, letter, r.commanded_mm, r.feedback_mm, dial, has_dial).verdict << "\n";
     s.log.push_back("axis " + std::string(1, letter) + " direction test");
+  } else if (step == "tune") {
+    return cmd_tune(s, a, letter);
   } else if (step == "dial") {
     const double dial = number(a.next("dial reading (mm)"), "dial");
     const Axis* ax = s.axis(letter);
@@ -731,6 +788,7 @@ int main(int argc, char** argv) {
     a.i = 1;
     state_file = a.next("state file");
   }
+  g_state_file = state_file;
   const std::string cmd = a.next("command");
   g_state_dir = std::filesystem::absolute(state_file).parent_path();
   if (cmd == "wizard") {

@@ -79,10 +79,22 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
     drives += (i ? " " : "") + std::to_string(i);
     nodes += (i ? " " : "") + std::to_string(ethercat ? axes[i]->slave : axes[i]->node);
   }
+  // Step 7 (tuning): an axis' recommended limits replace its provisional
+  // ones (joint and axis), with its FERROR, MIN_FERROR and MAX_JERK.
+  struct Limits {
+    double v, a, jerk, ferror, min_ferror;
+  };
+  auto limits = [](const Axis& a) {
+    Limits l{a.max_velocity, a.max_acceleration, 0, 1.0, 0.2};
+    if (a.tuning && a.tuning->max_velocity > 0 && a.tuning->max_acceleration > 0) {
+      l = {a.tuning->max_velocity, a.tuning->max_acceleration, a.tuning->max_jerk, a.tuning->ferror, a.tuning->min_ferror};
+    }
+    return l;
+  };
   double max_v = 0, max_a = 0;
   for (const Axis* a : axes) {
-    max_v = std::max(max_v, a->max_velocity);
-    max_a = std::max(max_a, a->max_acceleration);
+    max_v = std::max(max_v, limits(*a).v);
+    max_a = std::max(max_a, limits(*a).a);
   }
 
   std::ostringstream ini;
@@ -106,16 +118,26 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
            return c;
          }() << "\nJOINTS = " << axes.size() << "\n\n";
   for (const Axis* a : axes) {
+    const Limits l = limits(*a);
     ini << "[AXIS_" << a->letter << "]\nMIN_LIMIT = " << num(a->min_limit) << "\nMAX_LIMIT = " << num(a->max_limit)
-        << "\nMAX_VELOCITY = " << num(a->max_velocity) << "\nMAX_ACCELERATION = " << num(a->max_acceleration) << "\n\n";
+        << "\nMAX_VELOCITY = " << num(l.v) << "\nMAX_ACCELERATION = " << num(l.a) << "\n";
+    if (l.jerk > 0) ini << "MAX_JERK = " << num(l.jerk) << "\n";
+    if (a->tuning && a->tuning->margin_pct > 0 && !a->tuning->tests.empty())
+      ini << "# Tuned: the highest clean test less " << num(a->tuning->margin_pct) << " % (cnc-commission axis "
+          << a->letter << " tune)\n";
+    ini << "\n";
   }
   for (const Axis* a : axes) {
     // Homing: as step 6 chose it; not commissioned yet, the joint takes
-    // its position where it stands (HOME_SEARCH_VEL 0).
+    // its position where it stands (HOME_SEARCH_VEL 0). Limits: step 7's
+    // recommendations when tuned.
+    const Limits l = limits(*a);
     ini << "[JOINT_" << a->joint << "]\nTYPE = LINEAR\nMIN_LIMIT = " << num(a->min_limit)
-        << "\nMAX_LIMIT = " << num(a->max_limit) << "\nMAX_VELOCITY = " << num(a->max_velocity * 1.05)
-        << "\nMAX_ACCELERATION = " << num(a->max_acceleration * 1.1)
-        << "\nFERROR = 1.0\nMIN_FERROR = 0.2\n" << joint_homing_keys(*a)  // steps 5, 6
+        << "\nMAX_LIMIT = " << num(a->max_limit) << "\nMAX_VELOCITY = " << num(l.v * 1.05)
+        << "\nMAX_ACCELERATION = " << num(l.a * 1.1) << "\n";
+    if (l.jerk > 0) ini << "MAX_JERK = " << num(l.jerk * 1.1) << "\n";
+    ini << "FERROR = " << num(l.ferror) << "\nMIN_FERROR = " << num(l.min_ferror) << "\n"
+        << joint_homing_keys(*a)              // steps 5, 6
         << comp_ini_keys(*a, name) << "\n";  // step 8: the screw-compensation table, when installed
   }
   ini << "[EMCIO]\nEMCIO = io\nTOOL_TABLE = tool.tbl\nTOOL_PREPARE_TIMEOUT = 10\nTOOL_CHANGE_TIMEOUT = 30\n\n";
@@ -145,7 +167,7 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
       ini << "# " << (std::filesystem::path(s.eds_dir) / n->eds).string() << " describes this drive\n";
     if (!a->enabled) ini << "# Disabled for commissioning: it may be missing.\nMANDATORY = NO\n";
     ini << "HEARTBEAT_MS = 100\nHEARTBEAT_TIMEOUT_MS = 3000\nMASTER_HEARTBEAT_TIMEOUT_MS = 2000\n"
-           "RPDO1 = 0x6040:0:u16 0x607A:0:s32\nTPDO1 = 0x6041:0:u16 0x6064:0:s32\n"
+           "RPDO1 = 0x6040:0:u16 0x607A:0:s32\nTPDO1 = 0x6041:0:u16 0x6064:0:s32 0x6077:0:s16\n"
            "TPDO2 = 0x6061:0:s8 0x60FD:0:u32 0x603F:0:u16\nTPDO2_TRANSMISSION = 255\n"
            "TPDO2_INHIBIT_100US = 20\nTPDO2_EVENT_MS = 100\n\n";
   }
@@ -169,7 +191,10 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
         << num(sc.gear_motor_revs) << "\nGEAR_LOAD_REVS = " << num(sc.gear_load_revs)
         << "\nSCREW_LEAD = " << num(sc.screw_lead / sc.correction) << "\nREVERSE = " << (sc.reverse ? "YES" : "NO")
         << "\nPROBE = NO\n" << drive_homing_keys(a) << (a.enabled ? "" : "DISABLED = YES\n") << "FERROR_WINDOW = 1\nFERROR_TIMEOUT_MS = 20\nQUICK_STOP_DECEL = "
-        << num(a.max_acceleration * 2) << "\n\n";
+        << num(a.tuning && a.tuning->max_acceleration > 0  // tuned: the highest clean test's acceleration
+                   ? limits(a).a / (1 - a.tuning->margin_pct / 100)
+                   : a.max_acceleration * 2)
+        << "\n\n";
   }
   for (const auto& inc : s.ini_includes) ini << "#INCLUDE " << inc << "\n";
 
@@ -185,7 +210,9 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
       << "addf motion-command-handler servo-thread\naddf motion-controller servo-thread\n"
       << "addf cia402.0.write servo-thread\naddf " << bus << ".write servo-thread\n";
   for (const auto& f : s.hal_after_bus) hal << "source " << f << "\n";
-  hal << "\n";
+  // The scope records the tuning tests (step 7) every servo cycle; last in
+  // the thread so it sees the cycle's values.
+  hal << "loadrt scope samples=60000\naddf scope.sample servo-thread\n\n";
   for (std::size_t i = 0; i < axes.size(); ++i) {
     const Axis& a = *axes[i];
     char d[64];

@@ -24,6 +24,8 @@ class Controller {
   std::string halcmd(const std::vector<std::string>& args) const { return run(bin_ / "halcmd", args); }
   // `halcmd getp <name>` as a number.
   double getp(const std::string& name) const;
+  // Runs `halcmd <args>` (e.g. the scope's commands); its output.
+  std::string halcmd(const std::vector<std::string>& args) const { return run(bin_ / "halcmd", args); }
   // A joint's motor position feedback (machine units) from the status.
   double motor_position(int joint) const;
   bool estop_chain_ok() const;
@@ -60,8 +62,7 @@ class ControllerProcess {
 // error saying it was aborted). Async-signal-safe: the command-line program
 // calls it from its SIGINT and SIGTERM handlers.
 void request_abort() noexcept;
-// Whether request_abort() was called since the last clear_abort() (the
-// motions of steps 5 and 6 poll it).
+// Whether request_abort() was called since the last clear_abort().
 bool abort_requested() noexcept;
 void clear_abort() noexcept;
 

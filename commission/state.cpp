@@ -256,6 +256,55 @@ void get_steps56(const json& j, Axis& a) {
   }
 }
 // --- end of steps 5 and 6 ---
+// --- step 7, tuning (helper B) ---
+json tuning_json(const AxisTuning& t) {
+  json tests = json::array();
+  for (const TuningTest& x : t.tests)
+    tests.push_back({{"series", x.series}, {"velocity", x.velocity}, {"acceleration", x.acceleration},
+                     {"jerk", x.jerk}, {"reached_velocity", x.reached_velocity},
+                     {"reached_acceleration", x.reached_acceleration}, {"max_ferror", x.max_ferror},
+                     {"max_torque", x.max_torque}, {"ferror_per_velocity", x.ferror_per_velocity},
+                     {"standstill_ferror", x.standstill_ferror}, {"limit_cycles", x.limit_cycles},
+                     {"saturated", x.saturated}, {"fault", x.fault}, {"finding", x.finding}, {"csv", x.csv}});
+  return {{"tests", tests}, {"margin_pct", t.margin_pct}, {"max_velocity", t.max_velocity},
+          {"max_acceleration", t.max_acceleration}, {"max_jerk", t.max_jerk}, {"ferror", t.ferror},
+          {"min_ferror", t.min_ferror}, {"velocity_limit", t.velocity_limit},
+          {"acceleration_limit", t.acceleration_limit}};
+}
+
+AxisTuning tuning_from(const json& j) {
+  AxisTuning t;
+  if (j.contains("tests"))
+    for (const json& x : j["tests"]) {
+      TuningTest r;
+      get(x, "series", r.series);
+      get(x, "velocity", r.velocity);
+      get(x, "acceleration", r.acceleration);
+      get(x, "jerk", r.jerk);
+      get(x, "reached_velocity", r.reached_velocity);
+      get(x, "reached_acceleration", r.reached_acceleration);
+      get(x, "max_ferror", r.max_ferror);
+      get(x, "max_torque", r.max_torque);
+      get(x, "ferror_per_velocity", r.ferror_per_velocity);
+      get(x, "standstill_ferror", r.standstill_ferror);
+      get(x, "limit_cycles", r.limit_cycles);
+      get(x, "saturated", r.saturated);
+      get(x, "fault", r.fault);
+      get(x, "finding", r.finding);
+      get(x, "csv", r.csv);
+      t.tests.push_back(r);
+    }
+  get(j, "margin_pct", t.margin_pct);
+  get(j, "max_velocity", t.max_velocity);
+  get(j, "max_acceleration", t.max_acceleration);
+  get(j, "max_jerk", t.max_jerk);
+  get(j, "ferror", t.ferror);
+  get(j, "min_ferror", t.min_ferror);
+  get(j, "velocity_limit", t.velocity_limit);
+  get(j, "acceleration_limit", t.acceleration_limit);
+  return t;
+}
+// --- end of step 7 ---
 
 json axis_json(const Axis& a) {
   json j = {{"letter", std::string(1, a.letter)}, {"joint", a.joint}, {"node", a.node}, {"slave", a.slave},
@@ -274,6 +323,7 @@ json axis_json(const Axis& a) {
   }
   if (a.compensation) j["compensation"] = compensation_json(*a.compensation);
   put_steps56(j, a);
+  if (a.tuning) j["tuning"] = tuning_json(*a.tuning);
   return j;
 }
 
@@ -315,6 +365,7 @@ Axis axis_from(const json& j, const std::string& origin) {
   }
   if (j.contains("compensation")) a.compensation = compensation_from(j["compensation"], origin);
   get_steps56(j, a);
+  if (j.contains("tuning")) a.tuning = tuning_from(j["tuning"]);
   return a;
 }
 

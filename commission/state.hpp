@@ -141,6 +141,35 @@ struct AxisHoming {
   std::string measured;         // what `references` are
 };
 // --- end of steps 5 and 6 ---
+// --- step 7, tuning (helper B) ---
+// One move test of the tuning step: back and forth at a commanded
+// velocity, acceleration and jerk, recorded per servo cycle (csv).
+struct TuningTest {
+  std::string series;           // "velocity" or "acceleration": which limit it raises
+  double velocity = 0, acceleration = 0, jerk = 0;  // commanded (mm/s, mm/s^2, mm/s^3)
+  double reached_velocity = 0, reached_acceleration = 0;  // peak of the command
+  double max_ferror = 0;        // peak |following error| (mm)
+  double max_torque = 0;        // peak |torque| (% of rated)
+  double ferror_per_velocity = 0;  // s: peak |ferror| / |velocity| above a quarter of the peak velocity
+  double standstill_ferror = 0; // peak |ferror| below a quarter of the peak velocity (mm)
+  int limit_cycles = 0;         // cycles with the drive's internal limit (statusword bit 11)
+  bool saturated = false;       // the test found a limit (finding says which)
+  bool fault = false;           // the drive faulted or motion stopped during the test
+  std::string finding;          // "" clean
+  std::string csv;              // the record: time_s,command_mm,feedback_mm,ferror_mm,velocity_mm_s,torque_pct
+};
+
+// The tuning step's result: the tests and the recommended limits, each
+// the highest clean test's value less `margin_pct`; FERROR and MIN_FERROR
+// twice the following error the clean tests needed (docs/commissioning.md).
+struct AxisTuning {
+  std::vector<TuningTest> tests;
+  double margin_pct = 20;
+  double max_velocity = 0, max_acceleration = 0, max_jerk = 0;  // recommended
+  double ferror = 0, min_ferror = 0;                            // recommended
+  std::string velocity_limit, acceleration_limit;  // what bounded each: a saturated test, a ceiling, the travel
+};
+// --- end of step 7 ---
 
 struct Axis {
   char letter = 'X';            // X Y Z A B C U V W
@@ -156,6 +185,7 @@ struct Axis {
   std::optional<AxisCompensation> compensation;  // step 8
   std::optional<AxisSwitches> switches;  // step 5
   std::optional<AxisHoming> homing;      // step 6
+  std::optional<AxisTuning> tuning;  // step 7: the writer uses its recommendations
 };
 
 struct State {

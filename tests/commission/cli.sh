@@ -89,6 +89,38 @@ assert sc["reverse"] == t["motor_reversed"], (sc, t)
 assert abs(sc["counts_per_mm"] / t["counts_per_mm"] - 1) < 0.005, (sc, t)
 print("found", sc["counts_per_mm"], "counts/mm, reverse", sc["reverse"], "; truth", t)
 PY
+# Step 7, tuning: bad input is refused with the reason and changes nothing;
+# Ctrl-C during the tests switches off and changes nothing; a short run
+# with --bring-up records CSVs and stores the recommendation.
+before="$(cat "$work/state.json")"
+set +e; cc axis X tune --margin 5 2>"$work/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "margin" "$work/err" || fail "tune --margin 5: status $rc: $(cat "$work/err")"
+set +e; cc axis Q tune 2>"$work/err"; rc=$?; set -e
+[ $rc -eq 2 ] && grep -q "axis Q has no drive" "$work/err" || fail "tune of a missing axis: status $rc: $(cat "$work/err")"
+set +e; cc axis X tune --max-velocity -3 2>"$work/err"; rc=$?; set -e
+[ $rc -eq 2 ] || fail "tune --max-velocity -3: status $rc"
+[ "$before" = "$(cat "$work/state.json")" ] || fail "a refused tune changed the state"
+cc bring-up --dir "$work/m" >/dev/null || fail "bring-up for the tune abort"
+before="$(cat "$work/state.json")"
+"$bin/cnc-commission" --state "$work/state.json" axis X tune --max-velocity 10 --max-acceleration 100 \
+  --record "$work/tune-abort" >"$work/out" 2>&1 &
+pid=$!
+sleep 4
+kill -INT $pid
+set +e; wait $pid; rc=$?; set -e
+[ $rc -eq 1 ] && grep -q "aborted" "$work/out" || fail "aborted tune: status $rc: $(cat "$work/out")"
+[ "$before" = "$(cat "$work/state.json")" ] || fail "the aborted tune changed the state"
+[ "$("$bin/halcmd" getp cia402.0.drive.00.enabled)" = "FALSE" ] || fail "the drive is still enabled after the aborted tune"
+cc shutdown
+cc axis X tune --max-velocity 60 --max-acceleration 1200 --steps 3 --record "$work/tune" --bring-up "$work/m" \
+  > "$work/out" || fail "tune: $(cat "$work/out")"
+grep -q "^progress: 1/" "$work/out" || fail "tune: no progress lines: $(cat "$work/out")"
+grep -q "^recommended (margin 20 %): MAX_VELOCITY = " "$work/out" || fail "tune: no recommendation: $(cat "$work/out")"
+head -1 "$(ls "$work"/tune/x-01-*.csv)" | grep -qx "time_s,command_mm,feedback_mm,ferror_mm,velocity_mm_s,torque_pct" \
+  || fail "tune: no CSV record"
+cc show | grep -q "tuning: MAX_VELOCITY" || fail "show: no tuning"
+cat "$work/out"
+
 # The configuration written again: the old one kept.
 cc write --dir "$work/m" --name mill --yes >/dev/null || fail "final write"
 [ -f "$work/m/mill.ini.bak" ] || fail "no backup of the changed file"
