@@ -24,8 +24,6 @@ class Controller {
   std::string halcmd(const std::vector<std::string>& args) const { return run(bin_ / "halcmd", args); }
   // `halcmd getp <name>` as a number.
   double getp(const std::string& name) const;
-  // Runs `halcmd <args>` (e.g. the scope's commands); its output.
-  std::string halcmd(const std::vector<std::string>& args) const { return run(bin_ / "halcmd", args); }
   // A joint's motor position feedback (machine units) from the status.
   double motor_position(int joint) const;
   bool estop_chain_ok() const;
