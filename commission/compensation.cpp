@@ -516,14 +516,7 @@ CompRunResult run_comp_cycle(const Controller& ctl, const Axis& a, const AxisCom
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
   } catch (const std::exception& e) {
-    std::string off = "; the machine is off again, the drives disabled";
-    try {
-      ctl.cnc({"abort"});
-      ctl.cnc({"off"});
-    } catch (const std::exception& e2) {
-      off = "; switching the machine off failed too (" + std::string(e2.what()) + "): press E-stop";
-    }
-    throw std::runtime_error(e.what() + off);
+    throw std::runtime_error(e.what() + switch_off_after_failure(ctl, /*abort_program=*/true));
   }
   ctl.cnc({"off"});
   return r;

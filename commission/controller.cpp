@@ -117,6 +117,22 @@ int ControllerProcess::stop() {
 }
 
 void request_abort() noexcept { g_abort.store(true, std::memory_order_relaxed); }
+std::string switch_off_after_failure(const Controller& c, bool abort_program) noexcept {
+  try {
+    try {
+      if (abort_program) c.cnc({"abort"});
+      c.cnc({"off"});
+      return "; the machine is off again, the drives disabled";
+    } catch (const std::exception& e) {
+      // Already in E-stop (the controller's own stop): the drives are off.
+      if (std::string(e.what()).find("in E-stop") != std::string::npos) return "; the machine is in E-stop, the drives disabled";
+      return "; switching the machine off failed too (" + std::string(e.what()) + "): press E-stop";
+    }
+  } catch (...) {
+    return "; switching the machine off failed too: press E-stop";
+  }
+}
+
 bool abort_requested() noexcept { return g_abort.load(std::memory_order_relaxed); }
 void clear_abort() noexcept { g_abort.store(false, std::memory_order_relaxed); }
 
@@ -164,12 +180,7 @@ JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, 
     r.feedback_mm = c.motor_position(a.joint) - before;
   } catch (const std::exception& e) {
     // Whatever stopped the test, the drives end disabled.
-    std::string off = "; the machine is off again, the drives disabled";
-    try {
-      c.cnc({"off"});
-    } catch (const std::exception& e2) {
-      off = "; switching the machine off failed too (" + std::string(e2.what()) + "): press E-stop";
-    }
+    const std::string off = switch_off_after_failure(c);
     std::string why = e.what();
     if (g_abort.load(std::memory_order_relaxed) && why.find("aborted") == std::string::npos)
       why = std::string("axis ") + a.letter + ": the test move was aborted (" + why + ")";

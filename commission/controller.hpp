@@ -64,6 +64,13 @@ void request_abort() noexcept;
 bool abort_requested() noexcept;
 void clear_abort() noexcept;
 
+// After a commissioning motion failed: switches the machine off (after
+// `cnc abort` when `abort_program`) and says in what state it was left:
+// "; the machine is off again, the drives disabled", "; the machine is in
+// E-stop, the drives disabled" (the controller's own stop came first) or
+// that switching off failed too and E-stop must be pressed. Never throws.
+std::string switch_off_after_failure(const Controller& c, bool abort_program = false) noexcept;
+
 struct JogResult {
   double commanded_mm = 0;
   double feedback_mm = 0;   // motor feedback after - before

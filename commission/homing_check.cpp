@@ -170,16 +170,7 @@ std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, d
       c.cnc({"unhome", joint});
     }
   } catch (const std::exception& e) {
-    std::string off = "; the machine is off again, the drives disabled";
-    try {
-      c.cnc({"off"});
-    } catch (const std::exception& e2) {
-      // Already in E-stop (the controller's own stop): the drives are off.
-      off = std::string(e2.what()).find("in E-stop") != std::string::npos
-                ? "; the machine is in E-stop, the drives disabled"
-                : "; switching the machine off failed too (" + std::string(e2.what()) + "): press E-stop";
-    }
-    throw std::runtime_error(e.what() + off);
+    throw std::runtime_error(e.what() + switch_off_after_failure(c));
   }
   c.cnc({"off"});
   return refs;

@@ -506,12 +506,7 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
     if (!velocity_note.empty() && result.velocity_limit.rfind("saturation", 0) != 0) result.velocity_limit = velocity_note;
   } catch (const std::exception& e) {
     // Whatever stopped the tests: the machine off, the joint's limits back.
-    std::string off = "; the machine is off again, the drives disabled";
-    try {
-      c.cnc({"off"});
-    } catch (const std::exception& e2) {
-      off = "; switching the machine off failed too (" + std::string(e2.what()) + "): press E-stop";
-    }
+    std::string off = switch_off_after_failure(c);
     try {
       set_limits(c, a.joint, before.max_velocity, before.max_acceleration, before.max_jerk);
     } catch (const std::exception&) {

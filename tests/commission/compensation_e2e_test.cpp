@@ -28,6 +28,7 @@
 #include "sim/cia402/random_machine.hpp"
 #include "sim/cia402/sim_config.hpp"
 #include "sim/cia402/sim_host.hpp"
+#include "tests/commission/e2e_support.hpp"
 #include "tests/support/testing.hpp"
 
 namespace cnc::commission {
@@ -35,33 +36,14 @@ namespace {
 
 namespace csim = cnc::cia402::sim;
 
-void write(const std::filesystem::path& p, const std::string& s) {
-  std::ofstream out(p);
-  out << s;
-}
-
-std::string log_of(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::string cnc_cmd(const std::string& args) { return "'" + (testing::binary_dir() / "bin/cnc").string() + "' " + args; }
-
 TEST(CommissionCompensationE2E, CompensationFittedOnCncdLowersMeasuredIsoAAndTheDemoProgramRuns) {
   const auto bin = testing::binary_dir() / "bin";
   if (!std::filesystem::exists(bin / "cncd") || !std::filesystem::exists(bin / "cnc"))
     GTEST_SKIP() << "cncd and cnc are not built";
-  uint64_t seed = std::random_device{}();
-  if (const char* s = std::getenv("CNC_COMMISSION_SEED")) seed = std::strtoull(s, nullptr, 10);
-  std::printf("random machine seed %llu (CNC_COMMISSION_SEED=%llu repeats it)\n", static_cast<unsigned long long>(seed),
-              static_cast<unsigned long long>(seed));
+  const uint64_t seed = e2e::machine_seed();
   testing::TempDir dir;
   const csim::RandomMachine m = csim::make_random_machine(seed, {1, 2, 3}, "virtual:" + testing::unique_name("comp"));
-  write(dir / "sim-machine.ini", csim::sim_ini(m));
-  write(dir / "sim-machine.hal", csim::sim_hal_load());
-  write(dir / "sim-machine-run.hal", csim::sim_hal_run());
+  e2e::write_machine_files(dir.path(), m);
   std::printf("%s", csim::truth_json(m).c_str());
   std::printf("X: backlash %.4f mm, pitch error", m.axes[0].backlash_mm);
   for (const auto& [x, e] : m.axes[0].pitch_error) std::printf(" %g:%.4f", x, e);
@@ -90,9 +72,7 @@ TEST(CommissionCompensationE2E, CompensationFittedOnCncdLowersMeasuredIsoAAndThe
     s.nodes = r.nodes;
   }
   s.interface = m.interface;
-  s.ini_includes = {"sim-machine.ini"};
-  s.hal_before_bus = {"sim-machine.hal"};
-  s.hal_after_bus = {"sim-machine-run.hal"};
+  e2e::include_machine_files(s);
   const char letters[] = {'X', 'Y', 'Z'};
   const double lim[3][2] = {{-10, 250}, {-10, 150}, {-150, 10}};
   for (int j = 0; j < 3; ++j) {
@@ -126,7 +106,7 @@ TEST(CommissionCompensationE2E, CompensationFittedOnCncdLowersMeasuredIsoAAndThe
       try {
         jr = direction_jog(ctl, *s.axis(letters[j]), 20.0, 5.0);
       } catch (const std::exception& e) {
-        FAIL() << e.what() << "\n" << log_of(dir / "cncd-direction.log");
+        FAIL() << e.what() << "\n" << e2e::read_text(dir / "cncd-direction.log");
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(200));
       std::printf("%s\n", apply_direction_test(s, letters[j], jr.commanded_mm, jr.feedback_mm, ctl.getp(pin) - before, true)
@@ -145,7 +125,7 @@ TEST(CommissionCompensationE2E, CompensationFittedOnCncdLowersMeasuredIsoAAndThe
   c.feed_mm_min = 1800;
   c.program = (dir / "comp-x.ngc").string();
   check_cycle(*s.axis('X'), c);
-  write(c.program, comp::iso_cycle_gcode(cycle_options(*s.axis('X'), c)));
+  e2e::write_text(c.program, comp::iso_cycle_gcode(cycle_options(*s.axis('X'), c)));
   s.axis('X')->compensation = c;
   auto measure = [&](const std::string& tag) {
     auto d = start_cncd(tag);
@@ -155,7 +135,7 @@ TEST(CommissionCompensationE2E, CompensationFittedOnCncdLowersMeasuredIsoAAndThe
         if (i % 10 == 0 || i == n) std::printf("progress: %d/%d %s\n", i, n, what.c_str());
       });
     } catch (const std::exception& e) {
-      ADD_FAILURE() << e.what() << "\n" << log_of(dir / ("cncd-" + tag + ".log"));
+      ADD_FAILURE() << e.what() << "\n" << e2e::read_text(dir / ("cncd-" + tag + ".log"));
     }
     EXPECT_EQ(d->stop(), 0);
     return r;
@@ -175,15 +155,15 @@ TEST(CommissionCompensationE2E, CompensationFittedOnCncdLowersMeasuredIsoAAndThe
   std::printf("ISO 230-2, axis X: A measured before %.3f um, predicted %.3f um, measured after %.3f um\n", r.before.A,
               r.predicted.A, checked.A);
   std::printf("  before: %s\n  after:  %s\n", describe(r.before).c_str(), describe(checked).c_str());
-  EXPECT_NE(log_of(dir / "machine.ini").find("COMP_FILE = machine-x.comp"), std::string::npos);
+  EXPECT_NE(e2e::read_text(dir / "machine.ini").find("COMP_FILE = machine-x.comp"), std::string::npos);
   EXPECT_LT(checked.A, r.before.A);
   EXPECT_LT(checked.A, 0.6 * r.before.A);
 
   // The demo program on the compensated configuration, to its end.
   auto d = start_cncd("demo");
   auto must = [&](const std::string& args, int timeout_s = 30) {
-    const auto res = testing::run_shell(cnc_cmd("--timeout " + std::to_string(timeout_s) + " " + args));
-    ASSERT_EQ(res.code, 0) << "cnc " << args << ": " << res.text << "\n" << log_of(dir / "cncd-demo.log");
+    const auto res = testing::run_shell(e2e::cnc_cmd("--timeout " + std::to_string(timeout_s) + " " + args));
+    ASSERT_EQ(res.code, 0) << "cnc " << args << ": " << res.text << "\n" << e2e::read_text(dir / "cncd-demo.log");
   };
   must("wait-ready");
   must("estop-reset");
@@ -193,7 +173,7 @@ TEST(CommissionCompensationE2E, CompensationFittedOnCncdLowersMeasuredIsoAAndThe
   must("open '" + (testing::source_dir() / "configs/sim/nc_files/demo.ngc").string() + "'");
   must("run");
   must("wait-program", 500);
-  const auto js = nlohmann::json::parse(testing::run_shell(cnc_cmd("status --json")).text);
+  const auto js = nlohmann::json::parse(testing::run_shell(e2e::cnc_cmd("status --json")).text);
   EXPECT_EQ(js["task"]["interp_state"], "IDLE");
   const double expect[3] = {180, 110, 0};
   for (int j = 0; j < 3; ++j) EXPECT_NEAR(js["motion"]["position"][j].get<double>(), expect[j], 1e-6) << letters[j];

@@ -25,6 +25,7 @@
 #include "sim/cia402/random_machine.hpp"
 #include "sim/cia402/sim_config.hpp"
 #include "sim/cia402/sim_host.hpp"
+#include "tests/commission/e2e_support.hpp"
 #include "tests/support/testing.hpp"
 
 namespace cnc::commission {
@@ -32,34 +33,15 @@ namespace {
 
 namespace csim = cnc::cia402::sim;
 
-void write(const std::filesystem::path& p, const std::string& s) {
-  std::ofstream out(p);
-  out << s;
-}
-
-std::string cnc_cmd(const std::string& args) { return "'" + (testing::binary_dir() / "bin/cnc").string() + "' " + args; }
-
-std::string log_of(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 TEST(CommissionRandomMachine, DiscoversDirectionAndScalingAndRunsTheDemoProgram) {
   const auto bin = testing::binary_dir() / "bin";
   if (!std::filesystem::exists(bin / "cncd") || !std::filesystem::exists(bin / "cnc"))
     GTEST_SKIP() << "cncd and cnc are not built";
-  uint64_t seed = std::random_device{}();
-  if (const char* s = std::getenv("CNC_COMMISSION_SEED")) seed = std::strtoull(s, nullptr, 10);
-  std::printf("random machine seed %llu (CNC_COMMISSION_SEED=%llu repeats it)\n", static_cast<unsigned long long>(seed),
-              static_cast<unsigned long long>(seed));
+  const uint64_t seed = e2e::machine_seed();
   testing::TempDir dir;
   const std::string bus_name = testing::unique_name("commission");
   const csim::RandomMachine m = csim::make_random_machine(seed, {1, 2, 3}, "virtual:" + bus_name);
-  write(dir / "sim-machine.ini", csim::sim_ini(m));
-  write(dir / "sim-machine.hal", csim::sim_hal_load());
-  write(dir / "sim-machine-run.hal", csim::sim_hal_run());
+  e2e::write_machine_files(dir.path(), m);
   std::printf("%s", csim::truth_json(m).c_str());
 
   // 1. The bus scan, on the same machine hosted here (cncd hosts its own copy).
@@ -86,9 +68,7 @@ TEST(CommissionRandomMachine, DiscoversDirectionAndScalingAndRunsTheDemoProgram)
     s.nodes = r.nodes;
   }
   s.interface = m.interface;
-  s.ini_includes = {"sim-machine.ini"};
-  s.hal_before_bus = {"sim-machine.hal"};
-  s.hal_after_bus = {"sim-machine-run.hal"};
+  e2e::include_machine_files(s);
 
   // 2, 3. Axes and nominal scaling: the builder believes in 5 mm screws, direct drive.
   const char letters[] = {'X', 'Y', 'Z'};
@@ -116,7 +96,7 @@ TEST(CommissionRandomMachine, DiscoversDirectionAndScalingAndRunsTheDemoProgram)
       try {
         jr = direction_jog(ctl, *s.axis(letters[j]), 20.0, 5.0);
       } catch (const std::exception& e) {
-        FAIL() << e.what() << "\n" << log_of(dir / ("cncd-" + std::to_string(round) + ".log"));
+        FAIL() << e.what() << "\n" << e2e::read_text(dir / ("cncd-" + std::to_string(round) + ".log"));
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(200));
       const double dial = ctl.getp(pin) - before;
@@ -149,8 +129,8 @@ TEST(CommissionRandomMachine, DiscoversDirectionAndScalingAndRunsTheDemoProgram)
   ASSERT_EQ(check_config(bin / "cncd", dir / "machine.ini", out), 0) << out;
   ControllerProcess d(bin, dir / "machine.ini", dir / "cncd-final.log");
   auto must = [&](const std::string& args, int timeout_s = 30) {
-    const auto r = testing::run_shell(cnc_cmd("--timeout " + std::to_string(timeout_s) + " " + args));
-    ASSERT_EQ(r.code, 0) << "cnc " << args << ": " << r.text << "\n" << log_of(dir / "cncd-final.log");
+    const auto r = testing::run_shell(e2e::cnc_cmd("--timeout " + std::to_string(timeout_s) + " " + args));
+    ASSERT_EQ(r.code, 0) << "cnc " << args << ": " << r.text << "\n" << e2e::read_text(dir / "cncd-final.log");
   };
   must("wait-ready");
   must("estop-reset");
@@ -160,7 +140,7 @@ TEST(CommissionRandomMachine, DiscoversDirectionAndScalingAndRunsTheDemoProgram)
   must("open '" + (testing::source_dir() / "configs/sim/nc_files/demo.ngc").string() + "'");
   must("run");
   must("wait-program", 500);
-  const auto status = testing::run_shell(cnc_cmd("status --json"));
+  const auto status = testing::run_shell(e2e::cnc_cmd("status --json"));
   const auto js = nlohmann::json::parse(status.text);
   EXPECT_EQ(js["task"]["interp_state"], "IDLE") << status.text;
   // G53 G0 Z0 after the drilling at G54 X80 Y60 (offset X100 Y50): X180 Y110 Z0.
@@ -183,9 +163,7 @@ TEST(CommissionPartialMachine, StartsWithADisabledDriveMissingFromTheBusAndSaysS
     GTEST_SKIP() << "cncd and cnc are not built";
   testing::TempDir dir;
   const csim::RandomMachine m = csim::make_random_machine(11, {1}, "virtual:" + testing::unique_name("partial"));
-  write(dir / "sim-machine.ini", csim::sim_ini(m));
-  write(dir / "sim-machine.hal", csim::sim_hal_load());
-  write(dir / "sim-machine-run.hal", csim::sim_hal_run());
+  e2e::write_machine_files(dir.path(), m);
   State s;
   s.interface = m.interface;
   for (int id : {1, 2}) {
@@ -199,9 +177,7 @@ TEST(CommissionPartialMachine, StartsWithADisabledDriveMissingFromTheBusAndSaysS
   set_scaling(s, 'X', 5.0);
   assign_axis(s, 'Z', 1, 2);
   s.axis('Z')->enabled = false;  // its drive is not wired yet
-  s.ini_includes = {"sim-machine.ini"};
-  s.hal_before_bus = {"sim-machine.hal"};
-  s.hal_after_bus = {"sim-machine-run.hal"};
+  e2e::include_machine_files(s);
   write_config(generate_config(s, dir.path(), "partial"));
   std::string out;
   ASSERT_EQ(check_config(bin / "cncd", dir / "partial.ini", out), 0) << out;
@@ -210,12 +186,12 @@ TEST(CommissionPartialMachine, StartsWithADisabledDriveMissingFromTheBusAndSaysS
   setenv("CNC_NO_REALTIME", "1", 1);
   const Controller ctl(bin);
   ControllerProcess d(bin, dir / "partial.ini", dir / "cncd.log");
-  EXPECT_NE(log_of(dir / "cncd.log").find("DISABLED for commissioning"), std::string::npos) << log_of(dir / "cncd.log");
+  EXPECT_NE(e2e::read_text(dir / "cncd.log").find("DISABLED for commissioning"), std::string::npos) << e2e::read_text(dir / "cncd.log");
   const JogResult x = direction_jog(ctl, *s.axis('X'), 2.0, 2.0);
   EXPECT_NEAR(x.feedback_mm, 2.0, 0.01);
   const JogResult z = direction_jog(ctl, *s.axis('Z'), 2.0, 2.0);  // follows its command, moves nothing
   EXPECT_NEAR(z.feedback_mm, 2.0, 1e-9);
-  EXPECT_EQ(d.stop(), 0) << log_of(dir / "cncd.log");
+  EXPECT_EQ(d.stop(), 0) << e2e::read_text(dir / "cncd.log");
 }
 
 }  // namespace

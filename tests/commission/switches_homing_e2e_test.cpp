@@ -22,6 +22,7 @@
 #include "commission/steps.hpp"
 #include "commission/switches.hpp"
 #include "sim/cia402/random_machine.hpp"
+#include "tests/commission/e2e_support.hpp"
 #include "tests/support/testing.hpp"
 
 namespace cnc::commission {
@@ -35,20 +36,6 @@ namespace csim = cnc::cia402::sim;
 // controller latches in the servo cycle).
 constexpr double kSwitchTolerance = 0.1;   // mm
 constexpr double kHomingSpreadBound = 0.01;  // mm
-
-void write(const std::filesystem::path& p, const std::string& s) {
-  std::ofstream out(p);
-  out << s;
-}
-
-std::string log_of(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::string cnc_cmd(const std::string& args) { return "'" + (testing::binary_dir() / "bin/cnc").string() + "' " + args; }
 
 // A state for machine `m` with steps 1-4 done: nodes scanned, axes
 // assigned, scaling and direction as the direction test finds them.
@@ -72,16 +59,8 @@ State commissioned_to_step4(const csim::RandomMachine& m, const char* letters) {
     a.max_velocity = 30;
     a.max_acceleration = 300;
   }
-  s.ini_includes = {"sim-machine.ini"};
-  s.hal_before_bus = {"sim-machine.hal"};
-  s.hal_after_bus = {"sim-machine-run.hal"};
+  e2e::include_machine_files(s);
   return s;
-}
-
-void write_machine(const std::filesystem::path& dir, const csim::RandomMachine& m) {
-  write(dir / "sim-machine.ini", csim::sim_ini(m));
-  write(dir / "sim-machine.hal", csim::sim_hal_load());
-  write(dir / "sim-machine-run.hal", csim::sim_hal_run());
 }
 
 bool built() {
@@ -99,7 +78,7 @@ TEST(CommissionSwitchesHoming, FindsTheSwitchesHomesRepeatablyAndRunsTheDemoProg
               static_cast<unsigned long long>(seed));
   testing::TempDir dir;
   const csim::RandomMachine m = csim::make_random_machine(seed, {1, 2, 3}, "virtual:" + testing::unique_name("sw"));
-  write_machine(dir.path(), m);
+  e2e::write_machine_files(dir.path(), m);
   std::printf("%s", csim::truth_json(m).c_str());
   const char letters[] = {'X', 'Y', 'Z'};
   State s = commissioned_to_step4(m, letters);
@@ -117,7 +96,7 @@ TEST(CommissionSwitchesHoming, FindsTheSwitchesHomesRepeatablyAndRunsTheDemoProg
       try {
         r = find_switches(ctl, *s.axis(letters[j]), search[j], 5.0, stdout);
       } catch (const std::exception& e) {
-        FAIL() << e.what() << "\n" << log_of(dir / "cncd-switches.log");
+        FAIL() << e.what() << "\n" << e2e::read_text(dir / "cncd-switches.log");
       }
       const auto& t = m.axes[static_cast<std::size_t>(j)];
       std::printf("axis %c: neg %.3f (truth %.3f), pos %.3f (truth %.3f), home %.3f..%.3f (truth %.3f..%.3f), "
@@ -136,7 +115,7 @@ TEST(CommissionSwitchesHoming, FindsTheSwitchesHomesRepeatablyAndRunsTheDemoProg
       s.axis(letters[j])->switches = r;
       soft_limits_from_switches(*s.axis(letters[j]), 2.0);
     }
-    EXPECT_EQ(d.stop(), 0) << log_of(dir / "cncd-switches.log");
+    EXPECT_EQ(d.stop(), 0) << e2e::read_text(dir / "cncd-switches.log");
   }
 
   // 6. Controller homing, 5 runs per axis, on a configuration with the
@@ -153,7 +132,7 @@ TEST(CommissionSwitchesHoming, FindsTheSwitchesHomesRepeatablyAndRunsTheDemoProg
       try {
         refs = run_homing(ctl, a, 5, 5.0, stdout);
       } catch (const std::exception& e) {
-        FAIL() << e.what() << "\n" << log_of(dir / "cncd-homing.log");
+        FAIL() << e.what() << "\n" << e2e::read_text(dir / "cncd-homing.log");
       }
       ASSERT_EQ(refs.size(), 5u);
       a.homing->references = refs;
@@ -161,7 +140,7 @@ TEST(CommissionSwitchesHoming, FindsTheSwitchesHomesRepeatablyAndRunsTheDemoProg
       std::printf("axis %c: controller homing, spread %.4f mm\n", letters[j], a.homing->spread);
       EXPECT_LT(a.homing->spread, kHomingSpreadBound) << letters[j];
     }
-    EXPECT_EQ(d.stop(), 0) << log_of(dir / "cncd-homing.log");
+    EXPECT_EQ(d.stop(), 0) << e2e::read_text(dir / "cncd-homing.log");
   }
 
   // 9. The final configuration, and the demo program on it.
@@ -170,8 +149,8 @@ TEST(CommissionSwitchesHoming, FindsTheSwitchesHomesRepeatablyAndRunsTheDemoProg
   ASSERT_EQ(check_config(bin / "cncd", dir / "machine.ini", out), 0) << out;
   ControllerProcess d(bin, dir / "machine.ini", dir / "cncd-final.log");
   auto must = [&](const std::string& args, int timeout_s = 30) {
-    const auto r = testing::run_shell(cnc_cmd("--timeout " + std::to_string(timeout_s) + " " + args));
-    ASSERT_EQ(r.code, 0) << "cnc " << args << ": " << r.text << "\n" << log_of(dir / "cncd-final.log");
+    const auto r = testing::run_shell(e2e::cnc_cmd("--timeout " + std::to_string(timeout_s) + " " + args));
+    ASSERT_EQ(r.code, 0) << "cnc " << args << ": " << r.text << "\n" << e2e::read_text(dir / "cncd-final.log");
   };
   must("estop-reset");
   must("on");
@@ -180,7 +159,7 @@ TEST(CommissionSwitchesHoming, FindsTheSwitchesHomesRepeatablyAndRunsTheDemoProg
   must("open '" + (testing::source_dir() / "configs/sim/nc_files/demo.ngc").string() + "'");
   must("run");
   must("wait-program", 500);
-  const auto js = nlohmann::json::parse(testing::run_shell(cnc_cmd("status --json")).text);
+  const auto js = nlohmann::json::parse(testing::run_shell(e2e::cnc_cmd("status --json")).text);
   EXPECT_EQ(js["task"]["interp_state"], "IDLE");
   const double expect[3] = {180, 110, 0};
   for (int j = 0; j < 3; ++j) EXPECT_NEAR(js["motion"]["position"][j].get<double>(), expect[j], 1e-6) << letters[j];
@@ -194,7 +173,7 @@ TEST(CommissionSwitchesHoming, AHomeSwitchThatNeverChangesIsReportedByName) {
   csim::RandomMachine m = csim::make_random_machine(21, {1}, "virtual:" + testing::unique_name("swdead"));
   m.axes[0].home_min_mm = 5000;  // a broken home switch: never actuated
   m.axes[0].home_max_mm = 5001;
-  write_machine(dir.path(), m);
+  e2e::write_machine_files(dir.path(), m);
   const char letters[] = {'X'};
   State s = commissioned_to_step4(m, letters);
   write_config(generate_config(s, dir.path(), "machine"));
@@ -210,7 +189,7 @@ TEST(CommissionSwitchesHoming, AHomeSwitchThatNeverChangesIsReportedByName) {
   EXPECT_NE(all.find("axis X: the home switch never changed within 40.000 mm of the start "
                      "(cia402.0.drive.00.home-sw)"), std::string::npos) << all;
   EXPECT_NE(all.find("axis X: the positive limit switch never changed"), std::string::npos) << all;
-  EXPECT_EQ(d.stop(), 0) << log_of(dir / "cncd.log");
+  EXPECT_EQ(d.stop(), 0) << e2e::read_text(dir / "cncd.log");
 }
 
 TEST(CommissionSwitchesHoming, BadInputExitsWithAClearMessageAndLeavesTheStateUnchanged) {
@@ -221,7 +200,7 @@ TEST(CommissionSwitchesHoming, BadInputExitsWithAClearMessageAndLeavesTheStateUn
   const char letters[] = {'X'};
   const State s = commissioned_to_step4(m, letters);
   save_state(s, dir / "state.json");
-  const std::string before = log_of(dir / "state.json");
+  const std::string before = e2e::read_text(dir / "state.json");
   const std::string cc = "'" + prog.string() + "' --state '" + (dir / "state.json").string() + "' ";
   auto r = testing::run_shell(cc + "axis Q switches 2>&1");
   EXPECT_EQ(r.code, 2) << r.text;
@@ -237,7 +216,7 @@ TEST(CommissionSwitchesHoming, BadInputExitsWithAClearMessageAndLeavesTheStateUn
   r = testing::run_shell(cc + "homing-methods");
   EXPECT_EQ(r.code, 0);
   EXPECT_NE(r.text.find("drive:17"), std::string::npos) << r.text;
-  EXPECT_EQ(log_of(dir / "state.json"), before);
+  EXPECT_EQ(e2e::read_text(dir / "state.json"), before);
 }
 
 }  // namespace

@@ -31,24 +31,13 @@
 #include "core/ini/ini_file.hpp"
 #include "sim/cia402/random_machine.hpp"
 #include "sim/cia402/sim_config.hpp"
+#include "tests/commission/e2e_support.hpp"
 #include "tests/support/testing.hpp"
 
 namespace cnc::commission {
 namespace {
 
 namespace csim = cnc::cia402::sim;
-
-void write(const std::filesystem::path& p, const std::string& s) {
-  std::ofstream out(p);
-  out << s;
-}
-
-std::string log_of(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 struct Capability {
   double velocity = 0;      // mm/s
@@ -74,15 +63,10 @@ TEST(CommissionTuning, RecommendsLimitsWithinTheSimulatorsCapabilityAndTheDemoRu
   const auto bin = testing::binary_dir() / "bin";
   if (!std::filesystem::exists(bin / "cncd") || !std::filesystem::exists(bin / "cnc"))
     GTEST_SKIP() << "cncd and cnc are not built";
-  uint64_t seed = std::random_device{}();
-  if (const char* s = std::getenv("CNC_COMMISSION_SEED")) seed = std::strtoull(s, nullptr, 10);
-  std::printf("random machine seed %llu (CNC_COMMISSION_SEED=%llu repeats it)\n", static_cast<unsigned long long>(seed),
-              static_cast<unsigned long long>(seed));
+  const uint64_t seed = e2e::machine_seed();
   testing::TempDir dir;
   const csim::RandomMachine m = csim::make_random_machine(seed, {1, 2, 3}, "virtual:" + testing::unique_name("tune"));
-  write(dir / "sim-machine.ini", csim::sim_ini(m));
-  write(dir / "sim-machine.hal", csim::sim_hal_load());
-  write(dir / "sim-machine-run.hal", csim::sim_hal_run());
+  e2e::write_machine_files(dir.path(), m);
   std::printf("%s", csim::truth_json(m).c_str());
   const auto sim = csim::load_sim_config(ini::IniFile::load(dir / "sim-machine.ini"), "CIA402_SIM");
 
@@ -99,9 +83,7 @@ TEST(CommissionTuning, RecommendsLimitsWithinTheSimulatorsCapabilityAndTheDemoRu
     n.encoder_motor_revs = 1;
     s.nodes.push_back(n);
   }
-  s.ini_includes = {"sim-machine.ini"};
-  s.hal_before_bus = {"sim-machine.hal"};
-  s.hal_after_bus = {"sim-machine-run.hal"};
+  e2e::include_machine_files(s);
   const char letters[] = {'X', 'Y', 'Z'};
   const double lim[3][2] = {{-10, 250}, {-10, 150}, {-150, 10}};
   for (int j = 0; j < 3; ++j) {
@@ -156,9 +138,9 @@ TEST(CommissionTuning, RecommendsLimitsWithinTheSimulatorsCapabilityAndTheDemoRu
     try {
       s.axis(l)->tuning = run_tuning(ctl, *s.axis(l), o);
     } catch (const std::exception& e) {
-      FAIL() << l << ": " << e.what() << "\n" << log_of(log);
+      FAIL() << l << ": " << e.what() << "\n" << e2e::read_text(log);
     }
-    EXPECT_EQ(d.stop(), 0) << log_of(log);
+    EXPECT_EQ(d.stop(), 0) << e2e::read_text(log);
     const AxisTuning& t = *s.axis(l)->tuning;
     const Capability cap = capability(sim.nodes.at(j), t.max_velocity);
     std::printf("axis %c: recommended %.1f mm/s, %.0f mm/s2, jerk %.0f, FERROR %.4f, MIN_FERROR %.4f; true %.1f mm/s, "
@@ -189,14 +171,14 @@ TEST(CommissionTuning, RecommendsLimitsWithinTheSimulatorsCapabilityAndTheDemoRu
   write_config(generate_config(s, dir.path(), "machine"));
   std::string out;
   ASSERT_EQ(check_config(bin / "cncd", dir / "machine.ini", out), 0) << out;
-  const std::string ini = log_of(dir / "machine.ini");
+  const std::string ini = e2e::read_text(dir / "machine.ini");
   char want[64];
   std::snprintf(want, sizeof want, "FERROR = %.10g\n", s.axis('X')->tuning->ferror);
   EXPECT_NE(ini.find(want), std::string::npos) << ini;
   ControllerProcess d(bin, dir / "machine.ini", dir / "cncd-final.log");
   auto must = [&](const std::string& args, int timeout_s = 30) {
     const auto r = testing::run_shell("'" + (bin / "cnc").string() + "' --timeout " + std::to_string(timeout_s) + " " + args);
-    ASSERT_EQ(r.code, 0) << "cnc " << args << ": " << r.text << "\n" << log_of(dir / "cncd-final.log");
+    ASSERT_EQ(r.code, 0) << "cnc " << args << ": " << r.text << "\n" << e2e::read_text(dir / "cncd-final.log");
   };
   must("wait-ready");
   must("estop-reset");
