@@ -24,7 +24,9 @@ cat > "$work/state.json" <<JSON
 JSON
 cc axis X assign --node 1 --joint 0 >/dev/null
 cc axis X scaling --lead 5 >/dev/null
-cc axis X limits --min -50 --max 50 --velocity 20 --acceleration 200
+# Inside the random machine's limit switches (X: about -30 and +215 mm from
+# where it powers up, sim/cia402/random_machine).
+cc axis X limits --min -20 --max 80 --velocity 20 --acceleration 200
 cc include --ini sim-machine.ini --hal-before-bus sim-machine.hal --hal-after-bus sim-machine-run.hal
 # Step 4 first (the dial plays from the simulator's truth): the cycle needs the right scaling.
 dial=$(python3 -c "
@@ -36,16 +38,16 @@ cc axis X direction-test --distance 10 --velocity 5 --dial "$dial" --bring-up "$
 
 # The cycle: outside the soft limits refused (usage or problem, nothing saved), then written.
 before="$(cat "$work/state.json")"
-if cc axis X comp-program --out "$work/x.ngc" --min -49 --max 40 2>"$work/err"; then fail "a cycle beyond the limits"; fi
+if cc axis X comp-program --out "$work/x.ngc" --min -25 --max 60 2>"$work/err"; then fail "a cycle beyond the limits"; fi
 grep -q "soft limits" "$work/err" || fail "no soft-limit message: $(cat "$work/err")"
 [ "$before" = "$(cat "$work/state.json")" ] || fail "a refused cycle changed the state"
-cc axis X comp-program --out "$work/x.ngc" --min -40 --max 40 --runs 2 --dwell 0.3 --feed 1200 > "$work/out"
-grep -q "^stop 1: X -40.000 moving +, run 1$" "$work/out" || fail "no stop list: $(cat "$work/out")"
+cc axis X comp-program --out "$work/x.ngc" --min -15 --max 65 --runs 2 --dwell 0.3 --feed 1200 > "$work/out"
+grep -q "^stop 1: X -15.000 moving +, run 1$" "$work/out" || fail "no stop list: $(cat "$work/out")"
 grep -q "G53 G1 X" "$work/x.ngc" || fail "no cycle program"
 stops=$(grep -c "^stop " "$work/out")
 
 # Measurements by hand: a bad file and a wrong count are refused naming file/line or count.
-printf 'target,run,direction,deviation_um\n-40,1,+,1\n-40,1,sideways,1\n' > "$work/bad.csv"
+printf 'target,run,direction,deviation_um\n-15,1,+,1\n-15,1,sideways,1\n' > "$work/bad.csv"
 before="$(cat "$work/state.json")"
 if cc axis X comp-measurements --csv "$work/bad.csv" 2>"$work/err"; then fail "a bad measurement file"; fi
 grep -q "bad.csv:3:" "$work/err" || fail "no file:line: $(cat "$work/err")"
