@@ -5,7 +5,8 @@
 #                processes in /usr/lib/<triplet>/cnc; cncd gets its
 #                capabilities in postinst
 #   cnc-screen   the Qt operator screen (cnc-hmi)
-#   cnc-comp     the compensation tool cnc-comp (its fitting needs Ceres and
+#   cnc-comp     the compensation tool cnc-comp and the commissioning
+#                program cnc-commission (their fitting needs Ceres and
 #                OpenCV, which the controller does not)
 #   cnc-configs  the sample configurations (/usr/share/cnc/configs) and the
 #                documentation (/usr/share/doc/cnc-configs)
@@ -64,7 +65,7 @@ cnc_install_program(cnc-mtconnect connectivity "MTConnect agent of the CNC contr
 cnc_install_program(cnc-mqtt connectivity "MQTT bridge of the CNC controller")
 cnc_install_program(cnc-hmi screen "the Qt operator screen of the CNC controller")
 cnc_install_program(cnc-commission-wizard screen "the Qt commissioning wizard of the CNC controller")
-cnc_install_program(cnc-commission controller "commissioning: bus scan, axes, scaling, direction test, configuration")
+cnc_install_program(cnc-commission comp "commissioning: bus scan, axes, scaling, direction test, configuration")
 
 # Scripts: the configuration picker and the CAN interface helper, copied
 # beside the programs in build/bin too; build/share/cnc/configs points at
@@ -157,6 +158,8 @@ set(CPACK_COMPONENT_CONTROLLER_DESCRIPTION
 
 set(CPACK_DEBIAN_SCREEN_PACKAGE_NAME cnc-screen)
 set(CPACK_DEBIAN_SCREEN_PACKAGE_DEPENDS "cnc (= ${PROJECT_VERSION})")
+# The commissioning wizard runs cnc-commission's steps.
+set(CPACK_DEBIAN_SCREEN_PACKAGE_RECOMMENDS "cnc-comp (= ${PROJECT_VERSION})")
 set(CPACK_COMPONENT_SCREEN_DESCRIPTION
   "fieldbus-first CNC controller: the operator screen\n"
   "The Qt operator screen (cnc-hmi) of the cnc controller: positions,\n"
@@ -170,7 +173,9 @@ set(CPACK_COMPONENT_COMP_DESCRIPTION
   "cnc-comp measures a machine's positioning errors (ISO 230-2 cycles, a\n"
   "laser or camera measurement) and fits screw, backlash and error\n"
   "compensation tables for the controller's compensation components;\n"
-  "cnc-vision reads glass scales and fiducials with a camera.")
+  "cnc-vision reads glass scales and fiducials with a camera;\n"
+  "cnc-commission commissions a machine's drives step by step (bus scan,\n"
+  "axes, scaling, switches, homing, tuning, compensation, configuration).")
 
 set(CPACK_DEBIAN_CONFIGS_PACKAGE_NAME cnc-configs)
 set(CPACK_DEBIAN_CONFIGS_PACKAGE_ARCHITECTURE all)

@@ -32,6 +32,8 @@ for helper in cnc-cia402-sim ecat-sim cnc-modbus-sim cnc-canopen-node; do
 done
 all="$files"$'\n'"$(contents "$configs")"$'\n'"$(contents "$comp")"
 grep -qx /usr/bin/cnc-comp <<<"$all" || bad "cnc-comp: no /usr/bin/cnc-comp"
+grep -qx /usr/bin/cnc-commission <<<"$(contents "$comp")" \
+  || bad "cnc-comp: no /usr/bin/cnc-commission"
 [ -n "$screen" ] && all+=$'\n'"$(contents "$screen")"
 if [ -n "$conn" ]; then
   cfiles_conn="$(contents "$conn")"
