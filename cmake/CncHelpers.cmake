@@ -40,11 +40,12 @@ function(cnc_executable name)
   target_link_libraries(${name} PRIVATE cnc_build_flags ${ARG_DEPS})
 endfunction()
 
-# cnc_gtest(<name> SOURCES ... [DEPS ...] [LABELS ...] [TIMEOUT s] [ENV ...])
+# cnc_gtest(<name> SOURCES ... [DEPS ...] [LABELS ...] [TIMEOUT s] [ENV ...] [RESOURCE_LOCK name])
 # A GoogleTest program; every TEST becomes one CTest test carrying LABELS
-# (default: unit). Labels: unit, vm, netns, gui, slow.
+# (default: unit). Labels: unit, vm, netns, gui, slow. RESOURCE_LOCK: tests
+# holding the same lock never run at once (heavy ones that run cncd).
 function(cnc_gtest name)
-  cmake_parse_arguments(ARG "" "TIMEOUT" "SOURCES;DEPS;LABELS;ENV" ${ARGN})
+  cmake_parse_arguments(ARG "" "TIMEOUT;RESOURCE_LOCK" "SOURCES;DEPS;LABELS;ENV" ${ARGN})
   if(NOT ARG_LABELS)
     set(ARG_LABELS unit)
   endif()
@@ -53,9 +54,13 @@ function(cnc_gtest name)
   endif()
   add_executable(${name} ${ARG_SOURCES})
   target_link_libraries(${name} PRIVATE cnc_build_flags cnc_testing ${ARG_DEPS} GTest::gtest GTest::gmock)
+  set(lock)
+  if(ARG_RESOURCE_LOCK)
+    set(lock RESOURCE_LOCK ${ARG_RESOURCE_LOCK})
+  endif()
   gtest_discover_tests(${name}
     DISCOVERY_MODE PRE_TEST
-    PROPERTIES LABELS "${ARG_LABELS}" TIMEOUT ${ARG_TIMEOUT} ENVIRONMENT "${ARG_ENV}")
+    PROPERTIES LABELS "${ARG_LABELS}" TIMEOUT ${ARG_TIMEOUT} ENVIRONMENT "${ARG_ENV}" ${lock})
 endfunction()
 
 # cnc_fuzz_target(<name> SOURCES ... [DEPS ...] [SEEDS files-or-folders ...] [DICT file])
