@@ -132,9 +132,13 @@ TEST(TpSmoothing, RoundedCirclePolylineKeepsMostOfTheFeed) {
 // Random bands: short lines along a wavy path with a random wiggle (inside
 // and beyond P), random tolerances, feed changes and G61.1 stops in
 // between, under every profile and period: every limit, the tolerance and
-// the end point hold.
-TEST(TpSmoothing, RandomWigglyBandsHoldLimitsAndTolerance) {
-  for (uint32_t seed = 1; seed <= 3; ++seed) {
+// the end point hold, and the executor always has a safe choice (no
+// overrun: seeds 1, 5 and 6 on Mill-F at 250 us had 23-215 while spans of
+// short pieces were grown in place after the input had relied on them;
+// seed 6 on LC at 250 us had 36 while the brake simulation, from a point
+// within kLanding of a span's end, took the span behind's limit).
+TEST(TpSmoothing, RandomWigglyBandsHoldLimitsToleranceAndAlwaysHaveASafeChoice) {
+  for (uint32_t seed = 1; seed <= 6; ++seed) {
     for (const char* prof : {"lc", "mill-f"}) {
       for (double T : {0.001, 0.00025}) {
         std::mt19937 rng(seed);
@@ -144,7 +148,7 @@ TEST(TpSmoothing, RandomWigglyBandsHoldLimitsAndTolerance) {
         const double tols[] = {0.001, 0.01, 0.05};
         double x = 0, y = 0, z = 0, heading = 0;
         SegmentParams p = feed_params(100 + 300 * u01(rng), tols[rng() % 3]);
-        for (int i = 0; i < 250; ++i) {
+        for (int i = 0; i < 400; ++i) {
           if (u01(rng) < 0.02) p = feed_params(100 + 300 * u01(rng), tols[rng() % 3]);
           SegmentParams q = p;
           if (u01(rng) < 0.01) q.term = TermCond::ExactStop;
@@ -158,13 +162,8 @@ TEST(TpSmoothing, RandomWigglyBandsHoldLimitsAndTolerance) {
         }
         SCOPED_TRACE(::testing::Message() << "seed " << seed << " " << prof << " T " << T);
         const RunResult r = run(cfg, prog);
-        // Every limit, the tolerance, the end point. Not overruns(): the
-        // executor reports a few cycles without a safe choice on some of
-        // programs of this kind with and without the vertex smoothing (seed 6,
-        // LC, 250 us before it; seeds 1, 5, 6, Mill-F, 250 us after it, with
-        // 400 moves), an
-        // executor matter left to its own work.
         ASSERT_TRUE(r.completed) << "cycles " << r.cycles;
+        EXPECT_EQ(r.overruns, 0u);
         EXPECT_LE(r.stats.ratio_v, 1 + 1e-9);
         EXPECT_LE(r.stats.ratio_a, 1 + 1e-9);
         EXPECT_LE(r.stats.ratio_j, 1 + 1e-9);
