@@ -294,21 +294,29 @@ TEST(TpShortSegments, TenMicronSegmentsAtOneKilohertzRunAtTheProgrammedFeed) {
   EXPECT_GT(r.stats.at_feed_fraction, 0.7);
 }
 
-// Known weakness (docs/tp.md): corners are smoothed one by one inside each
-// segment, so a zig-zag of 0.02 mm segments whose 0.002 mm wiggle lies well
-// inside P runs at about 2.4 mm/s instead of treating the band as a straight
-// path (with G64 Q = P merging it into chords: 31 % of the feed). Disabled
-// until the builder smooths across many short segments.
-TEST(TpShortSegments, DISABLED_NearlyCollinearZigZagWithinToleranceKeepsTheFeed) {
+// A zig-zag of 0.02 mm segments whose 0.002 mm wiggle lies well inside P
+// is followed as the straight band it is, not slowed corner by corner:
+// it takes at most 10 % longer than the straight line through the same
+// band under the same limits (once 2.4 mm/s, 31 % of the feed with
+// G64 Q = P; a mean of 73 % of F, 0.82 s against the line's 0.79 s, since
+// the vertex smoothing). The line itself averages 76 % of F over these
+// 60 mm (the ramps), which is why the bar is relative to it.
+TEST(TpShortSegments, NearlyCollinearZigZagWithinToleranceRunsAsFastAsTheStraightBand) {
   const PlannerConfig cfg = profile("mill-s", 0.001);
-  Program prog;
   const SegmentParams p = feed_params(100, 0.01);
-  for (int i = 1; i <= 3000; ++i) prog.moves.push_back(line_to(0.02 * i, (i % 2) * 0.002, 0, p));
+  Program zigzag, line;
+  for (int i = 1; i <= 3000; ++i) {
+    zigzag.moves.push_back(line_to(0.02 * i, (i % 2) * 0.002, 0, p));
+    line.moves.push_back(line_to(0.02 * i, 0, 0, p));
+  }
   RunOptions opt;
   opt.flush_at_end = true;
-  const RunResult r = run(cfg, prog, opt);
-  expect_clean(r);
-  EXPECT_GT(r.stats.mean_feed_ratio, 0.85);
+  const RunResult rz = run(cfg, zigzag, opt);
+  const RunResult rl = run(cfg, line, opt);
+  expect_clean(rz);
+  expect_clean(rl);
+  EXPECT_LT(rz.stats.time_s, 1.10 * rl.stats.time_s) << "zig-zag " << rz.stats.time_s << " s, line " << rl.stats.time_s << " s";
+  EXPECT_GT(rz.stats.max_v[0], 0.95 * 100);
 }
 
 // A look-ahead shorter in path length than the executor's reach (2 mm of
