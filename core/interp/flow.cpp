@@ -175,6 +175,8 @@ ReadResult Interpreter::State::read_block() {
     }
     if (block.o_type != OType::None) {
       handle_o_word();
+      // A G7x cycle reading its contour: the subroutine returned.
+      if (capture_depth >= 0 && static_cast<int>(frames.size()) <= capture_depth) return ReadResult::End;
       if (resume_block) {
         // A remap procedure returned: the rest of its block runs now.
         resume_block = false;

@@ -269,6 +269,9 @@ struct Interpreter::State {
   void convert_threading(int g, const Pose& end);
   void convert_cycle(int g, Pose end);
   void convert_g76(const Pose& end);
+  // G70/G71/G72 (lathe_cycles.cpp): the contour is read from the Q subroutine.
+  void convert_g7x(int g);
+  int capture_depth = -1;  // >= 0 while G7x reads its contour: read_block() ends when the call returns to this depth
   void convert_spline(int g, const Pose& end);
   void convert_nurbs(int g);
   void check_other_words() const;

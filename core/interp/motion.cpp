@@ -280,6 +280,9 @@ void Interpreter::State::convert_motion(int g, Status& st) {
       convert_cycle(g, pos);
       motion_mode = g;
       return;
+    case 700: case 710: case 711: case 712: case 720: case 721: case 722:
+      convert_g7x(g);
+      return;
     case 50:
     case 51:
       motion_mode = g;

@@ -682,3 +682,28 @@ TEST(InterpSpindles, ASpindleTheMachineDoesNotHaveOrADollarNothingUsesIsAnError)
   EXPECT_FALSE(sync.ok);
   EXPECT_NE(sync.err.find("follow spindle 0 only"), std::string::npos) << sync.err;
 }
+
+// ---------------------------------------------------------------- G70-G72
+
+TEST(InterpLatheCycles, AnErrorAfterTheContourWasReadNamesTheCycleBlockNotTheSubroutinesEnd) {
+  // LinuxCNC 2.9 shows "o10 endsub" (the last block its reader parsed);
+  // the I word at fault is on the cycle's line.
+  const Rs274Result r = run("G18 G21 F300\no10 sub\n  G0 X2 Z1\n  G1 Z0\n  X6 Z-3\no10 endsub\nG0 X12 Z2\n"
+                            "G71 Q10 X12 Z2 I0\nM2\n");
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("G7X error: I must be greater than zero.\nG71 Q10 X12 Z2 I0\n"), std::string::npos) << r.err;
+}
+
+TEST(InterpLatheCycles, InG91TheCycleAndItsContourAreRelativeAndTheLastMovesModeStays) {
+  // values from LinuxCNC 2.9's rs274: X12 Z2 of the cycle and the contour's
+  // words are relative; the last move of the G70 pass was a G1, so the
+  // following "X2" feeds 2 further (G91 is still on)
+  const Rs274Result r = run("G18 G21 F300\no10 sub\n  G0 X2 Z1\n  G1 Z0\n  X6 Z-3\n  Z-7\no10 endsub\nG0 X12 Z2\n"
+                            "G91\nG70 Q10 X12 Z2\nX2\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_TRAVERSE(24.0000, 0.0000, 5.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STRAIGHT_TRAVERSE(26.0000, 0.0000, 5.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STRAIGHT_FEED(32.0000, 0.0000, 2.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STRAIGHT_FEED(32.0000, 0.0000, -5.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STRAIGHT_FEED(34.0000, 0.0000, -5.0000, 0.0000, 0.0000, 0.0000)\n")) << r.canon;
+}
