@@ -4,6 +4,7 @@
 // moves, arcs, cycles, cutter compensation; params.cpp: parameters).
 #pragma once
 
+#include <set>
 #include <string_view>
 
 #include "core/interp/queueing_canon.hpp"
@@ -176,6 +177,7 @@ struct Interpreter::State {
   bool find_named(const std::string& name, double& value) const;
   void set_named(const std::string& name, double value);
   bool predefined(const std::string& name, double& value) const;
+  mutable std::set<std::string> ini_names_read;  // #<_ini[s]k> names read so far (listed as predefined)
   void write_position_params();
   void write_tool_params();
   std::string substitute_params(std::string_view text);
