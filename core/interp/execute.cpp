@@ -64,6 +64,7 @@ void Interpreter::State::canon_init_calls() {
 
 void Interpreter::State::reset_modal(bool keep_params) {
   if (!keep_params) init_parameters();
+  active_spindle = 0;
   pos = Pose{};
   units = config.default_units;
   plane = Plane::XY;
@@ -535,12 +536,6 @@ void Interpreter::State::check_other_words() const {
       fail("$ (spindle selection) word with no M3, M4, M5, M19, M51, G33, G33.1, G76, G95, G96 or G97 to use it");
     }
   }
-  if (block.has_dollar && block.dollar != 0 &&
-      (motion_in({330, 331, 760}) || block.g[kGFeedMode] == 950 || block.m[kMOverride] == 51)) {
-    // refused rather than synchronised to the wrong spindle
-    fail("$" + std::to_string(block.dollar) +
-         ": spindle-synchronised motion (G33, G33.1, G76, G95) and M51 follow spindle 0 only in this interpreter");
-  }
   if (block.m[kMSpindle] == 19 && block.has_word('p')) {
     const double p = block.get('p');
     if (std::fabs(round_to_int(p) - p) > 0.001) fail("P value not an integer with M19 G2 or G3");
@@ -588,6 +583,7 @@ void Interpreter::State::convert_comment() {
 }
 
 void Interpreter::State::convert_spindle_mode(int g) {
+  active_spindle = block.has_dollar && block.dollar >= 0 ? chosen_spindle("Spindle Mode command") : 0;
   for (int k : chosen_spindles("Spindle Mode command")) {
     bool& mode = k == 0 ? css : other_spindles[static_cast<std::size_t>(k)].css;
     double& max = k == 0 ? css_max : other_spindles[static_cast<std::size_t>(k)].css_max;
@@ -639,6 +635,7 @@ void Interpreter::State::set_direction(int k, Direction d) {
 }
 
 void Interpreter::State::convert_feed_mode(int g) {
+  active_spindle = block.has_dollar ? chosen_spindle("Spindle Feed command") : 0;
   if (g == 930) {
     if (config.linuxcnc_comments) canon.comment("interpreter: feed mode set to inverse time");
     feed_mode = FeedMode::InverseTime;
@@ -652,7 +649,7 @@ void Interpreter::State::convert_feed_mode(int g) {
   } else {
     if (config.linuxcnc_comments) canon.comment("interpreter: feed mode set to units per revolution");
     feed_mode = FeedMode::UnitsPerRev;
-    canon.set_feed_mode(0, FeedMode::UnitsPerRev);
+    canon.set_feed_mode(active_spindle, FeedMode::UnitsPerRev);
     feed = 0;
     canon.set_feed_rate(0);
   }
@@ -840,22 +837,29 @@ void Interpreter::State::convert_m(int group, Status& st) {
   switch (ov) {
     case 48:
       canon.enable_feed_override();
-      canon.enable_speed_override(0);
+      for (int k = 0; k < config.spindles; ++k) canon.enable_speed_override(k);
       feed_override = speed_override = true;
       break;
     case 49:
       canon.disable_feed_override();
-      canon.disable_speed_override(0);
+      for (int k = 0; k < config.spindles; ++k) canon.disable_speed_override(k);
       feed_override = speed_override = false;
       break;
     case 50:
       p_on ? canon.enable_feed_override() : canon.disable_feed_override();
       feed_override = p_on;
       break;
-    case 51:
-      p_on ? canon.enable_speed_override(0) : canon.disable_speed_override(0);
-      speed_override = p_on;
+    case 51: {
+      // every spindle, or the one $ names (LinuxCNC refuses $0 here; a
+      // slip of its check, spindle 0 is a spindle like the others)
+      const int only = block.has_dollar ? chosen_spindle("M51 command") : -1;
+      for (int k = 0; k < config.spindles; ++k) {
+        if (only != -1 && k != only) continue;
+        p_on ? canon.enable_speed_override(k) : canon.disable_speed_override(k);
+      }
+      if (only <= 0) speed_override = p_on;
       break;
+    }
     case 52:
       p_on ? canon.enable_adaptive_feed() : canon.disable_adaptive_feed();
       adaptive = p_on;

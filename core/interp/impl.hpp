@@ -93,6 +93,18 @@ struct Interpreter::State {
   std::vector<int> chosen_spindles(const char* what, bool minus_one_allowed = true) const;
   void set_speed(int k, double rpm);
   void set_direction(int k, Direction d);
+  // LinuxCNC's active spindle: chosen by $ (or 0 without) with G93-G95 and
+  // G96/G97, by $ with G33, G33.1, G76; feed per revolution and
+  // spindle-synchronised motion follow it.
+  int active_spindle = 0;
+  // The spindle a block's $ names for `what` (a single spindle, not $-1).
+  int chosen_spindle(const char* what) const { return chosen_spindles(what, false).front(); }
+  double active_speed() const {
+    return active_spindle == 0 ? speed : other_spindles[static_cast<std::size_t>(active_spindle)].speed;
+  }
+  Direction active_direction() const {
+    return active_spindle == 0 ? spindle : other_spindles[static_cast<std::size_t>(active_spindle)].dir;
+  }
   bool css = false;
   double css_max = 0;
   bool mist = false, flood = false;

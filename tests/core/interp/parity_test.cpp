@@ -678,9 +678,33 @@ TEST(InterpSpindles, ASpindleTheMachineDoesNotHaveOrADollarNothingUsesIsAnError)
   const Rs274Result unused = run("G1 X1 F1 $1\nM2\n", ini);
   EXPECT_FALSE(unused.ok);
   EXPECT_NE(unused.err.find("$ (spindle selection) word with no M3"), std::string::npos) << unused.err;
-  const Rs274Result sync = run("S100 $2\nM3 $2\nG33 Z-1 K1 $2\nM2\n", ini);
-  EXPECT_FALSE(sync.ok);
-  EXPECT_NE(sync.err.find("follow spindle 0 only"), std::string::npos) << sync.err;
+  // G33 $1 needs spindle 1 turning, whatever spindle 0 does
+  const Rs274Result stopped = run("S100 $0\nM3 $0\nG33 Z-1 K1 $1\nM2\n", ini);
+  EXPECT_FALSE(stopped.ok);
+  EXPECT_NE(stopped.err.find("Spindle not turning in G33"), std::string::npos) << stopped.err;
+}
+
+TEST(InterpSpindles, DollarChoosesTheSpindleThatThreadingFeedPerRevolutionAndM51Follow) {
+  // LinuxCNC 2.9's rs274 with [TRAJ]SPINDLES=3 prints these calls; before,
+  // a $ other than $0 with G33, G95 or M51 was refused
+  const Rs274Result r = run("G20 G0 X0 Z0\nS100 $1 M3\nG33 X1 Z-1 K0.1 $1\nG95 $1 S200 F0.1\nG1 X2\nM51 P0 $2\nM2\n",
+                            with_ini("[TRAJ]\nSPINDLES=3\n"));
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "N..... START_SPINDLE_CLOCKWISE(1)\nN..... START_SPEED_FEED_SYNC(0.100000,0)\n"
+                     "N..... STRAIGHT_FEED(1.0000, 0.0000, -1.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STOP_SPEED_FEED_SYNCH()\n"
+                     "N..... COMMENT(\"interpreter: feed mode set to units per revolution\")\n"
+                     "N..... SET_FEED_MODE(1, 1)\nN..... SET_FEED_RATE(0.0000)\nN..... SET_FEED_RATE(0.1000)\n"
+                     "N..... SET_SPINDLE_SPEED(1, 200.0000)\n"
+                     "N..... STRAIGHT_FEED(2.0000, 0.0000, -1.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... DISABLE_SPEED_OVERRIDE(2)\n"))
+      << r.canon;
+  // feed per revolution of spindle 1: spindle 0 standing still is no error,
+  // spindle 1 standing still is
+  EXPECT_TRUE(run("S100 $1 M3\nG95 $1 S100 F0.1\nG1 X1\nM2\n", with_ini("[TRAJ]\nSPINDLES=3\n")).ok);
+  const Rs274Result zero = run("S100 M3\nG95 $1 F0.1\nG1 X1\nM2\n", with_ini("[TRAJ]\nSPINDLES=3\n"));
+  EXPECT_FALSE(zero.ok);
+  EXPECT_NE(zero.err.find("Cannot feed with zero spindle speed in feed per rev mode"), std::string::npos) << zero.err;
 }
 
 // ---------------------------------------------------------------- G70-G72
