@@ -206,6 +206,17 @@ PYBIND11_EMBEDDED_MODULE(interpreter, m) {
         return v;
       })
       .def_property_readonly("blocks", [](const This&) { return Blocks{}; })
+      // the interpreter's position in program coordinates (LinuxCNC's
+      // current_x ..): what it commanded, or the machine's after a synch
+      .def_property_readonly("current_x", [](const This&) { return interp().position()[0]; })
+      .def_property_readonly("current_y", [](const This&) { return interp().position()[1]; })
+      .def_property_readonly("current_z", [](const This&) { return interp().position()[2]; })
+      .def_property_readonly("current_a", [](const This&) { return interp().position()[3]; })
+      .def_property_readonly("current_b", [](const This&) { return interp().position()[4]; })
+      .def_property_readonly("current_c", [](const This&) { return interp().position()[5]; })
+      .def_property_readonly("current_u", [](const This&) { return interp().position()[6]; })
+      .def_property_readonly("current_v", [](const This&) { return interp().position()[7]; })
+      .def_property_readonly("current_w", [](const This&) { return interp().position()[8]; })
       // LinuxCNC's active_g_codes array: [0] the line, [1] the motion mode,
       // [2] the block's non-modal code, then plane, cutter compensation,
       // units, distance mode, feed mode, coordinate system, tool length

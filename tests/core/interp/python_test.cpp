@@ -241,7 +241,7 @@ TEST(InterpPython, NamedparamsFunctionsArePredefinedReadOnlyParameters) {
       {"namedparams.py",
        "def _twice_x(self, *args):\n    return self.params['_x'] * 2\n"
        "def _botched(self, *args):\n    return 'badly botched'\n"}};
-  Result r = run(";py,from interpreter import *\nG0 X3\nG0 Y#<_twice_x>\n;py,assert this.sub_context[0].named_params['_twice_x'].attr == 35\n"
+  Result r = run(";py,from interpreter import *\nG0 X3\n;py,assert this.current_x == 3 and this.current_y == 0\nG0 Y#<_twice_x>\n;py,assert this.sub_context[0].named_params['_twice_x'].attr == 35\n"
                  ";py,assert this.params['_twice_x'] == 6\nM2\n",
                  kIni, files);
   EXPECT_TRUE(r.ok) << r.err;
