@@ -28,6 +28,8 @@ namespace {
 using Cx = std::complex<double>;
 constexpr Cx kI(0, 1);
 constexpr double kTol = 1e-6;
+// More identical moves in a row than this stop the cycle (see Machine).
+constexpr int kMaxRepeats = 1000;
 
 // A geometry failure: the cycle's error is "G7X error: <what>".
 struct G7xError {
@@ -799,9 +801,22 @@ void Interpreter::State::convert_g7x(int g) {
 
    private:
     void set_xz(Cx end) {
+      // A bound LinuxCNC 2.9 does not have: on some contours (its test
+      // interp/g71-endless-loop) its G71.2 repeats one move for ever.
+      if (end == last_) {
+        if (++repeats_ > kMaxRepeats) {
+          throw G7xError{"the cycle makes no progress: the same move more than " + std::to_string(kMaxRepeats) +
+                         " times in a row"};
+        }
+      } else {
+        repeats_ = 0;
+        last_ = end;
+      }
       st_.block.set('x', end.imag());
       st_.block.set('z', end.real());
     }
+    Cx last_{std::nan(""), 0};
+    int repeats_ = 0;
     void line(int g, Cx end) {
       set_xz(end);
       st_.motion_mode = g;

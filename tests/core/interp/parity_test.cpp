@@ -731,3 +731,15 @@ TEST(InterpLatheCycles, InG91TheCycleAndItsContourAreRelativeAndTheLastMovesMode
                      "N..... STRAIGHT_FEED(32.0000, 0.0000, -5.0000, 0.0000, 0.0000, 0.0000)\n"
                      "N..... STRAIGHT_FEED(34.0000, 0.0000, -5.0000, 0.0000, 0.0000, 0.0000)\n")) << r.canon;
 }
+
+TEST(InterpLatheCycles, AG71Point2ThatMakesNoProgressStopsWithAnErrorInsteadOfLoopingForEver) {
+  // LinuxCNC 2.9 repeats STRAIGHT_FEED(3.0647, 0, -14.04, ...) for ever on
+  // this contour (its own test interp/g71-endless-loop is an expected
+  // failure); here it is an error after 1000 identical moves
+  const Rs274Result r = run("G21 G18 G90 G8 G91.1 F225\no200 sub\n  G1 X10 Z0\n  G1 X10 Z-14\n  G1 X3\n  G1 X7 Z-22\n"
+                            "o200 endsub\nG71.2 Q200 X15 Z0 D0.04 I0.5 R1\nM2\n");
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("G7X error: the cycle makes no progress: the same move more than 1000 times in a row"),
+            std::string::npos)
+      << r.err;
+}
