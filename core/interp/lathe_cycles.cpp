@@ -775,6 +775,14 @@ void Interpreter::State::convert_g7x(int g) {
   current_line = line_at;
   line_text = text_at;
   n_number = n_at;
+  // The rest of the cycle's block (M0, M2 ... on the same line) runs after
+  // it; LinuxCNC 2.9 goes on with the subroutine's last block instead and
+  // drops them.
+  struct RestoreBlock {
+    Block& b;
+    const Block& saved;
+    ~RestoreBlock() { b = saved; }
+  } restore_block{block, cycle_block};
   if (path.segs.size() <= 1) return;
 
   auto word = [&](char c, double dflt) { return cycle_block.has_word(c) ? cycle_block.get(c) : dflt; };

@@ -743,3 +743,12 @@ TEST(InterpLatheCycles, AG71Point2ThatMakesNoProgressStopsWithAnErrorInsteadOfLo
             std::string::npos)
       << r.err;
 }
+
+TEST(InterpLatheCycles, AStopOnTheCyclesLineRunsAfterTheCycle) {
+  // LinuxCNC 2.9 drops the M0 (it goes on with the subroutine's last block)
+  const Rs274Result r = run("G18 G21 F300\no10 sub\n  G0 X2 Z1\n  G1 Z0\n  X6 Z-3\n  Z-7\no10 endsub\nG0 X12 Z2\n"
+                            "G70 Q10 X12 Z2 M0\nG0 X20\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(6.0000, 0.0000, -7.0000, 0.0000, 0.0000, 0.0000)\nN..... PROGRAM_STOP()\n"
+                     "N..... STRAIGHT_TRAVERSE(20.0000, 0.0000, -7.0000")) << r.canon;
+}
