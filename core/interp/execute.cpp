@@ -64,6 +64,7 @@ void Interpreter::State::canon_init_calls() {
 
 void Interpreter::State::reset_modal(bool keep_params) {
   if (!keep_params) init_parameters();
+  active_spindle = 0;
   pos = Pose{};
   units = config.default_units;
   plane = Plane::XY;
@@ -477,6 +478,8 @@ void Interpreter::State::check_other_words() const {
   const int m_io = block.m[kMIo];
   const bool user_m = block.m[kMUser] != -1;
   const bool cycle = mg == 730 || mg == 740 || (mg >= 810 && mg <= 890);
+  const bool g7x = mg == 700 || mg == 710 || mg == 711 || mg == 712 || mg == 720 || mg == 721 || mg == 722;
+  const bool g71_72 = g7x && mg != 700;
   auto motion_in = [&](std::initializer_list<int> codes) {
     for (int c : codes) {
       if (mg == c) return true;
@@ -489,16 +492,16 @@ void Interpreter::State::check_other_words() const {
   }
   const int cutter = block.g[kGCutter];
   if (block.has_word('d') && !(cutter == 410 || cutter == 411 || cutter == 420 || cutter == 421) &&
-      block.g[kGSpindleMode] != 960) {
+      block.g[kGSpindleMode] != 960 && !g7x) {
     fail("D word with no G41, G41.1, G42, G42.1, G71, G71.1, G71.2 or G96 to use it");
   }
   if ((cutter == 411 || cutter == 421) && !block.has_word('d')) fail(cutter == 411 ? "G41.1 with no D word" : "G42.1 with no D word");
-  if (block.has_word('e') && mg != 760 && m_io != 66 && m_io != 67 && m_io != 68) {
+  if (block.has_word('e') && mg != 760 && mg != 700 && m_io != 66 && m_io != 67 && m_io != 68) {
     fail("E word with no G70, G76, M66, M67 or M68 to use it");
   }
   const int tlo = block.g[kGToolOffset];
   if (block.has_word('h') && tlo != 430 && tlo != 432 && mg != 760) fail("H word with no G43 or G76 to use it");
-  if (block.has_word('i') && !motion_in({20, 30, 50, 51, 331, 760, 870}) && g0 != 100) {
+  if (block.has_word('i') && !motion_in({20, 30, 50, 51, 331, 760, 870}) && !g71_72 && g0 != 100) {
     fail("I word with no G2, G3, G5, G5.1, G10, G33.1, G76, or G87 to use it");
   }
   if (block.has_word('j') && !motion_in({20, 30, 50, 51, 760, 870}) && g0 != 100) {
@@ -512,16 +515,16 @@ void Interpreter::State::check_other_words() const {
     fail("L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 or NURBS code");
   }
   const int ov = block.m[kMOverride];
-  if (block.has_word('p') && !motion_in({20, 30, 50, 52, 740, 760, 820, 840, 860, 880, 890}) && g0 != 40 && g0 != 100 &&
+  if (block.has_word('p') && !motion_in({20, 30, 50, 52, 700, 740, 760, 820, 840, 860, 880, 890}) && g0 != 40 && g0 != 100 &&
       block.g[kGControl] != 640 && !(ov >= 50 && ov <= 53) && !(m_io >= 62 && m_io <= 66) && !user_m &&
       block.m[kMSpindle] != 19 && block.m[kMStop] != 98) {
     fail("P word with no G2 G3 G4 G10 G64 G5 G5.2 G76 G82 G86 G88 G89 or M50 M51 M52 M53 M62 M63 M64 M65 M66 M98 or user M code to use it");
   }
-  if (block.has_word('q') && !motion_in({50, 730, 760, 830}) && g0 != 100 && block.g[kGControl] != 640 &&
+  if (block.has_word('q') && !motion_in({50, 730, 760, 830}) && !g7x && g0 != 100 && block.g[kGControl] != 640 &&
       block.m[kMSpindle] != 19 && m_io != 66 && m_io != 67 && m_io != 68 && !user_m && block.m[kMToolChange] != 61) {
     fail("Q word with no G5, G10, G64, G73, G76, G83, M19, M66, M67, M68 or user M code that uses it");
   }
-  if (block.has_word('r') && !motion_in({20, 30, 760}) && !cycle && g0 != 100 && block.m[kMSpindle] != 19) {
+  if (block.has_word('r') && !motion_in({20, 30, 760}) && !cycle && !g71_72 && g0 != 100 && block.m[kMSpindle] != 19) {
     fail("R word with no g code that uses it");
   }
   if (block.has_dollar && !block.has_word('s')) {
@@ -532,12 +535,6 @@ void Interpreter::State::check_other_words() const {
         fm != 950 && sm != 960 && sm != 970) {
       fail("$ (spindle selection) word with no M3, M4, M5, M19, M51, G33, G33.1, G76, G95, G96 or G97 to use it");
     }
-  }
-  if (block.has_dollar && block.dollar != 0 &&
-      (motion_in({330, 331, 760}) || block.g[kGFeedMode] == 950 || block.m[kMOverride] == 51)) {
-    // refused rather than synchronised to the wrong spindle
-    fail("$" + std::to_string(block.dollar) +
-         ": spindle-synchronised motion (G33, G33.1, G76, G95) and M51 follow spindle 0 only in this interpreter");
   }
   if (block.m[kMSpindle] == 19 && block.has_word('p')) {
     const double p = block.get('p');
@@ -586,6 +583,7 @@ void Interpreter::State::convert_comment() {
 }
 
 void Interpreter::State::convert_spindle_mode(int g) {
+  active_spindle = block.has_dollar && block.dollar >= 0 ? chosen_spindle("Spindle Mode command") : 0;
   for (int k : chosen_spindles("Spindle Mode command")) {
     bool& mode = k == 0 ? css : other_spindles[static_cast<std::size_t>(k)].css;
     double& max = k == 0 ? css_max : other_spindles[static_cast<std::size_t>(k)].css_max;
@@ -637,6 +635,7 @@ void Interpreter::State::set_direction(int k, Direction d) {
 }
 
 void Interpreter::State::convert_feed_mode(int g) {
+  active_spindle = block.has_dollar ? chosen_spindle("Spindle Feed command") : 0;
   if (g == 930) {
     if (config.linuxcnc_comments) canon.comment("interpreter: feed mode set to inverse time");
     feed_mode = FeedMode::InverseTime;
@@ -650,7 +649,7 @@ void Interpreter::State::convert_feed_mode(int g) {
   } else {
     if (config.linuxcnc_comments) canon.comment("interpreter: feed mode set to units per revolution");
     feed_mode = FeedMode::UnitsPerRev;
-    canon.set_feed_mode(0, FeedMode::UnitsPerRev);
+    canon.set_feed_mode(active_spindle, FeedMode::UnitsPerRev);
     feed = 0;
     canon.set_feed_rate(0);
   }
@@ -838,22 +837,29 @@ void Interpreter::State::convert_m(int group, Status& st) {
   switch (ov) {
     case 48:
       canon.enable_feed_override();
-      canon.enable_speed_override(0);
+      for (int k = 0; k < config.spindles; ++k) canon.enable_speed_override(k);
       feed_override = speed_override = true;
       break;
     case 49:
       canon.disable_feed_override();
-      canon.disable_speed_override(0);
+      for (int k = 0; k < config.spindles; ++k) canon.disable_speed_override(k);
       feed_override = speed_override = false;
       break;
     case 50:
       p_on ? canon.enable_feed_override() : canon.disable_feed_override();
       feed_override = p_on;
       break;
-    case 51:
-      p_on ? canon.enable_speed_override(0) : canon.disable_speed_override(0);
-      speed_override = p_on;
+    case 51: {
+      // every spindle, or the one $ names (LinuxCNC refuses $0 here; a
+      // slip of its check, spindle 0 is a spindle like the others)
+      const int only = block.has_dollar ? chosen_spindle("M51 command") : -1;
+      for (int k = 0; k < config.spindles; ++k) {
+        if (only != -1 && k != only) continue;
+        p_on ? canon.enable_speed_override(k) : canon.disable_speed_override(k);
+      }
+      if (only <= 0) speed_override = p_on;
       break;
+    }
     case 52:
       p_on ? canon.enable_adaptive_feed() : canon.disable_adaptive_feed();
       adaptive = p_on;

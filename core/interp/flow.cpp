@@ -175,6 +175,8 @@ ReadResult Interpreter::State::read_block() {
     }
     if (block.o_type != OType::None) {
       handle_o_word();
+      // A G7x cycle reading its contour: the subroutine returned.
+      if (capture_depth >= 0 && static_cast<int>(frames.size()) <= capture_depth) return ReadResult::End;
       if (resume_block) {
         // A remap procedure returned: the rest of its block runs now.
         resume_block = false;
@@ -416,11 +418,19 @@ void Interpreter::State::do_call(bool fanuc, int repeats) {
     // a script function: called at once, no frame; its number (if any) is
     // the call's value as a G-code sub's return value is
     std::optional<double> value;
+    // The function runs one call level down, as LinuxCNC's: what it sets in
+    // self.params by a local name is its own local.
+    Frame f;
+    f.sub_name = label;
+    f.file_depth = static_cast<int>(files.size());
+    frames.push_back(std::move(f));
     try {
       value = config.script->call_oword(label, args);
     } catch (const std::runtime_error& e) {
+      frames.pop_back();
       fail("o<" + label + "> (Python): " + e.what());
     }
+    frames.pop_back();
     globals["_value"] = value ? *value : 0.0;
     globals["_value_returned"] = value ? 1.0 : 0.0;
     return;

@@ -4,6 +4,7 @@
 // moves, arcs, cycles, cutter compensation; params.cpp: parameters).
 #pragma once
 
+#include <set>
 #include <string_view>
 
 #include "core/interp/queueing_canon.hpp"
@@ -92,6 +93,18 @@ struct Interpreter::State {
   std::vector<int> chosen_spindles(const char* what, bool minus_one_allowed = true) const;
   void set_speed(int k, double rpm);
   void set_direction(int k, Direction d);
+  // LinuxCNC's active spindle: chosen by $ (or 0 without) with G93-G95 and
+  // G96/G97, by $ with G33, G33.1, G76; feed per revolution and
+  // spindle-synchronised motion follow it.
+  int active_spindle = 0;
+  // The spindle a block's $ names for `what` (a single spindle, not $-1).
+  int chosen_spindle(const char* what) const { return chosen_spindles(what, false).front(); }
+  double active_speed() const {
+    return active_spindle == 0 ? speed : other_spindles[static_cast<std::size_t>(active_spindle)].speed;
+  }
+  Direction active_direction() const {
+    return active_spindle == 0 ? spindle : other_spindles[static_cast<std::size_t>(active_spindle)].dir;
+  }
   bool css = false;
   double css_max = 0;
   bool mist = false, flood = false;
@@ -176,6 +189,7 @@ struct Interpreter::State {
   bool find_named(const std::string& name, double& value) const;
   void set_named(const std::string& name, double value);
   bool predefined(const std::string& name, double& value) const;
+  mutable std::set<std::string> ini_names_read;  // #<_ini[s]k> names read so far (listed as predefined)
   void write_position_params();
   void write_tool_params();
   std::string substitute_params(std::string_view text);
@@ -269,6 +283,9 @@ struct Interpreter::State {
   void convert_threading(int g, const Pose& end);
   void convert_cycle(int g, Pose end);
   void convert_g76(const Pose& end);
+  // G70/G71/G72 (lathe_cycles.cpp): the contour is read from the Q subroutine.
+  void convert_g7x(int g);
+  int capture_depth = -1;  // >= 0 while G7x reads its contour: read_block() ends when the call returns to this depth
   void convert_spline(int g, const Pose& end);
   void convert_nurbs(int g);
   void check_other_words() const;

@@ -550,6 +550,52 @@ std::vector<int> Interpreter::active_g_codes() const {
   return g;
 }
 
+std::vector<Interpreter::NamedParameter> Interpreter::named_parameters(int level) const {
+  const State& s = *s_;
+  std::vector<NamedParameter> out;
+  if (level < 0 || level >= static_cast<int>(s.frames.size())) return out;
+  if (level == 0) {
+    // LinuxCNC 2.9's predefined parameters (its init_named_parameters)
+    static constexpr const char* kPredefined[] = {
+        "_vmajor", "_vminor", "_metric_machine", "_line", "_motion_mode", "_plane", "_ccomp", "_metric", "_imperial",
+        "_absolute", "_incremental", "_inverse_time", "_units_per_minute", "_units_per_rev", "_coord_system",
+        "_tool_offset", "_retract_r_plane", "_retract_old_z", "_spindle_rpm_mode", "_spindle_css_mode",
+        "_ijk_absolute_mode", "_lathe_diameter_mode", "_lathe_radius_mode", "_spindle_on", "_spindle_cw", "_mist",
+        "_flood", "_speed_override", "_feed_override", "_adaptive_feed", "_feed_hold", "_feed", "_rpm",
+        "_current_tool", "_current_pocket", "_selected_pocket", "_selected_tool", "_x", "_y", "_z", "_a", "_b", "_c",
+        "_u", "_v", "_w", "_abs_x", "_abs_y", "_abs_z", "_abs_a", "_abs_b", "_abs_c", "_value", "_value_returned",
+        "_task", "_call_level", "_remap_level"};
+    for (const char* name : kPredefined) {
+      double v = 0;
+      if (s.predefined(name, v)) out.push_back({name, v, 1 | 2});
+    }
+    for (const std::string& name : s.ini_names_read) {
+      double v = 0;
+      if (s.predefined(name, v)) out.push_back({name, v, 1 | 2 | 16});
+    }
+    if (s.config.script) {
+      for (const std::string& name : s.config.script->script_parameters()) out.push_back({name, 0.0, 1 | 2 | 32});
+    }
+    for (const auto& [name, v] : s.globals) out.push_back({name, v, 2});
+  }
+  for (const auto& [name, v] : s.frames[static_cast<std::size_t>(level)].locals) out.push_back({name, v, 0});
+  std::sort(out.begin(), out.end(), [](const NamedParameter& a, const NamedParameter& b) { return a.name < b.name; });
+  // a global assigned over a predefined name (_value) is listed once
+  out.erase(std::unique(out.begin(), out.end(), [](const NamedParameter& a, const NamedParameter& b) { return a.name == b.name; }),
+            out.end());
+  return out;
+}
+
+Interpreter::BlockView Interpreter::current_block() const {
+  const State& s = *s_;
+  BlockView b;
+  b.o_name = s.block.o_name;
+  b.params = s.block.call_args;
+  b.g_modes.assign(s.block.g.begin(), s.block.g.end());
+  b.m_modes.assign(s.block.m.begin(), s.block.m.end());
+  return b;
+}
+
 std::vector<int> Interpreter::active_m_codes() const {
   const State& s = *s_;
   std::vector<int> m;

@@ -105,6 +105,16 @@ class ScriptHost {
   // with self.set_errormsg() when it returned INTERP_ERROR, or what went
   // wrong. Throws std::runtime_error for a Python exception.
   virtual std::string call_remap(const std::string& name, const std::vector<std::pair<std::string, double>>& words) = 0;
+  // Predefined named parameters computed by a script (LinuxCNC's module
+  // `namedparams`: its functions whose names start with '_'), sorted.
+  virtual std::vector<std::string> script_parameters() { return {}; }
+  // The value of one of them (false when `name` is none); throws
+  // std::runtime_error with the script's error.
+  virtual bool script_parameter(const std::string& name, double& value) {
+    (void)name;
+    (void)value;
+    return false;
+  }
 };
 
 struct Config {
@@ -277,6 +287,26 @@ class Interpreter {
 
   // The active G and M codes as LinuxCNC reports them (G x10, e.g. 641 for G64.1).
   std::vector<int> active_g_codes() const;
+  // A named parameter as LinuxCNC's sub_context lists it; attr holds its
+  // PA_* bits (1 read-only, 2 global, 16 from the INI file, 32 computed by
+  // a script).
+  struct NamedParameter {
+    std::string name;
+    double value = 0;
+    int attr = 0;
+  };
+  // The named parameters of call level `level`, sorted by name: level 0
+  // the predefined ones (LinuxCNC 2.9's list, INI values read so far, the
+  // script's), the globals and the top level's locals; above, that call's
+  // locals. Script parameters are listed with the value 0 (not computed).
+  std::vector<NamedParameter> named_parameters(int level) const;
+  // The block being executed, as scripts see it (LinuxCNC's blocks[0]).
+  struct BlockView {
+    std::string o_name;
+    std::vector<double> params;  // an O-word call's arguments
+    std::vector<int> g_modes, m_modes;
+  };
+  BlockView current_block() const;
   std::vector<int> active_m_codes() const;
   Pose position() const;  // program coordinates, program units
 

@@ -280,6 +280,9 @@ void Interpreter::State::convert_motion(int g, Status& st) {
       convert_cycle(g, pos);
       motion_mode = g;
       return;
+    case 700: case 710: case 711: case 712: case 720: case 721: case 722:
+      convert_g7x(g);
+      return;
     case 50:
     case 51:
       motion_mode = g;
@@ -373,7 +376,7 @@ void Interpreter::State::straight(int g, const Pose& end) {
   if (g == 10) {
     if (feed_mode == FeedMode::UnitsPerMinute && feed == 0.0) fail("Cannot do g1 with zero feed rate");
     if (feed_mode == FeedMode::InverseTime && !block.has_word('f')) fail("F word missing with inverse time g1 move");
-    if (feed_mode == FeedMode::UnitsPerRev && speed == 0.0) fail("Cannot feed with zero spindle speed in feed per rev mode");
+    if (feed_mode == FeedMode::UnitsPerRev && active_speed() == 0.0) fail("Cannot feed with zero spindle speed in feed per rev mode");
   }
   // Under cutter compensation the inverse-time rate comes from the
   // programmed move, so it is the same with compensation on or off
@@ -409,7 +412,7 @@ void Interpreter::State::convert_arc(int g, const Pose& end) {
   }
   if (feed_mode == FeedMode::UnitsPerMinute && feed == 0.0) fail("Cannot make arc with zero feed rate");
   if (feed_mode == FeedMode::InverseTime && !block.has_word('f')) fail("F word missing with inverse time arc move");
-  if (feed_mode == FeedMode::UnitsPerRev && speed == 0.0) fail("Cannot feed with zero spindle speed in feed per rev mode");
+  if (feed_mode == FeedMode::UnitsPerRev && active_speed() == 0.0) fail("Cannot feed with zero spindle speed in feed per rev mode");
   int turns = 1;
   if (block.has_word('p')) {
     const double p = block.get('p');
@@ -519,9 +522,10 @@ void Interpreter::State::convert_probe(int g, const Pose& end, Status& st) {
 
 void Interpreter::State::convert_threading(int g, const Pose& end) {
   if (!block.has_word('k')) fail("K word missing with g33/g33.1");
-  if (spindle == Direction::Stopped) fail(g == 330 ? "Spindle not turning in G33" : "Spindle not turning in G33.1");
+  if (block.has_dollar) active_spindle = chosen_spindle(g == 330 ? "G33" : "G33.1");
+  if (active_direction() == Direction::Stopped) fail(g == 330 ? "Spindle not turning in G33" : "Spindle not turning in G33.1");
   if (cutter_side != 400 && g == 331) fail("G33.1 cannot be used with cutter compensation enabled");
-  canon.start_speed_feed_synch(0, block.get('k'), false);
+  canon.start_speed_feed_synch(active_spindle, block.get('k'), false);
   if (g == 330) {
     if (cutter_side != 400) {
       comp_straight(false, end);
@@ -547,7 +551,10 @@ void Interpreter::State::convert_g76(const Pose& end) {
   if (i == 0.0) fail("In G76, I must not be 0");
   if (j <= 0.0) fail("In G76, J must be greater than 0");
   if (k <= j) fail("In G76, K must be greater than J");
-  if (spindle == Direction::Stopped) fail("Chosen spindle (0) not turning in G76");
+  if (block.has_dollar) active_spindle = chosen_spindle("G76");
+  if (active_direction() == Direction::Stopped) {
+    fail("Chosen spindle (" + std::to_string(active_spindle) + ") not turning in G76");
+  }
   const double degression = block.has_word('r') ? block.get('r') : 1.0;
   const double t = std::tan((block.has_word('q') ? block.get('q') : 0.0) * kPi / 180.0);
   const int spring = block.has_word('h') ? round_to_int(block.get('h')) : 0;
@@ -575,14 +582,14 @@ void Interpreter::State::convert_g76(const Pose& end) {
     if (!entry_taper) emit_traverse(at(cut_x, zs_pass));
     canon.disable_feed_override();
     if (entry_taper) {
-      canon.start_speed_feed_synch(0, taper_pitch, false);
+      canon.start_speed_feed_synch(active_spindle, taper_pitch, false);
       emit_feed(at(cut_x - s * k, zs_pass));
       emit_feed(at(cut_x, zs_pass + dir * e));
     }
-    canon.start_speed_feed_synch(0, pitch, false);
+    canon.start_speed_feed_synch(active_spindle, pitch, false);
     if (exit_taper) {
       emit_feed(at(cut_x, ze_pass - dir * e));
-      canon.start_speed_feed_synch(0, taper_pitch, false);
+      canon.start_speed_feed_synch(active_spindle, taper_pitch, false);
       emit_feed(at(cut_x - s * k, ze_pass));
     } else {
       emit_feed(at(cut_x, ze_pass));

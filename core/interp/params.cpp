@@ -231,6 +231,15 @@ bool Interpreter::State::predefined(const std::string& name, double& v) const {
     v = 2.9;  // LinuxCNC 2.9 dialect
     return true;
   }
+  if (n == "_metric_machine") {
+    // LinuxCNC: -1 without an INI file or its [TRAJ]LINEAR_UNITS, 0 for
+    // "inch", else 1
+    v = -1;
+    if (config.ini != nullptr) {
+      if (const auto u = config.ini->find("TRAJ", "LINEAR_UNITS")) v = *u == "inch" ? 0 : 1;
+    }
+    return true;
+  }
   if (n == "_vminor") {
     v = 0.0;
     return true;
@@ -246,7 +255,15 @@ bool Interpreter::State::predefined(const std::string& name, double& v) const {
     const auto d = cnc::parse_double(*text);
     if (!d) return false;
     v = *d;
+    ini_names_read.insert(name);
     return true;
+  }
+  if (config.script) {
+    try {
+      if (config.script->script_parameter(name, v)) return true;
+    } catch (const std::runtime_error& e) {
+      fail("#<" + name + ">: " + e.what());
+    }
   }
   return false;
 }

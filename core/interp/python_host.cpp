@@ -4,6 +4,7 @@
 #include <pybind11/stl.h>
 
 #include <cmath>
+#include <set>
 #include <stdexcept>
 
 #include "core/util/strings.hpp"
@@ -37,6 +38,25 @@ struct This {};
 struct Params {};
 // `this.tool_table`
 struct ToolTableView {};
+// `this.sub_context[level]` and its `named_params`
+struct SubContext {
+  int level = 0;
+};
+struct NamedParams {
+  int level = 0;
+};
+// An entry of `named_params` while iterating: key() and data()
+struct NamedParamItem {
+  cnc::interp::Interpreter::NamedParameter p;
+};
+// `this.blocks`
+struct Blocks {};
+
+std::vector<std::string> names_at(int level) {
+  std::vector<std::string> out;
+  for (const auto& p : interp().named_parameters(level)) out.push_back(p.name);
+  return out;
+}
 
 Pose pose9(double x, double y, double z, double a, double b, double c, double u, double v, double w) {
   Pose p;
@@ -121,7 +141,56 @@ PYBIND11_EMBEDDED_MODULE(interpreter, m) {
 
   py::class_<Params>(m, "Params")
       .def("__getitem__", [](const Params&, const py::object& key) { return get_param(key); })
-      .def("__setitem__", [](const Params&, const py::object& key, double v) { set_param(key, v); });
+      .def("__setitem__", [](const Params&, const py::object& key, double v) { set_param(key, v); })
+      // names of the current call level's locals, of the globals (level 0),
+      // and both
+      .def("locals", [](const Params&) { return names_at(interp().call_level()); })
+      .def("globals", [](const Params&) { return names_at(0); })
+      .def("__call__", [](const Params&) {
+        std::vector<std::string> all = names_at(interp().call_level());
+        for (std::string& n : names_at(0)) all.push_back(std::move(n));
+        return all;
+      });
+
+  py::class_<cnc::interp::Interpreter::NamedParameter>(m, "NamedParameter")
+      .def_property_readonly("value", [](const cnc::interp::Interpreter::NamedParameter& p) { return p.value; })
+      .def_property_readonly("attr", [](const cnc::interp::Interpreter::NamedParameter& p) { return p.attr; });
+  py::class_<NamedParamItem>(m, "NamedParamItem")
+      .def("key", [](const NamedParamItem& i) { return i.p.name; })
+      .def("data", [](const NamedParamItem& i) { return i.p; });
+  py::class_<NamedParams>(m, "NamedParams")
+      .def("__getitem__", [](const NamedParams& n, const std::string& name) {
+        for (const auto& p : interp().named_parameters(n.level)) {
+          if (p.name == name) return p;
+        }
+        throw py::key_error(name);
+      })
+      .def("__contains__", [](const NamedParams& n, const std::string& name) {
+        for (const auto& p : interp().named_parameters(n.level)) {
+          if (p.name == name) return true;
+        }
+        return false;
+      })
+      .def("__len__", [](const NamedParams& n) { return interp().named_parameters(n.level).size(); })
+      .def("__iter__", [](const NamedParams& n) {
+        py::list items;
+        for (const auto& p : interp().named_parameters(n.level)) items.append(py::cast(NamedParamItem{p}));
+        return py::iter(items);
+      });
+  py::class_<SubContext>(m, "SubContext")
+      .def_property_readonly("named_params", [](const SubContext& c) { return NamedParams{c.level}; });
+
+  py::class_<cnc::interp::Interpreter::BlockView>(m, "Block")
+      .def_property_readonly("o_name", [](const cnc::interp::Interpreter::BlockView& b) { return b.o_name; })
+      .def_property_readonly("params", [](const cnc::interp::Interpreter::BlockView& b) { return b.params; })
+      .def_property_readonly("g_modes", [](const cnc::interp::Interpreter::BlockView& b) { return b.g_modes; })
+      .def_property_readonly("m_modes", [](const cnc::interp::Interpreter::BlockView& b) { return b.m_modes; });
+  py::class_<Blocks>(m, "Blocks").def("__getitem__", [](const Blocks&, int i) {
+    // blocks[0] is the block being executed; LinuxCNC keeps one per remap
+    // level above it, this interpreter does not
+    if (i != 0) throw py::index_error("only blocks[0] (the block being executed) is available");
+    return interp().current_block();
+  });
 
   py::class_<This>(m, "Interp", py::dynamic_attr())
       .def_property_readonly("params", [](const This&) { return Params{}; })
@@ -131,6 +200,38 @@ PYBIND11_EMBEDDED_MODULE(interpreter, m) {
       .def_property_readonly("return_value", [](const This&) { return named_or_zero("_value"); })
       .def_property_readonly("value_returned", [](const This&) { return static_cast<int>(named_or_zero("_value_returned")); })
       .def_property_readonly("remap_level", [](const This&) { return interp().remap_level(); })
+      .def_property_readonly("sub_context", [](const This&) {
+        std::vector<SubContext> v;
+        for (int level = 0; level <= interp().call_level(); ++level) v.push_back({level});
+        return v;
+      })
+      .def_property_readonly("blocks", [](const This&) { return Blocks{}; })
+      // the interpreter's position in program coordinates (LinuxCNC's
+      // current_x ..): what it commanded, or the machine's after a synch
+      .def_property_readonly("current_x", [](const This&) { return interp().position()[0]; })
+      .def_property_readonly("current_y", [](const This&) { return interp().position()[1]; })
+      .def_property_readonly("current_z", [](const This&) { return interp().position()[2]; })
+      .def_property_readonly("current_a", [](const This&) { return interp().position()[3]; })
+      .def_property_readonly("current_b", [](const This&) { return interp().position()[4]; })
+      .def_property_readonly("current_c", [](const This&) { return interp().position()[5]; })
+      .def_property_readonly("current_u", [](const This&) { return interp().position()[6]; })
+      .def_property_readonly("current_v", [](const This&) { return interp().position()[7]; })
+      .def_property_readonly("current_w", [](const This&) { return interp().position()[8]; })
+      // LinuxCNC's active_g_codes array: [0] the line, [1] the motion mode,
+      // [2] the block's non-modal code, then plane, cutter compensation,
+      // units, distance mode, feed mode, coordinate system, tool length
+      // offset, retract mode, path control, (-1), spindle mode, arc distance
+      // mode, lathe diameter mode (each G code x10)
+      .def_property_readonly("active_g_codes", [](const This&) {
+        const std::vector<int> g = interp().active_g_codes();
+        const cnc::interp::Interpreter::BlockView b = interp().current_block();
+        return std::vector<int>{interp().line(), g[0], b.g_modes.empty() ? -1 : b.g_modes[0], g[1], g[6], g[5], g[2],
+                                g[4], g[9], g[7], g[8], g[10], -1, g[11], g[3], g[12]};
+      })
+      .def_property_readonly("active_m_codes", [](const This&) { return interp().active_m_codes(); })
+      // what LinuxCNC's rs274 reports with [EMC]DEBUG = 0 and LOG_LEVEL = 0
+      .def_property_readonly("debugmask", [](const This&) { return 0x40000000; })
+      .def_property_readonly("loggingLevel", [](const This&) { return 0; })
       // feed per revolution, threading and the spindle codes without $ use
       // spindle 0 in this interpreter
       .def_property_readonly("active_spindle", [](const This&) { return 0; })
@@ -270,6 +371,30 @@ class PythonHost final : public ScriptHost {
     }
   }
 
+  std::vector<std::string> script_parameters() override {
+    return std::vector<std::string>(script_params_.begin(), script_params_.end());
+  }
+
+  bool script_parameter(const std::string& name, double& value) override {
+    if (script_params_.count(name) == 0) return false;
+    Output out(*this);
+    py::gil_scoped_acquire gil;
+    try {
+      py::object result = py::module_::import("sys").attr("modules")["namedparams"].attr(name.c_str())(this_object());
+      flush_python();
+      if (py::isinstance<py::str>(result)) throw std::runtime_error(result.cast<std::string>());
+      if ((py::isinstance<py::float_>(result) || py::isinstance<py::int_>(result)) && !result.is_none()) {
+        value = result.cast<double>();
+        return true;
+      }
+      throw std::runtime_error("namedparams." + name + " returned " +
+                               std::string(py::str(result.get_type().attr("__name__"))) + ", expected a number");
+    } catch (py::error_already_set& e) {
+      flush_python();
+      throw std::runtime_error(describe(e));
+    }
+  }
+
   void run_statement(const std::string& code) override {
     start();
     if (!ns_) throw std::runtime_error("Python did not start (see the first error)");
@@ -340,6 +465,17 @@ class PythonHost final : public ScriptHost {
           ns["__init__"](interpreter.attr("this"));
         }
       }
+      // LinuxCNC's predefined parameters in Python: the functions of the
+      // module `namedparams` (when TOPLEVEL imported it) named _something
+      if (modules.contains("namedparams")) {
+        py::object np = modules["namedparams"];
+        for (const py::handle key : py::list(py::module_::import("builtins").attr("dir")(np))) {
+          const std::string name = key.cast<std::string>();
+          if (name.size() > 1 && name[0] == '_' && name[1] != '_' && PyCallable_Check(np.attr(name.c_str()).ptr()) != 0) {
+            script_params_.insert(name);
+          }
+        }
+      }
       flush_python();
     } catch (py::error_already_set& e) {
       flush_python();
@@ -354,6 +490,7 @@ class PythonHost final : public ScriptHost {
   Interpreter* interp_ = nullptr;
   Canon* canon_ = nullptr;
   std::unique_ptr<py::dict> ns_;  // TOPLEVEL's globals; null until started
+  std::set<std::string> script_params_;  // namedparams functions: predefined parameters
 };
 
 std::vector<std::filesystem::path> path_list(const cnc::ini::IniFile& ini, std::string_view key) {

@@ -21,6 +21,7 @@ int g_group(int code) {
     case 0: case 10: case 20: case 30: case 50: case 51: case 52: case 53: case 330: case 331:
     case 382: case 383: case 384: case 385: case 730: case 740: case 760: case 800: case 810: case 820: case 830:
     case 840: case 850: case 860: case 870: case 880: case 890:
+    case 700: case 710: case 711: case 712: case 720: case 721: case 722:
       return kGMotion;
     case 170: case 171: case 180: case 181: case 190: case 191: return kGPlane;
     case 900: case 910: return kGDistance;
@@ -281,7 +282,12 @@ void Interpreter::State::read_word(std::size_t& i) {
       break;
   }
   const int axis = axis_index(letter);
-  if (axis >= 0 && !((config.axis_mask >> axis) & 1u)) fail(std::string("Bad character '") + letter + "' used");
+  // A G7x contour reads A (fillet), C (chamfer), U and W (relative X, Z)
+  // whatever the machine's axes, as LinuxCNC does.
+  const bool contour_word = capture_depth >= 0 && (letter == 'a' || letter == 'c' || letter == 'u' || letter == 'w');
+  if (axis >= 0 && !((config.axis_mask >> axis) & 1u) && !contour_word) {
+    fail(std::string("Bad character '") + letter + "' used");
+  }
   static constexpr uint32_t kWordLetters = 0x3ffffff & ~((1u << ('g' - 'a')) | (1u << ('m' - 'a')) | (1u << ('n' - 'a')) |
                                                           (1u << ('o' - 'a')));
   if (letter < 'a' || letter > 'z' || !((kWordLetters >> (letter - 'a')) & 1u)) {

@@ -142,7 +142,10 @@ double TaskCanon::path_length(const Pose& a, const Pose& b) const noexcept {
   return std::sqrt(l);
 }
 
-void TaskCanon::set_feed_mode(int, interp::FeedMode mode) { feed_mode_ = mode; }
+void TaskCanon::set_feed_mode(int spindle, interp::FeedMode mode) {
+  feed_mode_ = mode;
+  feed_spindle_ = spindle >= 0 && spindle < 8 ? spindle : 0;  // G95 $n: per revolution of spindle n
+}
 
 void TaskCanon::set_motion_control_mode(interp::MotionMode mode, double tolerance) {
   term_ = mode == interp::MotionMode::ExactStop   ? tp::TermCond::ExactStop
@@ -175,7 +178,7 @@ tp::SegmentParams TaskCanon::segment(tp::MotionType type, int line, double lengt
       s.feed = length * feed_rate_ / 60.0;
       break;
     case interp::FeedMode::UnitsPerRev:
-      s.feed = feed_rate_ * f * std::fabs(spindle_rpm_[0]) / 60.0;
+      s.feed = feed_rate_ * f * std::fabs(spindle_rpm_[feed_spindle_]) / 60.0;
       break;
   }
   return s;

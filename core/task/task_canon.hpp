@@ -175,6 +175,7 @@ class TaskCanon : public interp::Canon {
   double rotation_deg_ = 0;
   double feed_rate_ = 0;  // program units per minute (G94), or inverse time (G93), or per rev (G95)
   interp::FeedMode feed_mode_ = interp::FeedMode::UnitsPerMinute;
+  int feed_spindle_ = 0;  // the spindle G95 feeds per revolution of
   tp::TermCond term_ = tp::TermCond::Blend;
   double tolerance_ = 0, naive_tolerance_ = 0;
   double spindle_rpm_[8] = {};

@@ -71,6 +71,12 @@ int main(int argc, char** argv) {
       default: usage(); return 2;
     }
   }
+  // Without -t LinuxCNC's rs274 reads the sample tool table of its
+  // installation; CNC_RS274_TOOL_TABLE names the stand-in (the regression
+  // suite's run sets it).
+  if (o.tool_table.empty()) {
+    if (const char* t = std::getenv("CNC_RS274_TOOL_TABLE"); t != nullptr && *t != 0) o.tool_table = t;
+  }
   if (optind >= argc) {
     usage();
     return 2;

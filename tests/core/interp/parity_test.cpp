@@ -678,7 +678,77 @@ TEST(InterpSpindles, ASpindleTheMachineDoesNotHaveOrADollarNothingUsesIsAnError)
   const Rs274Result unused = run("G1 X1 F1 $1\nM2\n", ini);
   EXPECT_FALSE(unused.ok);
   EXPECT_NE(unused.err.find("$ (spindle selection) word with no M3"), std::string::npos) << unused.err;
-  const Rs274Result sync = run("S100 $2\nM3 $2\nG33 Z-1 K1 $2\nM2\n", ini);
-  EXPECT_FALSE(sync.ok);
-  EXPECT_NE(sync.err.find("follow spindle 0 only"), std::string::npos) << sync.err;
+  // G33 $1 needs spindle 1 turning, whatever spindle 0 does
+  const Rs274Result stopped = run("S100 $0\nM3 $0\nG33 Z-1 K1 $1\nM2\n", ini);
+  EXPECT_FALSE(stopped.ok);
+  EXPECT_NE(stopped.err.find("Spindle not turning in G33"), std::string::npos) << stopped.err;
+}
+
+TEST(InterpSpindles, DollarChoosesTheSpindleThatThreadingFeedPerRevolutionAndM51Follow) {
+  // LinuxCNC 2.9's rs274 with [TRAJ]SPINDLES=3 prints these calls; before,
+  // a $ other than $0 with G33, G95 or M51 was refused
+  const Rs274Result r = run("G20 G0 X0 Z0\nS100 $1 M3\nG33 X1 Z-1 K0.1 $1\nG95 $1 S200 F0.1\nG1 X2\nM51 P0 $2\nM2\n",
+                            with_ini("[TRAJ]\nSPINDLES=3\n"));
+  ASSERT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "N..... START_SPINDLE_CLOCKWISE(1)\nN..... START_SPEED_FEED_SYNC(0.100000,0)\n"
+                     "N..... STRAIGHT_FEED(1.0000, 0.0000, -1.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STOP_SPEED_FEED_SYNCH()\n"
+                     "N..... COMMENT(\"interpreter: feed mode set to units per revolution\")\n"
+                     "N..... SET_FEED_MODE(1, 1)\nN..... SET_FEED_RATE(0.0000)\nN..... SET_FEED_RATE(0.1000)\n"
+                     "N..... SET_SPINDLE_SPEED(1, 200.0000)\n"
+                     "N..... STRAIGHT_FEED(2.0000, 0.0000, -1.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... DISABLE_SPEED_OVERRIDE(2)\n"))
+      << r.canon;
+  // feed per revolution of spindle 1: spindle 0 standing still is no error,
+  // spindle 1 standing still is
+  EXPECT_TRUE(run("S100 $1 M3\nG95 $1 S100 F0.1\nG1 X1\nM2\n", with_ini("[TRAJ]\nSPINDLES=3\n")).ok);
+  const Rs274Result zero = run("S100 M3\nG95 $1 F0.1\nG1 X1\nM2\n", with_ini("[TRAJ]\nSPINDLES=3\n"));
+  EXPECT_FALSE(zero.ok);
+  EXPECT_NE(zero.err.find("Cannot feed with zero spindle speed in feed per rev mode"), std::string::npos) << zero.err;
+}
+
+// ---------------------------------------------------------------- G70-G72
+
+TEST(InterpLatheCycles, AnErrorAfterTheContourWasReadNamesTheCycleBlockNotTheSubroutinesEnd) {
+  // LinuxCNC 2.9 shows "o10 endsub" (the last block its reader parsed);
+  // the I word at fault is on the cycle's line.
+  const Rs274Result r = run("G18 G21 F300\no10 sub\n  G0 X2 Z1\n  G1 Z0\n  X6 Z-3\no10 endsub\nG0 X12 Z2\n"
+                            "G71 Q10 X12 Z2 I0\nM2\n");
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("G7X error: I must be greater than zero.\nG71 Q10 X12 Z2 I0\n"), std::string::npos) << r.err;
+}
+
+TEST(InterpLatheCycles, InG91TheCycleAndItsContourAreRelativeAndTheLastMovesModeStays) {
+  // values from LinuxCNC 2.9's rs274: X12 Z2 of the cycle and the contour's
+  // words are relative; the last move of the G70 pass was a G1, so the
+  // following "X2" feeds 2 further (G91 is still on)
+  const Rs274Result r = run("G18 G21 F300\no10 sub\n  G0 X2 Z1\n  G1 Z0\n  X6 Z-3\n  Z-7\no10 endsub\nG0 X12 Z2\n"
+                            "G91\nG70 Q10 X12 Z2\nX2\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_TRAVERSE(24.0000, 0.0000, 5.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STRAIGHT_TRAVERSE(26.0000, 0.0000, 5.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STRAIGHT_FEED(32.0000, 0.0000, 2.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STRAIGHT_FEED(32.0000, 0.0000, -5.0000, 0.0000, 0.0000, 0.0000)\n"
+                     "N..... STRAIGHT_FEED(34.0000, 0.0000, -5.0000, 0.0000, 0.0000, 0.0000)\n")) << r.canon;
+}
+
+TEST(InterpLatheCycles, AG71Point2ThatMakesNoProgressStopsWithAnErrorInsteadOfLoopingForEver) {
+  // LinuxCNC 2.9 repeats STRAIGHT_FEED(3.0647, 0, -14.04, ...) for ever on
+  // this contour (its own test interp/g71-endless-loop is an expected
+  // failure); here it is an error after 1000 identical moves
+  const Rs274Result r = run("G21 G18 G90 G8 G91.1 F225\no200 sub\n  G1 X10 Z0\n  G1 X10 Z-14\n  G1 X3\n  G1 X7 Z-22\n"
+                            "o200 endsub\nG71.2 Q200 X15 Z0 D0.04 I0.5 R1\nM2\n");
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("G7X error: the cycle makes no progress: the same move more than 1000 times in a row"),
+            std::string::npos)
+      << r.err;
+}
+
+TEST(InterpLatheCycles, AStopOnTheCyclesLineRunsAfterTheCycle) {
+  // LinuxCNC 2.9 drops the M0 (it goes on with the subroutine's last block)
+  const Rs274Result r = run("G18 G21 F300\no10 sub\n  G0 X2 Z1\n  G1 Z0\n  X6 Z-3\n  Z-7\no10 endsub\nG0 X12 Z2\n"
+                            "G70 Q10 X12 Z2 M0\nG0 X20\nM2\n");
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "STRAIGHT_FEED(6.0000, 0.0000, -7.0000, 0.0000, 0.0000, 0.0000)\nN..... PROGRAM_STOP()\n"
+                     "N..... STRAIGHT_TRAVERSE(20.0000, 0.0000, -7.0000")) << r.canon;
 }

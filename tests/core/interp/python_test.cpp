@@ -234,3 +234,37 @@ TEST(InterpPython, CanonErrorFromPythonIsACanonicalCall) {
   ASSERT_TRUE(r.ok) << r.err << r.out;
   EXPECT_NE(r.out.find("CANON_ERROR(spindle not at speed)"), std::string::npos) << r.out;
 }
+
+TEST(InterpPython, NamedparamsFunctionsArePredefinedReadOnlyParameters) {
+  const std::vector<std::pair<std::string, std::string>> files = {
+      {"subs.py", "import namedparams\n"},
+      {"namedparams.py",
+       "def _twice_x(self, *args):\n    return self.params['_x'] * 2\n"
+       "def _botched(self, *args):\n    return 'badly botched'\n"}};
+  Result r = run(";py,from interpreter import *\nG0 X3\n;py,assert this.current_x == 3 and this.current_y == 0\nG0 Y#<_twice_x>\n;py,assert this.sub_context[0].named_params['_twice_x'].attr == 35\n"
+                 ";py,assert this.params['_twice_x'] == 6\nM2\n",
+                 kIni, files);
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_NE(r.out.find("STRAIGHT_TRAVERSE(3.0000, 6.0000, 0.0000"), std::string::npos) << r.out;
+  r = run("#<_twice_x> = 1\nM2\n", kIni, files);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("Cannot assign to read-only parameter #<_twice_x>"), std::string::npos) << r.err;
+  r = run("G0 X#<_botched>\nM2\n", kIni, files);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("#<_botched>: badly botched"), std::string::npos) << r.err;
+}
+
+TEST(InterpPython, AnOwordFunctionRunsOneCallLevelDownWithItsOwnLocalsAndSeesItsBlock) {
+  const std::vector<std::pair<std::string, std::string>> files = {
+      {"subs.py", "import oword\n"},
+      {"oword.py",
+       "def look(self, *args):\n"
+       "    b = self.blocks[0]\n"
+       "    print('level', self.call_level, 'block', b.o_name, list(b.params), b.g_modes[0])\n"
+       "    self.params['mine'] = 1.0\n"
+       "    print('locals', self.params.locals(), len(self.sub_context))\n"
+       "    print('top', 'top' in self.params.globals(), '_x' in self.params.globals())\n"}};
+  const Result r = run(";py,from interpreter import *\n#<top> = 5\no<look> call [1] [2]\n;py,assert 'mine' not in this.params.locals()\nM2\n", kIni, files);
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_NE(r.out.find("level 1 block look [1.0, 2.0] -1\nlocals ['mine'] 2\ntop True True\n"), std::string::npos) << r.out;
+}

@@ -72,6 +72,9 @@ mkdir -p "$WORK/bin"
 ln -s "$TOOL" "$WORK/bin/rs274"
 export PATH="$WORK/bin:$PATH"
 export LC_ALL=C LANGUAGES=
+# LinuxCNC's rs274 reads its installation's sample tool table when a test
+# gives no -t (tools 1, 2, 3 and 99999); cnc-rs274 reads this stand-in.
+export CNC_RS274_TOOL_TABLE="$HERE/default_tool.tbl"
 unset DISPLAY
 # What runtests exports for an installed LinuxCNC (only the plugin tests use it).
 export LIBDIR=/usr/lib HEADERS=/usr/include/linuxcnc
