@@ -96,8 +96,12 @@ ProbePage::ProbePage(Screen& s, QWidget* parent) : QWidget(parent), s_(s), probe
   form->addRow("Step along faces", corner_step_);
   boss_diameter_ = number_field(routine_box, "probeBossDiameter", "20");
   boss_depth_ = number_field(routine_box, "probeBossDepth", "5");
-  form->addRow("Boss Ø (about)", boss_diameter_);
-  form->addRow("Boss depth", boss_depth_);
+  // Diameter and depth on one row: the page fits a 1024x768 screen.
+  auto* boss_row = new QHBoxLayout();
+  boss_row->addWidget(boss_diameter_);
+  boss_row->addWidget(new QLabel("depth", routine_box));
+  boss_row->addWidget(boss_depth_);
+  form->addRow("Boss Ø (about)", boss_row);
   gauge_diameter_ = number_field(routine_box, "probeGaugeDiameter", "20");
   form->addRow("Ring gauge Ø", gauge_diameter_);
   system_ = systems(routine_box, "probeSystem", true);
