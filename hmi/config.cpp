@@ -446,6 +446,7 @@ HmiConfig HmiConfig::from_ini(const ini::IniFile& ini) {
   }
   for (const auto& cmd : ini.find_all("HAL", "POSTGUI_HALCMD")) c.postgui_halcmds.emplace_back(trim(cmd));
   c.probe = probing::Settings::from_ini(ini);
+  c.probe.inch = c.machine_inch;  // the routines set G20 or G21 for their numbers
   return c;
 }
 

@@ -296,7 +296,11 @@ class ProbePage : public QWidget {
   void finished();
   void touch_off();
   void update_fields();
+  void show_settings();
   Screen& s_;
+  // [PROBE], with the tip diameter a tip calibration measured (for this
+  // session: the page shows it for [PROBE]TIP_DIAMETER).
+  probing::Settings probe_;
   QComboBox* kind_;
   QSpinBox* tool_;
   QComboBox* corner_x_;
@@ -304,6 +308,7 @@ class ProbePage : public QWidget {
   QLineEdit* corner_step_;
   QLineEdit* boss_diameter_;
   QLineEdit* boss_depth_;
+  QLineEdit* gauge_diameter_;
   QComboBox* system_;
   QLineEdit* value_x_;
   QLineEdit* value_y_;

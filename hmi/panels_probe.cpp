@@ -33,6 +33,7 @@ const Choice kChoices[] = {
     {"Outside corner", probing::Kind::OutsideCorner, 0, 1},
     {"Bore centre (start inside the bore)", probing::Kind::Bore, 0, 1},
     {"Boss centre (start above the boss)", probing::Kind::Boss, 0, 1},
+    {"Tip calibration (start inside a ring gauge)", probing::Kind::TipCalibration, 0, 1},
 };
 
 QLineEdit* number_field(QWidget* parent, const char* name, const QString& text) {
@@ -62,7 +63,7 @@ QComboBox* systems(QWidget* parent, const char* name, bool with_none) {
 
 }  // namespace
 
-ProbePage::ProbePage(Screen& s, QWidget* parent) : QWidget(parent), s_(s) {
+ProbePage::ProbePage(Screen& s, QWidget* parent) : QWidget(parent), s_(s), probe_(s.config.probe) {
   setObjectName("probePage");
   auto* v = new QVBoxLayout(this);
   auto* top = new QHBoxLayout();
@@ -95,8 +96,14 @@ ProbePage::ProbePage(Screen& s, QWidget* parent) : QWidget(parent), s_(s) {
   form->addRow("Step along faces", corner_step_);
   boss_diameter_ = number_field(routine_box, "probeBossDiameter", "20");
   boss_depth_ = number_field(routine_box, "probeBossDepth", "5");
-  form->addRow("Boss Ø (about)", boss_diameter_);
-  form->addRow("Boss depth", boss_depth_);
+  // Diameter and depth on one row: the page fits a 1024x768 screen.
+  auto* boss_row = new QHBoxLayout();
+  boss_row->addWidget(boss_diameter_);
+  boss_row->addWidget(new QLabel("depth", routine_box));
+  boss_row->addWidget(boss_depth_);
+  form->addRow("Boss Ø (about)", boss_row);
+  gauge_diameter_ = number_field(routine_box, "probeGaugeDiameter", "20");
+  form->addRow("Ring gauge Ø", gauge_diameter_);
   system_ = systems(routine_box, "probeSystem", true);
   form->addRow("Set origin in", system_);
   value_x_ = number_field(routine_box, "probeValueX", "0");
@@ -145,26 +152,7 @@ ProbePage::ProbePage(Screen& s, QWidget* parent) : QWidget(parent), s_(s) {
   result_->setStyleSheet("QLabel{font-size:14pt;font-weight:bold;}");
   v->addWidget(result_);
 
-  const auto& p = s_.config.probe;
-  const QString u = s_.config.machine_inch ? "in" : "mm";
-  QString text = QString("[PROBE] tip %1 %2 · search %3 %2 at %4 %2/min · latch %5 %2 at %6 %2/min · clearance %7 %2")
-                     .arg(p.tip_diameter)
-                     .arg(u)
-                     .arg(p.search_distance)
-                     .arg(p.search_feed)
-                     .arg(p.latch_distance)
-                     .arg(p.latch_feed)
-                     .arg(p.clearance);
-  text += p.setter ? QString("\nTool setter at machine X %1 Y %2, search from Z %3 over %4 %5; reference Z %6 (length 0)")
-                         .arg(p.setter_x)
-                         .arg(p.setter_y)
-                         .arg(p.setter_z)
-                         .arg(p.setter_search_distance)
-                         .arg(u)
-                         .arg(p.setter_reference_z)
-                   : QString("\nNo tool setter configured ([PROBE]SETTER_X/Y/Z, SETTER_REFERENCE_Z)");
-  text += "\nThe routines leave G90 (absolute) in force. Results are machine coordinates.";
-  settings_->setText(text);
+  show_settings();
 
   connect(kind_, &QComboBox::currentIndexChanged, this, [this](int) { update_fields(); });
   connect(start_, &QPushButton::clicked, this, [this]() { start(); });
@@ -182,6 +170,32 @@ ProbePage::ProbePage(Screen& s, QWidget* parent) : QWidget(parent), s_(s) {
 
 ProbePage::~ProbePage() = default;
 
+void ProbePage::show_settings() {
+  const auto& p = probe_;
+  const QString u = s_.config.machine_inch ? "in" : "mm";
+  QString text = QString("[PROBE] tip %1 %2 · search %3 %2 at %4 %2/min · latch %5 %2 at %6 %2/min · clearance %7 %2")
+                     .arg(p.tip_diameter)
+                     .arg(u)
+                     .arg(p.search_distance)
+                     .arg(p.search_feed)
+                     .arg(p.latch_distance)
+                     .arg(p.latch_feed)
+                     .arg(p.clearance);
+  if (p.tip_diameter != s_.config.probe.tip_diameter) {
+    text += QString(" (calibrated; [PROBE]TIP_DIAMETER = %1 keeps it)").arg(p.tip_diameter, 0, 'f', 4);
+  }
+  text += p.setter ? QString("\nTool setter at machine X %1 Y %2, search from Z %3 over %4 %5; reference Z %6 (length 0)")
+                         .arg(p.setter_x)
+                         .arg(p.setter_y)
+                         .arg(p.setter_z)
+                         .arg(p.setter_search_distance)
+                         .arg(u)
+                         .arg(p.setter_reference_z)
+                   : QString("\nNo tool setter configured ([PROBE]SETTER_X/Y/Z, SETTER_REFERENCE_Z)");
+  text += "\nThe routines save the modal state (M70) and restore it at the end (M72). Results are machine coordinates.";
+  ui::set_text(settings_, text);
+}
+
 bool ProbePage::running() const { return routine_ != nullptr; }
 
 void ProbePage::update_fields() {
@@ -193,6 +207,7 @@ void ProbePage::update_fields() {
   corner_step_->setEnabled(kind == probing::Kind::OutsideCorner);
   boss_diameter_->setEnabled(kind == probing::Kind::Boss);
   boss_depth_->setEnabled(kind == probing::Kind::Boss);
+  gauge_diameter_->setEnabled(kind == probing::Kind::TipCalibration);
   system_->setEnabled(kind != probing::Kind::ToolLength);
   const auto& ch = kChoices[std::max(0, kind_->currentIndex())];
   value_x_->setEnabled(kind != probing::Kind::ToolLength && (kind != probing::Kind::Edge || ch.axis == 0));
@@ -231,7 +246,7 @@ bool ProbePage::start() {
   };
   if (!number(corner_step_, "step along faces", q.corner_step) || !number(boss_diameter_, "boss diameter", q.boss_diameter) ||
       !number(boss_depth_, "boss depth", q.boss_depth) || !number(value_x_, "X value", q.value_x) ||
-      !number(value_y_, "Y value", q.value_y)) {
+      !number(value_y_, "Y value", q.value_y) || !number(gauge_diameter_, "ring gauge diameter", q.gauge_diameter)) {
     return false;
   }
   const auto& st = s_.status;
@@ -241,8 +256,10 @@ bool ProbePage::start() {
   start.tool_offset = st.task.tool_offset;
   start.rotation_xy = st.task.rotation_xy;
   start.tool_in_spindle = st.io.tool_in_spindle;
+  start.gcodes.assign(std::begin(st.task.active_gcodes), std::end(st.task.active_gcodes));
+  start.feed = st.task.active_settings[1];
   try {
-    routine_ = std::make_unique<probing::Routine>(s_.config.probe, q, start);
+    routine_ = std::make_unique<probing::Routine>(probe_, q, start);
   } catch (const std::invalid_argument& e) {
     return refuse(e.what());
   }
@@ -290,9 +307,13 @@ void ProbePage::finished() {
     ui::set_text(result_, QString::fromStdString("Failed: " + routine_->error()));
     s_.log(LogLevel::Error, "probing: " + routine_->error());
     std::vector<ipc::Command> cmds;
-    for (const auto& line : probing::Routine::cleanup_lines()) cmds.push_back(commands::mdi(line));
-    if (s_.is_on()) s_.send_in_mode(ipc::TaskMode::Mdi, std::move(cmds), "probing: back to G90");
+    for (const auto& line : routine_->cleanup_lines()) cmds.push_back(commands::mdi(line));
+    if (s_.is_on()) s_.send_in_mode(ipc::TaskMode::Mdi, std::move(cmds), "probing: the modal state of the start");
   } else {
+    if (routine_->result().tip_diameter > 0) {
+      probe_.tip_diameter = routine_->result().tip_diameter;  // the edges, corners and centres from now on
+      show_settings();
+    }
     ui::set_text(result_, QString::fromStdString(routine_->result().summary));
     s_.log(LogLevel::Info, "probing: " + routine_->result().summary);
   }

@@ -1,5 +1,6 @@
 #include "hmi/probing.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
@@ -22,6 +23,7 @@ const char* to_string(Kind k) {
     case Kind::OutsideCorner: return "outside corner";
     case Kind::Bore: return "bore centre";
     case Kind::Boss: return "boss centre";
+    case Kind::TipCalibration: return "tip calibration";
   }
   return "?";
 }
@@ -139,6 +141,15 @@ Routine::Routine(const Settings& settings, const Request& request, const Start& 
     st.what = std::move(what);
     steps_.push_back(std::move(st));
   };
+  // To the midpoint of hits a and b along X (CentreX) or Y (CentreY).
+  auto centre = [this](Op o, std::size_t a, std::size_t b, std::string what) {
+    Step st;
+    st.op = o;
+    st.hit_a = a;
+    st.hit_b = b;
+    st.what = std::move(what);
+    steps_.push_back(std::move(st));
+  };
   const auto n = gcode_number;
   switch (r_.kind) {
     case Kind::ToolLength:
@@ -171,15 +182,25 @@ Routine::Routine(const Settings& settings, const Request& request, const Start& 
       probe(1, r_.corner_y, s_.search_distance);
       lines({"G53 G0 X" + n(sx), "G53 G0 Y" + n(sy)}, "back to the start");
       break;
+    case Kind::TipCalibration:
+      need(r_.gauge_diameter > 0, "tip calibration: the ring gauge's diameter must be above 0");
+      [[fallthrough]];
     case Kind::Bore:
+      // X across a chord at the start's Y (its midpoint is the centre's X
+      // whatever the chord), Y across the diameter from there, then X again
+      // across the diameter: hits 0, 1 (X), 2, 3 (Y), 4, 5 (X).
       probe(0, 1, s_.search_distance);
       lines({"G53 G0 X" + n(sx)}, "back to the start");
       probe(0, -1, s_.search_distance);
-      op(Op::CentreX, "to the X centre");
+      centre(Op::CentreX, 0, 1, "to the X centre");
       probe(1, 1, s_.search_distance);
       lines({"G53 G0 Y" + n(sy)}, "back to the start");
       probe(1, -1, s_.search_distance);
-      op(Op::CentreY, "to the Y centre");
+      centre(Op::CentreY, 2, 3, "to the Y centre");
+      probe(0, 1, s_.search_distance);
+      centre(Op::CentreX, 0, 1, "back to the centre");
+      probe(0, -1, s_.search_distance);
+      centre(Op::CentreX, 4, 5, "to the X centre");
       break;
     case Kind::Boss: {
       need(r_.boss_diameter > 0, "boss: the approximate diameter must be above 0");
@@ -195,13 +216,13 @@ Routine::Routine(const Settings& settings, const Request& request, const Start& 
       lines({up, "G53 G0 X" + n(sx + off), down}, "down beside the boss (X+)");
       probe(0, -1, search);
       lines({up}, "up");
-      op(Op::CentreX, "to the X centre");
+      centre(Op::CentreX, 0, 1, "to the X centre");
       lines({"G53 G0 Y" + n(sy - off), down}, "down beside the boss (Y-)");
       probe(1, 1, search);
       lines({up, "G53 G0 Y" + n(sy + off), down}, "down beside the boss (Y+)");
       probe(1, -1, search);
       lines({up}, "up");
-      op(Op::CentreY, "to the Y centre");
+      centre(Op::CentreY, 2, 3, "to the Y centre");
       break;
     }
   }
@@ -210,6 +231,29 @@ Routine::Routine(const Settings& settings, const Request& request, const Start& 
 }
 
 void Routine::advance() {
+  advance_steps();
+  // The first stage sent saves the modal state and sets what the numbers
+  // mean; the result stage restores it.
+  if (!done_ && !prologue_sent_ && !stage_.lines.empty()) {
+    prologue_sent_ = true;
+    std::vector<std::string> l = {"M70", std::string(s_.inch ? "G20" : "G21") + " G90 G94"};
+    l.insert(l.end(), stage_.lines.begin(), stage_.lines.end());
+    stage_.lines = std::move(l);
+  }
+}
+
+std::vector<std::string> Routine::cleanup_lines() const {
+  const auto& g = start_.gcodes;
+  if (g.empty()) return {"G90"};
+  const auto has = [&g](int code) { return std::find(g.begin(), g.end(), code) != g.end(); };
+  std::string modes = has(200) ? "G20" : "G21";
+  modes += has(910) ? " G91" : " G90";
+  modes += has(930) ? " G93" : has(950) ? " G95" : " G94";
+  modes += has(180) ? " G18" : has(190) ? " G19" : " G17";
+  return {modes, "F" + gcode_number(start_.feed)};
+}
+
+void Routine::advance_steps() {
   while (next_ < steps_.size()) {
     Step& st = steps_[next_++];
     stage_ = Stage{};
@@ -224,14 +268,13 @@ void Routine::advance() {
         return;
       case Op::CentreX:
       case Op::CentreY: {
-        const std::size_t n = result_.hits.size();
-        const double centre = (hit(n - 2) + hit(n - 1)) / 2;
+        const double centre = (hit(st.hit_a) + hit(st.hit_b)) / 2;
         stage_.lines = {std::string("G53 G0 ") + (st.op == Op::CentreX ? "X" : "Y") + gcode_number(centre)};
         return;
       }
       case Op::Finish:
         finish();
-        if (!stage_.lines.empty()) return;
+        if (!stage_.lines.empty() && error_.empty()) return;
         break;
     }
   }
@@ -295,16 +338,47 @@ void Routine::finish() {
       res.summary = buf;
       break;
     case Kind::Bore:
+    case Kind::TipCalibration: {
+      // Hits (probe centres): X+, X- across a chord, Y+, Y-, X+, X- across
+      // the diameter. The walls are a radius beyond the hits.
+      res.has_x = res.has_y = true;
+      res.x = (hit(4) + hit(5)) / 2;
+      res.y = (hit(2) + hit(3)) / 2;
+      res.diameter_x = hit(4) - hit(5) + 2 * r;
+      res.diameter_y = hit(2) - hit(3) + 2 * r;
+      if (r_.kind == Kind::Bore) {
+        std::snprintf(buf, sizeof buf, "centre at machine X %.4f Y %.4f, diameter X %.4f Y %.4f", res.x, res.y,
+                      res.diameter_x, res.diameter_y);
+        res.summary = buf;
+        break;
+      }
+      // The gauge's diameter less the probe centre's travel between the
+      // walls: the tip as the machine sees it (its ball, its deflection
+      // before the switch, the latch's lag, the backlash).
+      res.tip_diameter_x = r_.gauge_diameter - (hit(4) - hit(5));
+      res.tip_diameter_y = r_.gauge_diameter - (hit(2) - hit(3));
+      res.tip_diameter = (res.tip_diameter_x + res.tip_diameter_y) / 2;
+      if (res.tip_diameter_x <= 0 || res.tip_diameter_y <= 0) {
+        std::snprintf(buf, sizeof buf,
+                      "the probe centre travelled X %.4f Y %.4f between the walls, not less than the gauge's %.4f: "
+                      "is the gauge diameter right?",
+                      hit(4) - hit(5), hit(2) - hit(3), r_.gauge_diameter);
+        fail(buf);
+        return;
+      }
+      std::snprintf(buf, sizeof buf, "tip diameter %.4f (X %.4f, Y %.4f) in the %.4f gauge centred at machine X %.4f Y %.4f",
+                    res.tip_diameter, res.tip_diameter_x, res.tip_diameter_y, r_.gauge_diameter, res.x, res.y);
+      res.summary = buf;
+      break;
+    }
     case Kind::Boss: {
-      // Hits: X+ probe, X- probe, Y+ probe, Y- probe (probe centres). In a
-      // bore the walls are a radius beyond the hits, around a boss a radius
-      // before them.
-      const double sign = r_.kind == Kind::Bore ? 1 : -1;
+      // Hits: X+ probe, X- probe, Y+ probe, Y- probe (probe centres),
+      // around the boss a radius before its wall.
       res.has_x = res.has_y = true;
       res.x = (hit(0) + hit(1)) / 2;
       res.y = (hit(2) + hit(3)) / 2;
-      res.diameter_x = sign * (hit(0) - hit(1)) + 2 * r * (r_.kind == Kind::Bore ? 1 : -1);
-      res.diameter_y = sign * (hit(2) - hit(3)) + 2 * r * (r_.kind == Kind::Bore ? 1 : -1);
+      res.diameter_x = hit(1) - hit(0) - 2 * r;
+      res.diameter_y = hit(3) - hit(2) - 2 * r;
       std::snprintf(buf, sizeof buf, "centre at machine X %.4f Y %.4f, diameter X %.4f Y %.4f", res.x, res.y,
                     res.diameter_x, res.diameter_y);
       res.summary = buf;
@@ -320,6 +394,8 @@ void Routine::finish() {
     if (res.has_x) res.summary += " X" + gcode_number(r_.value_x);
     if (res.has_y) res.summary += " Y" + gcode_number(r_.value_y);
   }
+  out.push_back("M72");  // the modal state of the start (M70 in the first stage)
+  out.push_back("M71");  // and no saved context left for a later M72 to restore
   stage_.lines = std::move(out);
   stage_.what = "result";
 }

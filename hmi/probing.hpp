@@ -8,7 +8,12 @@
 // SEARCH_FEED), a back-off of LATCH_DISTANCE and a slow touch at LATCH_FEED;
 // the slow touch is the one measured. Positions are machine coordinates;
 // an edge is the probe centre's position plus the tip radius toward the
-// material. No Qt; the G-code is tested line by line.
+// material. The modal state is kept as LinuxCNC's probe screens keep it:
+// the first stage saves it (M70) and sets what the routine's numbers mean
+// (machine units, G90, G94), the result stage restores it (M72) and drops
+// the saved context (M71); after a failure, whose abort resets the
+// interpreter and with it the M70 context, restore_lines() puts back what
+// the status showed at the start. No Qt; the G-code is tested line by line.
 #pragma once
 
 #include <array>
@@ -40,6 +45,7 @@ struct Settings {
   double setter_safe_z = 0;       // SETTER_SAFE_Z: travel height to and from the setter
   double setter_reference_z = 0;  // SETTER_REFERENCE_Z: spindle gauge line (tool length 0) touching the setter
   double setter_search_distance = 0;  // SETTER_SEARCH_DISTANCE, default SEARCH_DISTANCE
+  bool inch = false;              // machine units ([TRAJ]LINEAR_UNITS; set by HmiConfig): G20, else G21
 
   double tip_radius() const { return tip_diameter / 2; }
   // Reads [PROBE]; throws ConfigError naming file, line and key for values
@@ -48,7 +54,7 @@ struct Settings {
   static Settings from_ini(const ini::IniFile& ini);
 };
 
-enum class Kind { ToolLength, Edge, InsideCorner, OutsideCorner, Bore, Boss };
+enum class Kind { ToolLength, Edge, InsideCorner, OutsideCorner, Bore, Boss, TipCalibration };
 const char* to_string(Kind k);
 
 // What the operator asked for.
@@ -61,6 +67,7 @@ struct Request {
   double corner_step = 0;  // OutsideCorner: how far along each face to go before probing it
   double boss_diameter = 0, boss_depth = 0;  // Boss: about how large, how far down to probe
   int tool = 0;            // ToolLength: the tool whose length is set (G10 L1)
+  double gauge_diameter = 0;  // TipCalibration: the ring gauge's (known bore's) diameter
   // Set the result as the origin's value in a coordinate system:
   // 0 none, 1..9 = G54..G59.3 (G10 L2 Pn).
   int coordinate_system = 0;
@@ -74,6 +81,11 @@ struct Start {
   Pose tool_offset;
   double rotation_xy = 0;
   int tool_in_spindle = 0;
+  // The modal state to put back after a failure: the status' active G
+  // codes (LinuxCNC's numbering: G20 = 200, G91 = 910, G95 = 950, G18 =
+  // 180) and F (active_settings[1], program units). Empty: only G90.
+  std::vector<int> gcodes;
+  double feed = 0;
 };
 
 struct Stage {
@@ -85,7 +97,9 @@ struct Stage {
 struct Result {
   bool has_x = false, has_y = false, has_z = false;
   double x = 0, y = 0, z = 0;        // machine: the edge, corner or centre; the setter contact
-  double diameter_x = 0, diameter_y = 0;  // Bore/Boss
+  double diameter_x = 0, diameter_y = 0;  // Bore/Boss/TipCalibration
+  double tip_diameter = 0;           // TipCalibration: the effective tip diameter (mean of X and Y)
+  double tip_diameter_x = 0, tip_diameter_y = 0;  // TipCalibration: from the X and from the Y hits
   double tool_length = 0;            // ToolLength
   std::vector<double> hits;          // each probe's measured coordinate (probe centre), in order
   std::string summary;               // for the operator
@@ -120,9 +134,10 @@ class Routine {
   // The stage was refused or aborted: the routine fails with `why`.
   void fail(const std::string& why);
   const Result& result() const noexcept { return result_; }
-  // Lines to send after a failure: back to absolute distance mode (the
-  // probe moves are incremental).
-  static std::vector<std::string> cleanup_lines() { return {"G90"}; }
+  // Lines to send after a failure: the modal state of the start (units,
+  // distance mode, feed mode, plane, then F), or G90 when the start did
+  // not say (the probe moves are incremental).
+  std::vector<std::string> cleanup_lines() const;
 
   // The probe stage along `axis` toward `direction` (for tests and the
   // documentation).
@@ -135,9 +150,11 @@ class Routine {
     std::vector<std::string> lines;
     int axis = 0, direction = 1;
     double search = 0;
+    std::size_t hit_a = 0, hit_b = 0;  // CentreX/CentreY: the midpoint of these hits
     std::string what;
   };
   void advance();
+  void advance_steps();
   void finish();
   double hit(std::size_t i) const { return result_.hits.at(i); }
 
@@ -150,6 +167,7 @@ class Routine {
   Result result_;
   std::string error_;
   bool done_ = false;
+  bool prologue_sent_ = false;
 };
 
 }  // namespace cnc::hmi::probing

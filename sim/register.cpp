@@ -15,6 +15,7 @@ void register_components(hal::ComponentRegistry& registry) {
   ethercat::sim::register_sim_component(registry);
   register_sim_joint(registry);
   register_sim_toolchanger(registry);
+  register_sim_part(registry);
 }
 
 }  // namespace cnc::sim

@@ -47,6 +47,7 @@ Halui::Halui(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(
   args.allow_only({});
   std::string coordinates = "XYZ";
   int joints = -1;
+  int spindles = 1;
   if (ctx.ini) {
     mdi_commands_ = ctx.ini->find_all("HALUI", "MDI_COMMAND");
     coordinates = ctx.ini->get_string("TRAJ", "COORDINATES", "XYZ");
@@ -54,6 +55,7 @@ Halui::Halui(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(
     default_spindle_speed_ = ctx.ini->get_double("DISPLAY", "DEFAULT_SPINDLE_SPEED", 100.0, {0.0, 1e6});
     max_feed_override_ = ctx.ini->get_double("DISPLAY", "MAX_FEED_OVERRIDE", 2.0, {0.0, 100.0});
     max_spindle_override_ = ctx.ini->get_double("DISPLAY", "MAX_SPINDLE_OVERRIDE", 2.0, {0.0, 100.0});
+    spindles = static_cast<int>(ctx.ini->get_int("TRAJ", "SPINDLES", 1, {0.0, static_cast<double>(ipc::kMaxSpindles)}));
   }
   if (mdi_commands_.size() > 64) throw hal::HalError("halui: at most 64 [HALUI]MDI_COMMAND lines");
   for (const auto& line : mdi_commands_) cmd::check_text(line, "[HALUI]MDI_COMMAND");
@@ -78,18 +80,25 @@ Halui::Halui(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(
   program_is_running_ = make_pin<bool>("halui.program.is-running", PinDir::Out);
   program_is_paused_ = make_pin<bool>("halui.program.is-paused", PinDir::Out);
   home_all_ = edge("home-all");
-  spindle_start_ = edge("spindle.0.start");
-  spindle_stop_ = edge("spindle.0.stop");
-  spindle_forward_ = edge("spindle.0.forward");
-  spindle_reverse_ = edge("spindle.0.reverse");
-  spindle_is_on_ = make_pin<bool>("halui.spindle.0.is-on", PinDir::Out);
-  spindle_increase_ = edge("spindle.0.increase");
-  spindle_decrease_ = edge("spindle.0.decrease");
-  spindle_brake_on_ = edge("spindle.0.brake-on");
-  spindle_brake_off_ = edge("spindle.0.brake-off");
-  spindle_brake_is_on_ = make_pin<bool>("halui.spindle.0.brake-is-on", PinDir::Out);
-  spindle_runs_forward_ = make_pin<bool>("halui.spindle.0.runs-forward", PinDir::Out);
-  spindle_runs_backward_ = make_pin<bool>("halui.spindle.0.runs-backward", PinDir::Out);
+  // Spindles 0 .. [TRAJ]SPINDLES-1, as LinuxCNC's halui.
+  for (int n = 0; n < spindles; ++n) {
+    const std::string p = "halui.spindle." + std::to_string(n);
+    SpindlePins sp;
+    sp.start = make_pin<bool>(p + ".start", PinDir::In);
+    sp.stop = make_pin<bool>(p + ".stop", PinDir::In);
+    sp.forward = make_pin<bool>(p + ".forward", PinDir::In);
+    sp.reverse = make_pin<bool>(p + ".reverse", PinDir::In);
+    sp.increase = make_pin<bool>(p + ".increase", PinDir::In);
+    sp.decrease = make_pin<bool>(p + ".decrease", PinDir::In);
+    sp.brake_on = make_pin<bool>(p + ".brake-on", PinDir::In);
+    sp.brake_off = make_pin<bool>(p + ".brake-off", PinDir::In);
+    sp.is_on = make_pin<bool>(p + ".is-on", PinDir::Out);
+    sp.runs_forward = make_pin<bool>(p + ".runs-forward", PinDir::Out);
+    sp.runs_backward = make_pin<bool>(p + ".runs-backward", PinDir::Out);
+    sp.brake_is_on = make_pin<bool>(p + ".brake-is-on", PinDir::Out);
+    make_override(sp.override_pins, "spindle." + std::to_string(n) + ".override", 0.1);
+    spindles_.push_back(sp);
+  }
   flood_on_ = edge("flood.on");
   flood_off_ = edge("flood.off");
   flood_is_on_ = make_pin<bool>("halui.flood.is-on", PinDir::Out);
@@ -113,13 +122,13 @@ Halui::Halui(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(
   units_per_mm_ = make_pin<double>("halui.machine.units-per-mm", PinDir::Out);
   make_override(max_velocity_, "max-velocity", 0.1, false);
   tool_number_ = make_pin<uint32_t>("halui.tool.number", PinDir::Out);
+  tool_diameter_ = make_pin<double>("halui.tool.diameter", PinDir::Out);
   for (int i = 0; i < kNumAxes; ++i) {
     tool_length_offset_[static_cast<std::size_t>(i)] =
         make_pin<double>(std::string("halui.tool.length-offset.") + kAxisLetters[i], PinDir::Out);
   }
   make_override(feed_, "feed-override", 0.1);
   make_override(rapid_, "rapid-override", 0.1);
-  make_override(spindle_override_, "spindle.0.override", 0.1);
   jog_speed_ = make_pin<double>("halui.axis.jog-speed", PinDir::In);
   jog_deadband_ = make_pin<double>("halui.axis.jog-deadband", PinDir::In, 0.2);
   // Axes by letter from [TRAJ]COORDINATES, once each.
@@ -140,8 +149,20 @@ Halui::Halui(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(
     a.analog = make_pin<double>(p + ".analog", PinDir::In);
     a.pos_commanded = make_pin<double>(p + ".pos-commanded", PinDir::Out);
     a.pos_feedback = make_pin<double>(p + ".pos-feedback", PinDir::Out);
+    a.pos_relative = make_pin<double>(p + ".pos-relative", PinDir::Out);
+    a.select = make_pin<bool>(p + ".select", PinDir::In);
+    a.is_selected = make_pin<bool>(p + ".is-selected", PinDir::Out);
     axes_.push_back(a);
   }
+  const auto make_selected_jog = [this](SelectedJogPins& j, const std::string& p) {
+    j.plus = make_pin<bool>(p + ".plus", PinDir::In);
+    j.minus = make_pin<bool>(p + ".minus", PinDir::In);
+    j.increment_plus = make_pin<bool>(p + ".increment-plus", PinDir::In);
+    j.increment_minus = make_pin<bool>(p + ".increment-minus", PinDir::In);
+    j.increment = make_pin<double>(p + ".increment", PinDir::In);
+  };
+  axis_selected_ = make_pin<uint32_t>("halui.axis.selected", PinDir::Out);
+  make_selected_jog(axis_selected_jog_, "halui.axis.selected");
   if (joints < 0) joints = static_cast<int>(axes_.size());
   joint_jog_speed_ = make_pin<double>("halui.joint.jog-speed", PinDir::In);
   joint_jog_deadband_ = make_pin<double>("halui.joint.jog-deadband", PinDir::In, 0.2);
@@ -157,6 +178,8 @@ Halui::Halui(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(
     jj.increment_minus = make_pin<bool>(p + ".increment-minus", PinDir::In);
     jj.increment = make_pin<double>(p + ".increment", PinDir::In);
     jj.analog = make_pin<double>(p + ".analog", PinDir::In);
+    jj.select = make_pin<bool>(p + ".select", PinDir::In);
+    jj.is_selected = make_pin<bool>(p + ".is-selected", PinDir::Out);
     joint_jogs_.push_back(jj);
     JointStatusPins js;
     js.unhome = edge("joint." + std::to_string(j) + ".unhome");
@@ -167,6 +190,20 @@ Halui::Halui(hal::ComponentContext& ctx, const hal::LoadArgs& args) : Component(
     js.on_soft_min = make_pin<bool>(p + ".on-soft-min-limit", PinDir::Out);
     js.override_limits = make_pin<bool>(p + ".override-limits", PinDir::Out);
     joint_status_.push_back(js);
+  }
+  joint_selected_ = make_pin<uint32_t>("halui.joint.selected", PinDir::Out);
+  make_selected_jog(joint_selected_jog_, "halui.joint.selected");
+  {
+    const std::string p = "halui.joint.selected";
+    joint_selected_home_ = edge("joint.selected.home");
+    joint_selected_status_.unhome = edge("joint.selected.unhome");
+    joint_selected_is_homed_ = make_pin<bool>(p + ".is-homed", PinDir::Out);
+    joint_selected_status_.has_fault = make_pin<bool>(p + ".has-fault", PinDir::Out);
+    joint_selected_status_.on_hard_max = make_pin<bool>(p + ".on-hard-max-limit", PinDir::Out);
+    joint_selected_status_.on_hard_min = make_pin<bool>(p + ".on-hard-min-limit", PinDir::Out);
+    joint_selected_status_.on_soft_max = make_pin<bool>(p + ".on-soft-max-limit", PinDir::Out);
+    joint_selected_status_.on_soft_min = make_pin<bool>(p + ".on-soft-min-limit", PinDir::Out);
+    joint_selected_status_.override_limits = make_pin<bool>(p + ".override-limits", PinDir::Out);
   }
   for (std::size_t i = 0; i < mdi_commands_.size(); ++i) mdi_.push_back(edge("mdi-command-" + two_digits(i)));
 }
@@ -279,7 +316,7 @@ void poll_jog(Pins& a, int index, bool joint, double speed, double deadband, InM
   a.last_inc_minus = im;
   // Analog (a joystick, -1..1): a jog at analog x jog-speed outside the
   // deadband, re-sent when it changes by more than 5 % of full speed.
-  const double v = a.analog.get();
+  const double v = a.analog.valid() ? a.analog.get() : 0.0;
   if (std::fabs(v) > deadband) {
     const double vel = std::clamp(v, -1.0, 1.0) * speed;
     if (!a.analog_jogging || std::fabs(vel - a.analog_sent) > 0.05 * speed) {
@@ -304,14 +341,18 @@ void Halui::poll(const ipc::Status& s, const Sender& send) {
   program_is_idle_.set(t.interp_state == ipc::InterpState::Idle);
   program_is_paused_.set(t.mode == ipc::TaskMode::Auto && t.paused);
   program_is_running_.set(t.mode == ipc::TaskMode::Auto && t.interp_state != ipc::InterpState::Idle && !t.paused);
-  spindle_is_on_.set(s.spindles[0].enabled);
-  spindle_runs_forward_.set(s.spindles[0].enabled && s.spindles[0].direction > 0);
-  spindle_runs_backward_.set(s.spindles[0].enabled && s.spindles[0].direction < 0);
-  spindle_brake_is_on_.set(s.spindles[0].brake);
+  for (std::size_t n = 0; n < spindles_.size(); ++n) {
+    const ipc::SpindleStatus& sp = s.spindles[n];
+    spindles_[n].is_on.set(sp.enabled);
+    spindles_[n].runs_forward.set(sp.enabled && sp.direction > 0);
+    spindles_[n].runs_backward.set(sp.enabled && sp.direction < 0);
+    spindles_[n].brake_is_on.set(sp.brake);
+  }
   flood_is_on_.set(s.io.flood);
   mist_is_on_.set(s.io.mist);
   lube_is_on_.set(s.io.lube);
   tool_number_.set(static_cast<uint32_t>(std::max(0, s.io.tool_in_spindle)));
+  tool_diameter_.set(s.io.tool_diameter);
   for (int i = 0; i < kNumAxes; ++i) tool_length_offset_[static_cast<std::size_t>(i)].set(t.tool_offset[i]);
   optional_stop_is_on_.set(t.optional_stop);
   block_delete_is_on_.set(t.block_delete);
@@ -332,6 +373,35 @@ void Halui::poll(const ipc::Status& s, const Sender& send) {
   for (auto& a : axes_) {
     a.pos_commanded.set(s.motion.position[a.index]);
     a.pos_feedback.set(s.motion.actual_position[a.index]);
+    // As LinuxCNC's halui: commanded, less the G5x, G92 and tool offsets
+    // (no XY rotation).
+    a.pos_relative.set(s.motion.position[a.index] - t.g5x_offset[a.index] - t.g92_offset[a.index] -
+                       t.tool_offset[a.index]);
+  }
+  // Selection: the last select pin that rose.
+  for (std::size_t i = 0; i < axes_.size(); ++i) {
+    const bool sel = axes_[i].select.get();
+    if (sel && !axes_[i].last_select) selected_axis_ = i;
+    axes_[i].last_select = sel;
+  }
+  for (std::size_t j = 0; j < joint_jogs_.size(); ++j) {
+    const bool sel = joint_jogs_[j].select.get();
+    if (sel && !joint_jogs_[j].last_select) selected_joint_ = j;
+    joint_jogs_[j].last_select = sel;
+  }
+  for (std::size_t i = 0; i < axes_.size(); ++i) axes_[i].is_selected.set(i == selected_axis_);
+  for (std::size_t j = 0; j < joint_jogs_.size(); ++j) joint_jogs_[j].is_selected.set(j == selected_joint_);
+  if (!axes_.empty()) axis_selected_.set(static_cast<uint32_t>(axes_[selected_axis_].index));
+  joint_selected_.set(static_cast<uint32_t>(selected_joint_));
+  if (selected_joint_ < joint_status_.size()) {
+    const ipc::JointStatus& js = s.joints[selected_joint_];
+    joint_selected_is_homed_.set(js.homed);
+    joint_selected_status_.has_fault.set(js.fault);
+    joint_selected_status_.on_hard_max.set(js.max_hard_limit);
+    joint_selected_status_.on_hard_min.set(js.min_hard_limit);
+    joint_selected_status_.on_soft_max.set(js.max_soft_limit);
+    joint_selected_status_.on_soft_min.set(js.min_soft_limit);
+    joint_selected_status_.override_limits.set(js.override_limits);
   }
 
   // Commands waiting for a mode change halui asked for.
@@ -382,16 +452,29 @@ void Halui::poll(const ipc::Status& s, const Sender& send) {
     if (joint_home_[j].rose()) in_mode(ipc::TaskMode::Manual, cmd::home(static_cast<int>(j)));
     if (joint_status_[j].unhome.rose()) in_mode(ipc::TaskMode::Manual, cmd::unhome(static_cast<int>(j)));
   }
-  const ipc::SpindleStatus& sp = s.spindles[0];
-  const double rpm = sp.speed != 0 ? std::fabs(sp.speed) : default_spindle_speed_;
-  if (spindle_stop_.rose()) send(cmd::spindle_off(0));
-  if (spindle_forward_.rose()) send(cmd::spindle_on(rpm, 0));
-  if (spindle_reverse_.rose()) send(cmd::spindle_on(-rpm, 0));
-  if (spindle_start_.rose()) send(cmd::spindle_on(sp.direction < 0 ? -rpm : rpm, 0));
-  if (spindle_increase_.rose()) send(cmd::spindle_faster(0));
-  if (spindle_decrease_.rose()) send(cmd::spindle_slower(0));
-  if (spindle_brake_on_.rose()) send(cmd::spindle_brake(true, 0));
-  if (spindle_brake_off_.rose()) send(cmd::spindle_brake(false, 0));
+  const int sj = static_cast<int>(selected_joint_);
+  if (joint_selected_home_.rose() && !joint_home_.empty()) in_mode(ipc::TaskMode::Manual, cmd::home(sj));
+  if (joint_selected_status_.unhome.rose() && !joint_home_.empty()) in_mode(ipc::TaskMode::Manual, cmd::unhome(sj));
+  const auto rose = [](hal::BitPin& pin, bool& last) {
+    const bool now = pin.get();
+    const bool r = now && !last;
+    last = now;
+    return r;
+  };
+  for (std::size_t n = 0; n < spindles_.size(); ++n) {
+    SpindlePins& p = spindles_[n];
+    const int k = static_cast<int>(n);
+    const ipc::SpindleStatus& sp = s.spindles[n];
+    const double rpm = sp.speed != 0 ? std::fabs(sp.speed) : default_spindle_speed_;
+    if (rose(p.stop, p.last_stop)) send(cmd::spindle_off(k));
+    if (rose(p.forward, p.last_forward)) send(cmd::spindle_on(rpm, k));
+    if (rose(p.reverse, p.last_reverse)) send(cmd::spindle_on(-rpm, k));
+    if (rose(p.start, p.last_start)) send(cmd::spindle_on(sp.direction < 0 ? -rpm : rpm, k));
+    if (rose(p.increase, p.last_increase)) send(cmd::spindle_faster(k));
+    if (rose(p.decrease, p.last_decrease)) send(cmd::spindle_slower(k));
+    if (rose(p.brake_on, p.last_brake_on)) send(cmd::spindle_brake(true, k));
+    if (rose(p.brake_off, p.last_brake_off)) send(cmd::spindle_brake(false, k));
+  }
   if (flood_on_.rose()) send(cmd::flood(true));
   if (flood_off_.rose()) send(cmd::flood(false));
   if (mist_on_.rose()) send(cmd::mist(true));
@@ -411,14 +494,31 @@ void Halui::poll(const ipc::Status& s, const Sender& send) {
   for (auto& a : axes_) poll_jog(a, a.index, false, speed, std::fabs(jog_deadband_.get()), in_mode, send);
   const double joint_speed = std::fabs(joint_jog_speed_.get()) / 60.0;
   for (auto& j : joint_jogs_) poll_jog(j, j.index, true, joint_speed, std::fabs(joint_jog_deadband_.get()), in_mode, send);
+  // The selected axis and joint: a selection changed while one jogs stops
+  // that one (the newly selected one jogs at the next press).
+  const auto poll_selected = [&](SelectedJogPins& p, int index, bool joint, double v, double deadband) {
+    if (p.jogging >= 0 && p.jogging != index && (p.last_plus || p.last_minus)) send(cmd::jog_stop(p.jogging, joint));
+    poll_jog(p, index, joint, v, deadband, in_mode, send);
+    p.jogging = p.last_plus || p.last_minus ? index : -1;
+  };
+  if (!axes_.empty()) {
+    poll_selected(axis_selected_jog_, axes_[selected_axis_].index, false, speed, std::fabs(jog_deadband_.get()));
+  }
+  if (!joint_jogs_.empty()) {
+    poll_selected(joint_selected_jog_, static_cast<int>(selected_joint_), true, joint_speed,
+                  std::fabs(joint_jog_deadband_.get()));
+  }
 
   poll_override(feed_, s.motion.feed_scale, max_feed_override_, [](double v) { return cmd::feed_override(v); }, send);
   poll_override(rapid_, s.motion.rapid_scale, 1.0, [](double v) { return cmd::rapid_override(v); }, send);
   // Max velocity in machine units per second (the controller limits it to
   // the machine's).
   poll_override(max_velocity_, s.motion.max_velocity, 1e9, [](double v) { return cmd::max_velocity(v); }, send);
-  poll_override(spindle_override_, sp.override_scale, max_spindle_override_,
-                [](double v) { return cmd::spindle_override(v, 0); }, send);
+  for (std::size_t n = 0; n < spindles_.size(); ++n) {
+    const int k = static_cast<int>(n);
+    poll_override(spindles_[n].override_pins, s.spindles[n].override_scale, max_spindle_override_,
+                  [k](double v) { return cmd::spindle_override(v, k); }, send);
+  }
 }
 
 void register_components(hal::ComponentRegistry& r) {

@@ -31,8 +31,9 @@ struct OverridePins {
 
 struct AxisPins {
   int index = 0;  // 0 = X .. 8 = W
-  hal::BitPin plus, minus, increment_plus, increment_minus;
-  hal::FloatPin increment, analog, pos_commanded, pos_feedback;
+  hal::BitPin plus, minus, increment_plus, increment_minus, select, is_selected;
+  hal::FloatPin increment, analog, pos_commanded, pos_feedback, pos_relative;
+  bool last_select = false;
   bool last_plus = false, last_minus = false, last_inc_plus = false, last_inc_minus = false;
   bool analog_jogging = false;
   double analog_sent = 0;
@@ -41,11 +42,34 @@ struct AxisPins {
 // One joint's jog pins (halui.joint.N.*), jogged in joint (free) mode.
 struct JointJogPins {
   int index = 0;
-  hal::BitPin plus, minus, increment_plus, increment_minus;
+  hal::BitPin plus, minus, increment_plus, increment_minus, select, is_selected;
   hal::FloatPin increment, analog;
+  bool last_select = false;
   bool last_plus = false, last_minus = false, last_inc_plus = false, last_inc_minus = false;
   bool analog_jogging = false;
   double analog_sent = 0;
+};
+
+// The jog pins of the selected axis or joint (halui.axis.selected.*,
+// halui.joint.selected.*): no analog pin (LinuxCNC has none there).
+// `jogging` is the index a continuous jog was started on, so that a
+// release after the selection changed stops that one.
+struct SelectedJogPins {
+  hal::BitPin plus, minus, increment_plus, increment_minus;
+  hal::FloatPin increment, analog;  // analog: never made (invalid)
+  bool last_plus = false, last_minus = false, last_inc_plus = false, last_inc_minus = false;
+  bool analog_jogging = false;
+  double analog_sent = 0;
+  int jogging = -1;
+};
+
+// One spindle's pins (halui.spindle.N.*), N < [TRAJ]SPINDLES.
+struct SpindlePins {
+  hal::BitPin start, stop, forward, reverse, increase, decrease, brake_on, brake_off;
+  bool last_start = false, last_stop = false, last_forward = false, last_reverse = false;
+  bool last_increase = false, last_decrease = false, last_brake_on = false, last_brake_off = false;
+  hal::BitPin is_on, runs_forward, runs_backward, brake_is_on;
+  OverridePins override_pins;
 };
 
 class Halui : public hal::Component {
@@ -107,8 +131,6 @@ class Halui : public hal::Component {
 
   Edge machine_on_, machine_off_, estop_activate_, estop_reset_, mode_manual_, mode_auto_, mode_mdi_;
   Edge program_run_, program_pause_, program_resume_, program_step_, program_stop_, home_all_;
-  Edge spindle_start_, spindle_stop_, spindle_forward_, spindle_reverse_, spindle_increase_, spindle_decrease_;
-  Edge spindle_brake_on_, spindle_brake_off_;
   Edge flood_on_, flood_off_, mist_on_, mist_off_, lube_on_, lube_off_, abort_;
   Edge optional_stop_on_, optional_stop_off_, block_delete_on_, block_delete_off_, mode_joint_, mode_teleop_;
   hal::BitPin optional_stop_is_on_, block_delete_is_on_, mode_is_joint_, mode_is_teleop_;
@@ -123,16 +145,25 @@ class Halui : public hal::Component {
   std::vector<Edge> joint_home_, mdi_;
   std::vector<hal::BitPin> joint_is_homed_;
   hal::BitPin machine_is_on_, estop_is_activated_, mode_is_manual_, mode_is_auto_, mode_is_mdi_;
-  hal::BitPin program_is_idle_, program_is_running_, program_is_paused_, spindle_is_on_;
-  hal::BitPin spindle_runs_forward_, spindle_runs_backward_, spindle_brake_is_on_;
+  hal::BitPin program_is_idle_, program_is_running_, program_is_paused_;
   hal::BitPin flood_is_on_, mist_is_on_, lube_is_on_;
   hal::U32Pin tool_number_;
+  hal::FloatPin tool_diameter_;
   std::array<hal::FloatPin, kNumAxes> tool_length_offset_{};
   hal::FloatPin joint_jog_speed_, joint_jog_deadband_;
   std::vector<JointJogPins> joint_jogs_;
   hal::FloatPin jog_speed_, jog_deadband_;
-  OverridePins feed_, rapid_, spindle_override_;
+  OverridePins feed_, rapid_;
+  std::vector<SpindlePins> spindles_;
   std::vector<AxisPins> axes_;
+  // Selection (LinuxCNC's halui: the last axis/joint whose select pin rose,
+  // initially the first) and the selected one's pins.
+  std::size_t selected_axis_ = 0, selected_joint_ = 0;
+  hal::U32Pin axis_selected_, joint_selected_;
+  SelectedJogPins axis_selected_jog_, joint_selected_jog_;
+  JointStatusPins joint_selected_status_;
+  Edge joint_selected_home_;
+  hal::BitPin joint_selected_is_homed_;
 
   std::thread worker_;
   std::atomic<bool> stop_{false};

@@ -220,6 +220,7 @@ void IoController::update(int64_t now_ns) {
 
 void IoController::contribute_status(ipc::Status& s) {
   s.io.tool_in_spindle = tool_in_spindle();
+  s.io.tool_diameter = table_.spindle().is_empty() ? 0 : table_.spindle().diameter;
   s.io.pocket_prepped = pocket_prepped_;
   s.io.tool_prepped = tool_prepped_;
   s.io.tool_change_in_progress = op_ == Op::Change;

@@ -22,7 +22,7 @@ namespace cnc::ipc {
 
 inline constexpr uint64_t kSegmentMagic = 0x31474553434e43ULL;  // "CNCSEG1"
 // Bump whenever any structure in the segment changes.
-inline constexpr uint32_t kLayoutVersion = 5;
+inline constexpr uint32_t kLayoutVersion = 6;
 inline constexpr int kMaxClients = 32;
 inline constexpr std::size_t kClientQueueDepth = 16;
 

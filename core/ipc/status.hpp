@@ -224,6 +224,7 @@ struct SpindleStatus {
 
 struct IoStatus {
   int32_t tool_in_spindle = 0;
+  double tool_diameter = 0;      // of the tool in the spindle (tool table D), 0 when empty
   int32_t pocket_prepped = -1;
   int32_t tool_prepped = 0;
   bool tool_change_in_progress = false;

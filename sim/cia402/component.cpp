@@ -35,7 +35,7 @@ constexpr int64_t kBusStepNs = 20'000;
 struct NodePins {
   hal::FloatPin table_position, ferror, temperature;
   hal::S32Pin state;
-  hal::BitPin probe_in;
+  hal::BitPin probe_in, probe_level;
   bool last_probe = false;
 };
 
@@ -88,6 +88,7 @@ struct SimBus {
       p.ferror.set(m.following_error());
       p.temperature.set(m.temperature());
       p.state.set(static_cast<int32_t>(m.state()));
+      p.probe_level.set(m.plant().probe_position_input());
       const bool probe = p.probe_in.get();
       if (probe != p.last_probe) m.plant().set_probe_override(probe);
       p.last_probe = probe;
@@ -349,6 +350,7 @@ class SimComponent : public hal::Component, public ipc::ControllerService {
         np.temperature = make_pin<double>(s + "temperature", PinDir::Out);
         np.state = make_pin<int32_t>(s + "state", PinDir::Out);
         np.probe_in = make_pin<bool>(s + "probe-in", PinDir::In);
+        np.probe_level = make_pin<bool>(s + "probe-level", PinDir::Out);
         bus->pins.push_back(np);
       }
       SimBus* b = bus.get();

@@ -8,7 +8,9 @@
 // waits for it; the status shows the stepper's time apart. Pins per drive,
 // cia402-sim.<g>.node.<id>.*: table-position (the true position, mm, as an
 // interferometer reads it), following-error (increments), temperature,
-// state, and probe-in (an external probe signal). Fault injection through
+// state, probe-in (an external probe signal, ORed with the node's own
+// PROBE_POSITION input) and probe-level (that own input alone, e.g. the
+// tool setter, for wiring to other drives' probe-in). Fault injection through
 // the `sim-inject` command (`cnc inject "drive 1 overcurrent"`).
 #pragma once
 

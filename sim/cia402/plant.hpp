@@ -91,6 +91,9 @@ class Plant {
   bool pos_limit() const noexcept { return x_t_ >= c_.pos_limit; }
   bool home_switch() const noexcept { return x_t_ >= c_.home_min && x_t_ <= c_.home_max; }
   bool probe_input() const noexcept { return probe_override_ || probe_at(x_t_); }
+  // The positional probe input alone (PROBE_POSITION, e.g. a tool setter),
+  // without the external signal.
+  bool probe_position_input() const noexcept { return probe_at(x_t_); }
   // A mechanical jam: extra Coulomb friction on the table (N), e.g. a
   // crash or a seized way (fault injection).
   void set_extra_friction(double newton) noexcept { extra_friction_ = newton < 0 ? 0 : newton; }

@@ -90,9 +90,9 @@ class ProbingTests : public QObject {
     Routine r(settings(), Request{.kind = Kind::ToolLength, .tool = 3}, st);
     const Lines l = run(r, {-112.5});
     QVERIFY2(!r.failed(), r.error().c_str());
-    QCOMPARE(join(l), std::string("G53 G0 Z0.0000\nG53 G0 X250.0000 Y10.0000\nG53 G0 Z-50.0000\n"
+    QCOMPARE(join(l), std::string("M70\nG21 G90 G94\nG53 G0 Z0.0000\nG53 G0 X250.0000 Y10.0000\nG53 G0 Z-50.0000\n"
                                   "G91 G38.2 Z-80.0000 F300.0000\nG0 Z1.0000\nG38.2 Z-2.0000 F25.0000\nG0 Z1.0000\nG90\n"
-                                  "G53 G0 Z0.0000\nG10 L1 P3 Z37.5000\nG43 H3\n"));
+                                  "G53 G0 Z0.0000\nG10 L1 P3 Z37.5000\nG43 H3\nM72\nM71\n"));
     QCOMPARE(r.result().tool_length, 37.5);  // -112.5 - (-150)
     QVERIFY(r.result().summary.find("T3 length 37.5000") != std::string::npos);
   }
@@ -100,7 +100,7 @@ class ProbingTests : public QObject {
   void toolLengthOfAToolNotInTheSpindleDoesNotApplyIt() {
     Routine r(settings(), Request{.kind = Kind::ToolLength, .tool = 5}, at(0, 0, 0));
     const Lines l = run(r, {-140});
-    QCOMPARE(l.back(), std::string("G10 L1 P5 Z10.0000"));
+    QCOMPARE(l.at(l.size() - 3), std::string("G10 L1 P5 Z10.0000"));
   }
 
   void toolLengthWithoutASetterOrToolIsRefused() {
@@ -118,7 +118,7 @@ class ProbingTests : public QObject {
     Routine minus(settings(), Request{.kind = Kind::Edge, .axis = 1, .direction = -1}, at(0, 0, 0));
     const Lines l = run(minus, {-7});
     QCOMPARE(minus.result().y, -8.0);
-    QCOMPARE(l.front(), std::string("G91 G38.2 Y-10.0000 F300.0000"));
+    QCOMPARE(l.at(2), std::string("G91 G38.2 Y-10.0000 F300.0000"));
   }
 
   void anEdgeSetsTheOriginOfAnyCoordinateSystemSoThatItReadsTheValue() {
@@ -130,27 +130,78 @@ class ProbingTests : public QObject {
     Routine r(settings(), q, st);
     const Lines l = run(r, {20});
     // displayed = machine - origin - G92 - tool: 21 - origin - 2 - 0.5 = -3.
-    QCOMPARE(l.back(), std::string("G10 L2 P6 X21.5000"));
+    QCOMPARE(l.at(l.size() - 3), std::string("G10 L2 P6 X21.5000"));
     QVERIFY(r.result().summary.find("G59 set") != std::string::npos);
   }
 
   void aBoreCentreIsTheMidpointOfOppositeHitsAndItsDiameterAddsTheTip() {
     Request q{.kind = Kind::Bore, .coordinate_system = 2};
     Routine r(settings(), q, at(100, 50, -10));
-    const Lines l = run(r, {108, 94, 57, 45});
+    // The first X pair across a chord (the start is off the Y centre), the
+    // second across the diameter.
+    const Lines l = run(r, {107.5, 94.5, 57, 45, 108.2, 93.8});
     QVERIFY2(!r.failed(), r.error().c_str());
     QCOMPARE(r.result().x, 101.0);
     QCOMPARE(r.result().y, 51.0);
-    QCOMPARE(r.result().diameter_x, 16.0);  // 108 - 94 + 2
-    QCOMPARE(r.result().diameter_y, 14.0);
+    QCOMPARE(r.result().diameter_x, 108.2 - 93.8 + 2);
+    QCOMPARE(r.result().diameter_y, 14.0);  // 57 - 45 + 2
     const std::string all = join(l);
-    // X+, back, X-, to the X centre, then Y from there, to the Y centre.
+    // X+, back, X-, to the X centre, then Y from there, to the Y centre,
+    // then X again from there.
     QVERIFY(all.find("G91 G38.2 X10.0000") < all.find("G53 G0 X100.0000"));
     QVERIFY(all.find("G53 G0 X100.0000") < all.find("G91 G38.2 X-10.0000"));
     QVERIFY(all.find("G91 G38.2 X-10.0000") < all.find("G53 G0 X101.0000"));
     QVERIFY(all.find("G53 G0 X101.0000") < all.find("G91 G38.2 Y10.0000"));
-    QVERIFY(all.find("G53 G0 Y51.0000") != std::string::npos);
-    QCOMPARE(l.back(), std::string("G10 L2 P2 X101.0000 Y51.0000"));
+    QVERIFY2(all.find("G53 G0 Y51.0000\nG91 G38.2 X10.0000") != std::string::npos, all.c_str());
+    QVERIFY(all.rfind("G91 G38.2 X-10.0000") > all.find("G53 G0 Y51.0000"));
+    QCOMPARE(l.at(l.size() - 3), std::string("G10 L2 P2 X101.0000 Y51.0000"));
+  }
+
+  void tipCalibrationIsTheGaugeDiameterLessTheCentresTravelBetweenItsWalls() {
+    Request q{.kind = Kind::TipCalibration, .gauge_diameter = 20};
+    Routine r(settings(), q, at(0, 0, -10));
+    // The centre travels 17.02 in X, 17.04 in Y between the walls.
+    run(r, {8.4, -8.6, 8.52, -8.52, 8.51, -8.51});
+    QVERIFY2(!r.failed(), r.error().c_str());
+    QVERIFY(std::fabs(r.result().tip_diameter_x - 2.98) < 1e-9);
+    QVERIFY(std::fabs(r.result().tip_diameter_y - 2.96) < 1e-9);
+    QVERIFY(std::fabs(r.result().tip_diameter - 2.97) < 1e-9);
+    QVERIFY2(r.result().summary.find("tip diameter 2.9700 (X 2.9800, Y 2.9600)") != std::string::npos,
+             r.result().summary.c_str());
+    QVERIFY_THROWS_EXCEPTION(std::invalid_argument,
+                             Routine(settings(), Request{.kind = Kind::TipCalibration}, at(0, 0, 0)));
+    // A gauge smaller than the travel: a wrong diameter, not a tip.
+    Routine wrong(settings(), Request{.kind = Kind::TipCalibration, .gauge_diameter = 10}, at(0, 0, -10));
+    run(wrong, {8.4, -8.6, 8.52, -8.52, 8.51, -8.51});
+    QVERIFY(wrong.failed());
+    QVERIFY2(wrong.error().find("is the gauge diameter right?") != std::string::npos, wrong.error().c_str());
+  }
+
+  void routinesSaveTheModalStateFirstAndRestoreItAtTheEnd() {
+    Routine r(settings(), Request{.kind = Kind::Edge, .axis = 0, .direction = 1}, at(0, 0, 0));
+    const Lines l = run(r, {20});
+    QCOMPARE(l.at(0), std::string("M70"));
+    QCOMPARE(l.at(1), std::string("G21 G90 G94"));  // the routine's numbers: machine units per minute, absolute
+    QCOMPARE(l.at(l.size() - 2), std::string("M72"));
+    QCOMPARE(l.back(), std::string("M71"));
+    Settings inch = settings();
+    inch.inch = true;
+    Routine ri(inch, Request{.kind = Kind::Edge, .axis = 0, .direction = 1}, at(0, 0, 0));
+    QCOMPARE(run(ri, {2}).at(1), std::string("G20 G90 G94"));
+  }
+
+  void aFailureRestoresTheModalStateTheStatusShowedAtTheStart() {
+    Start st = at(0, 0, 0);
+    st.gcodes = {10, 180, 910, 911, 950, 200, 400, 490, 980, 550, 640, 970, 80};
+    st.feed = 12.5;
+    Routine r(settings(), Request{.kind = Kind::Edge, .axis = 0, .direction = 1}, st);
+    run(r, {});
+    QVERIFY(r.failed());
+    QCOMPARE(r.cleanup_lines(), (Lines{"G20 G91 G95 G18", "F12.5000"}));
+    st.gcodes = {10, 170, 900, 911, 940, 210};
+    st.feed = 0;
+    Routine metric(settings(), Request{.kind = Kind::Edge, .axis = 0, .direction = 1}, st);
+    QCOMPARE(metric.cleanup_lines(), (Lines{"G21 G90 G94 G17", "F0.0000"}));
   }
 
   void aBossIsProbedFromOutsideAtDepthAndItsDiameterSubtractsTheTip() {
@@ -175,7 +226,7 @@ class ProbingTests : public QObject {
     const Lines l = run(r, {22, 45});
     QCOMPARE(r.result().x, 21.0);
     QCOMPARE(r.result().y, 46.0);
-    QCOMPARE(l.back(), std::string("G10 L2 P1 X21.0000 Y46.0000"));
+    QCOMPARE(l.at(l.size() - 3), std::string("G10 L2 P1 X21.0000 Y46.0000"));
   }
 
   void anOutsideCornerStepsAlongEachFaceBeforeProbingIt() {
@@ -185,7 +236,7 @@ class ProbingTests : public QObject {
     QCOMPARE(r.result().x, 6.0);
     QCOMPARE(r.result().y, 7.0);
     const std::string all = join(l);
-    QVERIFY2(all.rfind("G53 G0 Y8.0000\nG91 G38.2 X10.0000", 0) == 0, all.c_str());
+    QVERIFY2(all.rfind("M70\nG21 G90 G94\nG53 G0 Y8.0000\nG91 G38.2 X10.0000", 0) == 0, all.c_str());
     QVERIFY(all.find("G53 G0 Y0.0000\nG53 G0 X0.0000\nG53 G0 X8.0000\nG91 G38.2 Y10.0000") != std::string::npos);
     QVERIFY_THROWS_EXCEPTION(std::invalid_argument,
                              Routine(settings(), Request{.kind = Kind::OutsideCorner, .corner_step = 0}, at(0, 0, 0)));
@@ -196,7 +247,7 @@ class ProbingTests : public QObject {
     run(r, {5});  // the second probe finds nothing
     QVERIFY(r.done() && r.failed());
     QCOMPARE(r.error(), std::string("bore centre: probe X-: no contact within the search distance"));
-    QCOMPARE(Routine::cleanup_lines(), Lines{"G90"});
+    QCOMPARE(r.cleanup_lines(), Lines{"G90"});  // the start did not give the modal state
   }
 
   void aRotatedCoordinateSystemRefusesTouchOff() {

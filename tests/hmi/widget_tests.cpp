@@ -625,8 +625,8 @@ class WidgetTests : public QObject {
     QVERIFY(r.find<QPushButton>("probeStart")->isEnabled());
     r.find<QPushButton>("probeStart")->click();
     auto* result = r.find<QLabel>("probeResult");
-    const std::vector<double> hits = {108, 94, 57, 45};
-    const int axes[] = {0, 0, 1, 1};
+    const std::vector<double> hits = {108, 94, 57, 45, 108, 94};
+    const int axes[] = {0, 0, 1, 1, 0, 0};
     std::size_t k = 0, probes_seen = 0;
     for (int i = 0; i < 500 && text_of(result) == QString("Probing…"); ++i) {
       r.tick();
@@ -642,15 +642,23 @@ class WidgetTests : public QObject {
     QVERIFY2(text_of(result).startsWith("centre at machine X 101.0000 Y 51.0000, diameter X 16.0000 Y 14.0000; G55 set"),
              qPrintable(text_of(result)));
     const auto lines = r.mdi_lines();
-    QCOMPARE(lines.front(), std::string("G91 G38.2 X10.0000 F300.0000"));
+    QCOMPARE(lines.front(), std::string("M70"));  // the modal state saved first ...
+    QCOMPARE(lines.at(2), std::string("G91 G38.2 X10.0000 F300.0000"));
     QVERIFY(contains(lines, "G53 G0 X101.0000"));
-    QCOMPARE(lines.back(), std::string("G10 L2 P2 X101.0000 Y51.0000"));
+    QVERIFY(contains(lines, "G10 L2 P2 X101.0000 Y51.0000"));
+    QCOMPARE(lines.at(lines.size() - 2), std::string("M72"));  // ... and restored at the end
+    QCOMPARE(lines.back(), std::string("M71"));
     r.w->grab().save(screenshot_dir() + "/widget-probe.png");
   }
 
-  void probe_page_stops_when_the_probe_finds_nothing_and_restores_g90() {
+  void probe_page_stops_when_the_probe_finds_nothing_and_restores_the_modal_state() {
     Rig r;
     r.link->set_on();
+    // The operator's modal state: inch, incremental, F12.
+    const int gcodes[] = {10, 170, 910, 911, 940, 200};
+    std::fill(std::begin(r.link->status.task.active_gcodes), std::end(r.link->status.task.active_gcodes), -1);
+    std::copy(std::begin(gcodes), std::end(gcodes), r.link->status.task.active_gcodes);
+    r.link->status.task.active_settings[1] = 12;
     r.show("probePage");
     r.tick();
     r.find<QComboBox>("probeRoutine")->setCurrentIndex(1);  // edge X+
@@ -659,7 +667,10 @@ class WidgetTests : public QObject {
     for (int i = 0; i < 100 && text_of(result) == QString("Probing…"); ++i) r.tick();  // probe_tripped stays FALSE
     QCOMPARE(text_of(result), QString("Failed: edge: probe X+: no contact within the search distance"));
     r.tick(5);
-    QCOMPARE(r.mdi_lines().back(), std::string("G90"));
+    // The abort reset the interpreter (and the M70 context): the start's
+    // modal state is sent back explicitly.
+    QCOMPARE(r.mdi_lines().at(r.mdi_lines().size() - 2), std::string("G20 G91 G94 G17"));
+    QCOMPARE(r.mdi_lines().back(), std::string("F12.0000"));
     // Touch-off into a coordinate system that is not the active one.
     r.find<QComboBox>("touchAxis")->setCurrentIndex(2);    // Z
     r.find<QComboBox>("touchSystem")->setCurrentIndex(8);  // G59.3

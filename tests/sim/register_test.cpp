@@ -9,11 +9,11 @@ using namespace cnc;
 
 TEST(SimRegister, RegistersEverySimulatorComponent) {
   hal::ComponentRegistry registry;
-  for (const char* name : {"cia402_sim", "ethercat_sim", "sim_joint", "sim_toolchanger"}) {
+  for (const char* name : {"cia402_sim", "ethercat_sim", "sim_joint", "sim_toolchanger", "sim_part"}) {
     EXPECT_EQ(registry.find(name), nullptr) << name << " without the simulators";
   }
   sim::register_components(registry);
-  for (const char* name : {"cia402_sim", "ethercat_sim", "sim_joint", "sim_toolchanger"}) {
+  for (const char* name : {"cia402_sim", "ethercat_sim", "sim_joint", "sim_toolchanger", "sim_part"}) {
     EXPECT_NE(registry.find(name), nullptr) << name;
   }
 }

@@ -215,6 +215,17 @@ TEST(Halui, EveryPinHasTheNameTypeAndDirectionOfLinuxCncsHalui) {
     std::istringstream words(line.substr(3));
     std::string name, type, dir;
     words >> name >> type >> dir;
+    if (type.empty()) {
+      // halui.axis.selected.plus, halui.joint.selected.plus: the man page
+      // has their type and direction in the next line's text.
+      std::string next;
+      std::getline(lines, next);
+      std::smatch m;
+      if (std::regex_search(next, m, std::regex(R"((bit|float|s32|u32) (in|out))"))) {
+        type = m[1];
+        dir = m[2];
+      }
+    }
     documented.insert(name + " " + type + " " + dir);
   }
   ASSERT_GT(documented.size(), 100u) << "the man page's pin list was not found";
@@ -278,4 +289,94 @@ TEST(Halui, ProgramSwitchesModesUnhomeMaxVelocityAndJointStatusPins) {
   EXPECT_EQ(b.hal.get_value("halui.joint.0.has-fault"), "TRUE");
   EXPECT_EQ(b.hal.get_value("halui.joint.1.has-fault"), "FALSE");
   EXPECT_NEAR(std::stod(b.hal.get_value("halui.machine.units-per-mm")), 1.0 / 25.4, 1e-6);  // as formatted
+}
+
+// Selection (LinuxCNC's halui): the last axis or joint whose select pin
+// rose is the selected one (the first before any); the selected pins jog,
+// home and show that one.
+TEST(Halui, SelectPinsChooseTheAxisAndJointTheSelectedPinsActOn) {
+  Bench b;
+  EXPECT_EQ(b.hal.get_value("halui.axis.selected"), "0");
+  EXPECT_EQ(b.hal.get_value("halui.axis.x.is-selected"), "TRUE");
+  b.set("halui.axis.z.select", "1");
+  b.set("halui.joint.1.select", "1");
+  b.status->task.mode = ipc::TaskMode::Manual;
+  b.status->joints[1].homed = true;
+  b.status->joints[1].max_soft_limit = true;
+  b.poll();
+  EXPECT_EQ(b.hal.get_value("halui.axis.selected"), "2");
+  EXPECT_EQ(b.hal.get_value("halui.axis.z.is-selected"), "TRUE");
+  EXPECT_EQ(b.hal.get_value("halui.axis.x.is-selected"), "FALSE");
+  EXPECT_EQ(b.hal.get_value("halui.joint.selected"), "1");
+  EXPECT_EQ(b.hal.get_value("halui.joint.1.is-selected"), "TRUE");
+  EXPECT_EQ(b.hal.get_value("halui.joint.selected.is-homed"), "TRUE");
+  EXPECT_EQ(b.hal.get_value("halui.joint.selected.on-soft-max-limit"), "TRUE");
+  // Jog the selected axis (Z) while held; an increment of the selected joint.
+  b.set("halui.axis.jog-speed", "120");
+  b.set("halui.axis.selected.plus", "1");
+  b.poll();
+  ASSERT_EQ(b.types(), (std::vector<CommandType>{CommandType::JogCont}));
+  EXPECT_EQ(b.sent[0].i[0], 2);
+  EXPECT_DOUBLE_EQ(b.sent[0].d[0], 2.0);
+  // Selecting Y while Z jogs: Z is stopped, not left running.
+  b.sent.clear();
+  b.set("halui.axis.y.select", "1");
+  b.poll();
+  ASSERT_EQ(b.types(), (std::vector<CommandType>{CommandType::JogStop}));
+  EXPECT_EQ(b.sent[0].i[0], 2);
+  b.set("halui.axis.selected.plus", "0");
+  b.poll();
+  b.sent.clear();
+  b.set("halui.joint.jog-speed", "60");
+  b.set("halui.joint.selected.increment", "0.5");
+  b.set("halui.joint.selected.increment-minus", "1");
+  b.set("halui.joint.selected.home", "1");
+  b.poll();
+  ASSERT_EQ(b.types(), (std::vector<CommandType>{CommandType::JointHome, CommandType::JogIncr}));
+  EXPECT_EQ(b.sent[0].i[0], 1);
+  EXPECT_EQ(b.sent[1].i[0], 1);
+  EXPECT_DOUBLE_EQ(b.sent[1].d[1], -0.5);
+}
+
+TEST(Halui, PosRelativeIsTheCommandLessTheOffsetsAndToolDiameterIsTheSpindlesTool) {
+  Bench b;
+  b.status->motion.position[0] = 100;
+  b.status->task.g5x_offset[0] = 30;
+  b.status->task.g92_offset[0] = 5;
+  b.status->task.tool_offset[0] = 0.25;
+  b.status->io.tool_diameter = 6.35;
+  b.poll();
+  EXPECT_DOUBLE_EQ(std::stod(b.hal.get_value("halui.axis.x.pos-relative")), 64.75);
+  EXPECT_DOUBLE_EQ(std::stod(b.hal.get_value("halui.tool.diameter")), 6.35);
+}
+
+TEST(Halui, EverySpindleOfTheIniHasItsPins) {
+  hal::Hal hal;
+  hal::ComponentRegistry registry;
+  const ini::IniFile ini = ini::IniFile::parse("[TRAJ]\nCOORDINATES = X Y Z\nSPINDLES = 2\n[KINS]\nJOINTS = 3\n", "two.ini");
+  hal::CommandInterpreter interp{hal, registry, &ini, nullptr};
+  hal::register_core_components(registry);
+  halui::register_components(registry);
+  interp.execute("loadrt halui");
+  auto* ui = hal.find<halui::Halui>("halui");
+  auto status = std::make_unique<ipc::Status>();
+  std::vector<ipc::Command> sent;
+  const auto poll = [&] { ui->poll(*status, [&](const ipc::Command& c) { sent.push_back(c); return true; }); };
+  poll();
+  EXPECT_TRUE(hal.has_pin("halui.spindle.1.start"));
+  EXPECT_TRUE(hal.has_pin("halui.spindle.1.override.value"));
+  EXPECT_FALSE(hal.has_pin("halui.spindle.2.start"));
+  status->spindles[1].enabled = true;
+  status->spindles[1].direction = -1;
+  status->spindles[1].speed = -800;
+  hal.set_value("halui.spindle.1.increase", "1");
+  hal.set_value("halui.spindle.1.start", "1");
+  hal.set_value("halui.spindle.1.override.increase", "1");
+  poll();
+  EXPECT_EQ(hal.get_value("halui.spindle.1.runs-backward"), "TRUE");
+  EXPECT_EQ(hal.get_value("halui.spindle.0.is-on"), "FALSE");
+  ASSERT_EQ(sent.size(), 3u);
+  for (const auto& c : sent) EXPECT_EQ(c.i[0], 1) << ipc::to_string(c.type);  // spindle 1 in every command
+  EXPECT_EQ(sent[0].type, CommandType::SpindleOn);
+  EXPECT_DOUBLE_EQ(sent[0].d[0], -800);  // reverse, at its speed
 }

@@ -28,10 +28,12 @@ TEST(ToolChanger, NonRandomCopiesToolDataToTheSpindle) {
   int prepares = 0;
   m.ok(m.mdi("T3 M6"), "T3 M6");
   EXPECT_EQ(m.status().io.tool_in_spindle, 3);
+  EXPECT_DOUBLE_EQ(m.status().io.tool_diameter, 5.0);  // its D (halui.tool.diameter)
   EXPECT_EQ(m.hal().get_value("iocontrol.0.tool-number"), "3");
   EXPECT_EQ(m.hal().get_value("sim-toolchanger.changes"), "1");
   m.ok(m.mdi("T1 M6"), "T1 M6");
   EXPECT_EQ(m.status().io.tool_in_spindle, 1);
+  EXPECT_DOUBLE_EQ(m.status().io.tool_diameter, 6.0);
   // Pockets never move on a non-random changer.
   const auto t = cnc::tooltable::ToolTable::load(m.dir / "tool.tbl", cnc::tooltable::ChangerKind::NonRandom);
   EXPECT_EQ(t.at(*t.find_tool(3)).pocket, 3);
