@@ -778,6 +778,7 @@ class WritePage : public StepPage {
     check_ = button("Start the controller on it and run the check program", "checkButton");
     f->addRow(check_);
     f->addRow("Check", checked_ = shown("checkResult"));
+    checked_->setText("(not run yet)");
     diff_ = new QTextEdit;
     diff_->setObjectName("diffView");
     diff_->setReadOnly(true);
