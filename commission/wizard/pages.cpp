@@ -75,6 +75,78 @@ char letter_of(const QComboBox* c) {
   return t.isEmpty() ? '?' : t.at(0).toLatin1();
 }
 
+QSpinBox* count(const char* name, int min, int max, int value) {
+  auto* s = new QSpinBox;
+  s->setObjectName(name);
+  s->setRange(min, max);
+  s->setValue(value);
+  return s;
+}
+
+QLabel* shown(const char* name) {
+  auto* l = new QLabel;
+  l->setObjectName(name);
+  l->setWordWrap(true);
+  l->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  return l;
+}
+
+// One row of a form: the widgets side by side, the first one stretched
+// when `stretch_first`.
+QHBoxLayout* row(std::initializer_list<QWidget*> widgets, bool stretch_first = false) {
+  auto* r = new QHBoxLayout;
+  bool first = true;
+  for (QWidget* w : widgets) {
+    r->addWidget(w, first && stretch_first ? 1 : 0);
+    first = false;
+  }
+  return r;
+}
+
+QString mm(double v) { return QString::number(v, 'f', 3); }
+
+// The pages of one axis (3-8): the axis chooser on top of a form (in a
+// column, so a page can add a plot below); what the state holds for the
+// chosen axis is shown by show_axis() after every reload and change of
+// axis. The motion steps (5-8) can run on a controller of their own
+// (`--bring-up` into the wizard's configuration folder, shut down after
+// the step), which homing and tuning need: their configuration differs
+// from the state's.
+class AxisPage : public StepPage {
+ public:
+  AxisPage(WizardWindow& w, int step, const QString& intro, bool motion) : StepPage(w, step, intro) {
+    column_ = new QVBoxLayout(inputs());
+    form_ = new QFormLayout;
+    column_->addLayout(form_);
+    form_->addRow("Axis", axis_ = axis_choice());
+    if (motion) {
+      own_ = new QCheckBox("on a controller of its own, brought up in the configuration folder for the step "
+                           "(shut down the running one first: page 4)");
+      own_->setObjectName("ownController");
+      own_->setChecked(true);
+      form_->addRow("Controller", own_);
+    }
+    connect(axis_, &QComboBox::currentIndexChanged, this, [this] { show_axis(w_.state()); });
+  }
+  void refresh(const State& s) override {
+    fill_axes(axis_, s);
+    show_axis(s);
+  }
+
+ protected:
+  virtual void show_axis(const State&) {}
+  char letter() const { return letter_of(axis_); }
+  const Axis* axis(const State& s) const { return s.axis(letter()); }
+  // The --bring-up folder of a motion step ("" on the running controller).
+  std::string bring_up() const {
+    return own_ && own_->isChecked() ? w_.options().config_dir.toStdString() : std::string();
+  }
+  QVBoxLayout* column_;
+  QFormLayout* form_;
+  QComboBox* axis_;
+  QCheckBox* own_ = nullptr;
+};
+
 // ------------------------------------------------------------ 1 bus
 
 class BusPage : public StepPage {
@@ -94,15 +166,9 @@ class BusPage : public StepPage {
     auto* b = button("Scan", "scanButton");
     f->addRow(b);
     // Drives that come without node-ID get free ones by LSS (CANopen).
-    auto* lss_row = new QHBoxLayout;
-    first_ = new QSpinBox;
-    first_->setObjectName("lssFirst");
-    first_->setRange(1, 127);
+    first_ = count("lssFirst", 1, 127, 1);
     auto* lss = button("Give node-IDs (LSS)", "lssButton");
-    lss_row->addWidget(new QLabel("from node-ID"));
-    lss_row->addWidget(first_);
-    lss_row->addWidget(lss, 1);
-    f->addRow("Without node-ID", lss_row);
+    f->addRow("Without node-ID", row({new QLabel("from node-ID"), first_, lss}));
     connect(lss, &QPushButton::clicked, this, [this] {
       run([this] { return w_.builder().lss(iface_->text().toStdString(), first_->value()); });
     });
@@ -145,21 +211,12 @@ class AxesPage : public StepPage {
     letter_->setObjectName("assignLetter");
     letter_->addItems({"X", "Y", "Z", "A", "B", "C", "U", "V", "W"});
     f->addRow("Axis", letter_);
-    node_ = new QSpinBox;
-    node_->setObjectName("nodeId");
-    node_->setRange(1, 127);
-    f->addRow("Drive (node-ID)", node_);
-    joint_ = new QSpinBox;
-    joint_->setObjectName("jointNumber");
-    joint_->setRange(0, 15);
-    f->addRow("Joint", joint_);
+    f->addRow("Drive (node-ID)", node_ = count("nodeId", 1, 127, 1));
+    f->addRow("Joint", joint_ = count("jointNumber", 0, 15, 0));
     f->addRow("Gantry partner", gantry_ = line("gantryWith", "", "e.g. Y2 (optional)"));
-    auto* row = new QHBoxLayout;
     auto* assign = button("Assign", "assignButton");
     auto* identify = button("Identify (jog 0.5 mm)", "identifyButton");
-    row->addWidget(assign);
-    row->addWidget(identify);
-    f->addRow(row);
+    f->addRow(row({assign, identify}));
     axes_ = new QListWidget;
     axes_->setObjectName("axesList");
     f->addRow("Axes", axes_);
@@ -203,15 +260,15 @@ class AxesPage : public StepPage {
 
 // ------------------------------------------------------------ 3 scaling
 
-class ScalingPage : public StepPage {
+class ScalingPage : public AxisPage {
  public:
   explicit ScalingPage(WizardWindow& w)
-      : StepPage(w, 2,
+      : AxisPage(w, 2,
                  "Counts per mm = encoder increments per motor revolution x motor revolutions per screw "
                  "revolution / screw lead. Leave counts and gear at 0 to take them from the drive (0x608F, "
-                 "0x6091).") {
-    auto* f = new QFormLayout(inputs());
-    f->addRow("Axis", axis_ = axis_choice());
+                 "0x6091).",
+                 false) {
+    auto* f = form_;
     f->addRow("Screw lead", lead_ = number("screwLead", 0, 1000, 5, 4, " mm"));
     f->addRow("Encoder counts/rev", counts_ = number("encoderCounts", 0, 1e9, 0, 0, ""));
     f->addRow("Gear motor revs", gm_ = number("gearMotor", 0, 1000, 0, 3, ""));
@@ -223,15 +280,11 @@ class ScalingPage : public StepPage {
     f->addRow(b);
     for (auto* s : {lead_, counts_, gm_, gl_})
       connect(s, &QDoubleSpinBox::valueChanged, this, [this] { update_live(); });
-    connect(axis_, &QComboBox::currentIndexChanged, this, [this] { update_live(); });
     connect(b, &QPushButton::clicked, this, [this] {
-      run([this] { return w_.builder().scaling(letter_of(axis_), lead_->value(), counts_->value(), gm_->value(), gl_->value()); });
+      run([this] { return w_.builder().scaling(letter(), lead_->value(), counts_->value(), gm_->value(), gl_->value()); });
     });
   }
-  void refresh(const State& s) override {
-    fill_axes(axis_, s);
-    update_live();
-  }
+  void show_axis(const State&) override { update_live(); }
   // The live figure, as set_scaling would compute it (drive values where
   // the fields are 0).
   void update_live() {
@@ -243,7 +296,7 @@ class ScalingPage : public StepPage {
     sc.gear_load_revs = gl_->value();
     QStringList sources;
     QString from;
-    if (const Axis* a = s.axis(letter_of(axis_))) {
+    if (const Axis* a = axis(s)) {
       const ScannedNode* n = s.node(a->node);
       if (sc.encoder_counts <= 0 && n && n->encoder_increments && n->encoder_motor_revs && *n->encoder_motor_revs > 0) {
         sc.encoder_counts = static_cast<double>(*n->encoder_increments) / *n->encoder_motor_revs;
@@ -266,30 +319,26 @@ class ScalingPage : public StepPage {
   }
 
  private:
-  QComboBox* axis_;
   QDoubleSpinBox *lead_, *counts_, *gm_, *gl_;
   QLabel* cpm_;
 };
 
 // ------------------------------------------------------------ 4 direction
 
-class DirectionPage : public StepPage {
+class DirectionPage : public AxisPage {
  public:
   explicit DirectionPage(WizardWindow& w)
-      : StepPage(w, 3,
+      : AxisPage(w, 3,
                  "Zero a dial indicator on the table, then HOLD the button: the axis jogs the distance at low "
                  "speed while it is held; releasing it stops the motion and switches the machine off. Enter the "
                  "dial's reading (in the axis' positive direction): REVERSE flips and the scaling is corrected "
                  "when they disagree. The test runs on the running controller; Bring up starts one on the "
-                 "configuration of the state.") {
-    auto* f = new QFormLayout(inputs());
-    auto* ctl = new QHBoxLayout;
+                 "configuration of the state.",
+                 false) {
+    auto* f = form_;
     auto* up = button("Bring up controller", "bringUpButton");
     auto* down = button("Shut down controller", "shutdownButton");
-    ctl->addWidget(up);
-    ctl->addWidget(down);
-    f->addRow(ctl);
-    f->addRow("Axis", axis_ = axis_choice());
+    f->insertRow(0, row({up, down}));
     f->addRow("Distance", distance_ = number("testDistance", -kMaxTestTravel, kMaxTestTravel, 5, 3, " mm"));
     f->addRow("Velocity", velocity_ = number("testVelocity", 0.01, kMaxTestVelocity, 2, 2, " mm/s"));
     hold_ = new HoldToRunButton("HOLD TO RUN");
@@ -297,37 +346,26 @@ class DirectionPage : public StepPage {
     hold_->setMinimumHeight(48);
     hold_->setStyleSheet("QPushButton { font-weight: bold; } QPushButton:pressed { background: #ffd24d; }");
     f->addRow(hold_);
-    auto* dial_row = new QHBoxLayout;
     dial_ = number("dialValue", -1000, 1000, 0, 4, " mm");
     auto* db = button("Apply dial reading", "dialButton");
-    dial_row->addWidget(dial_);
-    dial_row->addWidget(db);
-    f->addRow("Dial indicator", dial_row);
-    verdict_ = new QLabel;
-    verdict_->setObjectName("directionVerdict");
-    verdict_->setWordWrap(true);
-    f->addRow("Last test", verdict_);
+    f->addRow("Dial indicator", row({dial_, db}));
+    f->addRow("Last test", verdict_ = shown("directionVerdict"));
     connect(up, &QPushButton::clicked, this,
             [this] { run([this] { return w_.builder().bring_up(w_.options().config_dir.toStdString()); }); });
     connect(down, &QPushButton::clicked, this, [this] { run([this] { return w_.builder().shutdown(); }); });
     connect(hold_, &HoldToRunButton::startRequested, this, [this] {
       const bool started =
-          run([this] { return w_.builder().direction_test(letter_of(axis_), distance_->value(), velocity_->value()); },
+          run([this] { return w_.builder().direction_test(letter(), distance_->value(), velocity_->value()); },
               [this](const StepResult&) { hold_->protocol().finished(); });
       if (started) hold_->protocol().started();
       else hold_->protocol().finished();  // refused: the next press starts again
     });
     connect(hold_, &HoldToRunButton::interruptRequested, this, [this] { child().interrupt(); });
     connect(db, &QPushButton::clicked, this,
-            [this] { run([this] { return w_.builder().dial(letter_of(axis_), dial_->value()); }); });
-    connect(axis_, &QComboBox::currentIndexChanged, this, [this] { show_verdict(w_.state()); });
+            [this] { run([this] { return w_.builder().dial(letter(), dial_->value()); }); });
   }
-  void refresh(const State& s) override {
-    fill_axes(axis_, s);
-    show_verdict(s);
-  }
-  void show_verdict(const State& s) {
-    const Axis* a = s.axis(letter_of(axis_));
+  void show_axis(const State& s) override {
+    const Axis* a = axis(s);
     if (!a || !a->direction) {
       verdict_->setText("(no test yet)");
       return;
@@ -337,7 +375,6 @@ class DirectionPage : public StepPage {
   }
 
  private:
-  QComboBox* axis_;
   QDoubleSpinBox *distance_, *velocity_, *dial_;
   HoldToRunButton* hold_;
   QLabel* verdict_;
@@ -345,90 +382,85 @@ class DirectionPage : public StepPage {
 
 // ------------------------------------------------------------ 5 limits
 
-class LimitsPage : public StepPage {
+QString describe_switch(const char* name, const SwitchFinding& f) {
+  if (!f.seen) return QString("%1: not seen (%2)").arg(name, QString::fromStdString(f.pin));
+  return QString("%1 at %2 mm%3, active %4 (%5)")
+      .arg(name, mm(f.position), f.has_high ? " to " + mm(f.position_high) + " mm" : QString(),
+           f.active_high ? "high" : "low", QString::fromStdString(f.pin));
+}
+
+class LimitsPage : public AxisPage {
  public:
   explicit LimitsPage(WizardWindow& w)
-      : StepPage(w, 4,
+      : AxisPage(w, 4,
                  "Provisional limits and speeds; then find the limit and home switches (each seen, where, with "
-                 "which polarity) and derive the soft limits from them less a margin.") {
-    auto* f = new QFormLayout(inputs());
-    f->addRow("Axis", axis_ = axis_choice());
-    auto* r1 = new QHBoxLayout;
-    r1->addWidget(min_ = number("minLimit", -1e5, 1e5, -10, 3, " mm"));
-    r1->addWidget(max_ = number("maxLimit", -1e5, 1e5, 10, 3, " mm"));
-    r1->addWidget(vel_ = number("maxVelocity", 0.001, 1e5, 10, 3, " mm/s"));
-    r1->addWidget(acc_ = number("maxAcceleration", 0.001, 1e6, 100, 3, " mm/s2"));
+                 "which polarity) and derive the soft limits from them less a margin.",
+                 true) {
+    min_ = number("minLimit", -1e5, 1e5, -10, 3, " mm");
+    max_ = number("maxLimit", -1e5, 1e5, 10, 3, " mm");
+    vel_ = number("maxVelocity", 0.001, 1e5, 10, 3, " mm/s");
+    acc_ = number("maxAcceleration", 0.001, 1e6, 100, 3, " mm/s2");
     auto* lb = button("Set limits", "limitsButton");
-    r1->addWidget(lb);
-    f->addRow("Limits, speed", r1);
-    auto* r2 = new QHBoxLayout;
-    r2->addWidget(search_ = number("searchDistance", 0, 1e5, 0, 2, " mm"));
-    r2->addWidget(svel_ = number("searchVelocity", 0, 1000, 0, 2, " mm/s"));
+    form_->addRow("Limits, speed", row({min_, max_, vel_, acc_, lb}));
+    search_ = number("searchDistance", 0, 1e5, 0, 2, " mm");
+    svel_ = number("searchVelocity", 0, 1000, 0, 2, " mm/s");
     auto* sb = button("Find switches", "switchesButton");
-    r2->addWidget(sb);
-    f->addRow("Switch search (0: default)", r2);
-    auto* r3 = new QHBoxLayout;
-    r3->addWidget(margin_ = number("softLimitMargin", 0, 1000, 2, 3, " mm"));
+    form_->addRow("Switch search (0: default)", row({search_, svel_, sb}));
+    margin_ = number("softLimitMargin", 0, 1000, 2, 3, " mm");
     auto* mb = button("Soft limits from switches", "softLimitsButton");
-    r3->addWidget(mb);
-    f->addRow("Margin", r3);
-    shown_ = new QLabel;
-    shown_->setObjectName("limitsShown");
-    f->addRow("State", shown_);
+    form_->addRow("Margin", row({margin_, mb}));
+    form_->addRow("Switches", switches_ = shown("switchesShown"));
+    form_->addRow("State", shown_ = shown("limitsShown"));
     connect(lb, &QPushButton::clicked, this, [this] {
-      run([this] { return w_.builder().limits(letter_of(axis_), min_->value(), max_->value(), vel_->value(), acc_->value()); });
+      run([this] { return w_.builder().limits(letter(), min_->value(), max_->value(), vel_->value(), acc_->value()); });
     });
     connect(sb, &QPushButton::clicked, this, [this] {
-      run([this] { return w_.builder().switches(letter_of(axis_), search_->value(), svel_->value()); });
+      run([this] { return w_.builder().switches(letter(), search_->value(), svel_->value(), bring_up()); });
     });
     connect(mb, &QPushButton::clicked, this,
-            [this] { run([this] { return w_.builder().soft_limits(letter_of(axis_), margin_->value()); }); });
-    connect(axis_, &QComboBox::currentIndexChanged, this, [this] { refresh_axis(w_.state()); });
+            [this] { run([this] { return w_.builder().soft_limits(letter(), margin_->value()); }); });
   }
-  void refresh(const State& s) override {
-    fill_axes(axis_, s);
-    refresh_axis(s);
-  }
-  void refresh_axis(const State& s) {
-    if (const Axis* a = s.axis(letter_of(axis_)))
-      shown_->setText(QString("limits %1 .. %2 mm, %3 mm/s, %4 mm/s2")
-                          .arg(a->min_limit)
-                          .arg(a->max_limit)
-                          .arg(a->max_velocity)
-                          .arg(a->max_acceleration));
+  void show_axis(const State& s) override {
+    const Axis* a = axis(s);
+    if (!a) return;
+    shown_->setText(QString("limits %1 .. %2 mm, %3 mm/s, %4 mm/s2")
+                        .arg(a->min_limit)
+                        .arg(a->max_limit)
+                        .arg(a->max_velocity)
+                        .arg(a->max_acceleration));
+    if (!a->switches) {
+      switches_->setText("(no switch search yet)");
+      return;
+    }
+    const AxisSwitches& sw = *a->switches;
+    switches_->setText(describe_switch("negative limit", sw.neg_limit) + "\n" +
+                       describe_switch("positive limit", sw.pos_limit) + "\n" + describe_switch("home switch", sw.home) +
+                       QString("\nsearched %1 mm each way from %2 mm at %3 mm/s").arg(mm(sw.search_mm), mm(sw.start), mm(sw.velocity)));
   }
 
  private:
-  QComboBox* axis_;
   QDoubleSpinBox *min_, *max_, *vel_, *acc_, *search_, *svel_, *margin_;
-  QLabel* shown_;
+  QLabel *switches_, *shown_;
 };
 
 // ------------------------------------------------------------ 6 homing
 
-class HomingPage : public StepPage {
+class HomingPage : public AxisPage {
  public:
   explicit HomingPage(WizardWindow& w)
-      : StepPage(w, 5,
+      : AxisPage(w, 5,
                  "Choose controller homing (the joint's homing sequence) or one of the drive's CiA 402 methods, "
-                 "run it and repeat it: the reference position of each run and their spread are shown.") {
-    auto* f = new QFormLayout(inputs());
-    f->addRow("Axis", axis_ = axis_choice());
-    auto* r = new QHBoxLayout;
+                 "run it and repeat it: the reference position of each run and their spread are shown.",
+                 true) {
     method_ = new QComboBox;
     method_->setObjectName("homingMethod");
     method_->addItem("controller: the joint's homing sequence (HOME_* of the INI)", "controller");
     auto* lb = button("List methods", "methodsButton");
-    r->addWidget(method_, 1);
-    r->addWidget(lb);
-    f->addRow("Method", r);
-    repeat_ = new QSpinBox;
-    repeat_->setObjectName("homingRepeat");
-    repeat_->setRange(1, 20);
-    repeat_->setValue(5);
-    f->addRow("Repeat", repeat_);
+    form_->addRow("Method", row({method_, lb}, true));
+    form_->addRow("Repeat", repeat_ = count("homingRepeat", 1, 20, 5));
     auto* hb = button("Home", "homingButton");
-    f->addRow(hb);
+    form_->addRow(hb);
+    form_->addRow("Result", result_ = shown("homingShown"));
     connect(lb, &QPushButton::clicked, this, [this] {
       run([this] { return w_.builder().homing_methods(); },
           [this](const StepResult& r) {
@@ -439,14 +471,32 @@ class HomingPage : public StepPage {
           });
     });
     connect(hb, &QPushButton::clicked, this, [this] {
-      run([this] { return w_.builder().homing(letter_of(axis_), method_->currentData().toString().toStdString(), repeat_->value()); });
+      run([this] {
+        return w_.builder().homing(letter(), method_->currentData().toString().toStdString(), repeat_->value(), bring_up());
+      });
     });
   }
-  void refresh(const State& s) override { fill_axes(axis_, s); }
+  void show_axis(const State& s) override {
+    const Axis* a = axis(s);
+    if (!a || !a->homing) {
+      result_->setText("(not homed yet)");
+      return;
+    }
+    const AxisHoming& h = *a->homing;
+    QStringList refs;
+    for (double r : h.references) refs << QString::number(r, 'f', 4);
+    result_->setText(QString("%1: %2 runs, references %3 mm\nspread %4 um (%5)\nHOME_OFFSET %6 mm, HOME %7 mm")
+                         .arg(QString::fromStdString(h.method))
+                         .arg(h.references.size())
+                         .arg(refs.join(" "))
+                         .arg(h.spread * 1000, 0, 'f', 2)
+                         .arg(QString::fromStdString(h.measured), mm(h.home_offset), mm(h.home)));
+  }
 
  private:
-  QComboBox *axis_, *method_;
+  QComboBox* method_;
   QSpinBox* repeat_;
+  QLabel* result_;
 };
 
 // ------------------------------------------------------------ 7 tuning
@@ -489,48 +539,77 @@ void plot(QChartView* v, const std::vector<double>& t, const std::vector<double>
   v->chart()->axes(Qt::Vertical).at(0)->setRange(lo - pad, hi + pad);
 }
 
-class TuningPage : public StepPage {
+class TuningPage : public AxisPage {
  public:
   explicit TuningPage(WizardWindow& w)
-      : StepPage(w, 6,
+      : AxisPage(w, 6,
                  "Move tests at rising speed and acceleration, recording following error, torque and velocity; "
                  "the recommended MAX_VELOCITY, MAX_ACCELERATION, MAX_JERK and FERROR/MIN_FERROR keep the stated "
-                 "margin. Pick a recording to plot it.") {
-    auto* v = new QVBoxLayout(inputs());
-    auto* f = new QFormLayout;
-    v->addLayout(f);
-    f->addRow("Axis", axis_ = axis_choice());
-    auto* r = new QHBoxLayout;
-    r->addWidget(maxv_ = number("tuneMaxVelocity", 0, 1e5, 0, 2, " mm/s"));
-    r->addWidget(maxa_ = number("tuneMaxAcceleration", 0, 1e6, 0, 1, " mm/s2"));
-    r->addWidget(margin_ = number("tuneMargin", 0, 99, 20, 1, " %"));
+                 "margin. Pick a recording to plot it. Accept gives the axis the recommended speeds for the steps "
+                 "after this one; Write puts all the recommendations into the configuration.",
+                 true) {
+    maxv_ = number("tuneMaxVelocity", 0, 1e5, 0, 2, " mm/s");
+    maxa_ = number("tuneMaxAcceleration", 0, 1e6, 0, 1, " mm/s2");
+    margin_ = number("tuneMargin", 0, 99, 20, 1, " %");
+    steps_ = count("tuneSteps", 0, 20, 0);
+    steps_->setSuffix(" tests");
     auto* tb = button("Tune", "tuneButton");
-    r->addWidget(tb);
-    f->addRow("Test up to (0: default), margin", r);
+    form_->addRow("Test up to, margin, tests per series (0: default)", row({maxv_, maxa_, margin_, steps_, tb}));
+    recommended_ = shown("tuneRecommendation");
+    auto* ab = button("Accept", "acceptTuneButton");
+    form_->addRow("Recommended", row({recommended_, ab}, true));
+    form_->addRow("Accepted", accepted_ = shown("tuneAccepted"));
     recordings_ = new QComboBox;
     recordings_->setObjectName("tuneRecordings");
-    f->addRow("Recording", recordings_);
+    form_->addRow("Recording", recordings_);
     trace_error_ = new QLabel;
     trace_error_->setObjectName("traceError");
     trace_error_->setStyleSheet("color: #c00000");
-    f->addRow(trace_error_);
+    form_->addRow(trace_error_);
     auto* charts = new QHBoxLayout;
     charts->addWidget(ferror_ = trace_chart("ferrorChart", "following error", "mm"));
     charts->addWidget(torque_ = trace_chart("torqueChart", "torque", "%"));
     charts->addWidget(velocity_ = trace_chart("velocityChart", "velocity", "mm/s"));
-    v->addLayout(charts, 1);
+    column_->addLayout(charts, 1);
     connect(tb, &QPushButton::clicked, this, [this] {
       run([this] {
-        return w_.builder().tune(letter_of(axis_), maxv_->value(), maxa_->value(), margin_->value(),
-                                 record_dir().toStdString());
+        return w_.builder().tune(letter(), maxv_->value(), maxa_->value(), margin_->value(), record_dir().toStdString(),
+                                 steps_->value(), bring_up());
+      });
+    });
+    connect(ab, &QPushButton::clicked, this, [this] {
+      run([this] {
+        const Axis* a = axis(w_.state());
+        if (!a) throw std::invalid_argument(std::string("axis ") + letter() + ": not assigned");
+        return w_.builder().accept_tuning(*a);
       });
     });
     connect(recordings_, &QComboBox::currentIndexChanged, this, [this] { show_recording(); });
-    connect(axis_, &QComboBox::currentIndexChanged, this, [this] { list_recordings(); });
   }
-  QString record_dir() const { return w_.options().config_dir + "/tune-" + QString(QChar(letter_of(axis_))); }
-  void refresh(const State& s) override {
-    fill_axes(axis_, s);
+  QString record_dir() const { return w_.options().config_dir + "/tune-" + QString(QChar(letter())); }
+  void show_axis(const State& s) override {
+    const Axis* a = axis(s);
+    if (a && a->tuning) {
+      const AxisTuning& t = *a->tuning;
+      recommended_->setText(QString("MAX_VELOCITY %1 mm/s, MAX_ACCELERATION %2 mm/s2, MAX_JERK %3 mm/s3, FERROR %4 mm, "
+                                    "MIN_FERROR %5 mm (margin %6 %, %7 tests)\nvelocity: %8\nacceleration: %9")
+                                .arg(t.max_velocity)
+                                .arg(t.max_acceleration)
+                                .arg(t.max_jerk)
+                                .arg(t.ferror)
+                                .arg(t.min_ferror)
+                                .arg(t.margin_pct)
+                                .arg(t.tests.size())
+                                .arg(QString::fromStdString(t.velocity_limit), QString::fromStdString(t.acceleration_limit)));
+      const bool accepted = a->max_velocity == t.max_velocity && a->max_acceleration == t.max_acceleration;
+      accepted_->setText(accepted ? QString("yes: the axis runs at %1 mm/s, %2 mm/s2").arg(a->max_velocity).arg(a->max_acceleration)
+                                  : QString("no: the axis runs at %1 mm/s, %2 mm/s2 (Write uses the recommendations)")
+                                        .arg(a->max_velocity)
+                                        .arg(a->max_acceleration));
+    } else {
+      recommended_->setText("(not tuned yet)");
+      accepted_->clear();
+    }
     list_recordings();
   }
   void list_recordings() {
@@ -559,86 +638,118 @@ class TuningPage : public StepPage {
   }
 
  private:
-  QComboBox *axis_, *recordings_;
+  QComboBox* recordings_;
   QDoubleSpinBox *maxv_, *maxa_, *margin_;
-  QLabel* trace_error_;
+  QSpinBox* steps_;
+  QLabel *recommended_, *accepted_, *trace_error_;
   QChartView *ferror_, *torque_, *velocity_;
 };
 
 // ------------------------------------------------------------ 8 compensation
 
-class CompensationPage : public StepPage {
+QString figures(const CompFigures& f) {
+  return QString("A %1 um (up %2, down %3), E %4 um, R %5 um, B %6 um, M %7 um")
+      .arg(f.A, 0, 'f', 2)
+      .arg(f.A_up, 0, 'f', 2)
+      .arg(f.A_down, 0, 'f', 2)
+      .arg(f.E, 0, 'f', 2)
+      .arg(f.R, 0, 'f', 2)
+      .arg(f.B, 0, 'f', 2)
+      .arg(f.M, 0, 'f', 2);
+}
+
+class CompensationPage : public AxisPage {
  public:
   explicit CompensationPage(WizardWindow& w)
-      : StepPage(w, 7,
-                 "Generate and run the ISO 230-2 measurement cycle, enter the measured positions by hand or "
-                 "import a laser file (CSV), fit the compensation and compare the figures before and after; "
-                 "Install puts the tables into the state for Write.") {
-    auto* f = new QFormLayout(inputs());
-    f->addRow("Axis", axis_ = axis_choice());
-    auto* r1 = new QHBoxLayout;
-    r1->addWidget(program_ = line("compProgramFile", "", "cycle.ngc"), 1);
+      : AxisPage(w, 7,
+                 "Generate and run the ISO 230-2 measurement cycle (the readings from a laser's HAL pin, or "
+                 "entered afterwards by hand or from a laser file, CSV), fit the compensation and compare the "
+                 "figures before and after; Install puts the tables into the state for Write.",
+                 true) {
+    program_ = line("compProgramFile", "", "cycle.ngc");
     auto* pb = button("Generate cycle", "compProgramButton");
     auto* rb = button("Run cycle", "compRunButton");
-    r1->addWidget(pb);
-    r1->addWidget(rb);
-    f->addRow("Cycle", r1);
+    form_->addRow("Cycle", row({program_, pb, rb}, true));
+    cmin_ = number("compMin", -1e5, 1e5, 0, 3, " mm");
+    cmax_ = number("compMax", -1e5, 1e5, 0, 3, " mm");
+    targets_ = count("compTargets", 0, 99, 0);
+    targets_->setSuffix(" targets");
+    runs_ = count("compRuns", 0, 20, 0);
+    runs_->setSuffix(" runs");
+    dwell_ = number("compDwell", 0, 60, 0, 2, " s");
+    feed_ = number("compFeed", 0, 1e5, 0, 0, " mm/min");
+    form_->addRow("Cycle options (0: default)", row({cmin_, cmax_, targets_, runs_, dwell_, feed_}));
+    form_->addRow("Laser HAL pin", laser_pin_ = line("compLaserPin", "", "e.g. laser.0.position (mm), read at each stop"));
     values_ = new QPlainTextEdit;
     values_->setObjectName("compValues");
     values_->setPlaceholderText("measured deviations (um), one per stop in the cycle's order, one per line or separated by commas");
     values_->setMaximumHeight(70);
-    f->addRow("Measurements", values_);
-    auto* r2 = new QHBoxLayout;
-    r2->addWidget(csv_ = line("compCsv", "", "laser file (CSV)"), 1);
+    form_->addRow("Measurements", values_);
+    csv_ = line("compCsv", "", "laser file (CSV)");
     auto* ib = button("Import...", "compImportButton");
     auto* mb = button("Take measurements", "compMeasurementsButton");
-    r2->addWidget(ib);
-    r2->addWidget(mb);
-    f->addRow("or a file", r2);
-    auto* r3 = new QHBoxLayout;
+    form_->addRow("or a file", row({csv_, ib, mb}, true));
     install_ = new QCheckBox("install the tables");
     install_->setObjectName("compInstall");
     auto* fb = button("Fit", "compFitButton");
-    r3->addWidget(install_);
-    r3->addWidget(fb);
-    f->addRow(r3);
-    figures_ = new QLabel;
-    figures_->setObjectName("compFigures");
-    figures_->setWordWrap(true);
-    f->addRow("Before / after", figures_);
+    form_->addRow(row({install_, fb}));
+    form_->addRow("Before / after", figures_ = shown("compFigures"));
     connect(pb, &QPushButton::clicked, this, [this] {
       run([this] {
         QString out = program_->text().trimmed();
-        if (out.isEmpty()) out = w_.options().config_dir + "/comp-" + QString(QChar(letter_of(axis_))) + ".ngc";
-        return w_.builder().comp_program(letter_of(axis_), out.toStdString());
+        if (out.isEmpty()) out = w_.options().config_dir + "/comp-" + QString(QChar(letter())) + ".ngc";
+        return w_.builder().comp_program(letter(), out.toStdString(),
+                                         {cmin_->value(), cmax_->value(), targets_->value(), runs_->value(),
+                                          dwell_->value(), feed_->value()});
       });
     });
-    connect(rb, &QPushButton::clicked, this,
-            [this] { run([this] { return w_.builder().comp_run(letter_of(axis_), csv_->text().toStdString()); }); });
+    connect(rb, &QPushButton::clicked, this, [this] {
+      run([this] {
+        return w_.builder().comp_run(letter(), csv_->text().toStdString(), laser_pin_->text().toStdString(), bring_up());
+      });
+    });
     connect(ib, &QPushButton::clicked, this, [this] {
       const QString f = QFileDialog::getOpenFileName(this, "Laser measurement file", QString(), "CSV (*.csv);;All (*)");
       if (!f.isEmpty()) csv_->setText(f);
     });
     connect(mb, &QPushButton::clicked, this, [this] {
       run([this] {
-        return w_.builder().comp_measurements(letter_of(axis_), csv_->text().toStdString(),
-                                              values_->toPlainText().toStdString());
+        return w_.builder().comp_measurements(letter(), csv_->text().toStdString(), values_->toPlainText().toStdString());
       });
     });
-    connect(fb, &QPushButton::clicked, this, [this] {
-      run([this] { return w_.builder().comp_fit(letter_of(axis_), install_->isChecked()); },
-          [this](const StepResult& r) {
-            QStringList l;
-            for (const auto& s : r.lines) l << QString::fromStdString(s);
-            figures_->setText(r.ok() ? l.join("\n") : QString());
-          });
-    });
+    connect(fb, &QPushButton::clicked, this,
+            [this] { run([this] { return w_.builder().comp_fit(letter(), install_->isChecked()); }); });
   }
-  void refresh(const State& s) override { fill_axes(axis_, s); }
+  // What the state holds: the cycle, the measurement, the fit (before /
+  // predicted with the table), whether Write installs it.
+  void show_axis(const State& s) override {
+    const Axis* a = axis(s);
+    if (!a || !a->compensation) {
+      figures_->setText("(no cycle yet)");
+      return;
+    }
+    const AxisCompensation& c = *a->compensation;
+    QString t = QString("cycle %1 .. %2 mm, %3 runs each way, %4 points measured")
+                    .arg(mm(c.x_min), mm(c.x_max))
+                    .arg(c.runs)
+                    .arg(c.points.size());
+    if (c.measured) t += "\nmeasured (" + QString::fromStdString(c.source) + "): " + figures(*c.measured);
+    if (c.fitted) {
+      t += "\nbefore:    " + figures(c.before) + "\npredicted: " + figures(c.predicted);
+      t += QString("\nfit: A %1 um before, %2 um predicted with the table (%3 entries)")
+               .arg(c.before.A, 0, 'f', 2)
+               .arg(c.predicted.A, 0, 'f', 2)
+               .arg(c.nominal.size());
+    }
+    if (c.checked) t += "\nchecked on the compensated machine: " + figures(*c.checked);
+    t += c.install ? "\ninstalled: Write puts the table into the configuration" : "\nnot installed";
+    figures_->setText(t);
+  }
 
  private:
-  QComboBox* axis_;
-  QLineEdit *program_, *csv_;
+  QLineEdit *program_, *csv_, *laser_pin_;
+  QDoubleSpinBox *cmin_, *cmax_, *dwell_, *feed_;
+  QSpinBox *targets_, *runs_;
   QPlainTextEdit* values_;
   QCheckBox* install_;
   QLabel* figures_;
@@ -653,20 +764,21 @@ class WritePage : public StepPage {
                  "Show the difference between the configuration of the state and the files in the folder; "
                  "Write writes them (old ones kept as .bak, checked with cncd --check --strict) after you "
                  "confirm. Backup uploads the drives' parameters (into drive-backup beside the state file); Write copies the "
-                 "last backup into the configuration.") {
+                 "last backup into the configuration. Then start the controller on the written configuration and run "
+                 "the check program.") {
     auto* v = new QVBoxLayout(inputs());
     auto* f = new QFormLayout;
     v->addLayout(f);
     f->addRow("Folder", dir_ = line("configDir", w.options().config_dir));
     f->addRow("Name", name_ = line("configName", "machine"));
-    auto* r = new QHBoxLayout;
     auto* db = button("Show difference", "diffButton");
     auto* wb = button("Write...", "writeButton");
     auto* bb = button("Backup drive parameters", "backupButton");
-    r->addWidget(db);
-    r->addWidget(wb);
-    r->addWidget(bb);
-    f->addRow(r);
+    f->addRow(row({db, wb, bb}));
+    check_ = button("Start the controller on it and run the check program", "checkButton");
+    f->addRow(check_);
+    f->addRow("Check", checked_ = shown("checkResult"));
+    checked_->setText("(not run yet)");
     diff_ = new QTextEdit;
     diff_->setObjectName("diffView");
     diff_->setReadOnly(true);
@@ -689,7 +801,17 @@ class WritePage : public StepPage {
         return w_.builder().backup((QFileInfo(w_.options().state_file).absolutePath() + "/drive-backup").toStdString());
       });
     });
+    connect(check_, &QPushButton::clicked, this, [this] {
+      run([this] { return w_.builder().check(); },
+          [this](const StepResult& r) {
+            QStringList l;
+            for (const auto& s : r.lines) l << QString::fromStdString(s);
+            checked_->setText((r.ok() ? "passed\n" : QString::fromStdString(r.summary()) + "\n") + l.join("\n"));
+          });
+    });
   }
+  // The check runs on the written configuration: after a write.
+  void refresh(const State&) override { check_->setEnabled(w_.done()[static_cast<std::size_t>(step())]); }
   void show_diff(const StepResult& r) {
     QString html = "<pre style='font-size: 9pt'>";
     for (const auto& s : r.lines) {
@@ -702,6 +824,8 @@ class WritePage : public StepPage {
   }
  private:
   QLineEdit *dir_, *name_;
+  QPushButton* check_;
+  QLabel* checked_;
   QTextEdit* diff_;
 };
 

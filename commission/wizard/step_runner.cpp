@@ -45,6 +45,11 @@ void require(const std::string& v, const char* field) {
   if (trim_copy(v).empty()) throw std::invalid_argument(std::string(field) + ": required");
 }
 
+// `--bring-up DIR` of the motion steps: a controller of the step's own.
+void add_bring_up(Argv& a, const std::string& dir) {
+  if (!trim_copy(dir).empty()) a.insert(a.end(), {"--bring-up", trim_copy(dir)});
+}
+
 }  // namespace
 
 const char* step_title(int step) noexcept {
@@ -135,7 +140,7 @@ Argv CommandBuilder::direction_test(char letter, double distance, double velocit
     throw std::invalid_argument("velocity " + number_arg(velocity) + " mm/s: at most " + number_arg(kMaxTestVelocity));
   Argv a = axis(letter, "direction-test");
   a.insert(a.end(), {"--distance", number_arg(distance), "--velocity", number_arg(velocity)});
-  if (!trim_copy(bring_up_dir).empty()) a.insert(a.end(), {"--bring-up", trim_copy(bring_up_dir)});
+  add_bring_up(a, bring_up_dir);
   return a;
 }
 
@@ -155,10 +160,11 @@ Argv CommandBuilder::limits(char letter, double min, double max, double velocity
   return a;
 }
 
-Argv CommandBuilder::switches(char letter, double search_mm, double velocity) const {
+Argv CommandBuilder::switches(char letter, double search_mm, double velocity, const std::string& bring_up_dir) const {
   Argv a = axis(letter, "switches");
   if (check_number(search_mm, "search distance") > 0) a.insert(a.end(), {"--search", number_arg(search_mm)});
   if (check_number(velocity, "velocity") > 0) a.insert(a.end(), {"--velocity", number_arg(velocity)});
+  add_bring_up(a, bring_up_dir);
   return a;
 }
 
@@ -175,7 +181,7 @@ Argv CommandBuilder::homing_methods() const {
   return a;
 }
 
-Argv CommandBuilder::homing(char letter, const std::string& method, int repeat) const {
+Argv CommandBuilder::homing(char letter, const std::string& method, int repeat, const std::string& bring_up_dir) const {
   const std::string m = trim_copy(method);
   bool valid = m == "controller";
   if (m.rfind("drive:", 0) == 0) {
@@ -188,11 +194,12 @@ Argv CommandBuilder::homing(char letter, const std::string& method, int repeat) 
   if (repeat < 1 || repeat > 20) throw std::invalid_argument("repeat " + std::to_string(repeat) + ": expected 1-20");
   Argv a = axis(letter, "homing");
   a.insert(a.end(), {"--method", m, "--repeat", std::to_string(repeat)});
+  add_bring_up(a, bring_up_dir);
   return a;
 }
 
 Argv CommandBuilder::tune(char letter, double max_velocity, double max_acceleration, double margin_pct,
-                          const std::string& record_dir) const {
+                          const std::string& record_dir, int steps, const std::string& bring_up_dir) const {
   Argv a = axis(letter, "tune");
   if (check_number(max_velocity, "maximum velocity") > 0) a.insert(a.end(), {"--max-velocity", number_arg(max_velocity)});
   if (check_number(max_acceleration, "maximum acceleration") > 0)
@@ -201,19 +208,48 @@ Argv CommandBuilder::tune(char letter, double max_velocity, double max_accelerat
     throw std::invalid_argument("margin " + number_arg(margin_pct) + " %: expected 0-99");
   a.insert(a.end(), {"--margin", number_arg(margin_pct)});
   if (!trim_copy(record_dir).empty()) a.insert(a.end(), {"--record", trim_copy(record_dir)});
+  if (steps != 0) {
+    if (steps < 2 || steps > 20) throw std::invalid_argument("tests per series " + std::to_string(steps) + ": expected 2-20");
+    a.insert(a.end(), {"--steps", std::to_string(steps)});
+  }
+  add_bring_up(a, bring_up_dir);
   return a;
 }
 
-Argv CommandBuilder::comp_program(char letter, const std::string& out_ngc) const {
+Argv CommandBuilder::accept_tuning(const Axis& ax) const {
+  if (!ax.tuning || !(ax.tuning->max_velocity > 0) || !(ax.tuning->max_acceleration > 0))
+    throw std::invalid_argument(std::string("axis ") + ax.letter + ": no tuning recommendation to accept (Tune first)");
+  return limits(ax.letter, ax.min_limit, ax.max_limit, ax.tuning->max_velocity, ax.tuning->max_acceleration);
+}
+
+Argv CommandBuilder::comp_program(char letter, const std::string& out_ngc, const CompCycle& c) const {
   require(out_ngc, "program file");
   Argv a = axis(letter, "comp-program");
   a.insert(a.end(), {"--out", trim_copy(out_ngc)});
+  const bool lo = check_number(c.min, "cycle start") != 0, hi = check_number(c.max, "cycle end") != 0;
+  if (lo || hi) {
+    if (!(c.min < c.max)) throw std::invalid_argument("cycle: the start must be below the end (or both 0: the soft limits)");
+    a.insert(a.end(), {"--min", number_arg(c.min), "--max", number_arg(c.max)});
+  }
+  if (c.targets < 0 || c.runs < 0) throw std::invalid_argument("cycle: targets and runs must not be negative");
+  if (c.targets > 0) a.insert(a.end(), {"--targets", std::to_string(c.targets)});
+  if (c.runs > 0) a.insert(a.end(), {"--runs", std::to_string(c.runs)});
+  if (check_number(c.dwell_s, "dwell") < 0 || check_number(c.feed_mm_min, "feed") < 0)
+    throw std::invalid_argument("cycle: dwell and feed must not be negative");
+  if (c.dwell_s > 0) a.insert(a.end(), {"--dwell", number_arg(c.dwell_s)});
+  if (c.feed_mm_min > 0) a.insert(a.end(), {"--feed", number_arg(c.feed_mm_min)});
   return a;
 }
 
-Argv CommandBuilder::comp_run(char letter, const std::string& laser_csv) const {
+Argv CommandBuilder::comp_run(char letter, const std::string& laser_csv, const std::string& laser_pin,
+                              const std::string& bring_up_dir) const {
   Argv a = axis(letter, "comp-run");
-  if (!trim_copy(laser_csv).empty()) a.insert(a.end(), {"--laser", trim_copy(laser_csv)});
+  const std::string csv = trim_copy(laser_csv), pin = trim_copy(laser_pin);
+  if (!csv.empty() && !pin.empty())
+    throw std::invalid_argument("laser: a HAL pin or a CSV file, not both");
+  if (!pin.empty()) a.insert(a.end(), {"--laser-pin", pin});
+  if (!csv.empty()) a.insert(a.end(), {"--laser", csv});
+  add_bring_up(a, bring_up_dir);
   return a;
 }
 
@@ -259,6 +295,15 @@ Argv CommandBuilder::backup(const std::string& dir) const {
   require(dir, "backup folder");
   Argv a = base();
   a.insert(a.end(), {"backup", "--dir", trim_copy(dir)});
+  return a;
+}
+
+Argv CommandBuilder::check(const std::string& program, double timeout_s) const {
+  Argv a = base();
+  a.push_back("check");
+  if (!trim_copy(program).empty()) a.insert(a.end(), {"--program", trim_copy(program)});
+  if (check_number(timeout_s, "time limit") < 0) throw std::invalid_argument("time limit: must not be negative");
+  if (timeout_s > 0) a.insert(a.end(), {"--timeout", number_arg(timeout_s)});
   return a;
 }
 

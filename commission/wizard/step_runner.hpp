@@ -32,6 +32,14 @@ const char* step_title(int step) noexcept;
 
 using Argv = std::vector<std::string>;
 
+// Step 8's cycle options (comp-program), 0 for the step's default (min
+// and max: both or neither).
+struct CompCycle {
+  double min = 0, max = 0;
+  int targets = 0, runs = 0;
+  double dwell_s = 0, feed_mm_min = 0;
+};
+
 // Builds the arguments of `cnc-commission` (after the program name) for
 // each step; every command line starts with `--state FILE`. Inputs are
 // checked here (axis letter, numbers finite and in range, required fields)
@@ -60,26 +68,44 @@ class CommandBuilder {
   // Step 4 (hold-to-run) and its dial reading.
   Argv direction_test(char letter, double distance, double velocity, const std::string& bring_up_dir = "") const;
   Argv dial(char letter, double mm) const;
+  // Steps 5-8 take `bring_up_dir` as the direction test does: non-empty,
+  // the step writes the state's configuration there and runs on a
+  // controller of its own (`--bring-up DIR`), shut down afterwards.
   // Step 5.
   Argv limits(char letter, double min, double max, double velocity, double acceleration) const;
-  Argv switches(char letter, double search_mm, double velocity) const;
+  Argv switches(char letter, double search_mm, double velocity, const std::string& bring_up_dir = "") const;
   Argv soft_limits(char letter, double margin_mm) const;
   // Step 6. method: "controller" or "drive:N".
   Argv homing_methods() const;
-  Argv homing(char letter, const std::string& method, int repeat) const;
-  // Step 7. record_dir: where the test recordings (CSV) go.
+  Argv homing(char letter, const std::string& method, int repeat, const std::string& bring_up_dir = "") const;
+  // Step 7. record_dir: where the test recordings (CSV) go; steps: tests
+  // per series (0: the step's default, else 2-20).
   Argv tune(char letter, double max_velocity, double max_acceleration, double margin_pct,
-            const std::string& record_dir) const;
-  // Step 8. values: the deviations entered (um, one per stop of the cycle;
+            const std::string& record_dir, int steps = 0, const std::string& bring_up_dir = "") const;
+  // Step 7's recommendations accepted: the axis' limits (its soft limits
+  // kept) get the recommended MAX_VELOCITY and MAX_ACCELERATION, so the
+  // steps after it (the compensation cycle's feed) run at them; `write`
+  // takes all of them from the tuning. Throws when the axis has none.
+  Argv accept_tuning(const Axis& a) const;
+  // Step 8.
+  Argv comp_program(char letter, const std::string& out_ngc, const CompCycle& cycle = {}) const;
+  // The cycle run; the readings from a laser's HAL pin (laser_pin, mm) or
+  // its CSV file after the run (laser_csv), at most one of them; neither:
+  // entered afterwards with comp_measurements.
+  Argv comp_run(char letter, const std::string& laser_csv = "", const std::string& laser_pin = "",
+                const std::string& bring_up_dir = "") const;
+  // values: the deviations entered (um, one per stop of the cycle;
   // separated by commas, blanks or new lines) or csv: a measurement file;
   // one of them.
-  Argv comp_program(char letter, const std::string& out_ngc) const;
-  Argv comp_run(char letter, const std::string& laser_csv = "") const;
   Argv comp_measurements(char letter, const std::string& csv, const std::string& values) const;
   Argv comp_fit(char letter, bool install) const;
   // Step 9. yes=false: the difference only.
   Argv write(const std::string& dir, const std::string& name, bool yes) const;
   Argv backup(const std::string& dir) const;
+  // Step 9's last part: `check [--program FILE] [--timeout S]` starts cncd
+  // on the written configuration and runs the check program (default: the
+  // one write put beside the INI). timeout_s 0: the step's default.
+  Argv check(const std::string& program = "", double timeout_s = 0) const;
   Argv bring_up(const std::string& dir) const;
   Argv shutdown() const;
 

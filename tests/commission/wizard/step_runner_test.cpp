@@ -125,6 +125,53 @@ TEST(WizardCommands, WriteBackupBringUpAndShutdown) {
   EXPECT_EQ(b.shutdown(), with_state({"shutdown"}));
 }
 
+TEST(WizardCommands, MotionStepsFiveToEightRunOnAControllerOfTheirOwnWhenAFolderIsGiven) {
+  EXPECT_EQ(b.switches('X', 240, 20, " /m/up "),
+            with_state({"axis", "X", "switches", "--search", "240", "--velocity", "20", "--bring-up", "/m/up"}));
+  EXPECT_EQ(b.homing('X', "controller", 5, "/m/up"),
+            with_state({"axis", "X", "homing", "--method", "controller", "--repeat", "5", "--bring-up", "/m/up"}));
+  EXPECT_EQ(b.tune('X', 100, 2000, 20, "/m/tune-X", 0, "/m/up"),
+            with_state({"axis", "X", "tune", "--max-velocity", "100", "--max-acceleration", "2000", "--margin", "20",
+                        "--record", "/m/tune-X", "--bring-up", "/m/up"}));
+  EXPECT_EQ(b.comp_run('X', "", "", "/m/up"), with_state({"axis", "X", "comp-run", "--bring-up", "/m/up"}));
+}
+
+TEST(WizardCommands, TuneTakesTheTestsPerSeries) {
+  EXPECT_EQ(b.tune('X', 0, 0, 20, "", 3), with_state({"axis", "X", "tune", "--margin", "20", "--steps", "3"}));
+  EXPECT_THROW(b.tune('X', 0, 0, 20, "", 1), std::invalid_argument);
+  EXPECT_THROW(b.tune('X', 0, 0, 20, "", 21), std::invalid_argument);
+}
+
+TEST(WizardCommands, AcceptingTheTuningSetsTheRecommendedSpeedsKeepingTheSoftLimits) {
+  Axis x;
+  x.letter = 'X';
+  x.min_limit = -28.5;
+  x.max_limit = 210.25;
+  EXPECT_THROW(b.accept_tuning(x), std::invalid_argument);  // nothing to accept yet
+  x.tuning = AxisTuning{};
+  x.tuning->max_velocity = 96;
+  x.tuning->max_acceleration = 1600;
+  EXPECT_EQ(b.accept_tuning(x), with_state({"axis", "X", "limits", "--min", "-28.5", "--max", "210.25", "--velocity",
+                                            "96", "--acceleration", "1600"}));
+}
+
+TEST(WizardCommands, CompensationCycleOptionsAndTheLaserPin) {
+  EXPECT_EQ(b.comp_program('X', "/m/c.ngc", {0, 60, 4, 2, 0.3, 1200}),
+            with_state({"axis", "X", "comp-program", "--out", "/m/c.ngc", "--min", "0", "--max", "60", "--targets", "4",
+                        "--runs", "2", "--dwell", "0.3", "--feed", "1200"}));
+  EXPECT_THROW(b.comp_program('X', "/m/c.ngc", {60, 0, 0, 0, 0, 0}), std::invalid_argument);
+  EXPECT_THROW(b.comp_program('X', "/m/c.ngc", {0, 0, -1, 0, 0, 0}), std::invalid_argument);
+  EXPECT_EQ(b.comp_run('X', "", " cia402-sim.0.node.01.table-position "),
+            with_state({"axis", "X", "comp-run", "--laser-pin", "cia402-sim.0.node.01.table-position"}));
+  EXPECT_THROW(b.comp_run('X', "/m/laser.csv", "laser.0.position"), std::invalid_argument);  // one source
+}
+
+TEST(WizardCommands, CheckRunsTheCheckProgramOnTheWrittenConfiguration) {
+  EXPECT_EQ(b.check(), with_state({"check"}));
+  EXPECT_EQ(b.check(" /m/mine.ngc ", 120), with_state({"check", "--program", "/m/mine.ngc", "--timeout", "120"}));
+  EXPECT_THROW(b.check("", -1), std::invalid_argument);
+}
+
 TEST(WizardCommands, NumbersAreWrittenShortAndExact) {
   EXPECT_EQ(number_arg(5), "5");
   EXPECT_EQ(number_arg(0.1), "0.1");

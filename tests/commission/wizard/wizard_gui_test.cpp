@@ -1,18 +1,30 @@
-// The commissioning wizard under Xvfb (label gui), driven like a person on a
-// simulated one-axis machine (sim/cia402/random_machine, seed 7): every
-// page reached and screenshotted to <build>/commission-wizard-screenshots/
-// (test artifacts, never committed), and a real run of steps 1-4 and 9
-// through cnc-commission as the wizard's child processes: axis assigned,
-// scaling set (the counts per mm shown live), a controller brought up, the
-// direction test held to its end and the dial reading applied, a second
-// test released early (SIGINT: aborted), the configuration's difference
-// shown and written after the confirmation. Step 1's scan cannot reach the
-// simulated drives from a child (a virtual bus is in-process): the page's
-// scan is run to show its error, and the state gets its nodes from the same
-// library scan run here, as tests/commission/random_machine_e2e_test.cpp
-// does. Pages 5-8 run their subcommands, which may not exist in this build:
-// the page must show a result, and the child's own error text when it
-// fails.
+// The commissioning wizard under Xvfb (label gui), driven like a person
+// through a full run on a simulated one-axis machine
+// (sim/cia402/random_machine, seed 7), every step through cnc-commission
+// as the wizard's child processes, each page's result read back from its
+// widgets and a screenshot of each page after its step saved to
+// <build>/commission-wizard-screenshots/ (test artifacts, never committed):
+//   1 the scan's error from a child, then the state's nodes (below);
+//   2 axis assigned, Identify's small jog;
+//   3 scaling, the counts per mm shown live;
+//   4 a controller brought up, the direction test held to its end, the dial
+//     reading (the simulated table's true travel) applied, a test released
+//     early and one stopped (SIGINT: aborted, nothing saved);
+//   5 provisional limits, the switch search (each switch shown where the
+//     simulator has it, with its active level), soft limits from them;
+//   6 the homing methods listed, controller homing repeated 5 times, the
+//     references and their spread shown;
+//   7 tuning (small ceilings, 2 tests per series), the recommendations
+//     shown and accepted, a recording plotted;
+//   8 the ISO 230-2 cycle (0..60 mm, 2 runs) generated and run with the
+//     simulator's true table position as the laser, the same readings
+//     entered by hand, the fit shown before/after and installed;
+//   9 the difference shown (tuned limits, homing keys, the table), written
+//     after the confirmation, and `cnc-commission check` run on it when the
+//     build's cnc-commission has that subcommand.
+// Steps 5-8 run on a controller of their own (--bring-up). Step 1's scan
+// cannot reach the simulated drives from a child (a virtual bus is
+// in-process): the state gets its nodes from the library's scan run here.
 #include <unistd.h>
 
 #include <QApplication>
@@ -39,16 +51,16 @@
 #include <fstream>
 #include <thread>
 
-#include "commission/scan.hpp"
+#include <QCheckBox>
+#include <QRegularExpression>
+
 #include "commission/state.hpp"
 #include "commission/wizard/wizard_window.hpp"
-#include "core/ini/ini_file.hpp"
 #include "core/ipc/admin.hpp"
 #include "hmi/link.hpp"
-#include "sim/can/virtual_bus.hpp"
 #include "sim/cia402/random_machine.hpp"
-#include "sim/cia402/sim_config.hpp"
-#include "sim/cia402/sim_host.hpp"
+#include "tests/commission/e2e_support.hpp"
+#include "tests/commission/sim_bus_scan.hpp"
 
 using namespace cnc;
 using namespace cnc::commission;
@@ -102,12 +114,21 @@ class WizardGuiTests : public QObject {
   }
   double table_position() { return std::stod(hal("getp cia402-sim.0.node.01.table-position")); }
 
-  // Pages 5-8: each run ends with a result; a failure shows the child's words.
-  void check_result_shown() {
-    const QString r = result();
-    QVERIFY2(!r.isEmpty() && !r.startsWith("running"), qPrintable(r));
-    if (!r.startsWith("done")) QVERIFY2(r.contains("cnc-commission"), qPrintable(r));
+  // A run that must be done; else the result with the child's output.
+  void expect_done() {
+    QVERIFY2(result().startsWith("done"), qPrintable(result() + "\n" + find<QPlainTextEdit>("stepOutput")->toPlainText()));
   }
+  // The number a widget's text shows right after `before` (e.g. "negative limit at").
+  static double shown_number(const QString& text, const QString& before) {
+    const auto m = QRegularExpression(QRegularExpression::escape(before) + R"(\s*(-?[0-9]+(\.[0-9]+)?(e[-+]?[0-9]+)?))")
+                       .match(text);
+    if (!m.hasMatch()) {
+      qWarning("\"%s\" not in \"%s\"", qPrintable(before), qPrintable(text));
+      return std::nan("");
+    }
+    return m.captured(1).toDouble();
+  }
+  QString text_of(const char* label) { return find<QLabel>(label)->text(); }
 
  private slots:
   void initTestCase() {
@@ -121,9 +142,7 @@ class WizardGuiTests : public QObject {
     std::filesystem::create_directories(m_);
     state_file_ = std::filesystem::path(dir_.path().toStdString()) / "commission.json";
     machine_ = csim::make_random_machine(7, {1}, "virtual:wizard-" + std::to_string(::getpid()));
-    std::ofstream(m_ / "sim-machine.ini") << csim::sim_ini(machine_);
-    std::ofstream(m_ / "sim-machine.hal") << csim::sim_hal_load();
-    std::ofstream(m_ / "sim-machine-run.hal") << csim::sim_hal_run();
+    e2e::write_machine_files(m_, machine_);
     WizardOptions o;
     o.state_file = QString::fromStdString(state_file_.string());
     o.program = QString(CNC_BINARY_DIR) + "/bin/cnc-commission";
@@ -156,31 +175,12 @@ class WizardGuiTests : public QObject {
 
   void t02_bus_page_shows_the_scanned_drive() {
     // The scan of the simulated machine's bus, in this process.
+    const ScanResult r = e2e::scan_simulated_bus(m_ / "sim-machine.ini", {1}, 4);
+    QVERIFY2(!r.nodes.empty(), r.problems.empty() ? "no node" : r.problems[0].c_str());
     State s;
-    {
-      const auto cfg = csim::load_sim_config(ini::IniFile::load(m_ / "sim-machine.ini"), "CIA402_SIM");
-      can::VirtualBusOptions vo;
-      vo.manual_clock = false;
-      auto vbus = can::VirtualBus::create(vo);
-      auto host_port = vbus->open_port("host");
-      auto scanner = vbus->open_port("scanner");
-      csim::SimHost host(*host_port);
-      for (const auto& n : cfg.nodes) host.add(n, vbus->open_port("node-" + std::to_string(n.node_id)));
-      host.start();
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-      ScanOptions so;
-      so.timeout_ns = 1'000'000'000;
-      so.last = 4;
-      so.expected = {1};
-      const ScanResult r = scan_canopen(*scanner, so);
-      host.stop();
-      QVERIFY2(!r.nodes.empty(), r.problems.empty() ? "no node" : r.problems[0].c_str());
-      s.nodes = r.nodes;
-    }
+    s.nodes = r.nodes;
     s.interface = machine_.interface;
-    s.ini_includes = {"sim-machine.ini"};
-    s.hal_before_bus = {"sim-machine.hal"};
-    s.hal_after_bus = {"sim-machine-run.hal"};
+    e2e::include_machine_files(s);
     save_state(s, state_file_);
     w_->reload_state();
     QCOMPARE(find<QListWidget>("foundDevices")->count(), 1);
@@ -293,72 +293,184 @@ class WizardGuiTests : public QObject {
     shot("axes-identified");
   }
 
-  void t07_limits_page() {
-    w_->show_step(4);
+  void t07_limits_page_finds_the_switches_and_sets_soft_limits_from_them() {
+    // Steps 5-8 bring up controllers of their own: the one of page 4 goes.
+    w_->show_step(3);
+    click_and_wait("shutdownButton");
+    expect_done();
+    QTRY_VERIFY_WITH_TIMEOUT(find<QLabel>("estopStatus")->text().contains("no controller"), 15000);
+    QTest::mouseClick(find<QPushButton>("nextButton"), Qt::LeftButton);
     QCOMPARE(w_->current_step(), 4);
+    QVERIFY(find<QCheckBox>("ownController")->isChecked());
     find<QDoubleSpinBox>("minLimit")->setValue(-20);
     find<QDoubleSpinBox>("maxLimit")->setValue(20);
+    find<QDoubleSpinBox>("maxVelocity")->setValue(20);
+    find<QDoubleSpinBox>("maxAcceleration")->setValue(200);
     click_and_wait("limitsButton");
-    QVERIFY2(result().startsWith("done"), qPrintable(result()));
-    QVERIFY(find<QLabel>("limitsShown")->text().startsWith("limits -20 .. 20 mm"));
-    click_and_wait("switchesButton", 120000);
-    check_result_shown();
-    shot("limits");
+    expect_done();
+    QVERIFY2(text_of("limitsShown").startsWith("limits -20 .. 20 mm, 20 mm/s, 200 mm/s2"), qPrintable(text_of("limitsShown")));
+    QVERIFY(text_of("switchesShown").contains("no switch search"));
+    // X's switches lie near -30 and +215 mm of where the table powers up.
+    find<QDoubleSpinBox>("searchDistance")->setValue(240);
+    find<QDoubleSpinBox>("searchVelocity")->setValue(20);
+    click_and_wait("switchesButton", 240000);
+    expect_done();
+    QVERIFY(w_->done()[4]);
+    const QString sw = text_of("switchesShown");
+    const auto& truth = machine_.axes[0];
+    // The joint frame of the search is the table's from power-on, at the
+    // scaling the dial corrected (within 1 %).
+    auto near = [](double got, double want) { return std::fabs(got - want) < 0.2 + 0.01 * std::fabs(want); };
+    const double neg = shown_number(sw, "negative limit at"), pos = shown_number(sw, "positive limit at");
+    const double home_lo = shown_number(sw, "home switch at"), home_hi = shown_number(sw, "home switch at " + QString::number(home_lo, 'f', 3) + " mm to");
+    QVERIFY2(near(neg, truth.neg_limit_mm) && near(pos, truth.pos_limit_mm), qPrintable(sw));
+    QVERIFY2(near(home_lo, truth.home_min_mm) && near(home_hi, truth.home_max_mm), qPrintable(sw));
+    const QString level = truth.switches_active_low ? "active low" : "active high";
+    QCOMPARE(sw.count(level), 3);
+    shot("limits-switches");
+    find<QDoubleSpinBox>("softLimitMargin")->setValue(2);
+    click_and_wait("softLimitsButton");
+    expect_done();
+    const QString lim = text_of("limitsShown");
+    QVERIFY2(std::fabs(shown_number(lim, "limits") - (neg + 2)) < 0.002, qPrintable(lim + " / " + sw));
+    QVERIFY2(std::fabs(shown_number(lim, ".. ") - (pos - 2)) < 0.002, qPrintable(lim + " / " + sw));
+    shot("limits-soft");
   }
 
-  void t08_homing_page() {
+  void t08_homing_page_homes_five_times_and_shows_the_spread() {
     QTest::mouseClick(find<QPushButton>("nextButton"), Qt::LeftButton);
     QCOMPARE(w_->current_step(), 5);
+    QVERIFY(text_of("homingShown").contains("not homed"));
     click_and_wait("methodsButton");
-    check_result_shown();
-    QVERIFY(find<QComboBox>("homingMethod")->count() >= 1);
+    expect_done();
+    auto* methods = find<QComboBox>("homingMethod");
+    QVERIFY2(methods->count() > 1 && methods->findData("drive:22") >= 0, qPrintable(QString::number(methods->count())));
+    methods->setCurrentIndex(methods->findData("controller"));
+    QVERIFY(methods->currentIndex() >= 0);
+    QCOMPARE(find<QSpinBox>("homingRepeat")->value(), 5);
+    click_and_wait("homingButton", 300000);
+    expect_done();
+    QVERIFY(w_->done()[5]);
+    const QString h = text_of("homingShown");
+    QVERIFY2(h.startsWith("controller: 5 runs, references "), qPrintable(h));
+    const QStringList refs = h.section("references ", 1).section(" mm", 0, 0).split(' ', Qt::SkipEmptyParts);
+    QCOMPARE(refs.size(), 5);
+    double lo = 1e9, hi = -1e9;
+    for (const QString& r : refs) {
+      lo = std::min(lo, r.toDouble());
+      hi = std::max(hi, r.toDouble());
+    }
+    const double spread_um = shown_number(h, "spread");
+    QVERIFY2(std::fabs(spread_um - (hi - lo) * 1000) < 0.2, qPrintable(h));
+    QVERIFY2(spread_um < 10, qPrintable(h));  // the controller's sequence repeats within 0.01 mm
     shot("homing");
   }
 
-  void t09_tuning_page_plots_a_recording() {
+  void t09_tuning_page_tunes_plots_and_accepts_the_recommendations() {
     QTest::mouseClick(find<QPushButton>("nextButton"), Qt::LeftButton);
     QCOMPARE(w_->current_step(), 6);
-    // A recording as the tune step writes it.
-    const auto rec = m_ / "tune-X";
-    std::filesystem::create_directories(rec);
-    {
-      std::ofstream out(rec / "test-1.csv");
-      out << "time_s,command_mm,feedback_mm,ferror_mm,velocity_mm_s,torque_pct\n";
-      for (int i = 0; i <= 200; ++i) {
-        const double t = i * 0.005, v = 50 * std::sin(3.14159 * t);
-        out << t << "," << t * 10 << "," << t * 10 - 0.002 * v / 50 << "," << 0.002 * v / 50 << "," << v << ","
-            << 30 * std::cos(3.14159 * t) << "\n";
-      }
-    }
-    w_->reload_state();
-    QCOMPARE(find<QComboBox>("tuneRecordings")->count(), 1);
-    auto* chart = find<QChartView>("ferrorChart");
-    QCOMPARE(static_cast<QLineSeries*>(chart->chart()->series().at(0))->count(), 201);
+    QVERIFY(text_of("tuneRecommendation").contains("not tuned"));
+    // Ceilings well below the simulated X's (about 133 mm/s, 12600 mm/s2):
+    // every test clean, the recommendation the ceilings less the margin.
+    find<QDoubleSpinBox>("tuneMaxVelocity")->setValue(60);
+    find<QDoubleSpinBox>("tuneMaxAcceleration")->setValue(1200);
+    find<QDoubleSpinBox>("tuneMargin")->setValue(20);
+    find<QSpinBox>("tuneSteps")->setValue(2);
     click_and_wait("tuneButton", 300000);
-    check_result_shown();
+    expect_done();
+    QVERIFY(w_->done()[6]);
+    const QString rec = text_of("tuneRecommendation");
+    const AxisTuning t = *w_->state().axis('X')->tuning;  // a copy: the state is replaced at each reload
+    const double v = shown_number(rec, "MAX_VELOCITY"), acc = shown_number(rec, "MAX_ACCELERATION");
+    QVERIFY2(v > 0 && v <= 60 * 0.8 + 1e-6 && std::fabs(v - t.max_velocity) < 1e-3 * v, qPrintable(rec));
+    QVERIFY2(acc > 0 && acc <= 1200 * 0.8 + 1e-6 && std::fabs(acc - t.max_acceleration) < 1e-3 * acc, qPrintable(rec));
+    QVERIFY2(shown_number(rec, "FERROR") > 0 && shown_number(rec, "MIN_FERROR") > 0, qPrintable(rec));
+    QVERIFY2(rec.contains(QString("%1 tests").arg(t.tests.size())) && t.tests.size() >= 2, qPrintable(rec));
+    // Every test's recording is listed; the one picked is plotted point for point.
+    auto* recs = find<QComboBox>("tuneRecordings");
+    QVERIFY2(recs->count() >= static_cast<int>(t.tests.size()), qPrintable(QString::number(recs->count())));
+    recs->setCurrentIndex(recs->count() - 1);
+    const TuneTrace trace = load_tune_csv(recs->currentData().toString().toStdString());
+    QVERIFY(trace.size() > 100);
+    for (const char* chart : {"ferrorChart", "torqueChart", "velocityChart"})
+      QCOMPARE(static_cast<QLineSeries*>(find<QChartView>(chart)->chart()->series().at(0))->count(),
+               static_cast<int>(trace.size()));
+    QVERIFY2(text_of("tuneAccepted").startsWith("no"), qPrintable(text_of("tuneAccepted")));
     shot("tuning");
+    click_and_wait("acceptTuneButton");
+    expect_done();
+    QVERIFY2(text_of("tuneAccepted").startsWith("yes"), qPrintable(text_of("tuneAccepted")));
+    QCOMPARE(w_->state().axis('X')->max_velocity, t.max_velocity);
+    shot("tuning-accepted");
   }
 
-  void t10_compensation_page() {
+  void t10_compensation_page_runs_the_cycle_fits_and_installs() {
     QTest::mouseClick(find<QPushButton>("nextButton"), Qt::LeftButton);
     QCOMPARE(w_->current_step(), 7);
-    find<QPlainTextEdit>("compValues")->setPlainText("2\n4, -1.5");
+    QVERIFY(text_of("compFigures").contains("no cycle"));
+    find<QDoubleSpinBox>("compMin")->setValue(0);
+    find<QDoubleSpinBox>("compMax")->setValue(60);
+    find<QSpinBox>("compTargets")->setValue(4);
+    find<QSpinBox>("compRuns")->setValue(2);
+    find<QDoubleSpinBox>("compDwell")->setValue(0.3);
+    find<QDoubleSpinBox>("compFeed")->setValue(1200);
+    click_and_wait("compProgramButton");
+    expect_done();
+    QVERIFY2(text_of("compFigures").startsWith("cycle 0.000 .. 60.000 mm, 2 runs each way, 0 points"),
+             qPrintable(text_of("compFigures")));
+    // The laser: the simulator's true table position (the pin cncd's simulated drive publishes).
+    find<QLineEdit>("compLaserPin")->setText("cia402-sim.0.node.01.table-position");
+    click_and_wait("compRunButton", 300000);
+    expect_done();
+    QString f = text_of("compFigures");
+    QVERIFY2(f.contains("16 points measured") && f.contains("measured (laser pin cia402-sim.0.node.01.table-position)"),
+             qPrintable(f));
+    const double a_laser = shown_number(f, "): A");
+    QVERIFY2(a_laser > 0, qPrintable(f));
+    shot("compensation-run");
+    // The same readings entered by hand (um, one per stop), the figures the same.
+    QStringList values;
+    for (const CompPoint& p : w_->state().axis('X')->compensation->points) values << QString::number(p.deviation_um, 'f', 4);
+    find<QLineEdit>("compLaserPin")->clear();
+    find<QPlainTextEdit>("compValues")->setPlainText(values.join("\n"));
     click_and_wait("compMeasurementsButton");
-    check_result_shown();
+    expect_done();
+    f = text_of("compFigures");
+    QVERIFY2(f.contains("measured (entered)"), qPrintable(f));
+    QVERIFY2(std::fabs(shown_number(f, "): A") - a_laser) < 0.02, qPrintable(f));
+    // Both sources at once: refused before anything starts.
     find<QLineEdit>("compCsv")->setText("/tmp/laser.csv");
-    click_and_wait("compMeasurementsButton");  // both: refused before anything starts
+    click_and_wait("compMeasurementsButton");
     QVERIFY2(result().contains("not both"), qPrintable(result()));
     find<QLineEdit>("compCsv")->clear();
-    shot("compensation");
+    find<QCheckBox>("compInstall")->setChecked(true);
+    click_and_wait("compFitButton", 120000);
+    expect_done();
+    QVERIFY(w_->done()[7]);
+    f = text_of("compFigures");
+    const double before = shown_number(f, "fit: A"), predicted = shown_number(f, "um before,");
+    QVERIFY2(before > 0 && predicted < before, qPrintable(f));
+    QVERIFY2(f.contains("before:") && f.contains("predicted:") && f.contains("installed: Write puts the table"), qPrintable(f));
+    shot("compensation-fit");
   }
 
-  void t11_write_page_shows_the_difference_and_writes_after_confirmation() {
+  void t11_write_page_shows_the_difference_writes_and_checks() {
     QTest::mouseClick(find<QPushButton>("nextButton"), Qt::LeftButton);
     QCOMPARE(w_->current_step(), 8);
     QVERIFY(!find<QPushButton>("nextButton")->isEnabled());
+    QVERIFY(!find<QPushButton>("checkButton")->isEnabled());  // nothing written yet
     click_and_wait("diffButton");
-    QVERIFY2(result().startsWith("done"), qPrintable(result()));
-    QVERIFY(find<QTextEdit>("diffView")->toPlainText().contains("+[CIA402_DRIVE_0]"));
+    expect_done();
+    const QString diff = find<QTextEdit>("diffView")->toPlainText();
+    QVERIFY(diff.contains("+[CIA402_DRIVE_0]"));
+    // Steps 5-8 in the configuration: the tuned limits, the homing keys, the table.
+    const AxisTuning t = *w_->state().axis('X')->tuning;  // a copy: the state is replaced at each reload
+    bool tuned = false;
+    for (const QString& l : diff.split('\n'))
+      if (l.startsWith("+MAX_VELOCITY = ") && std::fabs(l.mid(16).toDouble() - t.max_velocity) < 1e-3) tuned = true;
+    QVERIFY2(tuned, qPrintable(diff.left(3000)));
+    QVERIFY2(diff.contains("+HOME_OFFSET = ") && diff.contains("+HOME_SEARCH_VEL = "), qPrintable(diff.left(3000)));
+    QVERIFY2(diff.contains("+COMP_FILE = machine-x.comp"), qPrintable(diff.left(3000)));
     QVERIFY(!std::filesystem::exists(m_ / "machine.ini"));
     shot("write-diff");
     bool asked = false;
@@ -372,25 +484,40 @@ class WizardGuiTests : public QObject {
     QTest::mouseClick(find<QPushButton>("writeButton"), Qt::LeftButton);
     QVERIFY(asked);
     wait_child();
-    QVERIFY2(result().startsWith("done"), qPrintable(result() + "\n" + find<QPlainTextEdit>("stepOutput")->toPlainText()));
+    expect_done();
     QVERIFY(std::filesystem::exists(m_ / "machine.ini"));
+    QVERIFY(std::filesystem::exists(m_ / "machine-x.comp"));
     QVERIFY(w_->done()[8]);
+    // The drives are inside cncd's process, out of the backup's reach: a problem naming them.
     click_and_wait("backupButton");
-    check_result_shown();
+    QVERIFY2(!result().isEmpty() && !result().startsWith("running"), qPrintable(result()));
     shot("write-done");
+
+    auto* check = find<QPushButton>("checkButton");
+    QVERIFY(check->isEnabled());
+    QProcess help;
+    help.start(w_->options().program, {"--state", QString::fromStdString((m_ / "help-probe.json").string()), "check", "--help"});
+    QVERIFY(help.waitForFinished(15000));
+    if (help.exitStatus() != QProcess::NormalExit || help.exitCode() != 0) {
+      std::printf("SKIP the check program: this build's cnc-commission has no `check` subcommand "
+                  "(`check --help` exited %d)\n", help.exitCode());
+      return;
+    }
+    click_and_wait("checkButton", 300000);
+    expect_done();
+    QVERIFY2(text_of("checkResult").startsWith("passed"), qPrintable(text_of("checkResult")));
+    shot("write-check");
   }
 
   void t12_progress_and_every_page() {
     const auto& d = w_->done();
-    for (int i : {0, 1, 2, 3, 8}) QVERIFY2(d[static_cast<std::size_t>(i)], qPrintable(QString::number(i)));
-    QVERIFY(find<QProgressBar>("stepsDone")->value() >= 5);
+    for (int i = 0; i < kSteps; ++i) QVERIFY2(d[static_cast<std::size_t>(i)], qPrintable(QString::number(i + 1)));
+    QCOMPARE(find<QProgressBar>("stepsDone")->value(), kSteps);
     for (int i = 0; i < kSteps; ++i) {
       w_->show_step(i);
       shot(QString("page-%1-%2").arg(i + 1).arg(QString(step_title(i)).toLower()));
     }
-    w_->show_step(3);
-    click_and_wait("shutdownButton");
-    QVERIFY2(result().startsWith("done"), qPrintable(result()));
+    // Every step's controller was its own and is gone again.
     QTRY_VERIFY_WITH_TIMEOUT(find<QLabel>("estopStatus")->text().contains("no controller"), 15000);
   }
 };
