@@ -50,14 +50,17 @@ cc write --dir "$work/m" --name mill --yes >/dev/null
 [ ! -f "$work/m/mill.ini.bak" ] || fail "an unchanged file was backed up"
 
 # The direction test on a controller of its own, then with a dial reading.
-cc axis X direction-test --distance 10 --velocity 5 --bring-up "$work/m" | grep "the machine is off again" >/dev/null \
-  || fail "direction-test --bring-up"
+cc axis X direction-test --distance 10 --velocity 5 --bring-up "$work/m" > "$work/out" || fail "direction-test --bring-up"
+grep -q "the machine is off again" "$work/out" || fail "direction-test --bring-up: $(cat "$work/out")"
+grep -q "jogged 2 mm, not 10: no dial reading has checked the scaling yet" "$work/out" \
+  || fail "the first test was not limited to 2 mm: $(cat "$work/out")"
 cc bring-up --dir "$work/m" | grep "cncd runs on" >/dev/null || fail "bring-up"
 pin=cia402-sim.0.node.01.table-position
 # Ctrl-C during a test move: stopped, the machine off (motion and drive
-# disabled), the step says so and changes nothing.
+# disabled), the step says so and changes nothing. (No dial reading has
+# checked the scaling yet: the test jogs at most 2 mm, slowly here.)
 before="$(cat "$work/state.json")"
-"$bin/cnc-commission" --state "$work/state.json" axis X direction-test --distance 20 --velocity 1 >"$work/out" 2>&1 &
+"$bin/cnc-commission" --state "$work/state.json" axis X direction-test --distance 20 --velocity 0.25 >"$work/out" 2>&1 &
 pid=$!
 sleep 3
 kill -INT $pid

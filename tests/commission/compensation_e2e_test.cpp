@@ -74,13 +74,14 @@ TEST(CommissionCompensationE2E, CompensationFittedOnCncdLowersMeasuredIsoAAndThe
   s.interface = m.interface;
   e2e::include_machine_files(s);
   const char letters[] = {'X', 'Y', 'Z'};
-  const double lim[3][2] = {{-10, 250}, {-10, 150}, {-150, 10}};
+  const double lim[3][2] = {{-20, 200}, {-20, 120}, {-55, 20}};  // inside the switches
   for (int j = 0; j < 3; ++j) {
     assign_axis(s, letters[j], j, j + 1);
     set_scaling(s, letters[j], 5.0);
     Axis& a = *s.axis(letters[j]);
     a.min_limit = lim[j][0];
     a.max_limit = lim[j][1];
+    a.limits_source = "entered";
     a.max_velocity = 30;
     a.max_acceleration = 300;
   }
@@ -104,7 +105,7 @@ TEST(CommissionCompensationE2E, CompensationFittedOnCncdLowersMeasuredIsoAAndThe
       const double before = ctl.getp(pin);
       JogResult jr;
       try {
-        jr = direction_jog(ctl, *s.axis(letters[j]), 10.0, 5.0);  // at most 20 mm of table at a 2x scaling error: clear of the limit switches
+        jr = direction_jog(ctl, *s.axis(letters[j]), 10.0, 5.0);  // 2 mm while the scaling is unchecked (kFirstTestTravel)
       } catch (const std::exception& e) {
         FAIL() << e.what() << "\n" << e2e::read_text(dir / "cncd-direction.log");
       }
@@ -116,10 +117,10 @@ TEST(CommissionCompensationE2E, CompensationFittedOnCncdLowersMeasuredIsoAAndThe
   }
   for (int j = 0; j < 3; ++j) EXPECT_EQ(s.axis(letters[j])->scaling.reverse, m.axes[j].motor_reversed) << letters[j];
 
-  // Step 8: X's cycle over 0..200 mm, 3 runs each way, at the axis's speed.
+  // Step 8: X's cycle over 0..190 mm, 3 runs each way, at the axis's speed.
   AxisCompensation c = default_compensation(*s.axis('X'));
   c.x_min = 0;
-  c.x_max = 200;
+  c.x_max = 190;
   c.runs = 3;
   c.dwell_s = 0.5;
   c.feed_mm_min = 1800;

@@ -94,7 +94,7 @@ TEST(CommissionRandomMachine, DiscoversDirectionAndScalingAndRunsTheDemoProgram)
       const double before = ctl.getp(pin);
       JogResult jr;
       try {
-        jr = direction_jog(ctl, *s.axis(letters[j]), 10.0, 5.0);  // at most 20 mm of table at a 2x scaling error: clear of the limit switches
+        jr = direction_jog(ctl, *s.axis(letters[j]), 10.0, 5.0);  // 2 mm while the scaling is unchecked (kFirstTestTravel)
       } catch (const std::exception& e) {
         FAIL() << e.what() << "\n" << e2e::read_text(dir / ("cncd-" + std::to_string(round) + ".log"));
       }
