@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "commission/homing_check.hpp"
+#include "commission/steps.hpp"
 #include "core/ipc/client.hpp"
 #include "core/util/strings.hpp"
 
@@ -59,8 +60,10 @@ std::string check_program(const State& s) {
     << kEndTag << end.str() << ")\n"
     << "G21 G90 G94 G17 G40 G49 G80\n";
   for (const Axis* a : axes) {
+    // The soft limits as written, never onto a limit switch found.
+    const Travel t = clear_of_switches(*a, {a->min_limit, a->max_limit, "the soft limits"});
     const double inset = check_inset(*a);
-    const double lo = a->min_limit + inset, hi = a->max_limit - inset, home = written_home(*a);
+    const double lo = t.min + inset, hi = t.max - inset, home = written_home(*a);
     if (!(lo < hi))
       throw std::invalid_argument(std::string("check program: axis ") + a->letter + ": the soft limits " +
                                   num(a->min_limit) + ".." + num(a->max_limit) + " mm leave no travel");
@@ -161,7 +164,9 @@ std::string run_check(const Controller& c, const std::filesystem::path& program,
         missed += std::string(missed.empty() ? "" : ", ") + letter + " at " + num(got) + " mm instead of " + num(want);
     }
     if (!missed.empty()) throw std::runtime_error(who + ": the program ended off its declared end position: " + missed);
-    report = "the program ran to its end in " + num(std::chrono::duration<double>(clock::now() - start).count()) + " s" +
+    char secs[32];
+    std::snprintf(secs, sizeof secs, "%.1f s", std::chrono::duration<double>(clock::now() - start).count());
+    report = std::string("the program ran to its end in ") + secs +
              (end.empty() ? " (it declares no end position)" : ", ending at " + at + " as declared");
   } catch (const std::exception& e) {
     throw std::runtime_error(e.what() + switch_off_after_failure(c, /*abort_program=*/true));

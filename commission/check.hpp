@@ -30,7 +30,8 @@ inline constexpr double kCheckMaxFeed = 20.0;
 double check_feed(const Axis& a) noexcept;
 
 // The check program for the state's configuration (G-code text, the axes
-// in joint order). Throws std::invalid_argument when the state has no axis
+// in joint order), inside each axis' soft limits and short of the limit
+// switches found (clear_of_switches). Throws std::invalid_argument when the state has no axis
 // or an axis whose soft limits leave no travel, naming it.
 std::string check_program(const State& s);
 

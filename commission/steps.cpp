@@ -184,6 +184,22 @@ double direction_test_travel_limit(const Axis& a) noexcept {
   return a.scaling.dial_checked ? kMaxTestTravel : kFirstTestTravel;
 }
 
+Travel clear_of_switches(const Axis& a, Travel t) {
+  char b[96];
+  const AxisSwitches* sw = a.switches ? &*a.switches : nullptr;
+  if (sw && sw->neg_limit.seen && t.min < sw->neg_limit.position + kSwitchClearance) {
+    t.min = sw->neg_limit.position + kSwitchClearance;
+    std::snprintf(b, sizeof b, ", above the negative limit switch at %.3f mm", sw->neg_limit.position);
+    t.source += b;
+  }
+  if (sw && sw->pos_limit.seen && t.max > sw->pos_limit.position - kSwitchClearance) {
+    t.max = sw->pos_limit.position - kSwitchClearance;
+    std::snprintf(b, sizeof b, ", below the positive limit switch at %.3f mm", sw->pos_limit.position);
+    t.source += b;
+  }
+  return t;
+}
+
 Travel known_travel(const Axis& a) {
   const std::string ax = std::string("axis ") + a.letter;
   char b[160];
@@ -201,17 +217,7 @@ Travel known_travel(const Axis& a) {
                                 "limits inside the machine's travel (cnc-commission axis " + a.letter +
                                 " limits --min MM --max MM)");
   if (!given) t = {sw->neg_limit.position, sw->pos_limit.position, "the limit switches found"};
-  // Never onto a limit switch that was found.
-  if (neg && t.min < sw->neg_limit.position + kSwitchClearance) {
-    t.min = sw->neg_limit.position + kSwitchClearance;
-    std::snprintf(b, sizeof b, ", above the negative limit switch at %.3f mm", sw->neg_limit.position);
-    t.source += b;
-  }
-  if (pos && t.max > sw->pos_limit.position - kSwitchClearance) {
-    t.max = sw->pos_limit.position - kSwitchClearance;
-    std::snprintf(b, sizeof b, ", below the positive limit switch at %.3f mm", sw->pos_limit.position);
-    t.source += b;
-  }
+  t = clear_of_switches(a, t);
   if (!(t.min < t.max)) {
     std::snprintf(b, sizeof b, ": no travel left between %.3f and %.3f mm (", t.min, t.max);
     throw std::invalid_argument(ax + b + t.source + "): check the limits and the switch search");

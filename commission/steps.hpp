@@ -63,5 +63,8 @@ struct Travel {
 };
 inline constexpr double kSwitchClearance = 2.0;  // mm
 Travel known_travel(const Axis& a);
+// `t` cut short of the limit switches the switch search found (by
+// kSwitchClearance), saying so in its source.
+Travel clear_of_switches(const Axis& a, Travel t);
 
 }  // namespace cnc::commission

@@ -68,6 +68,15 @@ TEST(CommissionCheck, TheProgramMovesEachAxisALittleInsideItsSoftLimitsAndBackTo
   EXPECT_EQ(end[1], std::make_pair('Z', 20.0));
 }
 
+TEST(CommissionCheck, TheProgramStaysShortOfALimitSwitchFoundInsideTheSoftLimits) {
+  State s = two_axes();
+  AxisSwitches w;
+  w.neg_limit.seen = true;
+  w.neg_limit.position = -12;  // inside the soft limit -20
+  s.axis('X')->switches = w;
+  EXPECT_EQ(motion_lines(check_program(s)).at(0), "G53 G1 X-5 F450");  // -12 + 2 clearance + 5 inset
+}
+
 TEST(CommissionCheck, TheFeedFollowsTheTunedVelocity) {
   State s = two_axes();
   AxisTuning t;

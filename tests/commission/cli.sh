@@ -38,7 +38,9 @@ set +e; cc scan >/dev/null 2>&1; rc=$?; set -e
 
 cc axis X assign --node 1 --joint 0 | grep "axis X: node 1 on joint 0" >/dev/null || fail "assign"
 cc axis X scaling --lead 5 | grep "counts/mm" >/dev/null || fail "scaling"
-cc axis X limits --min -50 --max 50 --velocity 10 --acceleration 100
+# Inside the random machine's limit switches (X: about -30 and +215 mm
+# from where it powers up): tune and check move up to these limits.
+cc axis X limits --min -20 --max 50 --velocity 10 --acceleration 100
 cc include --ini sim-machine.ini --hal-before-bus sim-machine.hal --hal-after-bus sim-machine-run.hal
 cc show | grep "axis X: joint 0, node 1" >/dev/null || fail "show"
 
@@ -127,4 +129,27 @@ cat "$work/out"
 # The configuration written again: the old one kept.
 cc write --dir "$work/m" --name mill --yes >/dev/null || fail "final write"
 [ -f "$work/m/mill.ini.bak" ] || fail "no backup of the changed file"
+grep -q "^G53 G1 X-16.5 F" "$work/m/check.ngc" || fail "check program: $(cat "$work/m/check.ngc")"
+
+# Step 9's check on the written configuration: Ctrl-C while its program
+# runs (machine off, aborted, state unchanged), then a whole run, kept in
+# the state.
+before="$(cat "$work/state.json")"
+"$bin/cnc-commission" --state "$work/state.json" check >"$work/out" 2>&1 &
+pid=$!
+for i in $(seq 1 600); do grep -q "^progress: 4/7" "$work/out" && break; sleep 0.1; done
+sleep 1
+kill -INT $pid
+set +e; wait $pid; rc=$?; set -e
+[ $rc -eq 1 ] && grep -q "aborted" "$work/out" || fail "aborted check: status $rc: $(cat "$work/out")"
+grep -q "the drives disabled" "$work/out" || fail "the aborted check did not switch off: $(cat "$work/out")"
+[ "$before" = "$(cat "$work/state.json")" ] || fail "the aborted check changed the state"
+cc check > "$work/out" || fail "check: $(cat "$work/out")"
+grep -q "^progress: 7/7 cncd stopped" "$work/out" && grep -q "^check passed: .*ending at X0 as declared" "$work/out" \
+  || fail "check: $(cat "$work/out")"
+python3 - "$work/state.json" "$work/m/check.ngc" <<'PY' || fail "no check in the state"
+import json, sys
+c = json.load(open(sys.argv[1]))["check"]
+assert c["passed"] and c["program"] == sys.argv[2] and c["duration_s"] > 0, c
+PY
 echo PASS

@@ -7,8 +7,9 @@
 // (and plays the dial indicator and the laser with the simulated table's
 // position) only to check each step's result:
 //   1 scan, 2 assign, 3 nominal scaling (5 mm screws, direct drive),
-//   4 direction tests (direction and scaling discovered, a second round
-//     finds nothing to correct), 5 switch search and soft limits,
+//   4 direction tests (2 mm while the scaling is unchecked, then 20 mm:
+//     direction and scaling discovered, a third round finds nothing to
+//     correct), 5 switch search and soft limits,
 //   6 controller homing 5 times per axis (spread small), 7 tuning (limits
 //     within the simulator's true capability, every test inside the known
 //     travel), 8 X's ISO 230-2 cycle, fit, installed table, cycle again (A
@@ -169,20 +170,30 @@ TEST_F(FullRun, AllNineStepsOnARandomMachineThroughTheCommandLineThenTheCheckAnd
   }
 
   // 4. Direction and scaling: a test per axis with the dial (the table's
-  // true travel), then a second round that finds nothing to correct.
-  for (int round = 0; round < 2; ++round) {
-    stage(round == 0 ? "4 direction tests" : "4 direction tests, confirming");
+  // true travel) in each round. The first jogs only 2 mm (the scaling is
+  // unchecked: the table may move a multiple of the command), so its
+  // reading over a short table travel still carries the backlash (up to
+  // 0.8 % of scale seen); the second, 20 mm at the corrected scaling,
+  // corrects that; the third finds nothing to correct.
+  for (int round = 0; round < 3; ++round) {
+    stage(round == 0 ? "4 direction tests, 2 mm" : round == 1 ? "4 direction tests, 20 mm" : "4 direction tests, confirming");
     must("bring-up --dir '" + m_.string() + "'");
     for (int j = 0; j < 3; ++j) {
       const std::string L(1, letters[j]);
       const double t0 = table(j + 1);
-      must("axis " + L + " direction-test --distance 10 --velocity 5");
+      const std::string out = must("axis " + L + " direction-test --distance " + (round == 0 ? "10" : "20") + " --velocity 5");
+      if (round == 0) {
+        EXPECT_NE(out.find("jogged 2 mm, not 10: no dial reading has checked the scaling yet"), std::string::npos) << out;
+      }
       std::this_thread::sleep_for(std::chrono::milliseconds(200));
       char dial[32];
       std::snprintf(dial, sizeof dial, "%.6f", table(j + 1) - t0);
       must("axis " + L + " dial " + dial);
-      if (round == 1) {
-        const DirectionTest& t = *state().axis(letters[j])->direction;
+      const DirectionTest t = *state().axis(letters[j])->direction;
+      if (round > 0) {
+        EXPECT_DOUBLE_EQ(std::fabs(t.commanded_mm), 20.0) << L;
+      }
+      if (round == 2) {
         EXPECT_FALSE(t.reversed) << L << ": " << t.verdict;
         EXPECT_NEAR(t.correction, 1.0, kScalingTolerance) << L << ": " << t.verdict;
       }
@@ -191,7 +202,7 @@ TEST_F(FullRun, AllNineStepsOnARandomMachineThroughTheCommandLineThenTheCheckAnd
     std::this_thread::sleep_for(std::chrono::seconds(1));
   }
   for (int j = 0; j < 3; ++j) {
-    const Axis& a = *state().axis(letters[j]);
+    const Axis a = *state().axis(letters[j]);
     EXPECT_EQ(a.scaling.reverse, m.axes[j].motor_reversed) << letters[j];
     EXPECT_NEAR(a.scaling.counts_per_mm() / m.axes[j].counts_per_mm(), 1.0, kScalingTolerance) << letters[j];
   }
@@ -253,7 +264,12 @@ TEST_F(FullRun, AllNineStepsOnARandomMachineThroughTheCommandLineThenTheCheckAnd
     EXPECT_LE(t.max_acceleration, keep * cap.acceleration * 1.01) << L;
     EXPECT_GT(t.ferror, 0) << L;
     EXPECT_LE(t.min_ferror, t.ferror) << L;
-    EXPECT_EQ(t.velocity_limit.rfind("saturation", 0), 0u) << L << ": " << t.velocity_limit;
+    // The velocity series found the drive's speed limit, or the travel
+    // between the switches was too short for a faster test (a short Z on
+    // a fast drive: the recommendation is then the fastest test less the margin).
+    const bool saturated = t.velocity_limit.rfind("saturation", 0) == 0;
+    const bool short_travel = t.velocity_limit.find("is too short to test") != std::string::npos;
+    EXPECT_TRUE(saturated || short_travel) << L << ": " << t.velocity_limit;
     // Every test moved inside the soft limits found in step 5, short of the switches.
     for (const TuningTest& x : t.tests) {
       const std::string text = e2e::read_text(x.csv);
