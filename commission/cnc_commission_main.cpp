@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cctype>
+#include <chrono>
 #include <cerrno>
 #include <cstring>
 #include <csignal>
@@ -17,6 +18,7 @@
 #include <vector>
 
 #include "commission/backup.hpp"
+#include "commission/check.hpp"
 #include "commission/compensation.hpp"
 #include "commission/config_writer.hpp"
 #include "commission/controller.hpp"
@@ -59,11 +61,13 @@ const char* kHelp =
     "  axis L scaling --lead MM [--counts N] [--gear MOTOR:LOAD]\n"
     "      screw lead; counts per revolution and gear from the drive unless given\n"
     "  axis L limits --min MM --max MM [--velocity MM/S] [--acceleration MM/S2]\n"
-    "      soft limits and the axis' speed and acceleration\n"
+    "      soft limits (the travel tune and comp-run may use until the switches are\n"
+    "      found) and the axis' speed and acceleration\n"
     "  axis L direction-test [--distance MM] [--velocity MM/S] [--dial MM] [--bin DIR]\n"
     "                        [--bring-up DIR]\n"
-    "      jog the axis on the running controller (at most 20 mm at 5 mm/s, time-\n"
-    "      limited, switched off afterwards) and compare the drive's feedback;\n"
+    "      jog the axis on the running controller (at most 2 mm until a dial reading\n"
+    "      checked the scaling, then 20 mm; at most 5 mm/s; time-limited, switched off\n"
+    "      afterwards) and compare the drive's feedback;\n"
     "      --bring-up writes the configuration of the state to DIR and runs the\n"
     "      test on a controller of its own, shut down afterwards\n"
     "  axis L tune [--max-velocity MM/S] [--max-acceleration MM/S2] [--margin PCT]\n"
@@ -114,6 +118,11 @@ const char* kHelp =
     "  write --dir DIR [--name NAME] [--yes] [--cncd PATH]\n"
     "      generate INI and HAL, show the difference; with --yes write them\n"
     "      (old ones kept as .bak) and check them with cncd --check --strict\n"
+    "  check [--program FILE] [--timeout S]\n"
+    "      start cncd on the configuration write wrote last, E-stop reset, on, home,\n"
+    "      run FILE (default: check.ngc beside its INI: every axis to a little inside\n"
+    "      its soft limits and back, at reduced feed) to its end, check the end\n"
+    "      position, stop cncd; the result is kept in the state\n"
     "  wizard [--dir DIR] [--instance NAME]\n"
     "      the Qt wizard over these steps and the same state file\n"
     "      (cnc-commission-wizard)\n"
@@ -641,15 +650,22 @@ int cmd_axis(State& s, Args& a) {
   } else if (step == "limits") {
     Axis* ax = s.axis(letter);
     if (!ax) usage(std::string("axis ") + letter + " has no drive yet");
+    bool given_limits = false;
     while (a.more()) {
       const std::string k = a.next("option");
-      if (k == "--min") ax->min_limit = number(a.next("mm"), "--min");
-      else if (k == "--max") ax->max_limit = number(a.next("mm"), "--max");
+      if (k == "--min") {
+        ax->min_limit = number(a.next("mm"), "--min");
+        given_limits = true;
+      } else if (k == "--max") {
+        ax->max_limit = number(a.next("mm"), "--max");
+        given_limits = true;
+      }
       else if (k == "--velocity") ax->max_velocity = number(a.next("mm/s"), "--velocity");
       else if (k == "--acceleration") ax->max_acceleration = number(a.next("mm/s2"), "--acceleration");
       else usage("limits: unknown option " + k);
     }
     if (!(ax->min_limit < ax->max_limit)) throw std::invalid_argument(std::string("axis ") + letter + ": --min must be below --max");
+    if (given_limits) ax->limits_source = "entered";  // the person knows this travel
     if (!(ax->max_velocity > 0) || !(ax->max_acceleration > 0))
       throw std::invalid_argument(std::string("axis ") + letter + ": velocity and acceleration must be > 0");
   } else if (step == "direction-test") {
@@ -672,6 +688,12 @@ int cmd_axis(State& s, Args& a) {
     std::unique_ptr<ControllerProcess> own;
     if (!bring_up.empty()) own = bring_up_controller(s, bin, bring_up, "commission", bring_up / "cncd.log");
     const JogResult r = direction_jog(Controller(bin), *ax, distance, velocity);
+    if (r.limited)
+      std::cout << "axis " << letter << ": jogged " << r.commanded_mm << " mm, not " << distance << ": "
+                << (ax->scaling.dial_checked ? "a direction test jogs at most " + std::to_string(static_cast<int>(kMaxTestTravel)) + " mm"
+                                             : "no dial reading has checked the scaling yet, and until one has the table may "
+                                               "move a multiple of the command (enter the dial reading, then test farther)")
+                << "\n";
     if (own && own->stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
     std::cout << "axis " << letter << ": commanded " << r.commanded_mm << " mm, drive feedback " << r.feedback_mm
               << " mm; the machine is off again\n";
@@ -761,6 +783,70 @@ int cmd_write(State& s, Args& a) {
     return 1;
   }
   s.log.push_back("configuration written to " + (dir / (name + ".ini")).string());
+  s.config_ini = std::filesystem::absolute(dir / (name + ".ini")).string();
+  return 0;
+}
+
+// Step 9's check: cncd on the configuration written last, the check
+// program run on it (commission/check.hpp). The result is kept in the
+// state, passed or not; an abort keeps nothing.
+int cmd_check(State& s, Args& a) {
+  std::filesystem::path program, bin = self_dir();
+  double timeout = 600;
+  while (a.more()) {
+    const std::string k = a.next("option");
+    if (k == "--program") program = a.next("file");
+    else if (k == "--timeout") timeout = number(a.next("s"), "--timeout");
+    else if (k == "--bin") bin = a.next("folder");
+    else usage("check: unknown option " + k);
+  }
+  if (!(timeout > 0)) usage("check: --timeout must be > 0");
+  if (s.config_ini.empty())
+    throw std::invalid_argument("check: no configuration written yet: run cnc-commission write --dir DIR --yes first");
+  const std::filesystem::path ini = s.config_ini;
+  if (!std::filesystem::exists(ini))
+    throw std::invalid_argument("check: " + ini.string() + " (written last) is not there any more: write it again");
+  if (program.empty()) program = ini.parent_path() / "check.ngc";
+  program = std::filesystem::absolute(program);
+  if (!std::filesystem::exists(program)) throw std::invalid_argument("check: " + program.string() + ": no such program");
+  const auto log = ini.parent_path() / "check-cncd.log";
+  auto progress = [](int i, int n, const std::string& t) { print_progress(i, n, t); };
+  const auto t0 = std::chrono::steady_clock::now();
+  CheckRun r;
+  r.program = program.string();
+  r.ini = ini.string();
+  clear_abort();
+  try {
+    progress(1, 7, "starting cncd on " + ini.string());
+    ControllerProcess cncd(bin, ini, log);
+    try {
+      r.message = run_check(Controller(bin), program, timeout,
+                            [&](int i, int, const std::string& t) { progress(i + 1, 7, t); });
+      r.passed = true;
+    } catch (const std::exception& e) {
+      if (abort_requested()) throw;
+      r.message = e.what();
+    }
+    const int rc = cncd.stop();
+    progress(7, 7, "cncd stopped");
+    if (rc != 0 && r.passed) {
+      r.passed = false;
+      r.message += "; but cncd did not end cleanly (status " + std::to_string(rc) + ", see " + log.string() + ")";
+    }
+  } catch (const std::exception& e) {
+    if (abort_requested()) throw std::runtime_error(std::string("aborted: ") + e.what() + " (state unchanged)");
+    r.passed = false;  // cncd did not come up
+    r.message = e.what();
+  }
+  r.duration_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.time = utc_now();
+  s.check = r;
+  s.log.push_back(std::string("check ") + (r.passed ? "passed" : "FAILED") + " on " + ini.string());
+  if (!r.passed) {
+    std::cout << "check FAILED: " << r.message << "\n(cncd's log: " << log.string() << ")\n";
+    return 1;
+  }
+  std::cout << "check passed: " << r.message << "\n";
   return 0;
 }
 
@@ -828,6 +914,7 @@ int main(int argc, char** argv) {
     } else if (cmd == "write") rc = cmd_write(s, a);
     else if (cmd == "bring-up") rc = cmd_bring_up(s, a);
     else if (cmd == "backup") rc = cmd_backup(s, a);
+    else if (cmd == "check") rc = cmd_check(s, a);
     else if (cmd == "shutdown") {
       Controller(self_dir()).cnc({"shutdown"});
       return 0;

@@ -1,5 +1,7 @@
 #include "commission/compensation.hpp"
 
+#include "commission/steps.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <memory>
@@ -92,8 +94,16 @@ void check_scaling(const Axis& a, const AxisCompensation& c) {
 
 AxisCompensation default_compensation(const Axis& a) {
   AxisCompensation c;
-  c.x_min = a.min_limit + c.overshoot_mm + 1;
-  c.x_max = a.max_limit - c.overshoot_mm - 1;
+  // Inside the known travel (check_cycle refuses a cycle without one).
+  double lo = a.min_limit, hi = a.max_limit;
+  try {
+    const Travel t = known_travel(a);
+    lo = t.min;
+    hi = t.max;
+  } catch (const std::invalid_argument&) {
+  }
+  c.x_min = lo + c.overshoot_mm + 1;
+  c.x_max = hi - c.overshoot_mm - 1;
   c.feed_mm_min = std::min(3000.0, 0.5 * a.max_velocity * 60);
   return c;
 }
@@ -103,10 +113,11 @@ void check_cycle(const Axis& a, const AxisCompensation& c) {
   if (!(c.x_max > c.x_min))
     throw std::invalid_argument(n + ": the cycle's last target (" + num(c.x_max) + " mm) must lie above its first (" +
                                 num(c.x_min) + " mm)");
-  if (c.x_min - c.overshoot_mm < a.min_limit - 1e-9 || c.x_max + c.overshoot_mm > a.max_limit + 1e-9)
+  const Travel t = known_travel(a);  // throws when the travel is not known
+  if (c.x_min - c.overshoot_mm < t.min - 1e-9 || c.x_max + c.overshoot_mm > t.max + 1e-9)
     throw std::invalid_argument(n + ": the cycle " + num(c.x_min) + ".." + num(c.x_max) + " mm with its overshoot of " +
-                                num(c.overshoot_mm) + " mm leaves the soft limits " + num(a.min_limit) + ".." +
-                                num(a.max_limit) + " mm: narrow it (--min, --max) or set the limits first");
+                                num(c.overshoot_mm) + " mm leaves the travel " + num(t.min) + ".." + num(t.max) +
+                                " mm (" + t.source + "): narrow it (--min, --max) or set the limits first");
   if (c.runs < 2)
     throw std::invalid_argument(n + ": " + std::to_string(c.runs) +
                                 " run(s): ISO 230-2 needs at least two runs each way (the standard test five)");
@@ -439,22 +450,7 @@ CompRunResult run_comp_cycle(const Controller& ctl, const Axis& a, const AxisCom
       throw std::runtime_error(n + ": the E-stop chain is open: close it before the measurement cycle");
     ctl.cnc({"on"});
     // Every joint homed (auto mode needs them all; the table applies once homed).
-    auto all_homed = [&client]() {
-      const ipc::Status st = client.status();
-      for (int j = 0; j < st.motion.joints && j < kMaxJoints; ++j)
-        if (!st.joints[j].homed) return false;
-      return true;
-    };
-    if (!all_homed()) {
-      ctl.cnc({"mode", "manual"});
-      ctl.cnc({"home", "all"});
-      const auto t0 = clock::now();
-      while (!all_homed()) {
-        if (abort_requested()) throw std::runtime_error(n + ": aborted while homing");
-        if (clock::now() - t0 > std::chrono::seconds(120)) throw std::runtime_error(n + ": homing did not end within 120 s");
-        std::this_thread::sleep_for(std::chrono::milliseconds(50));
-      }
-    }
+    home_all(ctl, n);
     ctl.cnc({"mode", "auto"});
     ctl.cnc({"open", std::filesystem::absolute(program).string()});
     if (progress) progress(0, static_cast<int>(r.stops.size()), "cycle started: " + program.string());

@@ -1,5 +1,7 @@
 #include "commission/config_writer.hpp"
 
+#include "commission/check.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -243,6 +245,8 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
     out.push_back({dir / "tool.tbl",
                    "T1 P1 D6.000 Z+35.000 ;6 mm end mill\nT2 P2 D10.000 Z+42.500 ;10 mm end mill\n"
                    "T3 P3 D5.000 Z+55.000 ;5 mm drill\n"});
+  // Step 9's check program (cnc-commission check runs it on this configuration).
+  out.push_back({dir / "check.ngc", check_program(s)});
   // Steps 8 and 9: compensation tables, and the drive-parameter backup when one was taken.
   for (auto& f : compensation_files(s, dir, name)) out.push_back(std::move(f));
   for (auto& f : backup_files(s, dir)) out.push_back(std::move(f));

@@ -23,7 +23,8 @@ struct GeneratedFile {
 };
 
 // The files for configuration name `name` in folder `dir`: <name>.ini,
-// <name>.hal and, when there is none yet, tool.tbl. Throws
+// <name>.hal, the check program check.ngc (commission/check.hpp) and, when
+// there is none yet, tool.tbl. Throws
 // std::invalid_argument when the state cannot make a configuration (no
 // axis, an axis without scaling), naming what is missing.
 std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem::path& dir, const std::string& name);

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "commission/steps.hpp"
+#include "core/ipc/client.hpp"
 
 extern char** environ;
 
@@ -136,8 +137,32 @@ std::string switch_off_after_failure(const Controller& c, bool abort_program) no
 bool abort_requested() noexcept { return g_abort.load(std::memory_order_relaxed); }
 void clear_abort() noexcept { g_abort.store(false, std::memory_order_relaxed); }
 
+void home_all(const Controller& c, const std::string& who, double timeout_s) {
+  const ipc::Client client;
+  auto all_homed = [&client]() {
+    const ipc::Status st = client.status();
+    for (int j = 0; j < st.motion.joints && j < kMaxJoints; ++j)
+      if (!st.joints[j].homed) return false;
+    return true;
+  };
+  if (all_homed()) return;
+  c.cnc({"mode", "manual"});
+  c.cnc({"home", "all"});
+  const auto t0 = std::chrono::steady_clock::now();
+  while (!all_homed()) {
+    if (g_abort.load(std::memory_order_relaxed)) throw std::runtime_error(who + ": aborted while homing");
+    if (std::chrono::steady_clock::now() - t0 > std::chrono::duration<double>(timeout_s)) {
+      char b[64];
+      std::snprintf(b, sizeof b, "%.0f s", timeout_s);
+      throw std::runtime_error(who + ": homing did not end within " + b);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
 JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, double velocity) {
-  const double dist = std::copysign(std::min(std::fabs(distance_mm), kMaxTestTravel), distance_mm);
+  const double cap = direction_test_travel_limit(a);
+  const double dist = std::copysign(std::min(std::fabs(distance_mm), cap), distance_mm);
   const double vel = std::min(std::fabs(velocity), kMaxTestVelocity);
   if (!(std::fabs(dist) > 0) || !(vel > 0)) throw std::runtime_error("direction test: no travel or no speed given");
   const std::string joint = std::to_string(a.joint);
@@ -149,6 +174,7 @@ JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, 
   c.cnc({"mode", "manual"});
   JogResult r;
   r.commanded_mm = dist;
+  r.limited = std::fabs(distance_mm) > cap;
   const double before = c.motor_position(a.joint);
   const auto limit = std::chrono::duration<double>(2 * std::fabs(dist) / vel + 3.0);
   const auto start = std::chrono::steady_clock::now();

@@ -71,14 +71,22 @@ void clear_abort() noexcept;
 // that switching off failed too and E-stop must be pressed. Never throws.
 std::string switch_off_after_failure(const Controller& c, bool abort_program = false) noexcept;
 
+// Homes every joint not homed yet (switched on, manual mode, `cnc home
+// all`) and waits until all are, at most `timeout_s`. Throws
+// std::runtime_error starting with `who` on the time limit or
+// request_abort(); the caller switches the machine off.
+void home_all(const Controller& c, const std::string& who, double timeout_s = 120);
+
 struct JogResult {
   double commanded_mm = 0;
   double feedback_mm = 0;   // motor feedback after - before
+  bool limited = false;     // the distance asked for was cut to direction_test_travel_limit()
 };
 
 // The direction test's motion: joint `a.joint` jogs `distance_mm` (at most
-// kMaxTestTravel, sign = direction) at `velocity` (at most
-// kMaxTestVelocity) in free (joint) mode, switched on for the move and off
+// direction_test_travel_limit(a): kFirstTestTravel until a dial reading
+// checked the scaling, then kMaxTestTravel; sign = direction) at `velocity`
+// (at most kMaxTestVelocity) in free (joint) mode, switched on for the move and off
 // afterwards, stopped after a time limit (twice the travel time + 3 s).
 // Refuses when the E-stop chain is open. Throws std::runtime_error saying
 // why it stopped (time limit, request_abort(), a failing command).

@@ -188,10 +188,14 @@ std::string num(double v) {
 }
 }  // namespace
 
+double written_home(const Axis& a) noexcept {
+  return a.homing ? std::clamp(a.homing->home, a.min_limit, a.max_limit) : 0.0;
+}
+
 std::string joint_homing_keys(const Axis& a) {
   if (!a.homing) return "HOME = 0\nHOME_OFFSET = 0\nHOME_SEQUENCE = 0\n";
   const AxisHoming& h = *a.homing;
-  const double home = std::clamp(h.home, a.min_limit, a.max_limit);
+  const double home = written_home(a);
   std::string s = "# Homing commissioned (" + h.method + "), spread " + num(h.spread) + " mm over " +
                   std::to_string(h.references.size()) + " runs.\n";
   const int m = drive_method(h.method);

@@ -65,6 +65,9 @@ namespace cnc::commission {
 // of [CIA402_DRIVE_n], and the HAL nets of the switches found (each drive
 // input to its joint pin, through a `not` when it is active low).
 std::string joint_homing_keys(const Axis& a);
+// The joint's HOME as the writer writes it (where homing leaves it): the
+// planned HOME within the soft limits, 0 when homing is not commissioned.
+double written_home(const Axis& a) noexcept;
 std::string drive_homing_keys(const Axis& a);
 std::string switch_nets(const std::vector<const Axis*>& axes);
 }  // namespace cnc::commission

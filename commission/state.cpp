@@ -309,11 +309,13 @@ AxisTuning tuning_from(const json& j) {
 json axis_json(const Axis& a) {
   json j = {{"letter", std::string(1, a.letter)}, {"joint", a.joint}, {"node", a.node}, {"slave", a.slave},
             {"gantry_with", a.gantry_with}, {"min_limit", a.min_limit}, {"max_limit", a.max_limit},
-            {"max_velocity", a.max_velocity}, {"max_acceleration", a.max_acceleration}, {"enabled", a.enabled}};
+            {"max_velocity", a.max_velocity}, {"max_acceleration", a.max_acceleration}, {"enabled", a.enabled},
+            {"limits_source", a.limits_source}};
   const AxisScaling& s = a.scaling;
   j["scaling"] = {{"encoder_counts", s.encoder_counts}, {"gear_motor_revs", s.gear_motor_revs},
                   {"gear_load_revs", s.gear_load_revs}, {"screw_lead", s.screw_lead},
-                  {"correction", s.correction}, {"reverse", s.reverse}, {"source", s.source},
+                  {"correction", s.correction}, {"reverse", s.reverse}, {"dial_checked", s.dial_checked},
+                  {"source", s.source},
                   {"counts_per_mm", s.counts_per_mm()}};
   if (a.direction) {
     const DirectionTest& d = *a.direction;
@@ -338,6 +340,14 @@ Axis axis_from(const json& j, const std::string& origin) {
   get(j, "gantry_with", a.gantry_with);
   get(j, "min_limit", a.min_limit);
   get(j, "max_limit", a.max_limit);
+  if (j.contains("limits_source")) {
+    get(j, "limits_source", a.limits_source);
+    if (!a.limits_source.empty() && a.limits_source != "entered" && a.limits_source != "switches")
+      throw std::runtime_error(origin + ": axes[].limits_source \"" + a.limits_source +
+                               "\": expected \"\", \"entered\" or \"switches\"");
+  } else if (a.min_limit != Axis{}.min_limit || a.max_limit != Axis{}.max_limit) {
+    a.limits_source = "entered";  // a file from before the key: limits other than the defaults were given
+  }
   get(j, "max_velocity", a.max_velocity);
   get(j, "max_acceleration", a.max_acceleration);
   get(j, "enabled", a.enabled);
@@ -349,6 +359,7 @@ Axis axis_from(const json& j, const std::string& origin) {
     get(s, "screw_lead", a.scaling.screw_lead);
     get(s, "correction", a.scaling.correction);
     get(s, "reverse", a.scaling.reverse);
+    get(s, "dial_checked", a.scaling.dial_checked);
     get(s, "source", a.scaling.source);
   }
   if (j.contains("direction_test")) {
@@ -391,6 +402,10 @@ std::string to_json_text(const State& s) {
   j["hal_after_bus"] = s.hal_after_bus;
   j["log"] = s.log;
   if (s.backup) j["backup"] = backup_json(*s.backup);
+  j["config_ini"] = s.config_ini;
+  if (s.check)
+    j["check"] = {{"program", s.check->program}, {"ini", s.check->ini}, {"passed", s.check->passed},
+                  {"message", s.check->message}, {"duration_s", s.check->duration_s}, {"time", s.check->time}};
   return j.dump(2) + "\n";
 }
 
@@ -424,6 +439,18 @@ State from_json_text(const std::string& text, const std::string& origin) {
     get(j, "hal_after_bus", s.hal_after_bus);
     get(j, "log", s.log);
     if (j.contains("backup")) s.backup = backup_from(j["backup"]);
+    get(j, "config_ini", s.config_ini);
+    if (j.contains("check")) {
+      const json& c = j["check"];
+      CheckRun r;
+      get(c, "program", r.program);
+      get(c, "ini", r.ini);
+      get(c, "passed", r.passed);
+      get(c, "message", r.message);
+      get(c, "duration_s", r.duration_s);
+      get(c, "time", r.time);
+      s.check = r;
+    }
     return s;
   } catch (const json::exception& e) {
     throw std::runtime_error(origin + ": " + e.what());

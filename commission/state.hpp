@@ -52,6 +52,7 @@ struct AxisScaling {
   double screw_lead = 0;
   double correction = 1.0;
   bool reverse = false;
+  bool dial_checked = false;  // a direction test's dial reading checked it (reset by a new nominal scaling)
   std::string source;   // "drive 0x608F, entered lead" ...
   double nominal_counts_per_mm() const noexcept;
   double counts_per_mm() const noexcept { return nominal_counts_per_mm() * correction; }
@@ -171,6 +172,17 @@ struct AxisTuning {
 };
 // --- end of step 7 ---
 
+// --- Step 9's check (cnc-commission check) ---
+// The last run of the check program on the written configuration.
+struct CheckRun {
+  std::string program;          // absolute path of the program run
+  std::string ini;              // the configuration it ran on
+  bool passed = false;
+  std::string message;          // what was found (passed: the end position)
+  double duration_s = 0;        // from starting cncd to its shut-down
+  std::string time;             // UTC, ISO 8601, when it ended
+};
+
 struct Axis {
   char letter = 'X';            // X Y Z A B C U V W
   int joint = 0;
@@ -180,6 +192,10 @@ struct Axis {
   AxisScaling scaling;
   std::optional<DirectionTest> direction;
   double min_limit = -10, max_limit = 10;  // provisional soft limits (mm)
+  // Where the soft limits come from: "" the defaults above (the travel is
+  // not known: tune and the compensation cycle refuse to move), "entered"
+  // (axis L limits), "switches" (axis L soft-limits, step 5).
+  std::string limits_source;
   double max_velocity = 10, max_acceleration = 100;  // provisional
   bool enabled = true;          // false: left out of the written configuration
   std::optional<AxisCompensation> compensation;  // step 8
@@ -207,6 +223,8 @@ struct State {
   std::vector<std::string> hal_before_bus, hal_after_bus;
   std::vector<std::string> log;  // one line per step done, oldest first
   std::optional<DriveBackup> backup;  // step 9: the last drive-parameter backup
+  std::string config_ini;       // step 9: the INI `write --yes` wrote last (absolute; "" none)
+  std::optional<CheckRun> check;  // step 9: the last `check` on it
 
   const ScannedNode* node(int id) const noexcept;
   Axis* axis(char letter) noexcept;

@@ -128,6 +128,7 @@ double set_scaling(State& s, char letter, double screw_lead, double encoder_coun
   }
   sc.screw_lead = screw_lead;
   sc.correction = 1.0;  // a new nominal scaling: earlier measurements no longer apply
+  sc.dial_checked = false;
   sc.source = src + ", entered lead";
   a.direction.reset();
   return sc.counts_per_mm();
@@ -169,6 +170,7 @@ const DirectionTest& apply_direction_test(State& s, char letter, double commande
     t.reversed = true;
   }
   a.scaling.correction *= t.correction;
+  a.scaling.dial_checked = true;
   t.verdict = axis_name(letter) + ": " + (against ? "the table moved against the command: REVERSE flipped to " +
                                                         std::string(a.scaling.reverse ? "YES" : "NO")
                                                   : std::string("direction right")) +
@@ -176,6 +178,51 @@ const DirectionTest& apply_direction_test(State& s, char letter, double commande
               ", now " + num(a.scaling.counts_per_mm()) + " counts/mm";
   a.direction = t;
   return *a.direction;
+}
+
+double direction_test_travel_limit(const Axis& a) noexcept {
+  return a.scaling.dial_checked ? kMaxTestTravel : kFirstTestTravel;
+}
+
+Travel clear_of_switches(const Axis& a, Travel t) {
+  char b[96];
+  const AxisSwitches* sw = a.switches ? &*a.switches : nullptr;
+  if (sw && sw->neg_limit.seen && t.min < sw->neg_limit.position + kSwitchClearance) {
+    t.min = sw->neg_limit.position + kSwitchClearance;
+    std::snprintf(b, sizeof b, ", above the negative limit switch at %.3f mm", sw->neg_limit.position);
+    t.source += b;
+  }
+  if (sw && sw->pos_limit.seen && t.max > sw->pos_limit.position - kSwitchClearance) {
+    t.max = sw->pos_limit.position - kSwitchClearance;
+    std::snprintf(b, sizeof b, ", below the positive limit switch at %.3f mm", sw->pos_limit.position);
+    t.source += b;
+  }
+  return t;
+}
+
+Travel known_travel(const Axis& a) {
+  const std::string ax = std::string("axis ") + a.letter;
+  char b[160];
+  Travel t;
+  const bool given = !a.limits_source.empty();
+  if (given) {
+    t = {a.min_limit, a.max_limit,
+         a.limits_source == "switches" ? "the soft limits from the limit switches" : "the soft limits given (axis limits)"};
+  }
+  const AxisSwitches* sw = a.switches ? &*a.switches : nullptr;
+  const bool neg = sw && sw->neg_limit.seen, pos = sw && sw->pos_limit.seen;
+  if (!given && !(neg && pos))
+    throw std::invalid_argument(ax + ": the travel is not known: find the limit switches and set the soft limits from them "
+                                "(cnc-commission axis " + a.letter + " switches, then soft-limits), or give provisional "
+                                "limits inside the machine's travel (cnc-commission axis " + a.letter +
+                                " limits --min MM --max MM)");
+  if (!given) t = {sw->neg_limit.position, sw->pos_limit.position, "the limit switches found"};
+  t = clear_of_switches(a, t);
+  if (!(t.min < t.max)) {
+    std::snprintf(b, sizeof b, ": no travel left between %.3f and %.3f mm (", t.min, t.max);
+    throw std::invalid_argument(ax + b + t.source + "): check the limits and the switch search");
+  }
+  return t;
 }
 
 }  // namespace cnc::commission

@@ -31,6 +31,13 @@ double set_scaling(State& s, char letter, double screw_lead, double encoder_coun
 // Largest jog a direction test makes, and its speed limit (mm, mm/s).
 inline constexpr double kMaxTestTravel = 20.0;
 inline constexpr double kMaxTestVelocity = 5.0;
+// While no dial reading has checked the axis' scaling, the table may move
+// a multiple of the command (a 3:1 gear and a 10 mm lead taken for a
+// direct 5 mm screw: 6x), so the first test jogs at most kFirstTestTravel;
+// its dial reading corrects the scaling, after which the command is the
+// table's travel and tests go up to kMaxTestTravel.
+inline constexpr double kFirstTestTravel = 2.0;
+double direction_test_travel_limit(const Axis& a) noexcept;
 
 // The analysis of a direction test on axis `letter`: the jog commanded
 // `commanded_mm` at the axis' current scaling; the drive's encoder reported
@@ -41,5 +48,23 @@ inline constexpr double kMaxTestVelocity = 5.0;
 // scaling is updated and the test stored in the state.
 const DirectionTest& apply_direction_test(State& s, char letter, double commanded_mm, double feedback_mm,
                                           double dial_mm, bool has_dial);
+
+// The travel a commissioning motion may use on axis `a` (the tuning tests,
+// the compensation cycle): its soft limits when they were given (`axis L
+// limits`, `limits_source` "entered") or set from the switches (step 5),
+// and never beyond the limit switches the switch search found, less
+// kSwitchClearance; the switches alone when no limits were given. `source`
+// says which, for messages. Throws std::invalid_argument naming the axis
+// and what to do when neither is known (the default limits are no
+// knowledge of the machine).
+struct Travel {
+  double min = 0, max = 0;
+  std::string source;
+};
+inline constexpr double kSwitchClearance = 2.0;  // mm
+Travel known_travel(const Axis& a);
+// `t` cut short of the limit switches the switch search found (by
+// kSwitchClearance), saying so in its source.
+Travel clear_of_switches(const Axis& a, Travel t);
 
 }  // namespace cnc::commission

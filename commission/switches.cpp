@@ -121,6 +121,7 @@ void soft_limits_from_switches(Axis& a, double margin_mm) {
                                 mm(s.neg_limit.position) + " and " + mm(s.pos_limit.position) + " mm");
   a.min_limit = lo;
   a.max_limit = hi;
+  a.limits_source = "switches";
 }
 
 // ---------------------------------------------------------------------------

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "commission/config_writer.hpp"
+#include "commission/steps.hpp"
 #include "core/util/atomic_file.hpp"
 #include "core/util/strings.hpp"
 
@@ -296,12 +297,14 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
     throw std::invalid_argument(axis_name(a) + ": --margin " + fmt("%g", o.margin_pct) +
                                 ": expected 10 to 90 % (the joint's limits are written 5-10 % above the axis')");
   if (o.steps < 2 || o.steps > 20) throw std::invalid_argument("tune: 2 to 20 steps per series");
-  const double span = a.max_limit - a.min_limit;
+  // The tests move inside the known travel (soft limits, the switches found).
+  const Travel travel = known_travel(a);
+  const double span = travel.max - travel.min;
   const double keep = std::max(1.0, 0.05 * span);
-  const double lo = a.min_limit + keep, hi = a.max_limit - keep;
+  const double lo = travel.min + keep, hi = travel.max - keep;
   if (!(hi - lo >= 2.0))
-    throw std::invalid_argument(axis_name(a) + ": the provisional soft limits " + fmt("%g", a.min_limit) + ".." +
-                                fmt("%g", a.max_limit) + " mm leave no room for test moves: set the limits first");
+    throw std::invalid_argument(axis_name(a) + ": the travel " + fmt("%g", travel.min) + ".." + fmt("%g", travel.max) +
+                                " mm (" + travel.source + ") leaves no room for test moves: set the limits first");
   auto progress = [&](const std::string& s) { if (o.progress) o.progress(s); };
   auto report = [&](const std::string& s) { if (o.report) o.report(s); };
   std::filesystem::create_directories(o.record_dir);
@@ -318,9 +321,10 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
     c.cnc({"mode", "manual"});
     const double period = servo_period_s(c);
     JointNow now = joint_now(c, a.joint);
-    if (now.pos < a.min_limit || now.pos > a.max_limit)
-      throw std::runtime_error(axis_name(a) + " stands at " + fmt("%.3f", now.pos) + " mm, outside its provisional soft limits " +
-                               fmt("%g", a.min_limit) + ".." + fmt("%g", a.max_limit) + " mm: jog it inside first");
+    if (now.pos < travel.min || now.pos > travel.max)
+      throw std::runtime_error(axis_name(a) + " stands at " + fmt("%.3f", now.pos) + " mm, outside its travel " +
+                               fmt("%g", travel.min) + ".." + fmt("%g", travel.max) + " mm (" + travel.source +
+                               "): jog it inside first");
     // The ceilings must be allowed by the running configuration (runtime
     // limits may only be lowered below the INI's).
     try {

@@ -38,7 +38,9 @@ set +e; cc scan >/dev/null 2>&1; rc=$?; set -e
 
 cc axis X assign --node 1 --joint 0 | grep "axis X: node 1 on joint 0" >/dev/null || fail "assign"
 cc axis X scaling --lead 5 | grep "counts/mm" >/dev/null || fail "scaling"
-cc axis X limits --min -50 --max 50 --velocity 10 --acceleration 100
+# Inside the random machine's limit switches (X: about -30 and +215 mm
+# from where it powers up): tune and check move up to these limits.
+cc axis X limits --min -20 --max 50 --velocity 10 --acceleration 100
 cc include --ini sim-machine.ini --hal-before-bus sim-machine.hal --hal-after-bus sim-machine-run.hal
 cc show | grep "axis X: joint 0, node 1" >/dev/null || fail "show"
 
@@ -50,14 +52,17 @@ cc write --dir "$work/m" --name mill --yes >/dev/null
 [ ! -f "$work/m/mill.ini.bak" ] || fail "an unchanged file was backed up"
 
 # The direction test on a controller of its own, then with a dial reading.
-cc axis X direction-test --distance 10 --velocity 5 --bring-up "$work/m" | grep "the machine is off again" >/dev/null \
-  || fail "direction-test --bring-up"
+cc axis X direction-test --distance 10 --velocity 5 --bring-up "$work/m" > "$work/out" || fail "direction-test --bring-up"
+grep -q "the machine is off again" "$work/out" || fail "direction-test --bring-up: $(cat "$work/out")"
+grep -q "jogged 2 mm, not 10: no dial reading has checked the scaling yet" "$work/out" \
+  || fail "the first test was not limited to 2 mm: $(cat "$work/out")"
 cc bring-up --dir "$work/m" | grep "cncd runs on" >/dev/null || fail "bring-up"
 pin=cia402-sim.0.node.01.table-position
 # Ctrl-C during a test move: stopped, the machine off (motion and drive
-# disabled), the step says so and changes nothing.
+# disabled), the step says so and changes nothing. (No dial reading has
+# checked the scaling yet: the test jogs at most 2 mm, slowly here.)
 before="$(cat "$work/state.json")"
-"$bin/cnc-commission" --state "$work/state.json" axis X direction-test --distance 20 --velocity 1 >"$work/out" 2>&1 &
+"$bin/cnc-commission" --state "$work/state.json" axis X direction-test --distance 20 --velocity 0.25 >"$work/out" 2>&1 &
 pid=$!
 sleep 3
 kill -INT $pid
@@ -124,4 +129,27 @@ cat "$work/out"
 # The configuration written again: the old one kept.
 cc write --dir "$work/m" --name mill --yes >/dev/null || fail "final write"
 [ -f "$work/m/mill.ini.bak" ] || fail "no backup of the changed file"
+grep -q "^G53 G1 X-16.5 F" "$work/m/check.ngc" || fail "check program: $(cat "$work/m/check.ngc")"
+
+# Step 9's check on the written configuration: Ctrl-C while its program
+# runs (machine off, aborted, state unchanged), then a whole run, kept in
+# the state.
+before="$(cat "$work/state.json")"
+"$bin/cnc-commission" --state "$work/state.json" check >"$work/out" 2>&1 &
+pid=$!
+for i in $(seq 1 600); do grep -q "^progress: 4/7" "$work/out" && break; sleep 0.1; done
+sleep 1
+kill -INT $pid
+set +e; wait $pid; rc=$?; set -e
+[ $rc -eq 1 ] && grep -q "aborted" "$work/out" || fail "aborted check: status $rc: $(cat "$work/out")"
+grep -q "the drives disabled" "$work/out" || fail "the aborted check did not switch off: $(cat "$work/out")"
+[ "$before" = "$(cat "$work/state.json")" ] || fail "the aborted check changed the state"
+cc check > "$work/out" || fail "check: $(cat "$work/out")"
+grep -q "^progress: 7/7 cncd stopped" "$work/out" && grep -q "^check passed: .*ending at X0 as declared" "$work/out" \
+  || fail "check: $(cat "$work/out")"
+python3 - "$work/state.json" "$work/m/check.ngc" <<'PY' || fail "no check in the state"
+import json, sys
+c = json.load(open(sys.argv[1]))["check"]
+assert c["passed"] and c["program"] == sys.argv[2] and c["duration_s"] > 0, c
+PY
 echo PASS

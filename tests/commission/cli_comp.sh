@@ -33,8 +33,9 @@ dial=$(python3 -c "
 import json
 t = json.load(open('$work/m/sim-truth.json'))['axes'][0]
 s = json.load(open('$work/state.json'))['axes'][0]['scaling']
-print(10 * s['counts_per_mm'] / t['counts_per_mm'] * (-1 if t['motor_reversed'] else 1))")
-cc axis X direction-test --distance 10 --velocity 5 --dial "$dial" --bring-up "$work/m" >/dev/null || fail "direction test"
+print(2 * s['counts_per_mm'] / t['counts_per_mm'] * (-1 if t['motor_reversed'] else 1))")
+# 2 mm: the first test of an unchecked scaling jogs at most that.
+cc axis X direction-test --distance 2 --velocity 5 --dial "$dial" --bring-up "$work/m" >/dev/null || fail "direction test"
 
 # The cycle: outside the soft limits refused (usage or problem, nothing saved), then written.
 before="$(cat "$work/state.json")"

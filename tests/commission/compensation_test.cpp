@@ -33,6 +33,7 @@ State one_axis() {
   a.scaling.screw_lead = 5;
   a.min_limit = -10;
   a.max_limit = 250;
+  a.limits_source = "entered";
   a.max_velocity = 30;
   s.axes.push_back(a);
   return s;

@@ -12,8 +12,12 @@
 #include <sstream>
 #include <string>
 
+#include <algorithm>
+#include <cmath>
+
 #include "commission/state.hpp"
 #include "sim/cia402/random_machine.hpp"
+#include "sim/cia402/sim_config.hpp"
 #include "tests/support/testing.hpp"
 
 namespace cnc::commission::e2e {
@@ -56,6 +60,33 @@ inline void include_machine_files(State& s) {
   s.ini_includes = {"sim-machine.ini"};
   s.hal_before_bus = {"sim-machine.hal"};
   s.hal_after_bus = {"sim-machine-run.hal"};
+}
+
+// The simulated drive's true limits, from its configuration (the same INI
+// the controller loads) and the drive model's rules
+// (sim/cia402/drive_model.cpp, plant.cpp):
+// - velocity: the drive's CSP interpolation is bounded by its maximum
+//   motor speed 0x6080 (MAX_MOTOR_SPEED, 6000 rpm): lead / gear x rpm / 60;
+// - acceleration at `velocity_for_acc`: the torque the drive gives,
+//   min(0x6072 x rated torque, torque constant x current limit) =
+//   min(300 % x 3.2, 0.8 x 15) N m, less Coulomb and viscous friction,
+//   over the reflected inertia (motor + table mass x (lead / 2 pi gear)^2),
+//   times lead / 2 pi gear.
+struct Capability {
+  double velocity = 0;      // mm/s
+  double acceleration = 0;  // mm/s^2
+};
+inline Capability capability(const cia402::sim::SimNodeConfig& n, double velocity_for_acc) {
+  const cia402::sim::PlantConfig& p = n.drive.plant;
+  const double r = p.lead_m / (2 * M_PI * p.gear);  // m per motor radian
+  Capability c;
+  c.velocity = n.drive.max_motor_speed_rpm / 60.0 * 2 * M_PI * r * 1000;
+  const double torque = std::min(3.0 * p.rated_torque, p.torque_constant * p.max_current);  // 0x6072 = 300 %
+  const double omega = velocity_for_acc / 1000 / r;
+  const double friction = p.motor_coulomb + p.load_coulomb * r + (p.motor_viscous + p.load_viscous * r * r) * omega;
+  const double j = p.motor_inertia + p.load_mass * r * r;
+  c.acceleration = (torque - friction) / j * r * 1000;
+  return c;
 }
 
 }  // namespace cnc::commission::e2e
