@@ -890,6 +890,14 @@ int main(int argc, char** argv) {
                  wizard.c_str(), std::strerror(errno));
     return 1;
   }
+  // `cnc-commission CMD ... --help`: the help of every command but the
+  // wizard, which has its own (nothing read or written).
+  for (std::size_t k = a.i; k < a.v.size(); ++k) {
+    if (a.v[k] == "--help" || a.v[k] == "-h") {
+      std::fputs(kHelp, stdout);
+      return 0;
+    }
+  }
   try {
     State s = load_state(state_file);
     int rc = 0;

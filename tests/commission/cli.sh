@@ -28,6 +28,9 @@ JSON
 
 # Bad input: nothing changes in the state.
 before="$(cat "$work/state.json")"
+# Any command's --help prints the commands and exits 0, reading nothing.
+cc check --help | grep -q '^  check \[--program FILE\]' || fail "check --help does not print the help"
+cc axis X direction-test --help >/dev/null || fail "axis X direction-test --help exited $?"
 if cc axis X assign --node 2 2>"$work/err"; then fail "a drive in fault was assigned"; fi
 grep -q "is in fault" "$work/err" || fail "no fault message: $(cat "$work/err")"
 if cc axis X assign --node 9 2>"$work/err"; then fail "an unknown node was assigned"; fi

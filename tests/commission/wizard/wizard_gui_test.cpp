@@ -495,14 +495,6 @@ class WizardGuiTests : public QObject {
 
     auto* check = find<QPushButton>("checkButton");
     QVERIFY(check->isEnabled());
-    QProcess help;
-    help.start(w_->options().program, {"--state", QString::fromStdString((m_ / "help-probe.json").string()), "check", "--help"});
-    QVERIFY(help.waitForFinished(15000));
-    if (help.exitStatus() != QProcess::NormalExit || help.exitCode() != 0) {
-      std::printf("SKIP the check program: this build's cnc-commission has no `check` subcommand "
-                  "(`check --help` exited %d)\n", help.exitCode());
-      return;
-    }
     click_and_wait("checkButton", 300000);
     expect_done();
     QVERIFY2(text_of("checkResult").startsWith("passed"), qPrintable(text_of("checkResult")));
