@@ -249,15 +249,7 @@ bool ProbePage::start() {
       !number(value_y_, "Y value", q.value_y) || !number(gauge_diameter_, "ring gauge diameter", q.gauge_diameter)) {
     return false;
   }
-  const auto& st = s_.status;
-  probing::Start start;
-  start.position = st.motion.position;
-  start.g92_offset = st.task.g92_offset;
-  start.tool_offset = st.task.tool_offset;
-  start.rotation_xy = st.task.rotation_xy;
-  start.tool_in_spindle = st.io.tool_in_spindle;
-  start.gcodes.assign(std::begin(st.task.active_gcodes), std::end(st.task.active_gcodes));
-  start.feed = st.task.active_settings[1];
+  const probing::Start start = probing::start_from(s_.status);
   try {
     routine_ = std::make_unique<probing::Routine>(probe_, q, start);
   } catch (const std::invalid_argument& e) {

@@ -400,4 +400,16 @@ void Routine::finish() {
   stage_.what = "result";
 }
 
+Start start_from(const ipc::Status& st) {
+  Start start;
+  start.position = st.motion.position;
+  start.g92_offset = st.task.g92_offset;
+  start.tool_offset = st.task.tool_offset;
+  start.rotation_xy = st.task.rotation_xy;
+  start.tool_in_spindle = st.io.tool_in_spindle;
+  start.gcodes.assign(std::begin(st.task.active_gcodes), std::end(st.task.active_gcodes));
+  start.feed = st.task.active_settings[1];
+  return start;
+}
+
 }  // namespace cnc::hmi::probing

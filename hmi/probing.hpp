@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "core/ipc/status.hpp"
 #include "core/util/pose.hpp"
 
 namespace cnc::ini {
@@ -87,6 +88,9 @@ struct Start {
   std::vector<int> gcodes;
   double feed = 0;
 };
+
+// The start as the status shows it (what the Probe page hands a routine).
+Start start_from(const ipc::Status& status);
 
 struct Stage {
   std::vector<std::string> lines;  // MDI lines, sent one after the other

@@ -102,18 +102,7 @@ class Bench {
     return std::find(std::begin(g), std::end(g), code) != std::end(g);
   }
 
-  Start start() const {
-    const ipc::Status& s = mill_.status();
-    Start st;
-    st.position = s.motion.position;
-    st.g92_offset = s.task.g92_offset;
-    st.tool_offset = s.task.tool_offset;
-    st.rotation_xy = s.task.rotation_xy;
-    st.tool_in_spindle = s.io.tool_in_spindle;
-    st.gcodes.assign(std::begin(s.task.active_gcodes), std::end(s.task.active_gcodes));
-    st.feed = s.task.active_settings[1];
-    return st;
-  }
+  Start start() const { return start_from(mill_.status()); }
 
   double pin(const std::string& name) { return std::stod(mill_.hal().get_value(name)); }
 
