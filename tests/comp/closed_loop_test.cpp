@@ -62,7 +62,9 @@ TEST(CompensationClosedLoop, SimulatedMillOnCia402DrivesXAxis) {
       "loadrt complog file=measurement-%d.csv axis=X\n"
       "addf complog servo-thread\n"
       "net comp-x-cmd joint.0.pos-cmd => complog.commanded\n"
-      "net comp-x-laser cia402-sim.0.node.01.table-position => complog.actual\n"
+      // The laser: X's true table position, which configs/sim already
+      // carries on the signal part-x (to the simulated part to probe).
+      "net part-x => complog.actual\n"
       "net comp-measuring motion.digital-out-00 => complog.enable\n"
       "net comp-measured motion.digital-out-01 => complog.stop\n";
   cnc::testing::SimMill mill(
