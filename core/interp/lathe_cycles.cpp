@@ -452,6 +452,17 @@ void Profile::pocket(int variant, Cx location, std::size_t p, PathSink& out) {
     location = ep;
     return false;
   };
+  // A counter-clockwise arc from `location`, up to its end or, when the
+  // end lies past the centre, to the arc's top (where it stops climbing).
+  auto ccw_arc_to_top = [&](const Seg& g) {
+    Cx ep = g.e;
+    if (g.e.real() < g.c.real()) {
+      ep.real(g.c.real());
+      ep.imag(g.c.imag() + std::abs(g.s - g.c));
+    }
+    if (std::abs(location - ep) > 1e-3) out.arc(g.ccw, g.c, ep);
+    location = ep;
+  };
   // Follows element k up the contour; true when it does not climb (a
   // pocket starts there).
   auto climb = [&](std::size_t k) -> bool {
@@ -470,13 +481,7 @@ void Profile::pocket(int variant, Cx location, std::size_t p, PathSink& out) {
       return false;
     }
     if (location.real() < g.c.real()) return true;
-    Cx ep = g.e;
-    if (g.e.real() < g.c.real()) {
-      ep.real(g.c.real());
-      ep.imag(g.c.imag() + std::abs(g.s - g.c));
-    }
-    if (std::abs(location - ep) > 1e-3) out.arc(g.ccw, g.c, ep);
-    location = ep;
+    ccw_arc_to_top(g);
     return true;
   };
   // G71.1/G72.1: after the passes, only the climbing parts of the contour.
@@ -506,13 +511,7 @@ void Profile::pocket(int variant, Cx location, std::size_t p, PathSink& out) {
     if (is.front() < g.c.real()) return;
     location.real(is.front());
     out.feed(location);
-    Cx ep = g.e;
-    if (g.e.real() < g.c.real()) {
-      ep.real(g.c.real());
-      ep.imag(g.c.imag() + std::abs(g.s - g.c));
-    }
-    if (std::abs(location - ep) > 1e-3) out.arc(g.ccw, g.c, ep);
-    location = ep;
+    ccw_arc_to_top(g);
   };
 
   if (variant == 2) {
