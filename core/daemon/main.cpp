@@ -1,5 +1,6 @@
 // cncd: the controller daemon. See docs/architecture.md.
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 
@@ -57,6 +58,9 @@ int main(int argc, char** argv) {
     usage();
     return 2;
   }
+  // Its children (halcmd, the task's programs) and its plug-ins (a shared
+  // simulated bus names its socket after the instance) see the instance.
+  ::setenv("CNC_INSTANCE", opt.instance.c_str(), 1);
   try {
     if (opt.check_only) {
       { cnc::daemon::Controller controller(opt); }  // its messages are printed as it stops

@@ -9,6 +9,7 @@
 #include "core/util/strings.hpp"
 #include "core/util/time.hpp"
 #include "fieldbus/can/socketcan.hpp"
+#include "fieldbus/can/unix_transport.hpp"
 
 namespace cnc::can {
 
@@ -62,9 +63,13 @@ std::unique_ptr<Transport> open_transport(std::string_view spec) {
     }
     return std::make_unique<SocketCanTransport>(name, o);
   }
+  if (kind == "unix") {
+    if (parts.size() > 1) throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": unix:<socket path> takes no options");
+    return std::make_unique<UnixSocketTransport>(std::string(spec), name);
+  }
   std::vector<std::string> options;
   for (std::size_t i = 1; i < parts.size(); ++i) options.emplace_back(trim(parts[i]));
-  std::string known = "socketcan";
+  std::string known = "socketcan, unix";
   const TransportOpener opener = kinds().find(kind, known);
   if (opener) return opener(spec, name, options);
   throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": unknown kind \"" + kind + "\" (this controller has: " +

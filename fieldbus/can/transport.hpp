@@ -83,6 +83,8 @@ class Transport {
 
 // Opens a transport from a text specification "<kind>:<name>[,options]":
 //   socketcan:<ifname>[,fd]          a SocketCAN raw socket (e.g. socketcan:can0)
+//   unix:<path>                      a bus another process offers on a local
+//                                    socket (unix_transport.hpp)
 // and the kinds registered with register_transport_kind, e.g. the simulated
 // in-process bus of sim/can (virtual:<bus>[,bitrate=N][,stuffing=...]).
 // Throws std::runtime_error with the reason on failure. Non-realtime.

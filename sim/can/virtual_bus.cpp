@@ -1,5 +1,7 @@
 #include "sim/can/virtual_bus.hpp"
 
+#include "sim/can/bus_share.hpp"
+
 #include <linux/futex.h>
 #include <sys/syscall.h>
 #include <unistd.h>
@@ -452,6 +454,12 @@ VirtualBusOptions parse_virtual_options(std::string_view spec, const std::vector
       else if (value == "exact") o.stuffing = Stuffing::Exact;
       else if (value == "nominal") o.stuffing = Stuffing::Nominal;
       else throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": stuffing must be worst, exact or nominal");
+    } else if (key == "share") {
+      o.share = true;
+      o.share_path = std::string(value);
+      if (eq != std::string::npos && value.empty()) {
+        throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": share= needs a socket path (or plain share)");
+      }
     } else {
       throw std::runtime_error("CAN interface \"" + std::string(spec) + "\": unknown option \"" + opt + "\"");
     }
@@ -462,7 +470,10 @@ VirtualBusOptions parse_virtual_options(std::string_view spec, const std::vector
 void register_virtual_transport() {
   register_transport_kind("virtual", [](std::string_view spec, const std::string& name,
                                         const std::vector<std::string>& options) -> std::unique_ptr<Transport> {
-    return VirtualBus::named(name, parse_virtual_options(spec, options))->open_port("port");
+    const VirtualBusOptions o = parse_virtual_options(spec, options);
+    auto bus = VirtualBus::named(name, o);
+    if (o.share) share_virtual_bus(bus, name, o.share_path.empty() ? default_share_path(name) : o.share_path);
+    return bus->open_port("port");
   });
 }
 

@@ -33,6 +33,10 @@ struct VirtualBusOptions {
   Stuffing stuffing = Stuffing::WorstCase;
   bool manual_clock = true;     // false: CLOCK_MONOTONIC
   int64_t auto_restart_ns = -1; // bus-off recovery starts by itself after this delay; -1: only on restart()
+  // "share" / "share=<path>": also offered to other processes
+  // (bus_share.hpp); an empty path with `share` set is the default path.
+  bool share = false;
+  std::string share_path;
 };
 
 struct VirtualBusStats {
@@ -51,12 +55,14 @@ struct VirtualBusStats {
 
 class VirtualPort;
 
-// The options of "virtual:<bus>[,bitrate=N][,stuffing=worst|exact|nominal]"
-// after the bus name (`options`, trimmed), on the real-time clock; throws
+// The options of "virtual:<bus>[,bitrate=N][,stuffing=worst|exact|nominal]
+// [,share[=<path>]]" after the bus name (`options`, trimmed), on the
+// real-time clock; throws
 // std::runtime_error naming `spec` and the option at fault.
 VirtualBusOptions parse_virtual_options(std::string_view spec, const std::vector<std::string>& options);
 // Registers the kind "virtual" with can::open_transport: a port on the
-// process-wide bus of that name (VirtualBus::named), created on first use.
+// process-wide bus of that name (VirtualBus::named), created on first use,
+// offered to other processes too when the specification says `share`.
 void register_virtual_transport();
 
 class VirtualBus : public std::enable_shared_from_this<VirtualBus> {

@@ -24,6 +24,7 @@
 #include "core/rt/periodic_task.hpp"
 #include "core/util/strings.hpp"
 #include "core/util/time.hpp"
+#include "sim/can/bus_share.hpp"
 #include "sim/can/virtual_bus.hpp"
 
 namespace cnc::cia402::sim {
@@ -450,6 +451,13 @@ class SimComponent : public hal::Component, public ipc::ControllerService {
     if (!bus.vbus->options().manual_clock) {
       throw hal::HalError("cia402_sim: [" + section + "]: the virtual bus \"" + name +
                           "\" already runs on the wall clock: load cia402_sim before the master (or CLOCK = REALTIME)");
+    }
+    if (o.share) {
+      try {
+        can::share_virtual_bus(bus.vbus, name, o.share_path.empty() ? can::default_share_path(name) : o.share_path);
+      } catch (const std::exception& e) {
+        throw hal::HalError("cia402_sim: [" + section + "]INTERFACE: " + e.what());
+      }
     }
     bus.transport = bus.vbus->open_port("cia402-sim");
     bus.host = std::make_unique<SimHost>(*bus.transport);
