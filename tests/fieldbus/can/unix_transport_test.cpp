@@ -28,6 +28,18 @@ std::string temp_path(const std::string& what) {
       .string();
 }
 
+// A listening SOCK_SEQPACKET socket at `path` (replacing a file there).
+int listen_at(const std::string& path) {
+  ::unlink(path.c_str());
+  const int fd = ::socket(AF_UNIX, SOCK_SEQPACKET, 0);
+  sockaddr_un a{};
+  a.sun_family = AF_UNIX;
+  std::strcpy(a.sun_path, path.c_str());
+  EXPECT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)), 0) << path;
+  EXPECT_EQ(::listen(fd, 4), 0) << path;
+  return fd;
+}
+
 // Waits up to 2 s for a frame on `t`.
 bool receive_within(Transport& t, Frame& f) {
   const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(2);
@@ -120,13 +132,7 @@ TEST_F(SharedBus, APathSomeoneElseListensOnIsLeftAloneWithAWarning) {
   // A live listener at the path (another controller of the same instance):
   // the new bus is not shared, the simulation runs on, stderr says why.
   const std::string p = path + "-taken";
-  ::unlink(p.c_str());
-  const int fd = ::socket(AF_UNIX, SOCK_SEQPACKET, 0);
-  sockaddr_un a{};
-  a.sun_family = AF_UNIX;
-  std::strcpy(a.sun_path, p.c_str());
-  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)), 0);
-  ASSERT_EQ(::listen(fd, 4), 0);
+  const int fd = listen_at(p);
   testing::internal::CaptureStderr();
   auto other = open_transport("virtual:" + bus_name + "-other,share=" + p);
   const std::string err = testing::internal::GetCapturedStderr();
@@ -154,13 +160,7 @@ TEST(UnixTransport, NothingListeningIsAnErrorNamingTheSpecAndWhatToStart) {
 
 TEST(UnixTransport, ASocketThatIsNoBusIsRefused) {
   const std::string p = temp_path("nobus");
-  const int fd = ::socket(AF_UNIX, SOCK_SEQPACKET, 0);
-  sockaddr_un a{};
-  a.sun_family = AF_UNIX;
-  std::strcpy(a.sun_path, p.c_str());
-  ::unlink(p.c_str());
-  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)), 0);
-  ASSERT_EQ(::listen(fd, 1), 0);
+  const int fd = listen_at(p);
   std::thread greeter([&] {
     const int c = ::accept(fd, nullptr, nullptr);
     const char junk[16] = "HELLO";
@@ -181,13 +181,7 @@ TEST(UnixTransport, ASocketThatIsNoBusIsRefused) {
 
 TEST(UnixTransport, WhenTheOwnerGoesAwaySendSaysDown) {
   const std::string p = temp_path("owner-gone");
-  ::unlink(p.c_str());
-  const int fd = ::socket(AF_UNIX, SOCK_SEQPACKET, 0);
-  sockaddr_un a{};
-  a.sun_family = AF_UNIX;
-  std::strcpy(a.sun_path, p.c_str());
-  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)), 0);
-  ASSERT_EQ(::listen(fd, 1), 0);
+  const int fd = listen_at(p);
   int conn = -1;
   std::thread owner([&] {
     conn = ::accept(fd, nullptr, nullptr);
