@@ -77,6 +77,7 @@ class PathBuilder {
   bool emit_vertices_upto(uint64_t j) noexcept;
   bool emit_pieces(uint64_t m) noexcept;
   void compute_junction(uint64_t j) noexcept;
+  bool window_slower_than_stop(uint64_t j, const AxisVec& dt, double ndt, double m2) const noexcept;
   Held& held(uint64_t seq) noexcept;
   const Held& held(uint64_t seq) const noexcept;
   double tolerance_of(uint64_t seq) const noexcept;
