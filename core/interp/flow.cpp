@@ -184,6 +184,10 @@ ReadResult Interpreter::State::read_block() {
       }
       // A Python epilog to run at the endsub: execute() runs it.
       if (stage.kind != StageKind::None) return ReadResult::Block;
+      // A Python O-word function ran a line (self.execute()) that needs the
+      // machine to catch up: nothing more is read until then (the next
+      // read() says SynchRequired).
+      if (synch_pending) return ReadResult::Yield;
       continue;
     }
     // Parameter settings take effect once the whole line is read.

@@ -490,3 +490,20 @@ TEST(InterpPythonGenerator, AnAbortWhileAStageWaitsForgetsItAndTheNextRunStartsA
   EXPECT_EQ(d.interp->execute(), Status::ExecuteFinish);
   EXPECT_EQ(count(d.calls(), "STRAIGHT_TRAVERSE(0.0000, 1.0000"), 2u) << d.calls();
 }
+
+TEST(InterpPythonGenerator, AnOwordFunctionsLineThatNeedsTheMachineStopsReadingUntilTheSynch) {
+  using cnc::interp::Status;
+  Driven d("o<probe> call\n#<z> = #5063\n(debug, z=#<z>)\nM2\n", kGenIni,
+           {{"subs.py", "import remap\nimport oword\n"},
+            {"remap.py", kGenPy},
+            {"oword.py", "def probe(self):\n    return float(self.execute('G38.2 Z-1 F100'))\n"}});
+  // The function's probe needs the machine: read() stops after the call
+  // (the assignment reading #5063, 0 before the synch, is not read yet) and
+  // waits for the synch.
+  EXPECT_EQ(d.interp->read(), Status::Yield);
+  EXPECT_NE(d.calls().find("STRAIGHT_PROBE"), std::string::npos) << d.calls();
+  EXPECT_EQ(d.interp->read(), Status::SynchRequired);
+  d.interp->synch();
+  EXPECT_EQ(d.step(), Status::Ok);
+  EXPECT_NE(d.calls().find("MESSAGE(\" z=-1.000000\")"), std::string::npos) << d.calls();
+}
