@@ -243,10 +243,8 @@ Status Interpreter::State::execute_block() {
   canon.begin_block(block.line, block.n_number, block.n_text);
   n_number = block.n_number;
   for (int step = first == 0 ? int{kStepComment} : first; step < kStepEnd; ++step) {
-    if (const RemapSpec* r = remap_at_step(step)) {
-      if (start_remap(*r, step)) return st;
-      continue;  // carried out at once (Python)
-    }
+    // The procedure carries the code out; the rest of the block runs after it.
+    if (const RemapSpec* r = remap_at_step(step)) return start_remap(*r, step, st);
     execute_step(step, st);
   }
   return st;
@@ -304,6 +302,9 @@ const RemapSpec* Interpreter::State::find_remap(char letter, int code, bool acti
       for (const Frame& f : frames) {
         if (f.remap && f.remap->spec == &r) return nullptr;
       }
+      for (const auto& rc : python_remaps) {
+        if (rc->spec == &r) return nullptr;
+      }
     }
     return &r;
   }
@@ -330,7 +331,7 @@ const RemapSpec* Interpreter::State::remap_at_step(int step) const {
 }
 
 int Interpreter::State::remap_level() const {
-  int n = python_remap_depth;
+  int n = static_cast<int>(python_remaps.size());
   for (const Frame& f : frames) n += f.remap ? 1 : 0;
   return n;
 }
@@ -361,27 +362,107 @@ void Interpreter::State::check_remap_args() {
   }
 }
 
-void Interpreter::State::call_python_remap(const std::string& function, const RemapCall& rc,
-                                           const std::string& block_text) {
+bool Interpreter::State::python_stage(StageKind kind, const std::shared_ptr<RemapCall>& rc, bool resume) {
+  const RemapSpec& spec = *rc->spec;
+  const std::string& function = kind == StageKind::Prolog ? spec.prolog : kind == StageKind::Body ? spec.python : spec.epilog;
   if (!config.script) {
-    fail(rc.spec->name() + ": its Python procedure " + function +
+    fail(spec.name() + ": its Python procedure " + function +
          " needs the interpreter's embedded Python, which this program does not have");
   }
-  std::string error;
+  ScriptHost& host = *config.script;
+  const std::size_t suspended = host.suspended_remaps();
+  ScriptHost::RemapOutcome out;
   try {
-    error = config.script->call_remap(function, rc.words);
+    out = resume ? host.resume_remap() : host.call_remap(function, rc->words);
   } catch (const std::runtime_error& e) {
-    error = e.what();
+    out.error = e.what();
+    out.waits = false;
   }
-  if (!error.empty()) {
-    if (!block_text.empty()) line_text = block_text;  // LinuxCNC shows the call it made
-    fail(error);
+  if (!out.error.empty()) {
+    // LinuxCNC shows the call it made (an NGC body's epilog: the endsub)
+    if (kind != StageKind::Epilog || !spec.python.empty()) {
+      line_text = "O <" + (spec.python.empty() ? spec.ngc : spec.python) + "> call ";
+    }
+    fail(out.error);
+  }
+  if (out.waits && script_line_depth > 0) {
+    // The script that ran self.execute() is on the stack below: it cannot
+    // be left until the machine caught up.
+    host.drop_suspended_remaps(resume ? suspended - 1 : suspended);
+    fail(spec.name() + ": " + function +
+         " waits for the machine (yield INTERP_EXECUTE_FINISH) inside self.execute(), which runs its line to the "
+         "end: a procedure that waits cannot be run from a script");
+  }
+  return out.waits;
+}
+
+Status Interpreter::State::run_stage(PendingStage p) {
+  for (;;) {
+    if (python_stage(p.kind, p.rc, p.resume)) {
+      // execute() resumes it after the machine caught up (read() reads nothing till then)
+      p.resume = true;
+      stage = std::move(p);
+      return Status::ExecuteFinish;
+    }
+    p.resume = false;
+    const RemapSpec& spec = *p.rc->spec;
+    switch (p.kind) {
+      case StageKind::Prolog:
+        if (!spec.python.empty()) {
+          p.kind = StageKind::Body;
+          continue;
+        }
+        {
+          // The prolog ran in the body's call frame: what it set in
+          // self.params are the body's locals.
+          auto locals = std::move(frames.back().locals);
+          frames.pop_back();
+          call_remap_stage(p.rc);
+          for (auto& [n, v] : locals) frame().locals[n] = v;
+        }
+        return Status::Ok;
+      case StageKind::Body:
+        if (spec.epilog_python) {
+          p.kind = StageKind::Epilog;
+          continue;
+        }
+        break;
+      case StageKind::Epilog:
+        if (spec.python.empty()) {
+          // an NGC body's epilog, met at its endsub: now the return
+          do_return(p.has_value, p.value);
+          if (!resume_block) return Status::Ok;
+          resume_block = false;
+          return execute_block();
+        }
+        break;
+      case StageKind::None: return Status::Ok;
+    }
+    // A Python body (and its epilog) ended: the block goes on after it.
+    python_remaps.pop_back();
+    block = p.rc->block;
+    exec_step = p.rc->resume_step;
+    return execute_block();
   }
 }
 
-bool Interpreter::State::start_remap(const RemapSpec& spec, int step) {
+Status Interpreter::State::execute_ready() {
+  if (stage.kind == StageKind::None) return execute_block();
+  PendingStage p = std::move(stage);
+  stage = {};
+  return run_stage(std::move(p));
+}
+
+void Interpreter::State::drop_stages() {
+  stage = {};
+  python_remaps.clear();
+  if (config.script) config.script->drop_suspended_remaps(0);
+}
+
+Status Interpreter::State::start_remap(const RemapSpec& spec, int step, Status st) {
   auto rc = std::make_shared<RemapCall>();
   rc->spec = &spec;
+  rc->seq = ++remap_seq;
   rc->block = block;
   rc->resume_step = step + 1;
   rc->line = current_line;
@@ -401,18 +482,12 @@ bool Interpreter::State::start_remap(const RemapSpec& spec, int step) {
     const char l = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
     if (l >= 'a' && l <= 'z' && block.has_word(l)) rc->words.emplace_back(std::string(1, l), block.get(l));
   }
+  // What an earlier step of the block needs (the machine to catch up) stays.
+  const auto merged = [st](Status s) { return st == Status::ExecuteFinish && s == Status::Ok ? st : s; };
   if (!spec.python.empty()) {
     // A Python body: prolog, body and epilog run now, inside the block
-    ++python_remap_depth;
-    struct Depth {
-      int& d;
-      ~Depth() { --d; }
-    } depth{python_remap_depth};
-    const std::string call = "O <" + spec.python + "> call ";
-    if (spec.prolog_python) call_python_remap(spec.prolog, *rc, call);
-    call_python_remap(spec.python, *rc, call);
-    if (spec.epilog_python) call_python_remap(spec.epilog, *rc, call);
-    return false;
+    python_remaps.push_back(rc);
+    return merged(run_stage({spec.prolog_python ? StageKind::Prolog : StageKind::Body, false, rc}));
   }
   rc->stage = spec.prolog.empty() || spec.prolog_python ? 1 : 0;
   if (spec.prolog_python) {
@@ -422,22 +497,20 @@ bool Interpreter::State::start_remap(const RemapSpec& spec, int step) {
     Frame call;
     call.sub_name = spec.ngc;
     call.remap = rc;
+    // Left without a return (an error, unwind()): reading goes on where it is.
+    call.file_depth = static_cast<int>(files.size());
+    if (!files.empty()) {
+      call.return_offset = files.back().reader->offset();
+      call.return_line = files.back().reader->line_number();
+    }
+    call.saved_args = {};
+    for (int k = 0; k < 30; ++k) call.saved_args[static_cast<std::size_t>(k)] = params[static_cast<std::size_t>(k + 1)];
     for (const auto& [n, v] : rc->named) call.locals[n] = v;
     frames.push_back(std::move(call));
-    try {
-      call_python_remap(spec.prolog, *rc, "O <" + spec.ngc + "> call ");
-    } catch (...) {
-      frames.pop_back();
-      throw;
-    }
-    auto locals = std::move(frames.back().locals);
-    frames.pop_back();
-    call_remap_stage(rc);
-    for (auto& [n, v] : locals) frame().locals[n] = v;
-    return true;
+    return merged(run_stage({StageKind::Prolog, false, rc}));
   }
   call_remap_stage(rc);
-  return true;
+  return st;
 }
 
 void Interpreter::State::call_remap_stage(const std::shared_ptr<RemapCall>& rc) {

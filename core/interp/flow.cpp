@@ -182,6 +182,12 @@ ReadResult Interpreter::State::read_block() {
         resume_block = false;
         return ReadResult::Block;
       }
+      // A Python epilog to run at the endsub: execute() runs it.
+      if (stage.kind != StageKind::None) return ReadResult::Block;
+      // A Python O-word function ran a line (self.execute()) that needs the
+      // machine to catch up: nothing more is read until then (the next
+      // read() says SynchRequired).
+      if (synch_pending) return ReadResult::Yield;
       continue;
     }
     // Parameter settings take effect once the whole line is read.
@@ -541,9 +547,12 @@ bool Interpreter::State::skip_line_matches_sub(std::string_view raw, const std::
 void Interpreter::State::do_return(bool has_value, double value) {
   if (const auto& rc = frames.back().remap; rc && rc->stage == 1 && rc->spec->epilog_python && !rc->epilog_done) {
     // A Python epilog runs before the body's call is left: it sees the
-    // body's local parameters (as in LinuxCNC)
+    // body's local parameters (as in LinuxCNC). It runs in execute() (it
+    // may wait for the machine): read() hands the endsub over as the block,
+    // and the return is made when the epilog ended (run_stage).
     rc->epilog_done = true;
-    call_python_remap(rc->spec->epilog, *rc, {});
+    stage = {StageKind::Epilog, false, rc, has_value, value};
+    return;
   }
   Frame f = std::move(frames.back());
   frames.pop_back();

@@ -220,15 +220,39 @@ struct Interpreter::State {
   const RemapSpec* remap_at_step(int step) const;
   int remap_level() const;
   void check_remap_args();
-  // Starts carrying out a remapped code; false when it is done already (a
-  // Python body) and the block goes on with the next step.
-  bool start_remap(const RemapSpec& spec, int step);
-  // A Python stage of a remap; an error (with `block_text` as the error's
-  // block when not empty) is an InterpError.
-  void call_python_remap(const std::string& function, const RemapCall& rc, const std::string& block_text);
-  int python_remap_depth = 0;  // Python bodies running (they count in remap_level())
+  // Starts carrying out the remapped code of `step`; returns what the
+  // block returns: at a subroutine call the block stops (`st`, read goes on
+  // in the procedure); a Python body runs now and the block goes on after
+  // it; ExecuteFinish when a Python stage waits for the machine.
+  Status start_remap(const RemapSpec& spec, int step, Status st);
+  // A Python stage of a remap (prolog, body or epilog), called or resumed;
+  // an error (with `block_text` as the error's block when not empty) is an
+  // InterpError. True when it waits for the machine (a generator yielded
+  // INTERP_EXECUTE_FINISH): `stage` then says what to resume.
+  enum class StageKind : uint8_t { None, Prolog, Body, Epilog };
+  bool python_stage(StageKind kind, const std::shared_ptr<RemapCall>& rc, bool resume);
+  // What execute() does instead of a block: a Python stage to run (an
+  // epilog met at the body's endsub) or to resume after the machine caught up.
+  struct PendingStage {
+    StageKind kind = StageKind::None;
+    bool resume = false;
+    std::shared_ptr<RemapCall> rc;
+    bool has_value = false;  // an epilog's endsub/return value
+    double value = 0;
+  };
+  PendingStage stage;
+  // Runs a Python stage and what follows it once it ends (the next stage,
+  // the body's subroutine call, the return, the rest of the block).
+  Status run_stage(PendingStage p);
+  std::vector<std::shared_ptr<RemapCall>> python_remaps;  // remaps with a Python body being carried out
+  int remap_seq = 0;           // numbers RemapCall::seq
+  int script_line_depth = 0;   // execute_script_line() calls in progress
+  // execute(): the pending stage, else the block read.
+  Status execute_ready();
   void call_remap_stage(const std::shared_ptr<RemapCall>& rc);
   bool remap_returned(const std::shared_ptr<RemapCall>& rc);
+  // Forgets the remap stages waiting (abort, reset, open).
+  void drop_stages();
 
   // ---------------- execute.cpp
   Status execute_block();

@@ -273,6 +273,7 @@ void Interpreter::reset() {
   s.frames.emplace_back();
   s.exec_step = 0;
   s.resume_block = false;
+  s.drop_stages();
   s.reset_modal(true);
   s.update_tool_from_canon();
   s.canon.on_reset();
@@ -291,6 +292,7 @@ void Interpreter::open(const std::filesystem::path& program) {
   s.skipping = false;
   s.exec_step = 0;
   s.resume_block = false;
+  s.drop_stages();
   s.current_line = 0;
   s.current_file = program.string();
   s.line_text.clear();
@@ -360,6 +362,11 @@ bool Interpreter::is_open() const noexcept { return !s_->files.empty(); }
 Status Interpreter::read() {
   State& s = *s_;
   if (s.synch_pending) return Status::SynchRequired;
+  if (s.stage.kind != State::StageKind::None) {
+    // A remap's Python stage waits to be resumed: execute() does, nothing is read.
+    s.block_ready = true;
+    return Status::Ok;
+  }
   if (s.files.empty()) {
     if (s.program_ended) return Status::ProgramEnd;
     throw InterpError("File not open", "", 0, "");
@@ -377,6 +384,11 @@ Status Interpreter::read() {
 Status Interpreter::read(std::string_view mdi_line) {
   State& s = *s_;
   if (s.synch_pending) return Status::SynchRequired;
+  if (s.stage.kind != State::StageKind::None) {
+    throw InterpError("a remap procedure (" + s.stage.rc->spec->name() +
+                          ") waits to be resumed: read() goes on with it, a new MDI line cannot start",
+                      s.current_file, s.current_line, s.line_text);
+  }
   SourceFile f;
   f.reader = std::make_unique<LineReader>(LineReader::from_string(std::string(mdi_line)));
   f.path = "<mdi>";
@@ -397,9 +409,10 @@ Status Interpreter::execute() {
   State& s = *s_;
   if (!s.block_ready) return Status::Ok;
   s.block_ready = false;
-  const Status st = s.execute_block();
+  const Status st = s.execute_ready();
   if (st == Status::ExecuteFinish) s.synch_pending = true;
   if (st == Status::ProgramEnd) {
+    s.drop_stages();
     s.files.clear();
     s.frames.clear();
     s.frames.emplace_back();
@@ -458,6 +471,7 @@ void Interpreter::unwind() {
   s.block_ready = false;
   s.exec_step = 0;
   s.resume_block = false;
+  s.drop_stages();
   s.queueing.queue().clear();
   s.comp_start_valid = false;
 }
@@ -586,14 +600,118 @@ std::vector<Interpreter::NamedParameter> Interpreter::named_parameters(int level
   return out;
 }
 
-Interpreter::BlockView Interpreter::current_block() const {
-  const State& s = *s_;
-  BlockView b;
-  b.o_name = s.block.o_name;
-  b.params = s.block.call_args;
-  b.g_modes.assign(s.block.g.begin(), s.block.g.end());
-  b.m_modes.assign(s.block.m.begin(), s.block.m.end());
+namespace {
+Interpreter::BlockView view_of(const Block& block) {
+  Interpreter::BlockView b;
+  b.o_name = block.o_name;
+  b.params = block.call_args;
+  b.g_modes.assign(block.g.begin(), block.g.end());
+  b.m_modes.assign(block.m.begin(), block.m.end());
   return b;
+}
+}  // namespace
+
+Interpreter::BlockView Interpreter::current_block() const { return view_of(s_->block); }
+
+std::vector<Interpreter::BlockView> Interpreter::remap_blocks() const {
+  const State& s = *s_;
+  std::vector<const RemapCall*> calls;
+  for (const Frame& f : s.frames) {
+    if (f.remap) calls.push_back(f.remap.get());
+  }
+  for (const auto& rc : s.python_remaps) calls.push_back(rc.get());
+  std::sort(calls.begin(), calls.end(), [](const RemapCall* a, const RemapCall* b) { return a->seq < b->seq; });
+  std::vector<BlockView> out;
+  for (const RemapCall* rc : calls) out.push_back(view_of(rc->block));
+  return out;
+}
+
+Status Interpreter::execute_script_line(std::string_view line) {
+  State& s = *s_;
+  const std::string text(line);
+  const std::string what = "self.execute(\"" + text + "\")";
+  if (text.find('\n') != std::string::npos) {
+    throw InterpError(what + ": runs one line (without a line end)", s.current_file, s.current_line, s.line_text);
+  }
+  if (s.synch_pending) {
+    throw InterpError(what + ": the line run before needs the machine to catch up first (yield "
+                          "INTERP_EXECUTE_FINISH after it)",
+                      s.current_file, s.current_line, s.line_text);
+  }
+  // The block being executed and the place in the program, restored after
+  // the line ran (or failed).
+  const Block block = s.block;
+  const bool block_ready = s.block_ready;
+  const int exec_step = s.exec_step;
+  const bool resume_block = s.resume_block;
+  const int current_line = s.current_line;
+  const std::string current_file = s.current_file, line_text = s.line_text, norm = s.norm;
+  const int64_t line_offset = s.line_offset;
+  const std::size_t o_args_pos = s.o_args_pos;
+  const int n_number = s.n_number, lines_this_read = s.lines_this_read;
+  State::PendingStage stage = std::move(s.stage);
+  s.stage = {};
+  const std::size_t files_depth = s.files.size(), frames_depth = s.frames.size(), python_depth = s.python_remaps.size();
+  const auto restore = [&] {
+    s.block = block;
+    s.block_ready = block_ready;
+    s.exec_step = exec_step;
+    s.resume_block = resume_block;
+    s.current_line = current_line;
+    s.current_file = current_file;
+    s.line_text = line_text;
+    s.norm = norm;
+    s.line_offset = line_offset;
+    s.o_args_pos = o_args_pos;
+    s.n_number = n_number;
+    s.lines_this_read = lines_this_read;
+    s.stage = std::move(stage);
+    --s.script_line_depth;
+  };
+  ++s.script_line_depth;
+  Status last = Status::Ok;
+  try {
+    SourceFile f;
+    f.reader = std::make_unique<LineReader>(LineReader::from_string(text));
+    f.path = "<mdi>";
+    s.push_source(std::move(f));
+    for (;;) {
+      s.lines_this_read = 0;
+      const ReadResult rr = s.read_block();
+      if (rr == ReadResult::Yield) continue;
+      if (rr == ReadResult::End) break;
+      last = s.execute_ready();
+      if (last == Status::ProgramEnd) s.fail(what + ": a program end cannot run from a script");
+      // Waiting inside a subroutine the line called: the lines after it
+      // would be read before the machine caught up.
+      if (last == Status::ExecuteFinish && s.frames.size() > frames_depth) {
+        s.fail(what + ": needs the machine to catch up before the subroutine it called ends (a script can wait "
+                      "only after the line: yield INTERP_EXECUTE_FINISH)");
+      }
+      if (s.files.size() <= files_depth) break;
+    }
+  } catch (...) {
+    // Leave what the line started: its calls, files and Python bodies.
+    while (s.frames.size() > frames_depth) {
+      Frame fr = std::move(s.frames.back());
+      s.frames.pop_back();
+      if (!fr.fanuc) {
+        for (int k = 0; k < 30; ++k) s.params[static_cast<std::size_t>(k + 1)] = fr.saved_args[static_cast<std::size_t>(k)];
+      }
+      while (static_cast<int>(s.files.size()) > fr.file_depth) s.pop_source();
+      if (!s.files.empty()) s.jump(fr.return_offset, fr.return_line);
+    }
+    while (s.files.size() > files_depth) s.pop_source();
+    s.python_remaps.resize(python_depth);
+    s.skipping = false;
+    s.skip_defining = false;
+    restore();
+    throw;
+  }
+  while (s.files.size() > files_depth) s.pop_source();
+  restore();
+  if (last == Status::ExecuteFinish) s.synch_pending = true;
+  return last;
 }
 
 std::vector<int> Interpreter::active_m_codes() const {

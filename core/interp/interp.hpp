@@ -100,11 +100,26 @@ class ScriptHost {
   virtual void run_statement(const std::string& code) = 0;
   // True when `name` is a function of the module bound to `remap`.
   virtual bool has_remap(const std::string& name) = 0;
-  // A REMAP's Python body, prolog or epilog: name(self, **words). Returns
-  // an empty string when it succeeded, else the error: the message it set
-  // with self.set_errormsg() when it returned INTERP_ERROR, or what went
-  // wrong. Throws std::runtime_error for a Python exception.
-  virtual std::string call_remap(const std::string& name, const std::vector<std::pair<std::string, double>>& words) = 0;
+  // What a REMAP's Python stage did: `error` empty when it succeeded (else
+  // the message it set with self.set_errormsg() when it returned
+  // INTERP_ERROR, or what went wrong); `waits` when it is a generator that
+  // yielded INTERP_EXECUTE_FINISH: it is suspended until resume_remap().
+  struct RemapOutcome {
+    std::string error;
+    bool waits = false;
+  };
+  // A REMAP's Python body, prolog or epilog: name(self, **words); a
+  // generator runs to its first yield. Throws std::runtime_error for a
+  // Python exception.
+  virtual RemapOutcome call_remap(const std::string& name, const std::vector<std::pair<std::string, double>>& words) = 0;
+  // Resumes the stage suspended last (to its next yield or its end); the
+  // interpreter calls it after the machine caught up. Throws
+  // std::runtime_error for a Python exception (the stage is dropped).
+  virtual RemapOutcome resume_remap() { return {"no remap procedure is waiting to be resumed", false}; }
+  // Forgets the stages suspended after the `keep` oldest (abort, reset, an
+  // error while they waited).
+  virtual void drop_suspended_remaps(std::size_t keep = 0) { (void)keep; }
+  virtual std::size_t suspended_remaps() const { return 0; }
   // Predefined named parameters computed by a script (LinuxCNC's module
   // `namedparams`: its functions whose names start with '_'), sorted.
   virtual std::vector<std::string> script_parameters() { return {}; }
@@ -309,6 +324,20 @@ class Interpreter {
   BlockView current_block() const;
   std::vector<int> active_m_codes() const;
   Pose position() const;  // program coordinates, program units
+
+  // Runs `line` for an embedded script (LinuxCNC's self.execute()): the
+  // line and whatever it calls (subroutines, remapped codes) to the end,
+  // inside the block being executed. ExecuteFinish: its last block needs
+  // the machine to catch up; the script must wait (yield
+  // INTERP_EXECUTE_FINISH) before it runs another line. A synch point
+  // before the end, a program end, or a Python remap procedure in it that
+  // waits for the machine is an InterpError (a script cannot wait in the
+  // middle of a line it runs); the interpreter's place in the program is
+  // kept after an error too.
+  Status execute_script_line(std::string_view line);
+  // The blocks of the remapped codes being carried out (LinuxCNC's
+  // blocks[1..remap_level]), outermost first.
+  std::vector<BlockView> remap_blocks() const;
 
   struct State;
 

@@ -109,6 +109,10 @@ PYBIND11_EMBEDDED_MODULE(interpreter, m) {
   m.attr("INTERP_ENDFILE") = 3;
   m.attr("INTERP_FILE_NOT_OPEN") = 4;
   m.attr("INTERP_ERROR") = 5;
+  // what self.execute() raises for an interpreter error (LinuxCNC's, with
+  // error_message, line_number and line_text)
+  m.attr("InterpreterException") = py::reinterpret_steal<py::object>(
+      PyErr_NewException("interpreter.InterpreterException", PyExc_RuntimeError, nullptr));
   // LinuxCNC's TOLERANCE_EQUAL
   m.def("equal", [](double a, double b) { return std::fabs(a - b) < 0.0001; });
 
@@ -185,12 +189,20 @@ PYBIND11_EMBEDDED_MODULE(interpreter, m) {
       .def_property_readonly("params", [](const cnc::interp::Interpreter::BlockView& b) { return b.params; })
       .def_property_readonly("g_modes", [](const cnc::interp::Interpreter::BlockView& b) { return b.g_modes; })
       .def_property_readonly("m_modes", [](const cnc::interp::Interpreter::BlockView& b) { return b.m_modes; });
-  py::class_<Blocks>(m, "Blocks").def("__getitem__", [](const Blocks&, int i) {
-    // blocks[0] is the block being executed; LinuxCNC keeps one per remap
-    // level above it, this interpreter does not
-    if (i != 0) throw py::index_error("only blocks[0] (the block being executed) is available");
-    return interp().current_block();
-  });
+  py::class_<Blocks>(m, "Blocks")
+      .def("__getitem__", [](const Blocks&, int i) {
+        // blocks[0] is the block being executed, blocks[1] .. blocks[remap_level]
+        // the blocks of the remapped codes being carried out, outermost first
+        // (LinuxCNC's remap stack)
+        if (i == 0) return interp().current_block();
+        std::vector<cnc::interp::Interpreter::BlockView> remaps = interp().remap_blocks();
+        if (i < 0 || i > static_cast<int>(remaps.size())) {
+          throw py::index_error("blocks[" + std::to_string(i) + "]: 0 (the block being executed) to " +
+                                std::to_string(remaps.size()) + " (the remap level) are available");
+        }
+        return remaps[static_cast<std::size_t>(i - 1)];
+      })
+      .def("__len__", [](const Blocks&) { return interp().remap_blocks().size() + 1; });
 
   py::class_<This>(m, "Interp", py::dynamic_attr())
       .def_property_readonly("params", [](const This&) { return Params{}; })
@@ -241,6 +253,30 @@ PYBIND11_EMBEDDED_MODULE(interpreter, m) {
         return v;
       })
       .def("set_errormsg", [](const This&, const std::string& text) { g_errormsg = text; })
+      // self.execute(line[, lineno]): runs a line of G-code now (the line
+      // number, as LinuxCNC's, is not used: the calls belong to the block
+      // being executed); returns INTERP_OK, or INTERP_EXECUTE_FINISH when the
+      // machine must catch up (yield it) before the next line; an error
+      // raises interpreter.InterpreterException
+      .def(
+          "execute",
+          [](const This&, const std::string& line, std::optional<int> lineno) {
+            (void)lineno;
+            try {
+              return interp().execute_script_line(line) == Status::ExecuteFinish ? 2 : 0;
+            } catch (const InterpError& e) {
+              std::string text = e.message();
+              if (!e.file().empty() && e.file() != "<mdi>") text += " (" + e.file() + ":" + std::to_string(e.line()) + ")";
+              py::object type = py::module_::import("interpreter").attr("InterpreterException");
+              py::object exc = type(text);
+              exc.attr("error_message") = text;
+              exc.attr("line_number") = e.line();
+              exc.attr("line_text") = e.block_text();
+              PyErr_SetObject(type.ptr(), exc.ptr());
+              throw py::error_already_set();
+            }
+          },
+          py::arg("line"), py::arg("lineno") = py::none())
       .def_property_readonly("line_number", [](const This&) { return interp().line(); })
       .def_property_readonly("filename", [](const This&) { return interp().file_name(); });
 }
@@ -290,8 +326,9 @@ class PythonHost final : public ScriptHost {
   PythonHost(PythonSettings settings, std::function<void()> before_output)
       : settings_(std::move(settings)), before_output_(std::move(before_output)) {}
   ~PythonHost() override {
-    if (ns_) {
+    if (ns_ || !suspended_.empty()) {
       py::gil_scoped_acquire gil;
+      suspended_.clear();
       ns_.reset();
     }
   }
@@ -341,8 +378,8 @@ class PythonHost final : public ScriptHost {
     return py::hasattr(remap, name.c_str()) && PyCallable_Check(remap.attr(name.c_str()).ptr()) != 0;
   }
 
-  std::string call_remap(const std::string& name, const std::vector<std::pair<std::string, double>>& words) override {
-    if (!has_remap(name)) return name + " is no function of the Python module `remap`";
+  RemapOutcome call_remap(const std::string& name, const std::vector<std::pair<std::string, double>>& words) override {
+    if (!has_remap(name)) return {name + " is no function of the Python module `remap`", false};
     Output out(*this);
     py::gil_scoped_acquire gil;
     g_errormsg.clear();
@@ -351,25 +388,32 @@ class PythonHost final : public ScriptHost {
       for (const auto& [letter, value] : words) kwargs[py::str(letter)] = py::float_(value);
       py::object result = (*ns_)["remap"].attr(name.c_str())(this_object(), **kwargs);
       flush_python();
-      if (result.is_none()) return {};
-      if (PyGen_Check(result.ptr()) != 0) {
-        return name + ": generator procedures (yield INTERP_EXECUTE_FINISH) are not supported";
-      }
-      if (py::isinstance<py::int_>(result) && !py::isinstance<py::bool_>(result)) {
-        const long code = result.cast<long>();
-        if (code == 0 || code == 1) return {};  // INTERP_OK, INTERP_EXIT
-        if (code == 5) return g_errormsg.empty() ? name + " returned INTERP_ERROR" : g_errormsg;
-        return "Unknown error, bad error code";  // LinuxCNC's words for a code it does not know
-      }
-      if (py::isinstance<py::float_>(result)) return {};  // a value: accepted as LinuxCNC does
-      if (py::isinstance<py::str>(result)) return result.cast<std::string>();
-      return name + " returned " + std::string(py::str(result.get_type().attr("__name__"))) +
-             ", expected INTERP_OK, INTERP_ERROR or None";
+      // A generator (the function holds a yield): it runs to its first yield
+      if (PyGen_Check(result.ptr()) != 0) return step(Suspended{result, name});
+      return {outcome(name, result), false};
     } catch (py::error_already_set& e) {
       flush_python();
       throw std::runtime_error(describe(e));
     }
   }
+
+  RemapOutcome resume_remap() override {
+    if (suspended_.empty()) return ScriptHost::resume_remap();
+    Output out(*this);
+    py::gil_scoped_acquire gil;
+    g_errormsg.clear();
+    Suspended s = std::move(suspended_.back());
+    suspended_.pop_back();
+    return step(std::move(s));
+  }
+
+  void drop_suspended_remaps(std::size_t keep) override {
+    if (suspended_.size() <= keep) return;
+    py::gil_scoped_acquire gil;
+    suspended_.resize(keep);
+  }
+
+  std::size_t suspended_remaps() const override { return suspended_.size(); }
 
   std::vector<std::string> script_parameters() override {
     return std::vector<std::string>(script_params_.begin(), script_params_.end());
@@ -410,6 +454,50 @@ class PythonHost final : public ScriptHost {
   }
 
  private:
+  // A generator remap procedure waiting for the machine (LinuxCNC's
+  // CS_REEXEC_*: `yield INTERP_EXECUTE_FINISH`).
+  struct Suspended {
+    py::object generator;
+    std::string name;
+  };
+
+  // What a remap procedure's value means (LinuxCNC's handler_returned): an
+  // empty string to go on, else the error.
+  static std::string outcome(const std::string& name, const py::object& result) {
+    if (result.is_none()) return {};
+    if (py::isinstance<py::int_>(result) && !py::isinstance<py::bool_>(result)) {
+      const long code = result.cast<long>();
+      if (code == 0 || code == 1) return {};  // INTERP_OK, INTERP_EXIT
+      if (code == 5) return g_errormsg.empty() ? name + " returned INTERP_ERROR" : g_errormsg;
+      return "Unknown error, bad error code";  // LinuxCNC's words for a code it does not know
+    }
+    if (py::isinstance<py::float_>(result)) return {};  // a value: accepted as LinuxCNC does
+    if (py::isinstance<py::str>(result)) return result.cast<std::string>();
+    return name + " returned " + std::string(py::str(result.get_type().attr("__name__"))) +
+           ", expected INTERP_OK, INTERP_ERROR or None";
+  }
+
+  // Runs a generator to its next yield (the GIL held). INTERP_EXECUTE_FINISH
+  // suspends it; any other value ends it with that value's meaning (the rest
+  // of the generator does not run, as in LinuxCNC); its end (StopIteration)
+  // is INTERP_OK.
+  RemapOutcome step(Suspended s) {
+    py::object value;
+    try {
+      value = s.generator.attr("__next__")();
+      flush_python();
+    } catch (py::error_already_set& e) {
+      flush_python();
+      if (e.matches(PyExc_StopIteration)) return {};
+      throw std::runtime_error(describe(e));
+    }
+    if (py::isinstance<py::int_>(value) && !py::isinstance<py::bool_>(value) && value.cast<long>() == 2) {
+      suspended_.push_back(std::move(s));
+      return {{}, true};
+    }
+    return {outcome(s.name, value), false};
+  }
+
   // Before Python writes anything, what the caller buffered goes out.
   // Also points `interpreter.this` and `emccanon` at this host's
   // interpreter (several interpreters in a process, e.g. the task's and a
@@ -491,6 +579,7 @@ class PythonHost final : public ScriptHost {
   Canon* canon_ = nullptr;
   std::unique_ptr<py::dict> ns_;  // TOPLEVEL's globals; null until started
   std::set<std::string> script_params_;  // namedparams functions: predefined parameters
+  std::vector<Suspended> suspended_;       // generator remap procedures waiting, oldest first
 };
 
 std::vector<std::filesystem::path> path_list(const cnc::ini::IniFile& ini, std::string_view key) {

@@ -10,7 +10,10 @@
 //   `this.params[n]`, `this.params["name"]` (read and write), `this.return_value`,
 //   `this.value_returned`, `this.call_level`, `this.tool_offset.x` (.. w),
 //   `this.tool_table[i].toolno` (pocketno, diameter, frontangle, backangle,
-//   orientation, offset.x .. w);
+//   orientation, offset.x .. w); `this.execute(line)` (a line of G-code run
+//   now; errors raise interpreter.InterpreterException), `this.blocks[n]`;
+//   REMAP procedures that are generators: `yield INTERP_EXECUTE_FINISH`
+//   suspends them until the interpreter resumes them (ScriptHost::resume_remap);
 //   module `emccanon`: STRAIGHT_TRAVERSE, STRAIGHT_FEED (line, x y z a b c u
 //     v w), MESSAGE, COMMENT, SET_FEED_RATE.
 //

@@ -97,6 +97,10 @@ bool run_rs274(const Rs274Options& o, std::FILE* out, std::string& error, std::F
   if (!o.ini.empty()) {
     ini = cnc::ini::IniFile::load(o.ini);
     cfg = Config::from_ini(ini);
+    // LinuxCNC's rs274 starts in millimetres whatever [TRAJ]LINEAR_UNITS
+    // says (its saicanon reports CANON_UNITS_MM until G20); the INI's units
+    // still give #<_metric_machine>
+    cfg.default_units = Units::Mm;
   }
   if (o.random_toolchanger) cfg.random_toolchanger = true;
   cfg.block_delete = o.block_delete;

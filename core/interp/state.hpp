@@ -146,6 +146,7 @@ struct RemapCall {
   std::vector<std::pair<std::string, double>> named;     // #<p>, #<q>, ...
   std::vector<std::pair<std::string, double>> words;     // the argspec words present (Python's **words)
   bool epilog_done = false;  // a Python epilog ran before the body's frame was left
+  int seq = 0;               // start order (the remap stack of self.blocks[n])
 };
 
 struct Frame {

@@ -104,6 +104,18 @@ TEST(Rs274Tool, WithAnIniFileTheRunEndsWithOneResetAsLinuxCncClosesLazily) {
   EXPECT_NE(without.canon.find("PROGRAM_END()\nN..... ON_RESET()\nN..... ON_RESET()\n"), std::string::npos);
 }
 
+TEST(Rs274Tool, WithAnInchIniTheProgramStartsInMillimetresAsLinuxCncsRs274ButTheMachineIsInch) {
+  // LinuxCNC's rs274 (saicanon) starts in G21 whatever [TRAJ]LINEAR_UNITS
+  // says (remap/remap-reentry of its suite); #<_metric_machine> follows the INI
+  const Rs274Result r = run("(debug, #<_metric> #<_metric_machine>)\nG0 X1\nM2\n",
+                            [](Rs274Options& o, const cnc::testing::TempDir& d) {
+                              o.ini = d.write("t.ini", "[TRAJ]\nLINEAR_UNITS = inch\n");
+                            });
+  EXPECT_TRUE(r.ok) << r.err;
+  EXPECT_TRUE(has(r, "USE_LENGTH_UNITS(CANON_UNITS_MM)")) << r.canon;
+  EXPECT_TRUE(has(r, "MESSAGE(\" 1.000000 0.000000\")")) << r.canon;
+}
+
 TEST(Rs274Tool, TaskOptionMakesTheTaskParameterOne) {
   const Rs274Result preview = run("(debug, #<_task>)\nM2\n");
   const Rs274Result task = run("(debug, #<_task>)\nM2\n", [](Rs274Options& o, const cnc::testing::TempDir&) { o.task = true; });

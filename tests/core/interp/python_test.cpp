@@ -10,7 +10,9 @@
 
 #include <unistd.h>
 
+#include "core/ini/ini_file.hpp"
 #include "core/interp/python_host.hpp"
+#include "core/interp/recording_canon.hpp"
 #include "core/interp/rs274_run.hpp"
 #include "tests/support/testing.hpp"
 
@@ -267,4 +269,241 @@ TEST(InterpPython, AnOwordFunctionRunsOneCallLevelDownWithItsOwnLocalsAndSeesIts
   const Result r = run(";py,from interpreter import *\n#<top> = 5\no<look> call [1] [2]\n;py,assert 'mine' not in this.params.locals()\nM2\n", kIni, files);
   EXPECT_TRUE(r.ok) << r.err;
   EXPECT_NE(r.out.find("level 1 block look [1.0, 2.0] -1\nlocals ['mine'] 2\ntop True True\n"), std::string::npos) << r.out;
+}
+
+// ---------------------------------------------------------------- generators and self.execute()
+
+namespace {
+
+// A machine that stopped where the test says: after a synch the
+// interpreter reads this position (program coordinates).
+class StoppedMachine : public cnc::interp::RecordingCanon {
+ public:
+  cnc::Pose at{};
+  bool moved_to_at = false;  // current_position() answers `at` (else the commanded end)
+  cnc::Pose current_position() const override { return moved_to_at ? at : RecordingCanon::current_position(); }
+};
+
+// An interpreter on test.ini/test.ngc of `dir` with the Python host,
+// driven read by read by the test (as the task controller drives it).
+struct Driven {
+  cnc::testing::TempDir dir;
+  cnc::ini::IniFile ini;
+  StoppedMachine canon;
+  std::unique_ptr<cnc::interp::Interpreter> interp;
+  fs::path back = fs::current_path();
+
+  Driven(const std::string& program, const std::string& ini_text,
+         const std::vector<std::pair<std::string, std::string>>& files) {
+    for (const auto& [name, text] : files) dir.write(name, text);
+    dir.write("test.ngc", program);
+    ini = cnc::ini::IniFile::load(dir.write("test.ini", ini_text));
+    fs::current_path(dir.path());
+    cnc::interp::Config cfg = cnc::interp::Config::from_ini(ini);
+    cfg.default_units = cnc::interp::Units::Mm;
+    cfg.linuxcnc_comments = false;
+    cfg.script = cnc::interp::make_python_host(cnc::interp::python_settings(ini));
+    interp = std::make_unique<cnc::interp::Interpreter>(canon, cfg);
+    interp->init();
+    interp->open("test.ngc");
+  }
+  ~Driven() { fs::current_path(back); }
+  Driven(const Driven&) = delete;
+  Driven& operator=(const Driven&) = delete;
+
+  // read() then execute() of one block (reading past Yield); the status of execute().
+  cnc::interp::Status step() {
+    cnc::interp::Status rs = interp->read();
+    while (rs == cnc::interp::Status::Yield) rs = interp->read();
+    if (rs != cnc::interp::Status::Ok) return rs;
+    return interp->execute();
+  }
+  std::string calls() const { return canon.text(); }
+};
+
+const char* kGenIni =
+    "[RS274NGC]\nSUBROUTINE_PATH = .\n"
+    "REMAP = M420 modalgroup=10 py=m420\n"
+    "REMAP = M421 modalgroup=10 argspec=P prolog=pro421 ngc=rm421 epilog=epi421\n"
+    "REMAP = M430 modalgroup=10 py=m430\n"
+    "REMAP = M431 modalgroup=10 argspec=P ngc=rm431\n"
+    "REMAP = M432 modalgroup=10 py=m432\n"
+    "[PYTHON]\nPATH_PREPEND = .\nTOPLEVEL = subs.py\n";
+const char* kGenPy =
+    "import emccanon\nfrom interpreter import *\n"
+    "def m420(self, **words):\n"
+    "    self.execute('G0 Y1')\n"
+    "    yield INTERP_EXECUTE_FINISH\n"
+    "    emccanon.MESSAGE('after first wait y=%.2f' % self.current_y)\n"
+    "    self.execute('G0 Y2')\n"
+    "    yield INTERP_EXECUTE_FINISH\n"
+    "    emccanon.MESSAGE('after second wait y=%.2f' % self.current_y)\n"
+    "    yield INTERP_OK\n"
+    "    emccanon.MESSAGE('never: a generator ends at its first other value')\n"
+    "def pro421(self, **words):\n"
+    "    self.execute('G0 Z5')\n"
+    "    yield INTERP_EXECUTE_FINISH\n"
+    "    self.params['twice'] = words['p'] * 2\n"
+    "    emccanon.MESSAGE('prolog resumed level=%d' % self.remap_level)\n"
+    "def epi421(self, **words):\n"
+    "    emccanon.MESSAGE('epilog before wait sees %g' % self.params['result'])\n"
+    "    yield INTERP_EXECUTE_FINISH\n"
+    "    emccanon.MESSAGE('epilog resumed')\n"
+    "def m430(self, **words):\n"
+    "    emccanon.MESSAGE('m430 level=%d' % self.remap_level)\n"
+    "    self.execute('M431 P7')\n"
+    "    emccanon.MESSAGE('m430 back level=%d got=%g' % (self.remap_level, self.params['_got']))\n"
+    "    self.execute('G0 X#<_got>')\n"
+    "    try:\n"
+    "        self.execute('G2 X1')\n"
+    "    except InterpreterException as e:\n"
+    "        emccanon.MESSAGE('caught: ' + e.error_message)\n"
+    "def m432(self, **words):\n"
+    "    self.execute('M420')\n";
+const char* kRm421 = "o<rm421> sub\n(debug, body twice=#<twice>)\n#<result> = [#<twice> + 1]\no<rm421> endsub\n";
+const char* kRm431 =
+    "o<rm431> sub\n"
+    ";py,import interpreter\n"
+    ";py,b = interpreter.this.blocks\n"
+    ";py,print('blocks', len(b), b[1].m_modes[10], b[2].m_modes[10])\n"
+    "(debug, rm431 p=#<p> level=#<_remap_level>)\n#<_got> = [#<p> * 3]\no<rm431> endsub\n";
+
+std::vector<std::pair<std::string, std::string>> gen_files() {
+  return {{"subs.py", "import remap\n"}, {"remap.py", kGenPy}, {"rm421.ngc", kRm421}, {"rm431.ngc", kRm431}};
+}
+
+std::size_t count(const std::string& text, const std::string& what) {
+  std::size_t n = 0;
+  for (std::size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+}  // namespace
+
+TEST(InterpPythonGenerator, ABodyThatYieldsExecuteFinishStopsTheBlockUntilTheMachineCaughtUpThenResumes) {
+  using cnc::interp::Status;
+  Driven d("M420 G0 X3\nM2\n", kGenIni, gen_files());
+  // The body runs to its first yield: the move is made, the block waits.
+  ASSERT_EQ(d.step(), Status::ExecuteFinish) << d.calls();
+  EXPECT_NE(d.calls().find("STRAIGHT_TRAVERSE(0.0000, 1.0000"), std::string::npos) << d.calls();
+  EXPECT_EQ(d.calls().find("after first wait"), std::string::npos) << d.calls();
+  // Nothing is read or resumed before the machine caught up.
+  EXPECT_EQ(d.interp->read(), Status::SynchRequired);
+  // The machine stopped short (say, a feed hold moved it elsewhere): the
+  // resumed body sees what synch() read, not what was commanded.
+  d.canon.moved_to_at = true;
+  d.canon.at[1] = 0.75;
+  d.interp->synch();
+  ASSERT_EQ(d.step(), Status::ExecuteFinish) << d.calls();
+  EXPECT_NE(d.calls().find("MESSAGE(\"after first wait y=0.75\")"), std::string::npos) << d.calls();
+  EXPECT_EQ(d.calls().find("after second wait"), std::string::npos) << d.calls();
+  d.canon.moved_to_at = false;
+  d.interp->synch();
+  // The body ends (yield INTERP_OK) and the rest of the block runs: the G0 X3.
+  ASSERT_EQ(d.step(), Status::Ok) << d.calls();
+  EXPECT_NE(d.calls().find("MESSAGE(\"after second wait y=2.00\")"), std::string::npos) << d.calls();
+  EXPECT_EQ(d.calls().find("never"), std::string::npos) << d.calls();
+  const std::string c = d.calls();
+  EXPECT_LT(c.find("after second wait"), c.find("STRAIGHT_TRAVERSE(3.0000, 2.0000"));
+  EXPECT_EQ(d.step(), Status::ProgramEnd);
+  EXPECT_EQ(d.interp->remap_level(), 0);
+}
+
+TEST(InterpPythonGenerator, APrologAndAnEpilogThatYieldWaitAroundTheNgcBodyAndKeepItsParameters) {
+  using cnc::interp::Status;
+  Driven d("M421 P21\n(debug, after)\nM2\n", kGenIni, gen_files());
+  ASSERT_EQ(d.step(), Status::ExecuteFinish) << d.calls();  // the prolog waits after its move
+  EXPECT_NE(d.calls().find("STRAIGHT_TRAVERSE(0.0000, 0.0000, 5.0000"), std::string::npos) << d.calls();
+  EXPECT_EQ(d.calls().find("body twice"), std::string::npos) << d.calls();
+  EXPECT_EQ(d.interp->remap_level(), 1);
+  d.interp->synch();
+  // resumed: it sets the body's local, then the body is called
+  EXPECT_EQ(d.step(), Status::Ok) << d.calls();
+  EXPECT_NE(d.calls().find("MESSAGE(\"prolog resumed level=1\")"), std::string::npos) << d.calls();
+  Status st = Status::Ok;
+  int waits = 0;
+  while ((st = d.step()) != Status::ProgramEnd) {
+    ASSERT_TRUE(st == Status::Ok || st == Status::ExecuteFinish) << cnc::interp::to_string(st);
+    if (st == Status::ExecuteFinish) {
+      ++waits;
+      // the epilog waits at the endsub: the body ran, the line after the call did not
+      EXPECT_NE(d.calls().find("MESSAGE(\"epilog before wait sees 43\")"), std::string::npos) << d.calls();
+      EXPECT_EQ(d.calls().find("epilog resumed"), std::string::npos) << d.calls();
+      EXPECT_EQ(d.calls().find(" after"), std::string::npos) << d.calls();
+      d.interp->synch();
+    }
+  }
+  EXPECT_EQ(waits, 1);
+  const std::string c = d.calls();
+  EXPECT_NE(c.find("MESSAGE(\" body twice=42.000000\")"), std::string::npos) << c;
+  EXPECT_LT(c.find("epilog resumed"), c.find("MESSAGE(\" after\")")) << c;
+}
+
+TEST(InterpPythonGenerator, SelfExecuteRunsALineThatReentersARemapAndSeesTheRemapBlocks) {
+  const Result r = run("M430\n(debug, level after=#<_remap_level>)\nM2\n", kGenIni, gen_files());
+  ASSERT_TRUE(r.ok) << r.err << r.out;
+  const std::string& o = r.out;
+  // M431 runs its NGC procedure from inside M430's Python body: two remap
+  // levels, the blocks of both on the remap stack (M430 outermost)
+  EXPECT_NE(o.find("MESSAGE(\"m430 level=1\")"), std::string::npos) << o;
+  EXPECT_NE(o.find("blocks 3 430 431"), std::string::npos) << o;
+  EXPECT_NE(o.find("MESSAGE(\" rm431 p=7.000000 level=2.000000\")"), std::string::npos) << o;
+  EXPECT_NE(o.find("MESSAGE(\"m430 back level=1 got=21\")"), std::string::npos) << o;
+  EXPECT_NE(o.find("STRAIGHT_TRAVERSE(21.0000"), std::string::npos) << o;
+  // an error of a line raises InterpreterException; the body goes on
+  EXPECT_NE(o.find("MESSAGE(\"caught: "), std::string::npos) << o;
+  EXPECT_NE(o.find("MESSAGE(\" level after=0.000000\")"), std::string::npos) << o;
+}
+
+TEST(InterpPythonGenerator, AnExceptionAfterAResumeStopsTheProgramNamingTheLineAndThePythonFileLine) {
+  const Result r = run("G0 X1\nM420\n(debug, not reached)\nM2\n",
+                       "[RS274NGC]\nREMAP = M420 modalgroup=10 py=m420\n[PYTHON]\nPATH_PREPEND = .\nTOPLEVEL = subs.py\n",
+                       {{"subs.py", "import remap\n"},
+                        {"remap.py", "from interpreter import *\ndef m420(self, **words):\n    self.execute('G0 Y1')\n"
+                                     "    yield INTERP_EXECUTE_FINISH\n    y = 0\n    return 1 / y\n"}});
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("test.ngc:2: ZeroDivisionError: division by zero (at "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("remap.py:6)"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("STRAIGHT_TRAVERSE(1.0000, 1.0000"), std::string::npos) << r.out;  // it ran to the yield
+  EXPECT_EQ(r.out.find("not reached"), std::string::npos) << r.out;
+}
+
+TEST(InterpPythonGenerator, AProcedureThatWaitsCannotRunInsideSelfExecuteAndTheErrorSaysWhy) {
+  const Result r = run("M432\nM2\n", kGenIni, gen_files());
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.err.find("test.ngc:1: InterpreterException: M420: m420 waits for the machine (yield "
+                       "INTERP_EXECUTE_FINISH) inside self.execute()"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("remap.py:"), std::string::npos) << r.err;
+}
+
+TEST(InterpPythonGenerator, AnAbortWhileAStageWaitsForgetsItAndTheNextRunStartsAfresh) {
+  using cnc::interp::Status;
+  Driven d("M420\nM2\n", kGenIni, gen_files());
+  ASSERT_EQ(d.step(), Status::ExecuteFinish);
+  EXPECT_EQ(d.interp->remap_level(), 1);
+  d.interp->reset();  // an abort while the machine moved
+  EXPECT_EQ(d.interp->remap_level(), 0);
+  d.interp->open("test.ngc");
+  EXPECT_EQ(d.interp->read(), Status::Ok);  // a fresh block, no stale resume
+  EXPECT_EQ(d.interp->execute(), Status::ExecuteFinish);
+  EXPECT_EQ(count(d.calls(), "STRAIGHT_TRAVERSE(0.0000, 1.0000"), 2u) << d.calls();
+}
+
+TEST(InterpPythonGenerator, AnOwordFunctionsLineThatNeedsTheMachineStopsReadingUntilTheSynch) {
+  using cnc::interp::Status;
+  Driven d("o<probe> call\n#<z> = #5063\n(debug, z=#<z>)\nM2\n", kGenIni,
+           {{"subs.py", "import remap\nimport oword\n"},
+            {"remap.py", kGenPy},
+            {"oword.py", "def probe(self):\n    return float(self.execute('G38.2 Z-1 F100'))\n"}});
+  // The function's probe needs the machine: read() stops after the call
+  // (the assignment reading #5063, 0 before the synch, is not read yet) and
+  // waits for the synch.
+  EXPECT_EQ(d.interp->read(), Status::Yield);
+  EXPECT_NE(d.calls().find("STRAIGHT_PROBE"), std::string::npos) << d.calls();
+  EXPECT_EQ(d.interp->read(), Status::SynchRequired);
+  d.interp->synch();
+  EXPECT_EQ(d.step(), Status::Ok);
+  EXPECT_NE(d.calls().find("MESSAGE(\" z=-1.000000\")"), std::string::npos) << d.calls();
 }

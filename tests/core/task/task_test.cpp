@@ -691,6 +691,34 @@ TEST(TaskPython, AnMdiCallOfAPythonOwordFunctionMovesTheMachineAndReturnsItsValu
   EXPECT_EQ(m.errors(), "");
 }
 
+TEST(TaskPython, AGeneratorRemapWaitsForTheMachineInTheTaskAndGoesOnFromWhereItStopped) {
+  // A remapped M420 whose Python body moves, waits for the machine (yield
+  // INTERP_EXECUTE_FINISH: the task lets motion finish, synchronises and
+  // calls the interpreter again) and then moves on from the position read.
+  cnc::testing::TempDir py;
+  py.write("remap.py",
+           "from interpreter import *\n"
+           "def m420(self, **words):\n"
+           "    self.execute('G1 F600 X10')\n"
+           "    yield INTERP_EXECUTE_FINISH\n"
+           "    self.params['_seen'] = self.current_x\n"
+           "    self.execute('G1 Y[#<_seen> + 1]')\n"
+           "    yield INTERP_EXECUTE_FINISH\n"
+           "    self.execute('G1 Z-[#<_seen> / 2]')\n");
+  py.write("subs.py", "import remap\n");
+  TaskMachine m({{"RS274NGC", "REMAP", "M420 modalgroup=10 py=m420"}}, "", "",
+                "[PYTHON]\nPATH_PREPEND = " + py.path().string() + "\nTOPLEVEL = " + (py / "subs.py").string() + "\n");
+  m.power_up_and_home();
+  m.ok(m.send(CommandType::TaskSetMode, kMdi), "mdi");
+  m.ok(m.mdi("G0 X0 Y0 Z0"), "start");
+  m.ok(m.mdi("M420"), "remapped M420");
+  const auto s = m.status();
+  EXPECT_NEAR(s.motion.position[0], 10, 1e-9);
+  EXPECT_NEAR(s.motion.position[1], 11, 1e-9);
+  EXPECT_NEAR(s.motion.position[2], -5, 1e-9);
+  EXPECT_EQ(m.errors(), "");
+}
+
 TEST(TaskMdi, AProbeWithoutContactInMdiIsRejectedNamingTheLineNotAProgram) {
   // motion.probe-input is not connected in this mill: the probe never trips
   TaskMachine m;
