@@ -92,7 +92,7 @@ class Executor {
   static constexpr int kEnvelopeUrgent = 24;
   // Range minima per cycle after which the envelope's walk waits for the
   // next cycle (one span is always walked).
-  static constexpr int kQueriesPerCycle = 500;
+  static constexpr int kQueriesPerCycle = 1000;
   static constexpr int kQueriesUrgent = 2400;
   // Most range minima one envelope span may take: 4 chunks, each at most
   // 14 velocity limits of at most 10 queries (executor.cpp).

@@ -133,9 +133,8 @@ TEST(TpRealtime, EnvelopeWalkIsBoundedInRangeQueriesPerCycle) {
 // re-walks the stretch within a stop of the old tail, whatever was added,
 // so walking after every new piece (one a cycle or two on a dense program)
 // kept the walk at its per-cycle slice nearly all the time. New spans far
-// ahead of the input are walked in batches now, and the slice away from
-// the input is kQueriesPerCycle. Counted, not timed: on a spiral of 4000
-// moves of 0.2 mm with 1000 of look-ahead, the walk's range minima per
+// ahead of the input are walked in batches now. Counted, not timed: on a
+// spiral of 4000 moves of 0.2 mm with 1000 of look-ahead, the walk's range minima per
 // cycle stay within the slice (the urgent slice only while the whole
 // look-ahead arrives at the start), and their mean over the program is a
 // small part of it.
@@ -164,10 +163,10 @@ TEST(TpRealtime, EnvelopeWorkOnADenseProgramStaysWithinTheSlicesAndIsMostlyIdle)
   EXPECT_LE(most_split, Executor::kSplitPerCycle);
   EXPECT_LE(most_ingested, Executor::kIngestPerCycle);
   // Above the slice (the urgent walk) in at most 1 % of the cycles: the
-  // start, while the look-ahead arrives (41 of 10 716 cycles).
+  // start, while the look-ahead arrives (28 of 10 707 cycles).
   EXPECT_LE(above_slice * 100, cycles);
-  // 197 range minima a cycle on average (488 when every new piece started
-  // a walk, at a slice of 1000): the walk keeps up with a margin.
+  // 200 range minima a cycle on average (488 when every new piece started
+  // a walk): the walk keeps up with a margin.
   EXPECT_LE(total, cycles * 300);
 }
 
