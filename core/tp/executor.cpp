@@ -50,26 +50,44 @@ struct Executor::Rows {
   double j[kMaxRows] = {};
 };
 
-// Per ingested piece: its ceiling (capped at v_bound_).
+// Per ingested piece: its ceiling (capped at v_bound_), and a compact
+// copy of where it lies, whether it is a stop and its epoch: the range
+// searches and the span splitting walk many neighbouring pieces, and a
+// Piece (its derivative bounds per axis) spans several cache lines.
 struct Executor::PieceData {
   double v = 0;
+  double s0 = 0, end = 0;  // [s0, end] on the path parameter
+  uint32_t epoch = 0;
+  bool stop = false;
 };
 
 // Range minima over the pieces of the ring (segment tree over ring slots):
 // the acceleration limit at each grid velocity, the ceiling, feed and rapid.
+// Node-major: the envelope's queries for one span ask the same few nodes
+// for different grid channels (one tree per channel was tried: 20 % more
+// time per cycle).
 struct Executor::Tree {
   std::size_t n = 0;  // leaves, a power of two
   std::unique_ptr<double[]> val;  // (2 n) x kChannels
   double* node(std::size_t i) noexcept { return &val[i * kChannels]; }
   const double* node(std::size_t i) const noexcept { return &val[i * kChannels]; }
-  void set(std::size_t leaf, const double* v) noexcept {
-    std::size_t i = n + leaf;
-    for (int c = 0; c < kChannels; ++c) node(i)[c] = v[c];
-    for (i /= 2; i >= 1; i /= 2) {
-      const double* l = node(2 * i);
-      const double* r = node(2 * i + 1);
-      double* m = node(i);
-      for (int c = 0; c < kChannels; ++c) m[c] = std::min(l[c], r[c]);
+  // A leaf's values; its ancestors follow with update().
+  void set_leaf(std::size_t leaf, const double* v) noexcept {
+    double* d = node(n + leaf);
+    for (int c = 0; c < kChannels; ++c) d[c] = v[c];
+  }
+  // The ancestors of leaves [lo, hi) (hi <= n), level by level: about
+  // hi - lo + log n nodes, where one update per leaf took log n each.
+  void update(std::size_t lo, std::size_t hi) noexcept {
+    if (hi <= lo) return;
+    for (std::size_t i = (n + lo) / 2, j = (n + hi - 1) / 2; i >= 1; i /= 2, j /= 2) {
+      for (std::size_t m = i; m <= j; ++m) {
+        const double* l = node(2 * m);
+        const double* r = node(2 * m + 1);
+        double* d = node(m);
+        for (int c = 0; c < kChannels; ++c) d[c] = std::min(l[c], r[c]);
+      }
+      if (i == 1) break;
     }
   }
   // Minimum of channel c over leaves [lo, hi).
@@ -131,11 +149,11 @@ Executor::Executor(const PlannerConfig& config, PathStore& store)
 
 Executor::~Executor() = default;
 
-Executor::PieceData& Executor::pdata(uint64_t seq) noexcept { return pdata_[seq & pmask_]; }
-const Executor::PieceData& Executor::pdata(uint64_t seq) const noexcept { return pdata_[seq & pmask_]; }
-Executor::Span& Executor::span(uint64_t seq) noexcept { return spans_[seq & smask_]; }
-const Executor::Span& Executor::span(uint64_t seq) const noexcept { return spans_[seq & smask_]; }
-int Executor::ring(int ago) const noexcept { return (hist_pos_ - ago) & (kRing - 1); }
+inline Executor::PieceData& Executor::pdata(uint64_t seq) noexcept { return pdata_[seq & pmask_]; }
+inline const Executor::PieceData& Executor::pdata(uint64_t seq) const noexcept { return pdata_[seq & pmask_]; }
+inline Executor::Span& Executor::span(uint64_t seq) noexcept { return spans_[seq & smask_]; }
+inline const Executor::Span& Executor::span(uint64_t seq) const noexcept { return spans_[seq & smask_]; }
+inline int Executor::ring(int ago) const noexcept { return (hist_pos_ - ago) & (kRing - 1); }
 
 void Executor::configure(const PlannerConfig& config) noexcept {
   cfg_ = config;
@@ -317,23 +335,32 @@ double Executor::range_min(uint64_t from, double lo, double hi, int c) const noe
     if (l > stop_head_) k_lo = std::max(k_lo, stops_[(l - 1) & pmask_] + 1);
   }
   // Pieces overlapping [lo, hi]: the first piece starting after x, by a
-  // search galloping out from `from` (the ranges asked for lie around it,
-  // a few pieces wide, in a queue of thousands), then bisecting.
-  auto first_after = [&](double x) {
+  // search galloping out from a start near it (the ranges asked for lie
+  // around `from`, a few pieces wide, in a queue of thousands), then
+  // bisecting. The start is the answer of the previous query on the same
+  // side when that lies near `from`: the envelope's bisections ask ranges
+  // whose ends move by a piece or two (or not at all) from one query to
+  // the next. Any start gives the same answer (the pieces' starts are in
+  // order), a near one in fewer steps.
+  const PieceData* const pd = pdata_.get();
+  const std::size_t pmask = pmask_;
+  auto s0 = [pd, pmask](uint64_t k) { return pd[k & pmask].s0; };
+  auto first_after = [&](double x, uint64_t hint) {
     if (k_hi <= k_lo) return k_lo;
-    const uint64_t f = std::clamp(from, k_lo, k_hi - 1);
+    const uint64_t near = hint + 64 >= from && hint <= from + 64 ? hint : from;
+    const uint64_t f = std::clamp(near, k_lo, k_hi - 1);
     uint64_t l = k_lo, h = k_hi;  // pieces before l start at or before x, from h on after it
     uint64_t step = 1;
-    if (piece(f).s0 > x) {
+    if (s0(f) > x) {
       h = f;
-      while (h - k_lo > step && piece(h - step).s0 > x) {
+      while (h - k_lo > step && s0(h - step) > x) {
         h -= step;
         step *= 2;
       }
       if (h - k_lo > step) l = h - step + 1;
     } else {
       l = f + 1;
-      while (k_hi - l > step && !(piece(l + step - 1).s0 > x)) {
+      while (k_hi - l > step && !(s0(l + step - 1) > x)) {
         l += step;
         step *= 2;
       }
@@ -341,7 +368,7 @@ double Executor::range_min(uint64_t from, double lo, double hi, int c) const noe
     }
     while (l < h) {
       const uint64_t m = l + (h - l) / 2;
-      if (piece(m).s0 > x) {
+      if (s0(m) > x) {
         h = m;
       } else {
         l = m + 1;
@@ -349,10 +376,13 @@ double Executor::range_min(uint64_t from, double lo, double hi, int c) const noe
     }
     return l;
   };
-  uint64_t a = first_after(lo);
+  uint64_t a = first_after(lo, hint_lo_);
+  hint_lo_ = a;
   if (a > k_lo) --a;  // the piece holding lo
   a = std::min(a, from);
-  const uint64_t b = std::max(first_after(hi), from + 1);
+  const uint64_t b_after = first_after(hi, hint_hi_);
+  hint_hi_ = b_after;
+  const uint64_t b = std::max(b_after, from + 1);
   if (b <= a) return kInf;
   const std::size_t n = tree_->n;
   const std::size_t sa = static_cast<std::size_t>(a & (n - 1));
@@ -391,11 +421,19 @@ double Executor::ceiling(const Span& sp) const noexcept {
 
 void Executor::ingest() noexcept {
   const uint64_t pub = store_.pieces.published();
+  const uint64_t first = ptail_;
   // At most kIngestPerCycle pieces per cycle: the rest wait in the ring
   // (the builder may publish thousands at once).
   for (int budget = kIngestPerCycle; ptail_ < pub && budget > 0; --budget) {
     ++work_.ingested;
     const Piece& p = piece(ptail_);
+    {
+      PieceData& d = pdata(ptail_);
+      d.s0 = p.s0;
+      d.end = p.s0 + p.length;
+      d.epoch = p.epoch;
+      d.stop = p.stop != StopKind::None;
+    }
     if (p.epoch != epoch_) {
       // Planned before an abort: dropped.
       if (out_ == ptail_) ++out_;
@@ -432,9 +470,20 @@ void Executor::ingest() noexcept {
       vals[kChFeed] = p.v_feed;
       vals[kChRapid] = p.v_rapid;
     }
-    tree_->set(static_cast<std::size_t>(ptail_ & pmask_), vals);
+    tree_->set_leaf(static_cast<std::size_t>(ptail_ & pmask_), vals);
     tail_s_ = p.s0 + p.length;
     ++ptail_;
+  }
+  // The ancestors of the leaves set (the slots may wrap around the ring).
+  if (ptail_ > first) {
+    const std::size_t lo = static_cast<std::size_t>(first & pmask_);
+    const std::size_t len = static_cast<std::size_t>(ptail_ - first);
+    if (lo + len <= tree_->n) {
+      tree_->update(lo, lo + len);
+    } else {
+      tree_->update(lo, tree_->n);
+      tree_->update(0, lo + len - tree_->n);
+    }
   }
   finalize();
 }
@@ -458,11 +507,34 @@ void Executor::finalize() noexcept {
     ++work_.split;
     ++pfin_;
   }
-  // New spans: a walk from the tail.
-  if (spans_added_) envelope_request(false);
+  // About twice a stop from top speed (generous bounds: v_bound_ and
+  // a_top_ are twice the machine's).
+  const double near = v_bound_ * v_bound_ / std::max(a_top_, 1e-9) + v_bound_ * tf_;
+  // New spans: a walk from the tail. A walk raises the spans within a
+  // stop of the old tail, whatever was added; walking after every piece
+  // (one every cycle or two on a dense program) walked that stretch again
+  // every time, most of the envelope's work. While the tail lies far
+  // ahead of the input (more than kDeferNear x near: nothing the input
+  // may brake for within its reach changes), new spans wait until
+  // kDeferBatch x near of path has been added since the last walk, or
+  // nothing was added for kDeferIdle cycles; closer to the input they are
+  // walked at once as before. Spans not walked yet keep the lower
+  // envelope of the shorter path (or zero): the input stays safe.
+  if (spans_added_) {
+    env_deferred_ = true;
+    env_idle_ = 0;
+  } else if (env_deferred_) {
+    ++env_idle_;
+  }
+  if (env_deferred_ && (final_end() - x_ < kDeferNear * near || final_end() - env_walk_s_ >= kDeferBatch * near ||
+                        env_idle_ >= kDeferIdle)) {
+    env_deferred_ = false;
+    env_walk_s_ = final_end();
+    ++work_.walks;
+    envelope_request(false);
+  }
   // The walk is urgent when the spans it has still to raise lie within
   // about twice a stop from top speed ahead of the input.
-  const double near = v_bound_ * v_bound_ / std::max(a_top_, 1e-9) + v_bound_ * tf_;
   const bool urgent = (env_active_ && env_k_ < stail_ && span(env_k_).a - x_ < near) ||
                       (!env_active_ && env_pending_ && final_end() - x_ < near);
   envelope_work(urgent ? kEnvelopeUrgent : kEnvelopePerCycle, urgent ? kQueriesUrgent : kQueriesPerCycle);
@@ -491,16 +563,25 @@ void Executor::make_spans(uint64_t p) noexcept {
   };
   Cap caps[2 * kMaxCuts];
   int ncap = 0;
+  // Caps over the whole piece add no cut and lower every part alike: one
+  // minimum (a dense curved run has hundreds of them per piece, and each
+  // part used to loop over them all).
+  double v_all = pdata(p).v;
   double cuts[kMaxCuts + 2];
   int ncut = 0;
   cuts[ncut++] = lo;
   cuts[ncut++] = hi;
-  auto consider = [&](const Piece& q, double vq) {
+  auto consider = [&](const PieceData& q) {
+    const double vq = q.v;
     const double r = vq * spread;
     const double from = q.s0 - r;
-    const double to = q.s0 + q.length + r;
+    const double to = q.end + r;
     if (to <= lo || from >= hi) return;
     if (!(vq < pdata(p).v)) return;
+    if (from <= lo && to >= hi) {
+      v_all = std::min(v_all, vq);
+      return;
+    }
     if (ncap < 2 * kMaxCuts) caps[ncap++] = {from, to, vq, pc.v_feed, pc.v_rapid};
     if (from > lo && ncut < kMaxCuts) cuts[ncut++] = from;
     if (to < hi && ncut < kMaxCuts) cuts[ncut++] = to;
@@ -514,14 +595,14 @@ void Executor::make_spans(uint64_t p) noexcept {
   const uint64_t first_kept = store_.pieces.released();
   for (uint64_t k = p; scan >= 0 && k > first_kept;) {
     --k;
-    const Piece& q = piece(k);
-    if (q.stop != StopKind::None || q.epoch != epoch_ || lo - (q.s0 + q.length) > scan) break;
-    consider(q, pdata(k).v);
+    const PieceData& q = pdata(k);
+    if (q.stop || q.epoch != epoch_ || lo - q.end > scan) break;
+    consider(q);
   }
   for (uint64_t k = p + 1; scan >= 0 && k < ptail_; ++k) {
-    const Piece& q = piece(k);
-    if (q.stop != StopKind::None || q.s0 - hi > scan) break;
-    consider(q, pdata(k).v);
+    const PieceData& q = pdata(k);
+    if (q.stop || q.s0 - hi > scan) break;
+    consider(q);
   }
   std::sort(cuts, cuts + ncut);
   // Sub-intervals with their caps.
@@ -534,7 +615,7 @@ void Executor::make_spans(uint64_t p) noexcept {
     const double a = cuts[i];
     const double b = cuts[i + 1];
     if (!(b > a)) continue;
-    Part pt{a, b, pdata(p).v, pc.v_feed, pc.v_rapid};
+    Part pt{a, b, v_all, pc.v_feed, pc.v_rapid};
     for (int c = 0; c < ncap; ++c) {
       if (caps[c].from <= a && caps[c].to >= b) {
         pt.v = std::min(pt.v, caps[c].v);
@@ -551,7 +632,13 @@ void Executor::make_spans(uint64_t p) noexcept {
   // Each span brakes with one acceleration (the smallest its outputs may
   // meet): cut the piece at doubling distances from both ends, so that a
   // tight corner next to a long move limits only the stretch near it.
-  Span sub[kMaxCuts + 64];
+  // The stretches with their caps only: an array of whole Spans (160 of
+  // them, their envelope fields zeroed) cost about a microsecond per
+  // piece, most of the splitting.
+  struct Sub {
+    double a, b, vc, feed, rapid;
+  };
+  Sub sub[kMaxCuts + 64];
   int ns = 0;
   for (int i = 0; i < np; ++i) {
     double pts[64];
@@ -566,14 +653,7 @@ void Executor::make_spans(uint64_t p) noexcept {
     for (int j = 0; j + 1 < nq; ++j) {
       if (!(pts[j + 1] > pts[j])) continue;
       if (ns >= static_cast<int>(std::size(sub))) break;
-      Span& sp = sub[ns++];
-      sp = Span{};
-      sp.a = pts[j];
-      sp.b = pts[j + 1];
-      sp.piece = p;
-      sp.vc = parts[i].v;
-      sp.feed = parts[i].feed;
-      sp.rapid = parts[i].rapid;
+      sub[ns++] = {pts[j], pts[j + 1], parts[i].v, parts[i].feed, parts[i].rapid};
     }
   }
   // At most kSpansPerPiece: merge the shortest span into a neighbour (the
@@ -593,13 +673,7 @@ void Executor::make_spans(uint64_t p) noexcept {
     --ns;
   }
   if (ns == 0) {
-    sub[0] = Span{};
-    sub[0].a = lo;
-    sub[0].b = hi;
-    sub[0].piece = p;
-    sub[0].vc = pdata(p).v;
-    sub[0].feed = pc.v_feed;
-    sub[0].rapid = pc.v_rapid;
+    sub[0] = {lo, hi, pdata(p).v, pc.v_feed, pc.v_rapid};
     ns = 1;
   }
   for (int i = 0; i < ns; ++i) {
@@ -626,7 +700,14 @@ void Executor::make_spans(uint64_t p) noexcept {
         continue;
       }
     }
-    span(stail_++) = sub[i];
+    Span& sp = span(stail_++);
+    sp = Span{};
+    sp.a = sub[i].a;
+    sp.b = sub[i].b;
+    sp.piece = p;
+    sp.vc = sub[i].vc;
+    sp.feed = sub[i].feed;
+    sp.rapid = sub[i].rapid;
     spans_added_ = true;
   }
   // Only whole short pieces join (cuts near long pieces' ends stay).
@@ -764,7 +845,9 @@ void Executor::envelope_span(uint64_t k, double w_end) noexcept {
     }
     s.wk[c] = hi;
     s.ak[c] = alpha;
-    s.ak_own[c] = own_at(hi);
+    // own_at(hi): alpha is alpha_at (= own_at) of the final hi on both
+    // branches above (asking again took a sixth of the envelope's queries).
+    s.ak_own[c] = alpha;
     s.alpha_own = std::min(s.alpha_own, s.ak_own[c]);
     s.alpha = std::min(s.alpha, alpha);
   }
@@ -1164,7 +1247,7 @@ void Executor::finish_abort() noexcept {
   store_.verts.release_upto(store_.verts.published());
   last_stop_ = UINT64_MAX;
   stop_head_ = stop_tail_;
-  env_active_ = env_pending_ = env_pending_full_ = false;
+  env_active_ = env_pending_ = env_pending_full_ = env_deferred_ = false;
   ++epoch_;
   abort_done_ = true;
   aborting_ = false;

@@ -82,6 +82,7 @@ class Executor {
   // (kSpanQueriesMax).
   struct CycleWork {
     int ingested = 0, split = 0, enveloped = 0, queries = 0, envelope_queries = 0;
+    int walks = 0;  // walks from the tail requested (new spans)
   };
   const CycleWork& cycle_work() const noexcept { return work_; }
   static constexpr int kIngestPerCycle = 128;
@@ -96,6 +97,13 @@ class Executor {
   // Most range minima one envelope span may take: 4 chunks, each at most
   // 14 velocity limits of at most 10 queries (executor.cpp).
   static constexpr int kSpanQueriesMax = 4 * 14 * 10;
+  // New spans wait for the envelope's walk while the tail lies more than
+  // kDeferNear "near" distances (about twice a stop from top speed) ahead
+  // of the input, until kDeferBatch of them of path or kDeferIdle cycles
+  // without new spans (executor.cpp, finalize).
+  static constexpr double kDeferNear = 2.0;
+  static constexpr double kDeferBatch = 0.25;
+  static constexpr int kDeferIdle = 8;
 
   // Position on the smoothed path at global position s (tests: dense
   // evaluation of the path that is being executed). Only for s within the
@@ -183,6 +191,9 @@ class Executor {
   bool env_active_ = false;
   bool env_pending_ = false;       // another walk from the tail is due
   bool env_pending_full_ = false;  // and it must reach the input
+  bool env_deferred_ = false;      // spans added that no walk was requested for yet
+  int env_idle_ = 0;               // cycles since spans were last added, while deferred
+  double env_walk_s_ = 0;          // end of the spans when the last walk was requested
   uint64_t env_k_ = 0;
   uint64_t env_floor_ = 0;
   bool merge_ok_ = false;  // the newest span is a whole short piece
@@ -216,6 +227,8 @@ class Executor {
   uint64_t overruns_ = 0;
   uint64_t cycles_ = 0;
   mutable CycleWork work_;  // counters only (range_min is const)
+  // Where range_min's previous searches ended (start points of the next).
+  mutable uint64_t hint_lo_ = 0, hint_hi_ = 0;
 };
 
 }  // namespace cnc::tp

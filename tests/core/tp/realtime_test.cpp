@@ -128,5 +128,47 @@ TEST(TpRealtime, EnvelopeWalkIsBoundedInRangeQueriesPerCycle) {
   }
 }
 
+// The envelope's walk over a deep queue of short curved moves (issue 20:
+// the planner's servo-thread work per cycle): a walk from the tail
+// re-walks the stretch within a stop of the old tail, whatever was added,
+// so walking after every new piece (one a cycle or two on a dense program)
+// kept the walk at its per-cycle slice nearly all the time. New spans far
+// ahead of the input are walked in batches now. Counted, not timed: on a
+// spiral of 4000 moves of 0.2 mm with 1000 of look-ahead, the walk's range minima per
+// cycle stay within the slice (the urgent slice only while the whole
+// look-ahead arrives at the start), and their mean over the program is a
+// small part of it.
+TEST(TpRealtime, EnvelopeWorkOnADenseProgramStaysWithinTheSlicesAndIsMostlyIdle) {
+  PlannerConfig cfg = profile("lc", 0.001);
+  cfg.lookahead_segments = 1000;
+  const Program prog = spiral(4000);
+  RunOptions opt;
+  opt.flush_at_end = true;
+  opt.moves_per_cycle = 1 << 20;
+  uint64_t cycles = 0, total = 0, above_slice = 0;
+  int most = 0, most_split = 0, most_ingested = 0;
+  opt.before_cycle = [&](uint64_t, TrajectoryPlanner& planner, CycleInputs&) {
+    const Executor::CycleWork& w = dynamic_cast<LookaheadPlanner&>(planner).executor().cycle_work();
+    ++cycles;
+    total += static_cast<uint64_t>(w.envelope_queries);
+    most = std::max(most, w.envelope_queries);
+    most_split = std::max(most_split, w.split);
+    most_ingested = std::max(most_ingested, w.ingested);
+    if (w.envelope_queries > Executor::kQueriesPerCycle + Executor::kSpanQueriesMax) ++above_slice;
+  };
+  const RunResult r = run(cfg, prog, opt);
+  expect_clean(r);
+  ASSERT_GT(cycles, 5000u);
+  EXPECT_LE(most, Executor::kQueriesUrgent + Executor::kSpanQueriesMax);
+  EXPECT_LE(most_split, Executor::kSplitPerCycle);
+  EXPECT_LE(most_ingested, Executor::kIngestPerCycle);
+  // Above the slice (the urgent walk) in at most 1 % of the cycles: the
+  // start, while the look-ahead arrives (28 of 10 707 cycles).
+  EXPECT_LE(above_slice * 100, cycles);
+  // 200 range minima a cycle on average (488 when every new piece started
+  // a walk): the walk keeps up with a margin.
+  EXPECT_LE(total, cycles * 300);
+}
+
 }  // namespace
 }  // namespace cnc::tp
