@@ -75,4 +75,22 @@ grep -q "^net y2-pos-cmd joint.2.motor-pos-cmd => cia402.0.drive.02.pos-cmd$" "$
 cc check > "$work/out" || fail "check: $(cat "$work/out")"
 grep -q "^check passed: .*ending at X0 Y0 as declared" "$work/out" || fail "check: $(cat "$work/out")"
 grep -q "G53 G1 Y" "$work/m/check.ngc" || fail "the check program does not move Y: $(cat "$work/m/check.ngc")"
+
+# Both sides of the gantry carry the table the same way: Y moved 4 mm by
+# MDI, the simulator's true table positions of the two drives (the second
+# one's motor turning the other way) moved alike.
+cc bring-up --dir "$work/m" --name gantry | grep -q "cncd runs on" || fail "bring-up"
+table() { "$bin/halcmd" getp "cia402-sim.0.node.0$1.table-position"; }
+"$bin/cnc" estop-reset && "$bin/cnc" on && "$bin/cnc" home all >/dev/null || fail "on and homed"
+"$bin/cnc" mode mdi >/dev/null
+l0="$(table 2)"; r0="$(table 3)"
+"$bin/cnc" mdi "G53 G1 Y4 F300" >/dev/null || fail "MDI move"
+sleep 0.3
+l1="$(table 2)"; r1="$(table 3)"
+"$bin/cnc" off >/dev/null
+cc shutdown >/dev/null
+python3 -c "
+l, r = $l1 - $l0, $r1 - $r0
+print(f'Y moved 4 mm: the drives\' tables moved {l:.4f} and {r:.4f} mm')
+assert abs(l) > 1 and abs(l - r) < 0.01, (l, r)" || fail "the gantry's sides did not move alike"
 echo PASS
