@@ -105,7 +105,7 @@ const char* kHelp =
     "      run the cycle on the controller (time-limited, switched off afterwards); the\n"
     "      position at each stop from HAL pin PIN (a laser's reading, mm), from the\n"
     "      laser's CSV file after the run, or from a camera reading a glass scale\n"
-    "      (/dev/videoN, sim:PIN the simulated one); without either, enter them with\n"
+    "      (/dev/videoN, exec:COMMAND a capture program); without one, enter them with\n"
     "      comp-measurements;\n"
     "      --check: a measurement of the compensated machine, kept beside the fit's\n"
     "  axis L comp-measurements (--csv FILE | --values UM,UM,...) [--check]\n"

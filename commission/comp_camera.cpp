@@ -1,18 +1,17 @@
 #include "commission/comp_camera.hpp"
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <optional>
 #include <stdexcept>
 
 #ifdef CNC_COMMISSION_CAMERA
 #include "vision/camera.hpp"
 #include "vision/scale_reader.hpp"
-#endif
-#ifdef CNC_COMMISSION_SIM_CAMERA
-#include "core/ipc/admin.hpp"
-#include "core/ipc/segment.hpp"
-#include "core/util/strings.hpp"
-#include "sim/vision/camera.hpp"
 #endif
 
 namespace cnc::commission {
@@ -51,32 +50,48 @@ StopReader camera_reader(std::shared_ptr<vision::FrameSource> camera, const Came
   };
 }
 
-StopReader camera_reader(const CameraOptions& o) {
-  if (o.source.rfind("sim:", 0) == 0) {
-#ifdef CNC_COMMISSION_SIM_CAMERA
-    const std::string pin = o.source.substr(4);
-    auto hal = std::make_shared<ipc::AdminClient>(ipc::default_instance());
-    vision::sim::ScaleScene scene;
-    scene.pitch_mm = o.pitch_mm;
-    scene.um_per_px = o.um_per_px;
-    scene.imaging.width = 320;  // enough graduations (80 at 0.1 mm, 2.5 um/px), quick to render and read
-    scene.imaging.height = 240;
-    auto camera = std::make_shared<vision::sim::SimulatedScaleCamera>(
-        scene,
-        [hal, pin]() {
-          const ipc::AdminReply r = hal->request("getp " + pin);
-          const auto v = r.ok ? parse_double(trim(r.text)) : std::nullopt;
-          if (!v) throw std::runtime_error("getp " + pin + ": " + r.text);
-          return *v;
-        },
-        o.scale_at_zero_mm, o.sign);
-    // The pin named now rather than at the first stop.
-    if (const vision::Frame f = camera->grab(); !f.ok()) throw std::runtime_error(f.error);
-    return camera_reader(camera, o);
-#else
-    throw std::runtime_error("camera " + o.source + ": this build has no camera simulator (sim/vision)");
-#endif
+namespace {
+// "exec:COMMAND": a program that takes one picture per grab (a camera's
+// own capture tool, or the simulated camera), run through the shell with
+// the image file to write appended as its last argument.
+class CommandSource : public vision::FrameSource {
+ public:
+  explicit CommandSource(std::string command)
+      : command_(std::move(command)),
+        file_(std::filesystem::temp_directory_path() /
+              ("cnc-commission-camera-" + std::to_string(::getpid()) + ".png")) {}
+  ~CommandSource() override {
+    std::error_code ec;
+    std::filesystem::remove(file_, ec);
   }
+  vision::Frame grab() override {
+    std::error_code ec;
+    std::filesystem::remove(file_, ec);
+    const std::string quoted = "'" + file_.string() + "'";
+    const int st = std::system((command_ + " " + quoted + " >/dev/null").c_str());
+    vision::Frame f;
+    if (st != 0) {
+      f.error = name() + ": the command ended with status " +
+                std::to_string(WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st));
+      return f;
+    }
+    if (!std::filesystem::exists(file_)) {
+      f.error = name() + ": the command wrote no image to " + file_.string();
+      return f;
+    }
+    return vision::ImageSource(file_).grab();
+  }
+  std::string check() const override { return command_.empty() ? name() + ": no command" : ""; }
+  std::string name() const override { return "camera exec:" + command_; }
+
+ private:
+  std::string command_;
+  std::filesystem::path file_;
+};
+}  // namespace
+
+StopReader camera_reader(const CameraOptions& o) {
+  if (o.source.rfind("exec:", 0) == 0) return camera_reader(std::make_shared<CommandSource>(o.source.substr(5)), o);
   return camera_reader(std::shared_ptr<vision::FrameSource>(vision::open_source(o.source)), o);
 }
 #else

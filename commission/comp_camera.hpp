@@ -25,9 +25,10 @@ namespace cnc::commission {
 
 struct CameraOptions {
   // Where the images come from: vision::open_source's spec (/dev/videoN,
-  // v4l2:..., folder:PATH, file:PATH), or `sim:PIN`: the simulated camera
-  // (sim/vision) over the glass scale at the value of HAL pin PIN of the
-  // running controller (the drive simulator's true table position).
+  // v4l2:..., folder:PATH, file:PATH), or `exec:COMMAND`: a program that
+  // takes one picture per reading (a camera's capture tool; in the tests
+  // the simulated camera, tests/commission/sim_camera.sh), run through the
+  // shell with the image file to write appended.
   std::string source;
   double pitch_mm = 0.1;        // the scale's graduation spacing
   double um_per_px = 2.5;       // pixel scale at the scale's surface
@@ -42,8 +43,7 @@ struct CameraOptions {
 // scale, blurred ...). A reader on `camera` (kept alive by the reader).
 StopReader camera_reader(std::shared_ptr<vision::FrameSource> camera, const CameraOptions& o);
 // A reader on o.source; throws std::runtime_error when the camera is known
-// to be missing or this build has no camera (OpenCV's aruco module) or no
-// simulator for `sim:`.
+// to be missing or this build has no camera (comp/'s camera library).
 StopReader camera_reader(const CameraOptions& o);
 
 }  // namespace cnc::commission

@@ -697,7 +697,7 @@ class CompensationPage : public AxisPage {
     source_->addItems({"laser (HAL pin; or its CSV file below, read after the run)", "camera on a glass scale"});
     form_->addRow("Readings from", source_);
     form_->addRow("Laser HAL pin", laser_pin_ = line("compLaserPin", "", "e.g. laser.0.position (mm), read at each stop"));
-    camera_ = line("compCamera", "", "/dev/video0, or sim:cia402-sim.0.node.01.table-position (simulated)");
+    camera_ = line("compCamera", "", "/dev/video0, or exec:COMMAND (a program that takes one picture)");
     pitch_ = number("compScalePitch", 0, 10, 0.1, 4, " mm");
     um_per_px_ = number("compUmPerPx", 0, 100, 2.5, 3, " um/px");
     form_->addRow("Camera, scale pitch, pixel scale", row({camera_, pitch_, um_per_px_}, true));

@@ -260,7 +260,7 @@ Argv CommandBuilder::comp_run(char letter, const std::string& laser_csv, const s
 
 Argv CommandBuilder::comp_run_camera(char letter, const std::string& camera, double pitch_mm, double um_per_px,
                                      const std::string& bring_up_dir) const {
-  require(camera, "camera (/dev/videoN, or sim:PIN for the simulated one)");
+  require(camera, "camera (/dev/videoN, or exec:COMMAND)");
   if (pitch_mm < 0 || um_per_px < 0) throw std::invalid_argument("camera: the scale's pitch and the pixel scale must be > 0");
   Argv a = axis(letter, "comp-run");
   a.insert(a.end(), {"--camera", trim_copy(camera)});

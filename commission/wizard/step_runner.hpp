@@ -97,7 +97,7 @@ class CommandBuilder {
   Argv comp_run(char letter, const std::string& laser_csv = "", const std::string& laser_pin = "",
                 const std::string& bring_up_dir = "") const;
   // The cycle run with a camera reading a glass scale at each stop
-  // (`camera`: /dev/videoN, folder:PATH, or sim:PIN the simulated one;
+  // (`camera`: /dev/videoN, folder:PATH, or exec:COMMAND a capture program;
   // the scale's pitch and the pixel scale, 0: the defaults).
   Argv comp_run_camera(char letter, const std::string& camera, double pitch_mm = 0, double um_per_px = 0,
                        const std::string& bring_up_dir = "") const;

@@ -3,7 +3,8 @@
 # on a simulated one-axis machine (cnc-sim-random-machine, seed 7): the
 # cycle run on a controller the program brings up, each stop read by the
 # simulated camera over a glass scale at the simulator's true table
-# position (comp-run --camera sim:PIN), then the same cycle read by the
+# position (comp-run --camera exec:sim_camera.sh ..., a picture taken by
+# cnc-vision-sim at each reading), then the same cycle read by the
 # laser pin (that position itself): the camera's deviations agree with the
 # laser's at every stop. Bad input: a missing camera named, nothing saved;
 # two sources refused.
@@ -35,27 +36,28 @@ t = json.load(open('$work/m/sim-truth.json'))['axes'][0]
 s = json.load(open('$work/state.json'))['axes'][0]['scaling']
 print(2 * s['counts_per_mm'] / t['counts_per_mm'] * (-1 if t['motor_reversed'] else 1))")
 cc axis X direction-test --distance 2 --velocity 5 --dial "$dial" --bring-up "$work/m" >/dev/null || fail "direction test"
-cc axis X comp-program --out "$work/x.ngc" --min -15 --max 65 --targets 5 --runs 2 --dwell 0.5 --feed 1200 > "$work/out"
+cc axis X comp-program --out "$work/x.ngc" --min -15 --max 65 --targets 5 --runs 2 --dwell 1 --feed 1200 > "$work/out"
 stops=$(grep -c "^stop " "$work/out")
 
 # Bad input: two sources refused (usage), a camera that is not there named
 # before anything moves; nothing saved.
 before="$(cat "$work/state.json")"
-set +e; cc axis X comp-run --camera "sim:$pin" --laser-pin "$pin" 2>"$work/err"; rc=$?; set -e
+camera="exec:$(dirname "$0")/sim_camera.sh $bin $pin"
+set +e; cc axis X comp-run --camera "$camera" --laser-pin "$pin" 2>"$work/err"; rc=$?; set -e
 [ $rc -eq 2 ] && grep -q "one of --laser-pin, --laser and --camera" "$work/err" || fail "two sources: status $rc: $(cat "$work/err")"
 set +e; cc axis X comp-run --camera "$work/no-camera/" --bring-up "$work/m" >"$work/out" 2>"$work/err"; rc=$?; set -e
 [ $rc -eq 1 ] && grep -q "no-camera" "$work/err" || fail "a missing camera: status $rc: $(cat "$work/out" "$work/err")"
 [ "$before" = "$(cat "$work/state.json")" ] || fail "a refused run changed the state"
 
 # The cycle read by the simulated camera, then by the laser pin.
-cc axis X comp-run --camera "sim:$pin" --pitch 0.1 --um-per-px 2.5 --bring-up "$work/m" > "$work/out" \
+cc axis X comp-run --camera "$camera" --pitch 0.1 --um-per-px 2.5 --bring-up "$work/m" > "$work/out" \
   || fail "comp-run --camera: $(cat "$work/out")"
 grep -q "^progress: $stops/$stops X .* reading " "$work/out" || fail "no progress lines: $(cat "$work/out")"
 grep -q "^axis X: A " "$work/out" || fail "no figures: $(cat "$work/out")"
 python3 -c "
 import json
 c = json.load(open('$work/state.json'))['axes'][0]['compensation']
-assert c['source'].startswith('camera sim:$pin on a glass scale'), c['source']
+assert c['source'].startswith('camera exec:') and 'on a glass scale' in c['source'], c['source']
 json.dump(c['points'], open('$work/camera.json', 'w'))" || fail "the camera's measurement is not in the state"
 cc axis X comp-run --laser-pin "$pin" --bring-up "$work/m" > "$work/out" || fail "comp-run --laser-pin: $(cat "$work/out")"
 python3 - "$work/state.json" "$work/camera.json" <<'PY' || fail "the camera's deviations differ from the laser's"

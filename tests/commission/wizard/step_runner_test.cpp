@@ -167,8 +167,8 @@ TEST(WizardCommands, CompensationCycleOptionsAndTheLaserPin) {
   EXPECT_EQ(b.comp_run('X', "", " cia402-sim.0.node.01.table-position "),
             with_state({"axis", "X", "comp-run", "--laser-pin", "cia402-sim.0.node.01.table-position"}));
   EXPECT_THROW(b.comp_run('X', "/m/laser.csv", "laser.0.position"), std::invalid_argument);  // one source
-  EXPECT_EQ(b.comp_run_camera('X', " sim:cia402-sim.0.node.01.table-position ", 0.1, 2.5, "/m/up"),
-            with_state({"axis", "X", "comp-run", "--camera", "sim:cia402-sim.0.node.01.table-position", "--pitch", "0.1",
+  EXPECT_EQ(b.comp_run_camera('X', " exec:capture --png ", 0.1, 2.5, "/m/up"),
+            with_state({"axis", "X", "comp-run", "--camera", "exec:capture --png", "--pitch", "0.1",
                         "--um-per-px", "2.5", "--bring-up", "/m/up"}));
   EXPECT_EQ(b.comp_run_camera('X', "/dev/video0"), with_state({"axis", "X", "comp-run", "--camera", "/dev/video0"}));
   EXPECT_THROW(b.comp_run_camera('X', " "), std::invalid_argument) << "no camera";
