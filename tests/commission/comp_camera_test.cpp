@@ -4,7 +4,8 @@
 // give the table's true deviations, also when the deviation grows beyond
 // half the scale's pitch over the travel (the graduations are followed
 // from stop to stop) and when the scale's position at 0 is off by
-// millimetres; a missing camera and an image without a scale are named.
+// millimetres; a missing camera, an image without a scale and a capture
+// command that fails are named.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -102,6 +103,27 @@ TEST(CommissionCompCamera, AMissingCameraAndAnImageWithoutScaleAreNamed) {
   }
   o.frames = 0;
   EXPECT_THROW((void)camera_reader(camera, o), std::invalid_argument);
+}
+
+// exec:COMMAND, a program that takes one picture per reading: a command
+// that fails or writes no image is named with what went wrong.
+TEST(CommissionCompCamera, ACaptureCommandThatFailsOrWritesNoImageIsNamed) {
+  CameraOptions o;
+  o.source = "exec:exit 3;";
+  try {
+    (void)camera_reader(o)(0);
+    FAIL() << "a failing capture command read";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("camera exec:exit 3;: the command ended with status 3"), std::string::npos)
+        << e.what();
+  }
+  o.source = "exec:true";
+  try {
+    (void)camera_reader(o)(0);
+    FAIL() << "a command without an image read";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("camera exec:true: the command wrote no image"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
