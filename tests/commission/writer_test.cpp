@@ -288,6 +288,34 @@ TEST(CommissionWriter, GantryAssignmentRefusesADriveOrJointInUseAndAFaultyDrive)
   }
 }
 
+// Drive homing methods search in the drive's own direction: on a second
+// drive that turns the other way the method would search the other side,
+// so the writer refuses it, naming the way out; a pair turning the same
+// way gets the method on both drives.
+TEST(CommissionWriter, RefusesDriveHomingOnAGantryWhoseSecondDriveTurnsTheOtherWay) {
+  State s = gantry_machine();
+  AxisHoming h;
+  h.method = "drive:21";
+  h.search_velocity = -5;
+  h.latch_velocity = -0.5;
+  s.axis('Y')->homing = h;
+  testing::TempDir dir;
+  try {
+    generate_config(s, dir.path(), "g");
+    FAIL() << "drive homing written for a reversed second drive";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("axis Y: the gantry's second drive turns the other way"), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("homing --method controller"), std::string::npos) << e.what();
+  }
+  s.axis('Y')->gantry->reverse = false;
+  const std::string ini = generate_config(s, dir.path(), "g")[0].content;
+  EXPECT_NE(section(ini, "CIA402_DRIVE_1").find("HOME_METHOD = 21\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "CIA402_DRIVE_2").find("HOME_METHOD = 21\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "JOINT_2").find("HOME_MODE = DRIVE\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "JOINT_2").find("HOME_SEQUENCE = -1\n"), std::string::npos) << ini;
+}
+
 // The gantry configuration is one cncd accepts: loaded with its HAL by
 // `cncd --check --strict`, with four simulated drives on the bus.
 TEST(CommissionWriter, TheWrittenGantryConfigurationPassesTheStrictCheck) {
