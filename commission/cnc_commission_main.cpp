@@ -3,6 +3,7 @@
 // subcommand reads the state file, does its step and saves the state.
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
 #include <chrono>
 #include <cerrno>
@@ -13,12 +14,15 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "commission/backup.hpp"
 #include "commission/check.hpp"
+#include "commission/comp_camera.hpp"
 #include "commission/compensation.hpp"
 #include "commission/config_writer.hpp"
 #include "commission/controller.hpp"
@@ -56,8 +60,10 @@ const char* kHelp =
     "      with an ESI file\n"
     "  show\n"
     "      print the state: nodes, axes, scaling, tests\n"
-    "  axis L assign (--node ID | --slave POSITION) [--joint J] [--gantry-with L2]\n"
-    "      drive node ID moves axis L (X Y Z A B C U V W) on joint J\n"
+    "  axis L assign (--node ID | --slave POSITION) [--joint J]\n"
+    "      [--gantry-node ID | --gantry-slave POSITION] [--gantry-joint J] [--gantry-reverse]\n"
+    "      drive node ID moves axis L (X Y Z A B C U V W) on joint J; a gantry: the\n"
+    "      second drive of the axis on its own joint (the next free one unless given)\n"
     "  axis L scaling --lead MM [--counts N] [--gear MOTOR:LOAD]\n"
     "      screw lead; counts per revolution and gear from the drive unless given\n"
     "  axis L limits --min MM --max MM [--velocity MM/S] [--acceleration MM/S2]\n"
@@ -93,11 +99,14 @@ const char* kHelp =
     "  axis L comp-program --out FILE.ngc [--min MM] [--max MM] [--targets N] [--runs N]\n"
     "                      [--overshoot MM] [--dwell S] [--feed MM/MIN] [--seed N]\n"
     "      the ISO 230-2 cycle of the axis (comp/), inside its soft limits; lists its stops\n"
-    "  axis L comp-run [--laser-pin PIN | --laser CSV] [--check] [--out FILE.ngc]\n"
-    "                  [--bin DIR] [--bring-up DIR]\n"
+    "  axis L comp-run [--laser-pin PIN | --laser CSV | --camera SOURCE] [--check] [--out FILE.ngc]\n"
+    "                  [--pitch MM] [--um-per-px UM] [--scale-at-zero MM] [--scale-sign -1]\n"
+    "                  [--frames N] [--bin DIR] [--bring-up DIR]\n"
     "      run the cycle on the controller (time-limited, switched off afterwards); the\n"
-    "      position at each stop from HAL pin PIN (a laser's reading, mm) or from the\n"
-    "      laser's CSV file after the run; without either, enter them with comp-measurements;\n"
+    "      position at each stop from HAL pin PIN (a laser's reading, mm), from the\n"
+    "      laser's CSV file after the run, or from a camera reading a glass scale\n"
+    "      (/dev/videoN, exec:COMMAND a capture program); without one, enter them with\n"
+    "      comp-measurements;\n"
     "      --check: a measurement of the compensated machine, kept beside the fit's\n"
     "  axis L comp-measurements (--csv FILE | --values UM,UM,...) [--check]\n"
     "      the measurement from a file (comp/'s measurement CSV or a laser's readings) or\n"
@@ -259,6 +268,9 @@ void show(const State& s) {
     if (a.scaling.counts_per_mm() > 0)
       std::cout << ", " << a.scaling.counts_per_mm() << " counts/mm" << (a.scaling.reverse ? ", REVERSE" : "");
     std::cout << ", limits " << a.min_limit << ".." << a.max_limit << " mm\n";
+    if (a.gantry)
+      std::cout << "  gantry pair: " << (a.gantry->slave ? "EtherCAT slave " + std::to_string(a.gantry->slave) : "node " + std::to_string(a.gantry->node))
+                << " on joint " << a.gantry->joint << (a.gantry->reverse ? ", reversed" : "") << "\n";
     if (a.direction) std::cout << "  direction test: " << a.direction->verdict << "\n";
     if (a.compensation && a.compensation->measured)
       std::cout << "  compensation: measured " << describe(*a.compensation->measured)
@@ -327,17 +339,28 @@ int cmd_axis_comp(State& s, char letter, const std::string& step, Args& a) {
     std::filesystem::path laser_csv, out, bin = self_dir(), bring_up;
     std::string pin;
     bool check = false;
+    CameraOptions camera;  // --camera: a camera over a glass scale reads each stop
     while (a.more()) {
       const std::string k = a.next("option");
       if (k == "--laser") laser_csv = a.next("file");
       else if (k == "--laser-pin") pin = a.next("HAL pin");
+      else if (k == "--camera") camera.source = a.next("camera");
+      else if (k == "--pitch") camera.pitch_mm = number(a.next("mm"), "--pitch");
+      else if (k == "--um-per-px") camera.um_per_px = number(a.next("um"), "--um-per-px");
+      else if (k == "--scale-at-zero") camera.scale_at_zero_mm = number(a.next("mm"), "--scale-at-zero");
+      else if (k == "--scale-sign") camera.sign = static_cast<int>(number(a.next("+1 or -1"), "--scale-sign"));
+      else if (k == "--frames") camera.frames = static_cast<int>(number(a.next("count"), "--frames"));
       else if (k == "--check") check = true;
       else if (k == "--out") out = a.next("file");
       else if (k == "--bin") bin = a.next("folder");
       else if (k == "--bring-up") bring_up = a.next("folder");
       else usage("comp-run: unknown option " + k);
     }
-    if (!laser_csv.empty() && !pin.empty()) usage("comp-run: --laser-pin or --laser, not both");
+    if (!laser_csv.empty() + !pin.empty() + !camera.source.empty() > 1)
+      usage("comp-run: one of --laser-pin, --laser and --camera");
+    if (!(camera.pitch_mm > 0) || !(camera.um_per_px > 0)) usage("comp-run: --pitch and --um-per-px must be > 0");
+    if (camera.sign != 1 && camera.sign != -1) usage("comp-run: --scale-sign 1 or -1");
+    if (camera.frames < 1 || camera.frames > 100) usage("comp-run: --frames 1 to 100");
     check_cycle(*ax, c);
     if (!out.empty() || c.program.empty()) {
       if (out.empty()) out = g_state_dir / ("comp-" + l + ".ngc");
@@ -346,7 +369,10 @@ int cmd_axis_comp(State& s, char letter, const std::string& step, Args& a) {
     cnc::write_file_atomically(c.program, cnc::comp::iso_cycle_gcode(cycle_options(*ax, c)));
     std::unique_ptr<ControllerProcess> own;
     if (!bring_up.empty()) own = bring_up_controller(s, bin, bring_up, "commission", bring_up / "cncd.log");
-    const CompRunResult r = run_comp_cycle(Controller(bin), *ax, c, c.program, pin, print_progress);
+    const CompRunResult r = camera.source.empty()
+                                ? run_comp_cycle(Controller(bin), *ax, c, c.program, pin, print_progress)
+                                : run_comp_cycle(Controller(bin), *ax, c, c.program, camera_reader(camera), print_progress,
+                                                 /*readings_per_stop=*/1);
     if (own && own->stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
     std::cout << "axis " << L << ": the cycle ran (" << r.stops.size() << " stops); the machine is off again\n";
     ax->compensation = c;
@@ -355,6 +381,12 @@ int cmd_axis_comp(State& s, char letter, const std::string& step, Args& a) {
     if (!pin.empty()) {
       points = points_from_readings(r.stops, r.readings_mm);
       source = "laser pin " + pin;
+    } else if (!camera.source.empty()) {
+      points = points_from_readings(r.stops, r.readings_mm);
+      std::ostringstream src;
+      src << "camera " << camera.source << " on a glass scale (pitch " << camera.pitch_mm << " mm, " << camera.um_per_px
+          << " um/px)";
+      source = src.str();
     } else if (!laser_csv.empty()) {
       points = points_from_readings(r.stops, load_laser_csv(laser_csv, r.stops));
       source = "laser file " + laser_csv.string();
@@ -611,25 +643,55 @@ int cmd_axis(State& s, Args& a) {
   const std::string step = a.next("axis step");
   if (step == "assign") {
     int node = -1, joint = -1, slave = -1;
-    std::string gantry;
+    // A gantry pair: the second drive (--gantry-node or --gantry-slave),
+    // its joint (default the next free one) and direction.
+    int gantry_node = -1, gantry_slave = -1, gantry_joint = -1;
+    bool gantry_reverse = false;
     while (a.more()) {
       const std::string k = a.next("option");
       if (k == "--node") node = static_cast<int>(number(a.next("node-ID"), "--node"));
       else if (k == "--slave") slave = static_cast<int>(number(a.next("slave position"), "--slave"));
       else if (k == "--joint") joint = static_cast<int>(number(a.next("joint"), "--joint"));
-      else if (k == "--gantry-with") gantry = a.next("axis");
+      else if (k == "--gantry-node") gantry_node = static_cast<int>(number(a.next("node-ID"), "--gantry-node"));
+      else if (k == "--gantry-slave") gantry_slave = static_cast<int>(number(a.next("slave position"), "--gantry-slave"));
+      else if (k == "--gantry-joint") gantry_joint = static_cast<int>(number(a.next("joint"), "--gantry-joint"));
+      else if (k == "--gantry-reverse") gantry_reverse = true;
       else usage("assign: unknown option " + k);
     }
     if ((node < 0) == (slave < 0)) usage("assign: --node ID (CANopen) or --slave POSITION (EtherCAT)");
-    if (joint < 0) joint = s.axis(letter) ? s.axis(letter)->joint : static_cast<int>(s.axes.size());
+    if (gantry_node >= 0 && node < 0) usage("assign: --gantry-node goes with --node (one bus for both drives)");
+    if (gantry_slave >= 0 && slave < 0) usage("assign: --gantry-slave goes with --slave (one bus for both drives)");
+    if ((gantry_joint >= 0 || gantry_reverse) && gantry_node < 0 && gantry_slave < 0)
+      usage("assign: --gantry-joint and --gantry-reverse need --gantry-node or --gantry-slave");
+    // Joints in use by the other axes and their gantry drives.
+    std::vector<int> taken;
+    for (const MachineJoint& mj : machine_joints(s))
+      if (mj.axis.letter != letter) taken.push_back(mj.axis.joint);
+    const auto next_free = [&taken](int from) {
+      while (std::find(taken.begin(), taken.end(), from) != taken.end()) ++from;
+      return from;
+    };
+    if (joint < 0) joint = s.axis(letter) ? s.axis(letter)->joint : next_free(0);
+    std::optional<GantryDrive> gantry;
+    if (gantry_node >= 0 || gantry_slave >= 0) {
+      taken.push_back(joint);
+      gantry = GantryDrive{std::max(gantry_node, 0), std::max(gantry_slave, 0),
+                           gantry_joint >= 0 ? gantry_joint : next_free(joint + 1), gantry_reverse};
+    }
+    const auto say_gantry = [&gantry](const Axis& ax) {
+      if (!gantry) return std::string();
+      return ", gantry pair with " +
+             (ax.gantry->slave ? "EtherCAT slave " + std::to_string(ax.gantry->slave) : "node " + std::to_string(ax.gantry->node)) +
+             " on joint " + std::to_string(ax.gantry->joint) + (ax.gantry->reverse ? " (reversed)" : "");
+    };
     if (slave >= 0) {
       const Axis& ax = assign_axis_ethercat(s, letter, joint, slave, gantry);
-      std::cout << "axis " << letter << ": EtherCAT slave " << ax.slave << " on joint " << ax.joint << "\n";
+      std::cout << "axis " << letter << ": EtherCAT slave " << ax.slave << " on joint " << ax.joint << say_gantry(ax) << "\n";
       s.log.push_back("axis " + std::string(1, letter) + " assigned to EtherCAT slave " + std::to_string(slave));
       return 0;
     }
     const Axis& ax = assign_axis(s, letter, joint, node, gantry);
-    std::cout << "axis " << letter << ": node " << ax.node << " on joint " << ax.joint << "\n";
+    std::cout << "axis " << letter << ": node " << ax.node << " on joint " << ax.joint << say_gantry(ax) << "\n";
     s.log.push_back("axis " + std::string(1, letter) + " assigned to node " + std::to_string(node));
   } else if (step == "scaling") {
     double lead = 0, counts = 0, gm = 0, gl = 0;

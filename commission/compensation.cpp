@@ -419,6 +419,24 @@ std::vector<GeneratedFile> compensation_files(const State& s, const std::filesys
 CompRunResult run_comp_cycle(const Controller& ctl, const Axis& a, const AxisCompensation& c,
                              const std::filesystem::path& program, const std::string& laser_pin,
                              const Progress& progress) {
+  StopReader read;
+  if (!laser_pin.empty()) {
+    auto admin = std::make_shared<ipc::AdminClient>(ipc::Client().instance());
+    const std::string n = axis_name(a.letter);
+    read = [admin, laser_pin, n](double) {
+      const ipc::AdminReply rep = admin->request("getp " + laser_pin);
+      const auto v = rep.ok ? parse_double(trim(rep.text)) : std::nullopt;
+      if (!v) throw std::runtime_error(n + ": the laser's pin " + laser_pin + " cannot be read: " + rep.text);
+      return *v;
+    };
+    read(0);  // named now rather than at the first stop
+  }
+  return run_comp_cycle(ctl, a, c, program, read, progress);
+}
+
+CompRunResult run_comp_cycle(const Controller& ctl, const Axis& a, const AxisCompensation& c,
+                             const std::filesystem::path& program, const StopReader& read,
+                             const Progress& progress, int readings_per_stop) {
   using clock = std::chrono::steady_clock;
   check_cycle(a, c);
   CompRunResult r;
@@ -427,17 +445,6 @@ CompRunResult run_comp_cycle(const Controller& ctl, const Axis& a, const AxisCom
   const int joint = a.joint;
   clear_abort();
   ipc::Client client;
-  std::unique_ptr<ipc::AdminClient> admin;
-  auto read_laser = [&]() {
-    const ipc::AdminReply rep = admin->request("getp " + laser_pin);
-    const auto v = rep.ok ? parse_double(trim(rep.text)) : std::nullopt;
-    if (!v) throw std::runtime_error(n + ": the laser's pin " + laser_pin + " cannot be read: " + rep.text);
-    return *v;
-  };
-  if (!laser_pin.empty()) {
-    admin = std::make_unique<ipc::AdminClient>(client.instance());
-    read_laser();  // named now rather than at the first stop
-  }
   // The cycle's time at its feed: each run twice over the range and the
   // overshoots, a dwell per stop.
   const double travel = c.runs * 2 * (c.x_max - c.x_min + 2 * c.overshoot_mm) + (c.x_max - c.x_min) + 2 * c.overshoot_mm;
@@ -462,6 +469,7 @@ CompRunResult run_comp_cycle(const Controller& ctl, const Axis& a, const AxisCom
     double sum = 0;
     int samples = 0;
     bool seen_running = false;
+    bool at_stop = false;           // the command stands at stop k, settled
     std::size_t k = 0;
     while (k < r.stops.size()) {
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
@@ -483,13 +491,18 @@ CompRunResult run_comp_cycle(const Controller& ctl, const Axis& a, const AxisCom
       const CycleStop& stop = r.stops[k];
       if (std::fabs(cmd - last_cmd) > 1e-9) {
         // The command moves: a stop being read ends here.
+        if (at_stop && samples == 0)
+          throw std::runtime_error(n + ": no reading at stop " + std::to_string(k + 1) + " (" + std::string(1, a.letter) +
+                                   " " + num(stop.target, "%.3f") + "): the dwell (" + num(c.dwell_s, "%.2f") +
+                                   " s) ended before a reading did: give a longer --dwell to comp-program");
+        at_stop = false;
         if (samples > 0) {
-          r.readings_mm.push_back(laser_pin.empty() ? std::numeric_limits<double>::quiet_NaN() : sum / samples);
+          r.readings_mm.push_back(!read ? std::numeric_limits<double>::quiet_NaN() : sum / samples);
           ++k;
           if (progress)
             progress(static_cast<int>(k), static_cast<int>(r.stops.size()),
                      std::string(1, a.letter) + " " + num(stop.target, "%.3f") + (stop.direction > 0 ? " +" : " -") +
-                         (laser_pin.empty() ? "" : " reading " + num(r.readings_mm.back(), "%.6f") + " mm"));
+                         (!read ? "" : " reading " + num(r.readings_mm.back(), "%.6f") + " mm"));
         }
         last_dir = cmd > last_cmd ? 1 : -1;
         last_cmd = cmd;
@@ -500,7 +513,24 @@ CompRunResult run_comp_cycle(const Controller& ctl, const Axis& a, const AxisCom
       }
       const double still = std::chrono::duration<double>(now - still_since).count();
       if (still >= settle_s && last_dir == stop.direction && std::fabs(cmd - stop.target) < 1e-4) {
-        sum += laser_pin.empty() ? 0.0 : read_laser();
+        at_stop = true;
+        if (readings_per_stop > 0 && samples >= readings_per_stop) continue;
+        double v = 0;
+        if (read) {
+          const auto where = [&] {
+            return std::string(1, a.letter) + " " + num(stop.target, "%.3f") + (stop.direction > 0 ? " +" : " -") +
+                   ", run " + std::to_string(stop.run);
+          };
+          try {
+            v = read(stop.target);
+          } catch (const std::exception& e) {
+            throw std::runtime_error(n + ": no reading at stop " + std::to_string(k + 1) + " (" + where() + "): " + e.what());
+          }
+          // A reading that took long (a camera's frame) may end after the
+          // command moved on: dropped, the stop keeps the earlier ones.
+          if (std::fabs(client.status().joints[joint].pos_cmd - cmd) > 1e-9) continue;
+        }
+        sum += v;
         ++samples;
       }
     }

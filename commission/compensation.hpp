@@ -112,5 +112,18 @@ using Progress = std::function<void(int done, int total, const std::string& what
 CompRunResult run_comp_cycle(const Controller& ctl, const Axis& a, const AxisCompensation& c,
                              const std::filesystem::path& program, const std::string& laser_pin,
                              const Progress& progress = {});
+// The same with any source of the readings: `read(target)` gives the
+// table's position (mm, any zero) at a stop at `target` (a laser's pin, a
+// camera over a glass scale: commission/comp_camera.hpp); empty: the stops
+// only. A reading during which the command moved on is dropped. What it
+// throws stops the cycle (machine off), its message naming the stop.
+// `readings_per_stop` > 0 takes at most that many per stop (a camera: its
+// reading averages frames itself, and rendering or reading a frame costs
+// the host what the servo thread needs); 0 reads all the time the command
+// stands.
+using StopReader = std::function<double(double target_mm)>;
+CompRunResult run_comp_cycle(const Controller& ctl, const Axis& a, const AxisCompensation& c,
+                             const std::filesystem::path& program, const StopReader& read,
+                             const Progress& progress = {}, int readings_per_stop = 0);
 
 }  // namespace cnc::commission

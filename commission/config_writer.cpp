@@ -14,6 +14,7 @@
 #include "commission/backup.hpp"
 #include "commission/compensation.hpp"
 #include "commission/homing_check.hpp"  // steps 5, 6: homing keys, switch nets
+#include "commission/steps.hpp"  // machine_joints
 #include "core/util/atomic_file.hpp"
 
 namespace cnc::commission {
@@ -49,22 +50,31 @@ long servo_period_ns(std::size_t drives) noexcept {
 }
 
 std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem::path& dir, const std::string& name) {
+  // The axes (one [AXIS_L] each) and the joints (one [JOINT_n], drive and
+  // node each): a gantry pair is one axis on two joints (steps.hpp,
+  // machine_joints).
   std::vector<const Axis*> axes;
   for (const Axis& a : s.axes) axes.push_back(&a);
   if (axes.empty()) throw std::invalid_argument("no axis: assign a drive to an axis first");
   std::sort(axes.begin(), axes.end(), [](const Axis* a, const Axis* b) { return a->joint < b->joint; });
-  for (std::size_t i = 0; i < axes.size(); ++i) {
-    const Axis& a = *axes[i];
+  const std::vector<MachineJoint> joints = machine_joints(s);
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    const Axis& a = joints[i].axis;
     if (a.joint != static_cast<int>(i))
-      throw std::invalid_argument(std::string("axis ") + a.letter + " is on joint " + std::to_string(a.joint) +
-                                  ": the axes must use joints 0.." + std::to_string(axes.size() - 1));
+      throw std::invalid_argument(std::string("axis ") + a.letter + (joints[i].gantry_second ? "'s gantry drive" : "") +
+                                  " is on joint " + std::to_string(a.joint) + ": the axes must use joints 0.." +
+                                  std::to_string(joints.size() - 1));
     if (a.enabled && !(a.scaling.counts_per_mm() > 0))
       throw std::invalid_argument(std::string("axis ") + a.letter + " has no scaling yet: run its scaling step");
   }
+  std::vector<const Axis*> joint_axes;  // each joint's drive, in joint order
+  for (const MachineJoint& j : joints) joint_axes.push_back(&j.axis);
+  bool gantry = false;
+  for (const Axis* a : axes) gantry = gantry || a->gantry.has_value();
   // One bus for all axes: CANopen drives (node-IDs) or EtherCAT drives
   // (slave positions).
   const bool ethercat = axes.front()->slave > 0;
-  for (const Axis* a : axes) {
+  for (const Axis* a : joint_axes) {
     if ((a->slave > 0) != ethercat)
       throw std::invalid_argument(std::string("axis ") + a->letter + " is on " + (ethercat ? "CANopen" : "EtherCAT") +
                                   " and axis " + axes.front()->letter + " on " + (ethercat ? "EtherCAT" : "CANopen") +
@@ -74,12 +84,29 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
   if (ethercat && s.ethercat_interface.empty())
     throw std::invalid_argument("no EtherCAT interface in the state: run scan-ethercat first");
   const std::string bus = ethercat ? "ethercat.0" : "canopen.0";
+  // Names of the joints' drives, nets and nodes: "y", and "y2" for a
+  // gantry's second drive.
+  const auto short_name = [&joints](std::size_t i) {
+    return std::string(1, static_cast<char>(std::tolower(joints[i].axis.letter))) + (joints[i].gantry_second ? "2" : "");
+  };
+  // A gantry pair homes together: both joints the same negative
+  // HOME_SEQUENCE (-1 for the first pair, -2 for the next ...), the other
+  // joints keep theirs (0).
+  const auto home_sequence = [&axes](const Axis& a) {
+    int pair = 0;
+    for (const Axis* x : axes) {
+      if (x->gantry) ++pair;
+      if (x->letter == a.letter) return a.gantry ? -pair : 0;
+    }
+    return 0;
+  };
 
   std::string coords, drives, nodes;
-  for (std::size_t i = 0; i < axes.size(); ++i) {
-    coords += (i ? " " : "") + std::string(1, axes[i]->letter);
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    const Axis& a = joints[i].axis;
+    coords += (i ? " " : "") + std::string(1, a.letter);
     drives += (i ? " " : "") + std::to_string(i);
-    nodes += (i ? " " : "") + std::to_string(ethercat ? axes[i]->slave : axes[i]->node);
+    nodes += (i ? " " : "") + std::to_string(ethercat ? a.slave : a.node);
   }
   // Step 7 (tuning): an axis' recommended limits replace its provisional
   // ones (joint and axis), with its FERROR, MIN_FERROR and MAX_JERK.
@@ -110,15 +137,16 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
       << "[EMCMOT]\nEMCMOT = motmod\n"
       << (ethercat ? "# One EtherCAT frame per millisecond carries every drive.\n"
                    : "# Two axis drives per millisecond fit one 1 Mbit/s bus (cnc-canopen load prints the plan).\n")
-      << "SERVO_PERIOD = " << (ethercat ? 1'000'000L : servo_period_ns(axes.size())) << "\nCOMM_TIMEOUT = 1.0\n\n"
+      << "SERVO_PERIOD = " << (ethercat ? 1'000'000L : servo_period_ns(joints.size())) << "\nCOMM_TIMEOUT = 1.0\n\n"
       << "[HAL]\nHALFILE = " << name << ".hal\n\n"
       << "[TRAJ]\nCOORDINATES = " << coords << "\nLINEAR_UNITS = mm\nANGULAR_UNITS = degree\n"
       << "MAX_LINEAR_VELOCITY = " << num(max_v) << "\nMAX_LINEAR_ACCELERATION = " << num(max_a) << "\n\n"
+      << (gantry ? "# A gantry: a letter twice, its two joints homed and jogged apart in joint mode (kinstype=BOTH).\n" : "")
       << "[KINS]\nKINEMATICS = trivkins coordinates=" << [&] {
            std::string c;
-           for (const Axis* a : axes) c += a->letter;
+           for (const Axis* a : joint_axes) c += a->letter;
            return c;
-         }() << "\nJOINTS = " << axes.size() << "\n\n";
+         }() << (gantry ? " kinstype=BOTH" : "") << "\nJOINTS = " << joints.size() << "\n\n";
   for (const Axis* a : axes) {
     const Limits l = limits(*a);
     ini << "[AXIS_" << a->letter << "]\nMIN_LIMIT = " << num(a->min_limit) << "\nMAX_LIMIT = " << num(a->max_limit)
@@ -129,30 +157,49 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
           << a->letter << " tune)\n";
     ini << "\n";
   }
-  for (const Axis* a : axes) {
+  for (const MachineJoint& mj : joints) {
     // Homing: as step 6 chose it; not commissioned yet, the joint takes
     // its position where it stands (HOME_SEARCH_VEL 0). Limits: step 7's
-    // recommendations when tuned.
+    // recommendations when tuned. A gantry's two joints have the axis'
+    // limits and homing, and one negative HOME_SEQUENCE.
+    const Axis* a = &mj.axis;
     const Limits l = limits(*a);
+    if (mj.gantry_second && a->gantry->reverse && a->homing && drive_method(a->homing->method) > 0)
+      throw std::invalid_argument(std::string("axis ") + a->letter + ": the gantry's second drive turns the other way, so the drive homing method " +
+                                  a->homing->method + " would search the other side on it: home the gantry with the controller's sequence (homing --method controller)");
+    std::string homing = joint_homing_keys(*a);  // steps 5, 6
+    if (const int seq = home_sequence(*a); seq != 0) {
+      const std::string key = "HOME_SEQUENCE = 0\n";
+      const auto at = homing.find(key);
+      if (at == std::string::npos) throw std::logic_error("joint_homing_keys wrote no HOME_SEQUENCE = 0");
+      homing.replace(at, key.size(), "HOME_SEQUENCE = " + std::to_string(seq) + "\n");
+    }
+    if (mj.gantry_second)
+      ini << "# Axis " << a->letter << ", the gantry's second drive" << (a->gantry->reverse ? " (reversed)" : "")
+          << ": homed together with joint " << s.axis(a->letter)->joint << ".\n";
+    else if (a->gantry)
+      ini << "# Axis " << a->letter << ", the gantry's first drive: homed together with joint " << a->gantry->joint
+          << ".\n";
     ini << "[JOINT_" << a->joint << "]\nTYPE = LINEAR\nMIN_LIMIT = " << num(a->min_limit)
         << "\nMAX_LIMIT = " << num(a->max_limit) << "\nMAX_VELOCITY = " << num(l.v * 1.05)
         << "\nMAX_ACCELERATION = " << num(l.a * 1.1) << "\n";
     if (l.jerk > 0) ini << "MAX_JERK = " << num(l.jerk * 1.1) << "\n";
     ini << "FERROR = " << num(l.ferror) << "\nMIN_FERROR = " << num(l.min_ferror) << "\n"
-        << joint_homing_keys(*a)              // steps 5, 6
+        << homing                              // steps 5, 6
         << comp_ini_keys(*a, name) << "\n";  // step 8: the screw-compensation table, when installed
   }
   ini << "[EMCIO]\nEMCIO = io\nTOOL_TABLE = tool.tbl\nTOOL_PREPARE_TIMEOUT = 10\nTOOL_CHANGE_TIMEOUT = 30\n\n";
   if (ethercat) {
     ini << "[ETHERCAT]\nINTERFACE = " << s.ethercat_interface << "\nSLAVE = " << nodes << "\n\n";
-    for (const Axis* a : axes) {
+    for (std::size_t i = 0; i < joints.size(); ++i) {
+      const Axis* a = &joints[i].axis;
       const ScannedSlave* sl = nullptr;
       for (const ScannedSlave& x : s.slaves)
         if (static_cast<int>(x.position) == a->slave) sl = &x;
       char id[64];
       std::snprintf(id, sizeof id, "VENDOR_ID = 0x%08X\nPRODUCT_CODE = 0x%08X\n", sl ? sl->vendor_id : 0u,
                     sl ? sl->product_code : 0u);
-      ini << "[ETHERCAT_SLAVE_" << a->slave << "]\nNAME = " << static_cast<char>(std::tolower(a->letter)) << "-axis\n";
+      ini << "[ETHERCAT_SLAVE_" << a->slave << "]\nNAME = " << short_name(i) << "-axis\n";
       if (sl && !sl->esi.empty() && !s.esi_dir.empty())
         ini << "ESI = " << (std::filesystem::path(s.esi_dir) / sl->esi).string() << "\n";
       if (sl) ini << id;
@@ -162,9 +209,10 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
   } else {
   ini << "[CANOPEN]\nINTERFACE = " << s.interface << "\nBITRATE = " << s.bitrate << "\nNODE = " << nodes
       << "\nMASTER_HEARTBEAT_MS = 100\nPDO_MISS_LIMIT = 50\n\n";
-  for (const Axis* a : axes) {
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    const Axis* a = &joints[i].axis;
     const ScannedNode* n = s.node(a->node);
-    ini << "[CANOPEN_NODE_" << a->node << "]\nNAME = " << static_cast<char>(std::tolower(a->letter)) << "-axis\n";
+    ini << "[CANOPEN_NODE_" << a->node << "]\nNAME = " << short_name(i) << "-axis\n";
     if (n && !n->eds.empty() && !s.eds_dir.empty())
       ini << "# " << (std::filesystem::path(s.eds_dir) / n->eds).string() << " describes this drive\n";
     if (!a->enabled) ini << "# Disabled for commissioning: it may be missing.\nMANDATORY = NO\n";
@@ -175,8 +223,8 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
   }
   }
   ini << "[CIA402]\nBUS = " << bus << "\nDRIVE = " << drives << "\nWATCHDOG_CYCLES = 5\nSTALE_LIMIT = 50\n\n";
-  for (std::size_t i = 0; i < axes.size(); ++i) {
-    const Axis& a = *axes[i];
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    const Axis& a = joints[i].axis;
     AxisScaling sc = a.scaling;
     if (!(sc.counts_per_mm() > 0)) {  // a disabled axis not scaled yet: any scaling will do
       sc.encoder_counts = 1000;
@@ -188,7 +236,7 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
     // ENCODER_COUNTS x GEAR_MOTOR_REVS / GEAR_LOAD_REVS / SCREW_LEAD.
     ini << "[CIA402_DRIVE_" << i << "]\n# " << sc.source << "; " << num(sc.counts_per_mm()) << " counts/mm";
     if (sc.correction != 1.0) ini << " (nominal lead " << num(sc.screw_lead) << " mm, measured x" << num(sc.correction) << ")";
-    ini << "\nADDRESS = " << (ethercat ? a.slave : a.node) << "\nNAME = " << static_cast<char>(std::tolower(a.letter)) << "-axis\nJOINT = "
+    ini << "\nADDRESS = " << (ethercat ? a.slave : a.node) << "\nNAME = " << short_name(i) << "-axis\nJOINT = "
         << a.joint << "\nENCODER_COUNTS = " << num(sc.encoder_counts) << "\nGEAR_MOTOR_REVS = "
         << num(sc.gear_motor_revs) << "\nGEAR_LOAD_REVS = " << num(sc.gear_load_revs)
         << "\nSCREW_LEAD = " << num(sc.screw_lead / sc.correction) << "\nREVERSE = " << (sc.reverse ? "YES" : "NO")
@@ -215,19 +263,19 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
   // The scope records the tuning tests (step 7) every servo cycle; last in
   // the thread so it sees the cycle's values.
   hal << "loadrt scope samples=60000\naddf scope.sample servo-thread\n\n";
-  for (std::size_t i = 0; i < axes.size(); ++i) {
-    const Axis& a = *axes[i];
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    const Axis& a = joints[i].axis;
     char d[64];
     std::snprintf(d, sizeof d, "cia402.0.drive.%02zu.", i);
     const std::string j = "joint." + std::to_string(a.joint) + ".";
-    const std::string l(1, static_cast<char>(std::tolower(a.letter)));
+    const std::string l = short_name(i);
     hal << "net " << l << "-pos-cmd " << j << "motor-pos-cmd => " << d << "pos-cmd\n"
         << "net " << l << "-pos-fb " << d << "pos-fb => " << j << "motor-pos-fb\n"
         << "net " << l << "-enable " << j << "amp-enable-out => " << d << "enable\n"
         << "net " << l << "-fault " << d << "amp-fault => " << j << "amp-fault-in\n"
         << "net " << l << "-ready " << d << "enabled => " << j << "amp-ready-in\n";
   }
-  hal << switch_nets(axes);  // steps 5, 6
+  hal << switch_nets(joint_axes);  // steps 5, 6 (a gantry's second drive: its own switches, the axis' polarity)
   hal << "\n# The drives stop by themselves when the motion watchdog stops.\n"
          "net watchdog motion.watchdog => cia402.0.watchdog\n"
          "net watchdog-on motion.watchdog-enabled => cia402.0.watchdog-enabled\n"

@@ -224,9 +224,19 @@ std::string switch_nets(const std::vector<const Axis*>& axes) {
     bool invert;
   };
   std::vector<Net> nets;
+  // Net names start with the axis letter; a letter's second joint (a
+  // gantry's second drive) adds "2", as the writer names its drive.
+  const auto name_of = [&axes](const Axis* a) {
+    std::string l(1, static_cast<char>(std::tolower(static_cast<unsigned char>(a->letter))));
+    for (const Axis* x : axes) {
+      if (x == a) break;
+      if (x->letter == a->letter) return l + "2";
+    }
+    return l;
+  };
   for (const Axis* a : axes) {
     if (!a->switches || !a->enabled) continue;
-    const std::string l(1, static_cast<char>(std::tolower(static_cast<unsigned char>(a->letter))));
+    const std::string l = name_of(a);
     const std::string d = drive_pin_prefix(*a), j = "joint." + std::to_string(a->joint) + ".";
     const AxisSwitches& s = *a->switches;
     if (s.neg_limit.seen) nets.push_back({l + "-neg-lim", d + "neg-lim-sw", j + "neg-lim-sw-in", !s.neg_limit.active_high});
@@ -237,7 +247,7 @@ std::string switch_nets(const std::vector<const Axis*>& axes) {
   std::string handshake;
   for (const Axis* a : axes) {
     if (!a->homing || drive_method(a->homing->method) <= 0 || !a->enabled) continue;
-    const std::string l(1, static_cast<char>(std::tolower(static_cast<unsigned char>(a->letter))));
+    const std::string l = name_of(a);
     const std::string d = drive_pin_prefix(*a), j = "joint." + std::to_string(a->joint) + ".";
     handshake += "net " + l + "-home-start " + j + "drive-home-start => " + d + "home-start\n";
     for (const char* k : {"busy", "done", "error"})

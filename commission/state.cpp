@@ -308,7 +308,7 @@ AxisTuning tuning_from(const json& j) {
 
 json axis_json(const Axis& a) {
   json j = {{"letter", std::string(1, a.letter)}, {"joint", a.joint}, {"node", a.node}, {"slave", a.slave},
-            {"gantry_with", a.gantry_with}, {"min_limit", a.min_limit}, {"max_limit", a.max_limit},
+            {"min_limit", a.min_limit}, {"max_limit", a.max_limit},
             {"max_velocity", a.max_velocity}, {"max_acceleration", a.max_acceleration}, {"enabled", a.enabled},
             {"limits_source", a.limits_source}};
   const AxisScaling& s = a.scaling;
@@ -323,6 +323,9 @@ json axis_json(const Axis& a) {
                            {"dial_mm", d.dial_mm}, {"has_dial", d.has_dial}, {"reversed", d.reversed},
                            {"correction", d.correction}, {"verdict", d.verdict}};
   }
+  if (a.gantry)
+    j["gantry"] = {{"node", a.gantry->node}, {"slave", a.gantry->slave}, {"joint", a.gantry->joint},
+                   {"reverse", a.gantry->reverse}};
   if (a.compensation) j["compensation"] = compensation_json(*a.compensation);
   put_steps56(j, a);
   if (a.tuning) j["tuning"] = tuning_json(*a.tuning);
@@ -337,7 +340,19 @@ Axis axis_from(const json& j, const std::string& origin) {
   get(j, "joint", a.joint);
   get(j, "node", a.node);
   if (j.contains("slave")) get(j, "slave", a.slave);
-  get(j, "gantry_with", a.gantry_with);
+  if (j.contains("gantry_with") && !j["gantry_with"].get<std::string>().empty())  // the key before gantry pairs were written
+    throw std::runtime_error(origin + ": axes[].gantry_with \"" + j["gantry_with"].get<std::string>() +
+                             "\": a gantry's second drive is assigned with --gantry-node (or --gantry-slave) now: "
+                             "assign axis " + letter + " again");
+  if (j.contains("gantry")) {
+    const json& g = j["gantry"];
+    GantryDrive d;
+    get(g, "node", d.node);
+    get(g, "slave", d.slave);
+    get(g, "joint", d.joint);
+    get(g, "reverse", d.reverse);
+    a.gantry = d;
+  }
   get(j, "min_limit", a.min_limit);
   get(j, "max_limit", a.max_limit);
   if (j.contains("limits_source")) {

@@ -183,12 +183,23 @@ struct CheckRun {
   std::string time;             // UTC, ISO 8601, when it ended
 };
 
+// The second drive of a gantry pair (two joints, one axis letter): it
+// moves the same axis on its own joint, with the axis' scaling, limits,
+// tuning, switches' polarity and homing, the pair homed together; `reverse`
+// when it turns the other way for the same travel (mounted mirrored).
+struct GantryDrive {
+  int node = 0;                 // CANopen node-ID (0: an EtherCAT drive)
+  int slave = 0;                // EtherCAT position (0: CANopen)
+  int joint = 0;
+  bool reverse = false;
+};
+
 struct Axis {
   char letter = 'X';            // X Y Z A B C U V W
   int joint = 0;
   int node = 0;                 // CANopen node-ID of its drive (0: an EtherCAT drive)
   int slave = 0;                // EtherCAT: the drive's position in the segment (1-based); 0: CANopen
-  std::string gantry_with;      // "" or the other joint's letter pair, e.g. "Y2"
+  std::optional<GantryDrive> gantry;  // the second drive of a gantry pair (none: one drive)
   AxisScaling scaling;
   std::optional<DirectionTest> direction;
   double min_limit = -10, max_limit = 10;  // provisional soft limits (mm)

@@ -1,5 +1,6 @@
 #include "commission/steps.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
@@ -19,24 +20,75 @@ Axis& need_axis(State& s, char letter) {
                                       std::string(1, letter) + " assign --node N)");
   return *a;
 }
+// The scanned node `node`, which must be a CiA 402 drive with CSP, not in
+// fault (`what`: "" the axis' drive, or which other drive it is).
+const ScannedNode& check_drive(const State& s, char letter, int node, const std::string& what) {
+  const std::string who = (what.empty() ? "" : axis_name(letter) + ": " + what + ", ") + "node " + std::to_string(node);
+  const ScannedNode* n = s.node(node);
+  if (!n) throw std::invalid_argument(who + " was not found by the bus scan: scan first, or check its node-ID");
+  if (!n->cia402)
+    throw std::invalid_argument(who + " (" + n->name + ") is not a CiA 402 drive with CSP: it cannot drive " + axis_name(letter));
+  if (n->fault) throw std::invalid_argument(who + " (" + n->name + ") is in fault: clear the fault and scan again");
+  return *n;
+}
+
+// The drives (node-IDs or slave positions, 0 none) and joints of axis
+// `letter` and its gantry pair must not belong to another axis, nor the
+// gantry's joint be the axis' own.
+void check_free(const State& s, char letter, int joint, int node, int slave, const std::optional<GantryDrive>& gantry) {
+  if (gantry && gantry->joint == joint)
+    throw std::invalid_argument(axis_name(letter) + ": the gantry's second drive needs a joint of its own, not joint " +
+                                std::to_string(joint));
+  if (gantry && (gantry->joint < 0 || gantry->joint > 15))
+    throw std::invalid_argument(axis_name(letter) + ": gantry joint " + std::to_string(gantry->joint) + " outside 0..15");
+  for (const Axis& a : s.axes) {
+    if (a.letter == letter) continue;
+    const std::string other = "axis " + std::string(1, a.letter) + (a.gantry ? " (with its gantry pair)" : "");
+    for (int n : {node, gantry ? gantry->node : 0}) {
+      if (n > 0 && (a.node == n || (a.gantry && a.gantry->node == n)))
+        throw std::invalid_argument("node " + std::to_string(n) + " already drives " + other);
+    }
+    for (int p : {slave, gantry ? gantry->slave : 0}) {
+      if (p > 0 && (a.slave == p || (a.gantry && a.gantry->slave == p)))
+        throw std::invalid_argument("EtherCAT slave " + std::to_string(p) + " already drives " + other);
+    }
+    for (int j : {joint, gantry ? gantry->joint : -1}) {
+      if (j >= 0 && (a.joint == j || (a.gantry && a.gantry->joint == j)))
+        throw std::invalid_argument("joint " + std::to_string(j) + " already belongs to " + other);
+    }
+  }
+}
 }  // namespace
 
-Axis& assign_axis(State& s, char letter, int joint, int node, const std::string& gantry_with) {
+std::vector<MachineJoint> machine_joints(const State& s) {
+  std::vector<MachineJoint> out;
+  for (const Axis& a : s.axes) {
+    out.push_back({a, false});
+    if (!a.gantry) continue;
+    MachineJoint second{a, true};
+    second.axis.joint = a.gantry->joint;
+    second.axis.node = a.gantry->node;
+    second.axis.slave = a.gantry->slave;
+    second.axis.scaling.reverse = a.scaling.reverse != a.gantry->reverse;
+    out.push_back(second);
+  }
+  std::stable_sort(out.begin(), out.end(), [](const MachineJoint& x, const MachineJoint& y) { return x.axis.joint < y.axis.joint; });
+  return out;
+}
+
+Axis& assign_axis(State& s, char letter, int joint, int node, std::optional<GantryDrive> gantry) {
   const std::string valid = "XYZABCUVW";
   if (valid.find(letter) == std::string::npos)
     throw std::invalid_argument(std::string("axis \"") + letter + "\": expected one of X Y Z A B C U V W");
   if (joint < 0 || joint > 15) throw std::invalid_argument(axis_name(letter) + ": joint " + std::to_string(joint) + " outside 0..15");
-  const ScannedNode* n = s.node(node);
-  if (!n) throw std::invalid_argument("node " + std::to_string(node) + " was not found by the bus scan: scan first, or check its node-ID");
-  if (!n->cia402)
-    throw std::invalid_argument("node " + std::to_string(node) + " (" + n->name + ") is not a CiA 402 drive with CSP: it cannot drive " + axis_name(letter));
-  if (n->fault)
-    throw std::invalid_argument("node " + std::to_string(node) + " (" + n->name + ") is in fault: clear the fault and scan again");
-  for (const Axis& a : s.axes) {
-    if (a.letter == letter) continue;
-    if (a.node == node) throw std::invalid_argument("node " + std::to_string(node) + " already drives axis " + std::string(1, a.letter));
-    if (a.joint == joint) throw std::invalid_argument("joint " + std::to_string(joint) + " already belongs to axis " + std::string(1, a.letter));
+  const ScannedNode* n = &check_drive(s, letter, node, "");
+  if (gantry) {
+    check_drive(s, letter, gantry->node, "the gantry's second drive");
+    if (gantry->node == node)
+      throw std::invalid_argument(axis_name(letter) + ": the gantry's second drive is node " + std::to_string(node) +
+                                  ", the first one's: give the other drive's node-ID");
   }
+  check_free(s, letter, joint, node, 0, gantry);
   Axis* a = s.axis(letter);
   if (!a) {
     s.axes.push_back(Axis{});
@@ -49,7 +101,7 @@ Axis& assign_axis(State& s, char letter, int joint, int node, const std::string&
   }
   a->joint = joint;
   a->node = node;
-  a->gantry_with = gantry_with;
+  a->gantry = gantry;
   if (a->scaling.encoder_counts <= 0 && n->encoder_increments) {
     const double revs = n->encoder_motor_revs.value_or(1) ? n->encoder_motor_revs.value_or(1) : 1;
     a->scaling.encoder_counts = *n->encoder_increments / revs;
@@ -57,7 +109,7 @@ Axis& assign_axis(State& s, char letter, int joint, int node, const std::string&
   return *a;
 }
 
-Axis& assign_axis_ethercat(State& s, char letter, int joint, int position, const std::string& gantry_with) {
+Axis& assign_axis_ethercat(State& s, char letter, int joint, int position, std::optional<GantryDrive> gantry) {
   const std::string valid = "XYZABCUVW";
   if (valid.find(letter) == std::string::npos)
     throw std::invalid_argument(std::string("axis \"") + letter + "\": expected one of X Y Z A B C U V W");
@@ -71,13 +123,19 @@ Axis& assign_axis_ethercat(State& s, char letter, int joint, int position, const
   if (!sl->coe)
     throw std::invalid_argument("EtherCAT slave " + std::to_string(position) + " (" + sl->name +
                                 ") has no CoE mailbox: it is not a CiA 402 drive and cannot drive " + axis_name(letter));
-  for (const Axis& a : s.axes) {
-    if (a.letter == letter) continue;
-    if (a.slave == position)
-      throw std::invalid_argument("EtherCAT slave " + std::to_string(position) + " already drives axis " + std::string(1, a.letter));
-    if (a.joint == joint)
-      throw std::invalid_argument("joint " + std::to_string(joint) + " already belongs to axis " + std::string(1, a.letter));
+  if (gantry) {
+    const ScannedSlave* g = nullptr;
+    for (const ScannedSlave& x : s.slaves)
+      if (static_cast<int>(x.position) == gantry->slave) g = &x;
+    if (!g || !g->coe)
+      throw std::invalid_argument(axis_name(letter) + ": the gantry's second drive, EtherCAT slave " +
+                                  std::to_string(gantry->slave) +
+                                  (g ? " has no CoE mailbox: it is not a CiA 402 drive" : " was not found by the segment scan"));
+    if (gantry->slave == position)
+      throw std::invalid_argument(axis_name(letter) + ": the gantry's second drive is slave " + std::to_string(position) +
+                                  ", the first one's: give the other drive's position");
   }
+  check_free(s, letter, joint, 0, position, gantry);
   Axis* a = s.axis(letter);
   if (!a) {
     s.axes.push_back(Axis{});
@@ -91,7 +149,7 @@ Axis& assign_axis_ethercat(State& s, char letter, int joint, int position, const
   a->joint = joint;
   a->node = 0;
   a->slave = position;
-  a->gantry_with = gantry_with;
+  a->gantry = gantry;
   return *a;
 }
 

@@ -5,7 +5,9 @@
 // std::invalid_argument with a message naming the axis, node or value.
 #pragma once
 
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "commission/state.hpp"
 
@@ -13,13 +15,24 @@ namespace cnc::commission {
 
 // Assigns node `node` (which the scan must have found, as a CiA 402 drive
 // not in fault) to axis `letter` on joint `joint`; a second call for the
-// same letter reassigns it. `gantry_with` names the other joint of a
-// gantry pair ("" none).
-Axis& assign_axis(State& s, char letter, int joint, int node, const std::string& gantry_with = "");
+// same letter reassigns it. `gantry` is the second drive of a gantry pair
+// (its node, joint and direction; none: one drive), checked as the first.
+Axis& assign_axis(State& s, char letter, int joint, int node, std::optional<GantryDrive> gantry = std::nullopt);
 
 // The same for an EtherCAT drive: slave `position` of the segment scan,
 // which must have CoE (the CiA 402 drive profile over EtherCAT).
-Axis& assign_axis_ethercat(State& s, char letter, int joint, int position, const std::string& gantry_with = "");
+Axis& assign_axis_ethercat(State& s, char letter, int joint, int position,
+                           std::optional<GantryDrive> gantry = std::nullopt);
+
+// The joints of the machine in joint order: each axis' joint and, for a
+// gantry pair, its second drive's joint as a copy of the axis (joint, node
+// or slave, REVERSE relative to the axis', `gantry_second` true), so the
+// writer and the steps treat both drives alike.
+struct MachineJoint {
+  Axis axis;                  // the axis as this joint's drive sees it
+  bool gantry_second = false; // the second drive of a gantry pair
+};
+std::vector<MachineJoint> machine_joints(const State& s);
 
 // Sets the axis' scaling: encoder increments per motor revolution from the
 // drive (0x608F) unless given (> 0), gear from the drive (0x6091) unless

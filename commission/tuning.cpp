@@ -544,7 +544,7 @@ State tuning_configuration(const State& s, char letter, const TuneOptions& o) {
   // Wide enough for the bus's transport delay at the ceiling (a few servo
   // periods of travel) several times over: the drive's own limits and the
   // analysis decide, motion's check only catches a runaway.
-  const double period = static_cast<double>(servo_period_ns(t.axes.size())) * 1e-9;
+  const double period = static_cast<double>(servo_period_ns(machine_joints(t).size())) * 1e-9;
   cfg.ferror = std::max(2.0, o.max_velocity * 10 * period);
   cfg.min_ferror = 1.0;
   a->tuning = cfg;

@@ -25,6 +25,7 @@
 #include <cmath>
 
 #include "commission/scan.hpp"
+#include "commission/steps.hpp"  // machine_joints
 #include "commission/wizard/wizard_window.hpp"
 
 namespace cnc::commission::wizard {
@@ -213,7 +214,12 @@ class AxesPage : public StepPage {
     f->addRow("Axis", letter_);
     f->addRow("Drive (node-ID)", node_ = count("nodeId", 1, 127, 1));
     f->addRow("Joint", joint_ = count("jointNumber", 0, 15, 0));
-    f->addRow("Gantry partner", gantry_ = line("gantryWith", "", "e.g. Y2 (optional)"));
+    // A gantry pair: the second drive of the axis (0: none), on the next
+    // free joint; "turns the other way" when it is mounted mirrored.
+    f->addRow("Gantry second drive (node-ID, 0 none)", gantry_ = count("gantryNode", 0, 127, 0));
+    gantry_reverse_ = new QCheckBox("the second drive turns the other way (mounted mirrored)");
+    gantry_reverse_->setObjectName("gantryReverse");
+    f->addRow("", gantry_reverse_);
     auto* assign = button("Assign", "assignButton");
     auto* identify = button("Identify (jog 0.5 mm)", "identifyButton");
     f->addRow(row({assign, identify}));
@@ -223,7 +229,7 @@ class AxesPage : public StepPage {
     connect(assign, &QPushButton::clicked, this, [this] {
       run([this] {
         return w_.builder().assign(letter_->currentText().at(0).toLatin1(), node_->value(), joint_->value(),
-                                   gantry_->text().toStdString());
+                                   gantry_->value(), gantry_reverse_->isChecked());
       });
     });
     connect(identify, &QPushButton::clicked, this, [this] {
@@ -241,20 +247,25 @@ class AxesPage : public StepPage {
     axes_->clear();
     for (const auto& a : s.axes) {
       const ScannedNode* n = s.node(a.node);
-      axes_->addItem(QString("%1: joint %2, node %3%4%5")
+      axes_->addItem(QString("%1: joint %2, node %3%4%5%6")
                          .arg(QChar(a.letter))
                          .arg(a.joint)
                          .arg(a.node)
                          .arg(n && !n->name.empty() ? " (" + QString::fromStdString(n->name) + ")" : "")
+                         .arg(a.gantry ? QString(", gantry pair: node %1 on joint %2%3")
+                                             .arg(a.gantry->node)
+                                             .arg(a.gantry->joint)
+                                             .arg(a.gantry->reverse ? ", reversed" : "")
+                                       : QString())
                          .arg(a.enabled ? "" : ", disabled"));
     }
-    joint_->setValue(static_cast<int>(s.axes.size()));
+    joint_->setValue(static_cast<int>(machine_joints(s).size()));
   }
 
  private:
   QComboBox* letter_;
-  QSpinBox *node_, *joint_;
-  QLineEdit* gantry_;
+  QSpinBox *node_, *joint_, *gantry_;
+  QCheckBox* gantry_reverse_;
   QListWidget* axes_;
 };
 
@@ -662,8 +673,9 @@ class CompensationPage : public AxisPage {
  public:
   explicit CompensationPage(WizardWindow& w)
       : AxisPage(w, 7,
-                 "Generate and run the ISO 230-2 measurement cycle (the readings from a laser's HAL pin, or "
-                 "entered afterwards by hand or from a laser file, CSV), fit the compensation and compare the "
+                 "Generate and run the ISO 230-2 measurement cycle (the readings from a laser's HAL pin, a "
+                 "camera reading a glass scale, or entered afterwards by hand or from a laser file, CSV), fit the "
+                 "compensation and compare the "
                  "figures before and after; Install puts the tables into the state for Write.",
                  true) {
     program_ = line("compProgramFile", "", "cycle.ngc");
@@ -679,7 +691,16 @@ class CompensationPage : public AxisPage {
     dwell_ = number("compDwell", 0, 60, 0, 2, " s");
     feed_ = number("compFeed", 0, 1e5, 0, 0, " mm/min");
     form_->addRow("Cycle options (0: default)", row({cmin_, cmax_, targets_, runs_, dwell_, feed_}));
+    // Where the readings at the stops come from when the cycle runs.
+    source_ = new QComboBox;
+    source_->setObjectName("compSource");
+    source_->addItems({"laser (HAL pin; or its CSV file below, read after the run)", "camera on a glass scale"});
+    form_->addRow("Readings from", source_);
     form_->addRow("Laser HAL pin", laser_pin_ = line("compLaserPin", "", "e.g. laser.0.position (mm), read at each stop"));
+    camera_ = line("compCamera", "", "/dev/video0, or exec:COMMAND (a program that takes one picture)");
+    pitch_ = number("compScalePitch", 0, 10, 0.1, 4, " mm");
+    um_per_px_ = number("compUmPerPx", 0, 100, 2.5, 3, " um/px");
+    form_->addRow("Camera, scale pitch, pixel scale", row({camera_, pitch_, um_per_px_}, true));
     values_ = new QPlainTextEdit;
     values_->setObjectName("compValues");
     values_->setPlaceholderText("measured deviations (um), one per stop in the cycle's order, one per line or separated by commas");
@@ -705,6 +726,9 @@ class CompensationPage : public AxisPage {
     });
     connect(rb, &QPushButton::clicked, this, [this] {
       run([this] {
+        if (source_->currentIndex() == 1)
+          return w_.builder().comp_run_camera(letter(), camera_->text().toStdString(), pitch_->value(),
+                                              um_per_px_->value(), bring_up());
         return w_.builder().comp_run(letter(), csv_->text().toStdString(), laser_pin_->text().toStdString(), bring_up());
       });
     });
@@ -747,8 +771,9 @@ class CompensationPage : public AxisPage {
   }
 
  private:
-  QLineEdit *program_, *csv_, *laser_pin_;
-  QDoubleSpinBox *cmin_, *cmax_, *dwell_, *feed_;
+  QLineEdit *program_, *csv_, *laser_pin_, *camera_;
+  QComboBox* source_;
+  QDoubleSpinBox *cmin_, *cmax_, *dwell_, *feed_, *pitch_, *um_per_px_;
   QSpinBox *targets_, *runs_;
   QPlainTextEdit* values_;
   QCheckBox* install_;

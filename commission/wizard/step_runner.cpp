@@ -105,12 +105,17 @@ Argv CommandBuilder::lss(const std::string& interface, int first) const {
   return a;
 }
 
-Argv CommandBuilder::assign(char letter, int node, int joint, const std::string& gantry_with) const {
+Argv CommandBuilder::assign(char letter, int node, int joint, int gantry_node, bool gantry_reverse) const {
   if (node < 1 || node > 127) throw std::invalid_argument("node-ID " + std::to_string(node) + ": expected 1-127");
   if (joint < 0 || joint > 15) throw std::invalid_argument("joint " + std::to_string(joint) + ": expected 0-15");
+  if (gantry_node < 0 || gantry_node > 127)
+    throw std::invalid_argument("gantry node-ID " + std::to_string(gantry_node) + ": expected 1-127 (0: no gantry)");
+  if (gantry_node == node)
+    throw std::invalid_argument("gantry node-ID " + std::to_string(gantry_node) + ": the second drive needs a node of its own");
   Argv a = axis(letter, "assign");
   a.insert(a.end(), {"--node", std::to_string(node), "--joint", std::to_string(joint)});
-  if (!trim_copy(gantry_with).empty()) a.insert(a.end(), {"--gantry-with", trim_copy(gantry_with)});
+  if (gantry_node > 0) a.insert(a.end(), {"--gantry-node", std::to_string(gantry_node)});
+  if (gantry_node > 0 && gantry_reverse) a.push_back("--gantry-reverse");
   return a;
 }
 
@@ -249,6 +254,18 @@ Argv CommandBuilder::comp_run(char letter, const std::string& laser_csv, const s
     throw std::invalid_argument("laser: a HAL pin or a CSV file, not both");
   if (!pin.empty()) a.insert(a.end(), {"--laser-pin", pin});
   if (!csv.empty()) a.insert(a.end(), {"--laser", csv});
+  add_bring_up(a, bring_up_dir);
+  return a;
+}
+
+Argv CommandBuilder::comp_run_camera(char letter, const std::string& camera, double pitch_mm, double um_per_px,
+                                     const std::string& bring_up_dir) const {
+  require(camera, "camera (/dev/videoN, or exec:COMMAND)");
+  if (pitch_mm < 0 || um_per_px < 0) throw std::invalid_argument("camera: the scale's pitch and the pixel scale must be > 0");
+  Argv a = axis(letter, "comp-run");
+  a.insert(a.end(), {"--camera", trim_copy(camera)});
+  if (pitch_mm > 0) a.insert(a.end(), {"--pitch", number_arg(pitch_mm)});
+  if (um_per_px > 0) a.insert(a.end(), {"--um-per-px", number_arg(um_per_px)});
   add_bring_up(a, bring_up_dir);
   return a;
 }

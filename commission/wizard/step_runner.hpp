@@ -56,7 +56,9 @@ class CommandBuilder {
   // Step 1, drives without node-ID: `lss --interface SPEC --first ID`.
   Argv lss(const std::string& interface, int first) const;
   // Step 2.
-  Argv assign(char letter, int node, int joint, const std::string& gantry_with = "") const;
+  // A gantry pair: `gantry_node` the second drive (0 none, its joint the
+  // next free one), `gantry_reverse` when it turns the other way.
+  Argv assign(char letter, int node, int joint, int gantry_node = 0, bool gantry_reverse = false) const;
   // Step 2's identification aid: a tiny, slow, time-limited jog of the
   // axis' drive (a direction test of kIdentifyDistance mm) on the running
   // controller, run on `scratch_state` (a copy of the state the caller
@@ -94,6 +96,11 @@ class CommandBuilder {
   // entered afterwards with comp_measurements.
   Argv comp_run(char letter, const std::string& laser_csv = "", const std::string& laser_pin = "",
                 const std::string& bring_up_dir = "") const;
+  // The cycle run with a camera reading a glass scale at each stop
+  // (`camera`: /dev/videoN, folder:PATH, or exec:COMMAND a capture program;
+  // the scale's pitch and the pixel scale, 0: the defaults).
+  Argv comp_run_camera(char letter, const std::string& camera, double pitch_mm = 0, double um_per_px = 0,
+                       const std::string& bring_up_dir = "") const;
   // values: the deviations entered (um, one per stop of the cycle;
   // separated by commas, blanks or new lines) or csv: a measurement file;
   // one of them.

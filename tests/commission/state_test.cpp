@@ -48,6 +48,36 @@ TEST(CommissionState, SurvivesASaveAndLoad) {
   EXPECT_EQ(r.hal_after_bus, std::vector<std::string>{"after.hal"});
 }
 
+TEST(CommissionState, KeepsAGantryPairsSecondDriveAndRefusesTheOldPartnerName) {
+  testing::TempDir dir;
+  State s;
+  Axis a;
+  a.letter = 'Y';
+  a.joint = 1;
+  a.node = 2;
+  a.gantry = GantryDrive{3, 0, 2, true};
+  s.axes.push_back(a);
+  save_state(s, dir / "g.json");
+  const State r = load_state(dir / "g.json");
+  ASSERT_EQ(r.axes.size(), 1u);
+  ASSERT_TRUE(r.axes[0].gantry.has_value());
+  EXPECT_EQ(r.axes[0].gantry->node, 3);
+  EXPECT_EQ(r.axes[0].gantry->joint, 2);
+  EXPECT_TRUE(r.axes[0].gantry->reverse);
+  // A file of the version that only recorded a partner's name: it named no
+  // drive, so it is refused saying how to assign the pair.
+  const auto old = dir.write("old.json", R"({"version": 1, "axes": [{"letter": "Y", "gantry_with": "Y2"}]})");
+  try {
+    (void)load_state(old);
+    FAIL() << "the partner's name was dropped silently";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("axes[].gantry_with \"Y2\""), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--gantry-node"), std::string::npos) << e.what();
+  }
+  const auto none = dir.write("none.json", R"({"version": 1, "axes": [{"letter": "Y", "gantry_with": ""}]})");
+  EXPECT_FALSE(load_state(none).axes[0].gantry.has_value());
+}
+
 TEST(CommissionState, AMissingFileIsAFreshState) {
   testing::TempDir dir;
   const State s = load_state(dir / "none.json");

@@ -177,5 +177,165 @@ TEST(CommissionWriter, TheWrittenConfigurationPassesTheStrictCheck) {
   EXPECT_EQ(check_config(cncd, dir / "m.ini", out), 0) << out;
 }
 
+// A gantry router: X, Y on two drives (node 3 mounted mirrored), Z.
+State gantry_machine() {
+  State s;
+  s.interface = "virtual:wg";
+  for (int id : {1, 2, 3, 4}) {
+    ScannedNode n;
+    n.node_id = id;
+    n.cia402 = true;
+    n.encoder_increments = 10000;
+    s.nodes.push_back(n);
+  }
+  assign_axis(s, 'X', 0, 1);
+  assign_axis(s, 'Y', 1, 2, GantryDrive{3, 0, 2, true});
+  assign_axis(s, 'Z', 3, 4);
+  for (char l : {'X', 'Y', 'Z'}) set_scaling(s, l, 5);
+  s.axis('Y')->min_limit = -2;
+  s.axis('Y')->max_limit = 8;
+  return s;
+}
+
+std::string section(const std::string& ini, const std::string& name) {
+  const auto at = ini.find("[" + name + "]\n");
+  if (at == std::string::npos) return {};
+  const auto end = ini.find("\n[", at + 1);
+  return ini.substr(at, end == std::string::npos ? std::string::npos : end - at);
+}
+
+// A gantry pair as LinuxCNC writes it: the letter twice in trivkins'
+// coordinates with kinstype=BOTH, two joints with the axis' limits homed
+// together (the same negative HOME_SEQUENCE), a drive and node each, the
+// second drive's own REVERSE, and HAL nets for both.
+TEST(CommissionWriter, WritesAGantryPairAsTwoJointsOfOneAxisHomedTogether) {
+  testing::TempDir dir;
+  const auto files = generate_config(gantry_machine(), dir.path(), "g");
+  const std::string& ini = files[0].content;
+  EXPECT_NE(ini.find("[KINS]\nKINEMATICS = trivkins coordinates=XYYZ kinstype=BOTH\nJOINTS = 4\n"), std::string::npos) << ini;
+  EXPECT_NE(ini.find("COORDINATES = X Y Y Z\n"), std::string::npos) << ini;
+  EXPECT_NE(ini.find("NODE = 1 2 3 4\n"), std::string::npos) << ini;
+  EXPECT_NE(ini.find("DRIVE = 0 1 2 3\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "AXIS_Y").find("MIN_LIMIT = -2\nMAX_LIMIT = 8\n"), std::string::npos) << ini;
+  EXPECT_EQ(section(ini, "AXIS_Y2"), "") << "one axis, not two";
+  for (const char* j : {"JOINT_1", "JOINT_2"}) {
+    const std::string sec = section(ini, j);
+    EXPECT_NE(sec.find("MIN_LIMIT = -2\nMAX_LIMIT = 8\n"), std::string::npos) << j << ":\n" << sec;
+    EXPECT_NE(sec.find("HOME_SEQUENCE = -1\n"), std::string::npos) << j << ":\n" << sec;
+  }
+  EXPECT_NE(section(ini, "JOINT_0").find("HOME_SEQUENCE = 0\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "JOINT_3").find("HOME_SEQUENCE = 0\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "CIA402_DRIVE_1").find("ADDRESS = 2\nNAME = y-axis\nJOINT = 1\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "CIA402_DRIVE_1").find("REVERSE = NO\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "CIA402_DRIVE_2").find("ADDRESS = 3\nNAME = y2-axis\nJOINT = 2\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "CIA402_DRIVE_2").find("SCREW_LEAD = 5\nREVERSE = YES\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "CIA402_DRIVE_3").find("ADDRESS = 4\nNAME = z-axis\nJOINT = 3\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "CANOPEN_NODE_3").find("NAME = y2-axis\n"), std::string::npos) << ini;
+  const std::string& hal = files[1].content;
+  EXPECT_NE(hal.find("net y-pos-cmd joint.1.motor-pos-cmd => cia402.0.drive.01.pos-cmd\n"), std::string::npos) << hal;
+  EXPECT_NE(hal.find("net y2-pos-cmd joint.2.motor-pos-cmd => cia402.0.drive.02.pos-cmd\n"), std::string::npos) << hal;
+  EXPECT_NE(hal.find("net y2-pos-fb cia402.0.drive.02.pos-fb => joint.2.motor-pos-fb\n"), std::string::npos) << hal;
+  EXPECT_NE(hal.find("net y2-enable joint.2.amp-enable-out => cia402.0.drive.02.enable\n"), std::string::npos) << hal;
+  EXPECT_NE(hal.find("net z-pos-cmd joint.3.motor-pos-cmd => cia402.0.drive.03.pos-cmd\n"), std::string::npos) << hal;
+}
+
+// The switches found on the axis are netted for both drives of the pair,
+// under their own net names (a name twice is a HAL error).
+TEST(CommissionWriter, NetsTheSwitchesOfBothGantryDrivesUnderTheirOwnNames) {
+  State s = gantry_machine();
+  AxisSwitches w;
+  w.neg_limit = {true, -5, 0, false, false, ""};  // active low: through a not
+  w.home = {true, 1, 0, false, true, ""};
+  s.axis('Y')->switches = w;
+  testing::TempDir dir;
+  const std::string hal = generate_config(s, dir.path(), "g")[1].content;
+  EXPECT_NE(hal.find("loadrt not names=y-neg-lim-inv,y2-neg-lim-inv\n"), std::string::npos) << hal;
+  EXPECT_NE(hal.find("net y-home-sw cia402.0.drive.01.home-sw => joint.1.home-sw-in\n"), std::string::npos) << hal;
+  EXPECT_NE(hal.find("net y2-home-sw cia402.0.drive.02.home-sw => joint.2.home-sw-in\n"), std::string::npos) << hal;
+  EXPECT_NE(hal.find("net y2-neg-lim y2-neg-lim-inv.out => joint.2.neg-lim-sw-in\n"), std::string::npos) << hal;
+}
+
+TEST(CommissionWriter, GantryAssignmentRefusesADriveOrJointInUseAndAFaultyDrive) {
+  State s = gantry_machine();
+  EXPECT_THROW(assign_axis(s, 'A', 4, 5, GantryDrive{3, 0, 5, false}), std::invalid_argument) << "node 3 is Y's second drive";
+  s.nodes.push_back(ScannedNode{});
+  s.nodes.back().node_id = 5;
+  s.nodes.back().cia402 = true;
+  s.nodes.push_back(s.nodes.back());
+  s.nodes.back().node_id = 6;
+  s.nodes.back().fault = true;
+  try {
+    assign_axis(s, 'A', 4, 5, GantryDrive{6, 0, 5, false});
+    FAIL() << "a drive in fault accepted as the gantry's second drive";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("axis A: the gantry's second drive, node 6"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("is in fault"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(assign_axis(s, 'A', 4, 5, GantryDrive{5, 0, 6, false}), std::invalid_argument) << "the first drive's node";
+  EXPECT_THROW(assign_axis(s, 'A', 4, 5, GantryDrive{6, 0, 2, false}), std::invalid_argument) << "joint 2 is Y's";
+  EXPECT_THROW(assign_axis(s, 'A', 2, 5), std::invalid_argument) << "joint 2 is Y's second joint";
+  EXPECT_THROW(assign_axis(s, 'A', 4, 5, GantryDrive{6, 0, 4, false}), std::invalid_argument) << "the first drive's joint";
+  // A gap in the joints (Z on 2, Y's second drive on joint 5): named.
+  State g = gantry_machine();
+  g.axis('Z')->joint = 2;
+  g.axis('Y')->gantry->joint = 5;
+  testing::TempDir dir;
+  try {
+    generate_config(g, dir.path(), "g");
+    FAIL() << "a gap in the joints written";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("axis Y's gantry drive is on joint 5"), std::string::npos) << e.what();
+  }
+}
+
+// Drive homing methods search in the drive's own direction: on a second
+// drive that turns the other way the method would search the other side,
+// so the writer refuses it, naming the way out; a pair turning the same
+// way gets the method on both drives.
+TEST(CommissionWriter, RefusesDriveHomingOnAGantryWhoseSecondDriveTurnsTheOtherWay) {
+  State s = gantry_machine();
+  AxisHoming h;
+  h.method = "drive:21";
+  h.search_velocity = -5;
+  h.latch_velocity = -0.5;
+  s.axis('Y')->homing = h;
+  testing::TempDir dir;
+  try {
+    generate_config(s, dir.path(), "g");
+    FAIL() << "drive homing written for a reversed second drive";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("axis Y: the gantry's second drive turns the other way"), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("homing --method controller"), std::string::npos) << e.what();
+  }
+  s.axis('Y')->gantry->reverse = false;
+  const std::string ini = generate_config(s, dir.path(), "g")[0].content;
+  EXPECT_NE(section(ini, "CIA402_DRIVE_1").find("HOME_METHOD = 21\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "CIA402_DRIVE_2").find("HOME_METHOD = 21\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "JOINT_2").find("HOME_MODE = DRIVE\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "JOINT_2").find("HOME_SEQUENCE = -1\n"), std::string::npos) << ini;
+}
+
+// The gantry configuration is one cncd accepts: loaded with its HAL by
+// `cncd --check --strict`, with four simulated drives on the bus.
+TEST(CommissionWriter, TheWrittenGantryConfigurationPassesTheStrictCheck) {
+  const auto cncd = testing::binary_dir() / "bin/cncd";
+  if (!std::filesystem::exists(cncd)) GTEST_SKIP() << "cncd not built";
+  testing::TempDir dir;
+  State s = gantry_machine();
+  dir.write("drives.ini",
+            "[CIA402_SIM]\nINTERFACE = virtual:wg\nCLOCK = SERVO\nNODE = 1 2 3 4\n"
+            "[CIA402_SIM_NODE_1]\nENCODER_COUNTS = 10000\n[CIA402_SIM_NODE_2]\nENCODER_COUNTS = 10000\n"
+            "[CIA402_SIM_NODE_3]\nENCODER_COUNTS = 10000\n[CIA402_SIM_NODE_4]\nENCODER_COUNTS = 10000\n");
+  dir.write("drives.hal", "loadrt cia402_sim sections=CIA402_SIM\n");
+  dir.write("drives-run.hal", "addf cia402-sim.0.update servo-thread\n");
+  s.ini_includes = {"drives.ini"};
+  s.hal_before_bus = {"drives.hal"};
+  s.hal_after_bus = {"drives-run.hal"};
+  write_config(generate_config(s, dir.path(), "g"));
+  std::string out;
+  EXPECT_EQ(check_config(cncd, dir / "g.ini", out), 0) << out;
+}
+
 }  // namespace
 }  // namespace cnc::commission

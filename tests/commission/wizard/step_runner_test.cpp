@@ -48,7 +48,10 @@ TEST(WizardCommands, LssGivesNodeIdsFromTheFirstOneAndRefusesBadInput) {
 
 TEST(WizardCommands, AssignAndIdentifyNameTheAxisNodeAndJoint) {
   EXPECT_EQ(b.assign('x', 3, 0), with_state({"axis", "X", "assign", "--node", "3", "--joint", "0"}));
-  EXPECT_EQ(b.assign('Y', 2, 1, "Y2"), with_state({"axis", "Y", "assign", "--node", "2", "--joint", "1", "--gantry-with", "Y2"}));
+  EXPECT_EQ(b.assign('Y', 2, 1, 3, true),
+            with_state({"axis", "Y", "assign", "--node", "2", "--joint", "1", "--gantry-node", "3", "--gantry-reverse"}));
+  EXPECT_EQ(b.assign('Y', 2, 1, 3), with_state({"axis", "Y", "assign", "--node", "2", "--joint", "1", "--gantry-node", "3"}));
+  EXPECT_THROW(b.assign('Y', 2, 1, 2), std::invalid_argument) << "the second drive on the first one's node";
   EXPECT_EQ(b.identify('Z', "/m/scratch.json"),
             (Argv{"--state", "/m/scratch.json", "axis", "Z", "direction-test", "--distance", "0.5", "--velocity", "1"}));
   EXPECT_THROW(b.identify('Z', "/m/commission.json"), std::invalid_argument);  // never the real state
@@ -164,6 +167,12 @@ TEST(WizardCommands, CompensationCycleOptionsAndTheLaserPin) {
   EXPECT_EQ(b.comp_run('X', "", " cia402-sim.0.node.01.table-position "),
             with_state({"axis", "X", "comp-run", "--laser-pin", "cia402-sim.0.node.01.table-position"}));
   EXPECT_THROW(b.comp_run('X', "/m/laser.csv", "laser.0.position"), std::invalid_argument);  // one source
+  EXPECT_EQ(b.comp_run_camera('X', " exec:capture --png ", 0.1, 2.5, "/m/up"),
+            with_state({"axis", "X", "comp-run", "--camera", "exec:capture --png", "--pitch", "0.1",
+                        "--um-per-px", "2.5", "--bring-up", "/m/up"}));
+  EXPECT_EQ(b.comp_run_camera('X', "/dev/video0"), with_state({"axis", "X", "comp-run", "--camera", "/dev/video0"}));
+  EXPECT_THROW(b.comp_run_camera('X', " "), std::invalid_argument) << "no camera";
+  EXPECT_THROW(b.comp_run_camera('X', "/dev/video0", -1), std::invalid_argument);
 }
 
 TEST(WizardCommands, CheckRunsTheCheckProgramOnTheWrittenConfiguration) {
