@@ -373,6 +373,7 @@ RestoreResult restore_drives(const std::vector<BackupFile>& files,
         d.changes.push_back(k);
       }
     }
+    d.checked = true;
     add();
   }
   if (!r.ok() || dry_run) return r;
@@ -445,6 +446,7 @@ RestoreResult restore_drives(const std::vector<BackupFile>& files, const Restore
 std::string describe(const RestoreResult& r) {
   std::string o;
   for (const DriveRestore& d : r.drives) {
+    if (!d.checked) continue;  // its problem says why
     o += d.file.label() + ": ";
     if (d.changes.empty()) o += "every parameter as in the backup (" + std::to_string(d.unchanged) + ")\n";
     else

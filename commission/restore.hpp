@@ -103,6 +103,7 @@ struct DriveRestore {
   std::vector<RestoreChange> changes;  // restorable entries whose value differs
   int unchanged = 0;                   // restorable entries already equal
   std::vector<std::string> notes;      // serial number differs, stored or not
+  bool checked = false;                // identity matched and its parameters were read
 };
 
 struct RestoreResult {

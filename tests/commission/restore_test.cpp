@@ -6,11 +6,16 @@
 // Identity checks and bad input write nothing.
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <chrono>
+#include <cstdio>
 #include <thread>
 
 #include "commission/backup.hpp"
 #include "commission/restore.hpp"
+#include "core/ipc/server.hpp"
 #include "core/util/atomic_file.hpp"
 #include "fieldbus/ethercat/master.hpp"
 #include "sim/can/virtual_bus.hpp"
@@ -333,6 +338,30 @@ TEST(CommissionRestore, AnEthercatAxisOnASlaveTheSegmentLacksIsABackupProblem) {
   ASSERT_EQ(r.problems.size(), 1u);
   EXPECT_NE(r.problems[0].find("EtherCAT slave 3 (axis Y) is not on " + seg.interface() + " (1 slave(s) answer)"),
             std::string::npos) << r.problems[0];
+}
+
+// `cnc-commission restore` refuses while a controller runs on its instance
+// (a controller's segment, here this test's own ipc::Server), before
+// reading any file or bus.
+TEST(CommissionRestore, TheCommandRefusesWhileAControllerRunsTheMachine) {
+  const std::string instance = testing::unique_name("restore-ctl");
+  ipc::Server server(instance);
+  testing::TempDir dir;
+  const std::filesystem::path program = testing::binary_dir() / "bin" / "cnc-commission";
+  ASSERT_TRUE(std::filesystem::exists(program)) << program;
+  const std::string cmd = "CNC_INSTANCE=" + instance + " " + program.string() + " --state " +
+                          (dir / "state.json").string() + " restore --dir " + (dir / "none").string() + " 2>&1";
+  FILE* p = ::popen(cmd.c_str(), "r");
+  ASSERT_TRUE(p);
+  std::string out;
+  char buf[256];
+  while (std::fgets(buf, sizeof buf, p)) out += buf;
+  const int status = ::pclose(p);
+  EXPECT_EQ(WEXITSTATUS(status), 1) << out;
+  EXPECT_NE(out.find("problem: a controller (cncd, pid " + std::to_string(::getpid()) + ", instance " + instance +
+                     ") runs the machine: restore does not change drive parameters under it; stop it first"),
+            std::string::npos) << out;
+  EXPECT_NE(out.find("nothing was written"), std::string::npos) << out;
 }
 
 }  // namespace
