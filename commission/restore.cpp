@@ -171,6 +171,7 @@ BackupFile load_backup_file(const std::filesystem::path& file) {
       fail(cur.line, "DataType " + hex32(*type_code) + " of " + addr_text(cur.addr) + " is not a CiA 301 data type");
     if (!has_value) fail(cur.line, "section of " + addr_text(cur.addr) + " has no ParameterValue");
     cur.type = static_cast<D>(*type_code);
+    if (cur.type != D::VisibleString) cur.value = trim(cur.value);  // only a string keeps its spaces
     const auto data = parse_backup_value(cur.type, cur.value);
     if (!data)
       fail(cur.line, "ParameterValue \"" + cur.value + "\" of " + addr_text(cur.addr) + " is not a value of type " +
