@@ -12,6 +12,7 @@
 #include "core/util/atomic_file.hpp"
 #include "fieldbus/canopen/eds.hpp"
 #include "fieldbus/canopen/sdo_client.hpp"
+#include "fieldbus/ethercat/master.hpp"
 
 namespace cnc::commission {
 
@@ -36,7 +37,47 @@ std::string section(const co::ObjectAddress& a, bool plain) {
   return b;
 }
 
-std::string value_text(D type, const std::vector<uint8_t>& d) {
+std::string access_name(co::Access a) {
+  switch (a) {
+    case co::Access::ReadOnly: return "ro";
+    case co::Access::WriteOnly: return "wo";
+    case co::Access::ReadWrite: return "rw";
+    case co::Access::Const: return "const";
+  }
+  return "";
+}
+
+struct Channel {
+  int node = 0;
+  std::unique_ptr<co::SdoClient> sdo;
+  bool silent = false;
+};
+
+// Runs the bus until every client is idle.
+void run(can::Transport& bus, std::vector<Channel>& ch) {
+  std::map<uint32_t, Channel*> by_cob;
+  for (auto& c : ch) by_cob[c.sdo->response_cob()] = &c;
+  for (;;) {
+    can::Frame f;
+    while (bus.receive(f)) {
+      auto it = by_cob.find(f.id);
+      if (it == by_cob.end() || f.is_error() || f.is_remote()) continue;
+      it->second->sdo->on_frame(f, bus.now_ns());
+    }
+    bool idle = true;
+    const int64_t now = bus.now_ns();
+    for (auto& c : ch) {
+      c.sdo->poll(now);
+      if (!c.sdo->idle()) idle = false;
+    }
+    if (idle) return;
+    bus.wait(1'000'000);
+  }
+}
+
+}  // namespace
+
+std::string backup_value_text(D type, const std::vector<uint8_t>& d) {
   if (type == D::VisibleString) {
     std::string s(d.begin(), d.end());
     while (!s.empty() && (s.back() == '\0')) s.pop_back();
@@ -80,35 +121,48 @@ std::string value_text(D type, const std::vector<uint8_t>& d) {
   return b;
 }
 
-struct Channel {
-  int node = 0;
-  std::unique_ptr<co::SdoClient> sdo;
-  bool silent = false;
-};
-
-// Runs the bus until every client is idle.
-void run(can::Transport& bus, std::vector<Channel>& ch) {
-  std::map<uint32_t, Channel*> by_cob;
-  for (auto& c : ch) by_cob[c.sdo->response_cob()] = &c;
-  for (;;) {
-    can::Frame f;
-    while (bus.receive(f)) {
-      auto it = by_cob.find(f.id);
-      if (it == by_cob.end() || f.is_error() || f.is_remote()) continue;
-      it->second->sdo->on_frame(f, bus.now_ns());
+std::optional<std::vector<uint8_t>> parse_backup_value(D type, const std::string& text) {
+  std::vector<uint8_t> out;
+  if (type == D::VisibleString) return std::vector<uint8_t>(text.begin(), text.end());
+  const std::size_t size = co::data_type_size(type);
+  if (size == 0 || size > 8 || type == D::OctetString || type == D::Domain) {
+    if (text.size() % 2) return std::nullopt;
+    for (std::size_t i = 0; i < text.size(); i += 2) {
+      if (!std::isxdigit(static_cast<unsigned char>(text[i])) || !std::isxdigit(static_cast<unsigned char>(text[i + 1])))
+        return std::nullopt;
+      out.push_back(static_cast<uint8_t>(std::stoul(text.substr(i, 2), nullptr, 16)));
     }
-    bool idle = true;
-    const int64_t now = bus.now_ns();
-    for (auto& c : ch) {
-      c.sdo->poll(now);
-      if (!c.sdo->idle()) idle = false;
-    }
-    if (idle) return;
-    bus.wait(1'000'000);
+    return out;
   }
+  if (text.empty()) return std::nullopt;
+  uint64_t u = 0;
+  try {
+    std::size_t used = 0;
+    if (type == D::Real32) {
+      const float f = std::stof(text, &used);
+      uint32_t bits;
+      std::memcpy(&bits, &f, 4);
+      u = bits;
+    } else if (type == D::Real64) {
+      const double f = std::stod(text, &used);
+      std::memcpy(&u, &f, 8);
+    } else if (co::is_signed(type)) {
+      const long long v = std::stoll(text, &used, 0);
+      const unsigned bits = static_cast<unsigned>(8 * size);
+      if (bits < 64 && (v < -(1LL << (bits - 1)) || v >= (1LL << (bits - 1)))) return std::nullopt;
+      u = static_cast<uint64_t>(v);
+    } else {
+      if (text[0] == '-') return std::nullopt;
+      u = std::stoull(text, &used, 0);
+      if (size < 8 && (u >> (8 * size)) != 0) return std::nullopt;
+    }
+    if (used != text.size()) return std::nullopt;
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  for (std::size_t i = 0; i < size; ++i) out.push_back(static_cast<uint8_t>(u >> (8 * i)));
+  return out;
 }
-
-}  // namespace
 
 const std::vector<BackupObject>& backup_objects() {
   static const std::vector<BackupObject> list = [] {
@@ -180,6 +234,7 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
   std::vector<NodeBackup> nodes;
   std::vector<std::vector<BackupObject>> lists;
   for (const Axis& a : s.axes) {
+    if (a.slave != 0) continue;  // an EtherCAT drive: backup_ethercat_drives
     if (!a.enabled) {
       r.skipped.push_back(std::string("axis ") + a.letter + " (node " + std::to_string(a.node) +
                           ") is disabled: its drive is not backed up");
@@ -196,7 +251,7 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
         const co::DeviceDescription d = co::load_eds(eds);
         for (const co::EdsEntry& e : d.entries)
           if (e.addr.index >= 0x2000 && e.addr.index <= 0x5FFF && co::is_readable(e.access))
-            list.push_back({e.addr, e.type, e.name});
+            list.push_back({e.addr, e.type, e.name, access_name(e.access)});
       } catch (const std::exception& e) {
         r.problems.push_back("node " + std::to_string(a.node) + " (axis " + std::string(1, a.letter) +
                              "): its EDS cannot be read: " + e.what());
@@ -273,22 +328,169 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
   return r;
 }
 
+bool has_canopen_axes(const State& s) {
+  return std::any_of(s.axes.begin(), s.axes.end(), [](const Axis& a) { return a.enabled && a.slave == 0; });
+}
+bool has_ethercat_axes(const State& s) {
+  return std::any_of(s.axes.begin(), s.axes.end(), [](const Axis& a) { return a.enabled && a.slave != 0; });
+}
+
+namespace {
+
+// CoE SDO information access bits (ETG.1000.6): 0-2 readable in PREOP,
+// SAFEOP, OP; 3-5 writable in them.
+std::string coe_access(uint16_t bits) {
+  const bool r = bits & 0x07, w = bits & 0x38;
+  return r && w ? "rw" : r ? "ro" : w ? "wo" : "";
+}
+
+// The fixed list as it applies to an EtherCAT drive: no CANopen PDO
+// communication objects or heartbeat (the EtherCAT master owns the
+// exchange), the sync managers' PDO assignment instead.
+std::vector<BackupObject> ethercat_objects() {
+  std::vector<BackupObject> v;
+  for (const BackupObject& o : backup_objects()) {
+    const uint16_t i = o.addr.index;
+    if (i == 0x1017 || (i >= 0x1400 && i <= 0x1403) || (i >= 0x1800 && i <= 0x1803)) continue;
+    v.push_back(o);
+  }
+  for (uint16_t sm : {uint16_t{0x1C12}, uint16_t{0x1C13}}) {
+    const std::string what = sm == 0x1C12 ? "RxPDO assign" : "TxPDO assign";
+    v.push_back({{sm, 0}, D::Unsigned8, what + ": number of PDOs", ""});
+    for (uint8_t k = 1; k <= 2; ++k) v.push_back({{sm, k}, D::Unsigned16, what + ": PDO " + std::to_string(k), ""});
+  }
+  return v;
+}
+
+bool is_timeout(const ethercat::SdoResult& r) { return !r.ok && r.abort_code == 0; }
+
+}  // namespace
+
+BackupResult backup_ethercat_drives(ethercat::Master& m, const State& s) {
+  BackupResult r;
+  for (const Axis& a : s.axes) {
+    if (a.slave == 0) continue;  // a CANopen drive: backup_drives
+    const std::string who =
+        "EtherCAT slave " + std::to_string(a.slave) + " (axis " + std::string(1, a.letter) + ")";
+    if (!a.enabled) {
+      r.skipped.push_back(std::string("axis ") + a.letter + " (EtherCAT slave " + std::to_string(a.slave) +
+                          ") is disabled: its drive is not backed up");
+      continue;
+    }
+    const auto& slaves = m.slaves();
+    const auto it = std::find_if(slaves.begin(), slaves.end(),
+                                 [&](const ethercat::SlaveInfo& x) { return x.position == static_cast<unsigned>(a.slave); });
+    if (it == slaves.end()) {
+      r.problems.push_back(who + " is not on " + m.config().interface + " (" + std::to_string(slaves.size()) +
+                           " slave(s) answer): check its power and the cable before it; nothing was written");
+      continue;
+    }
+    if (!it->sii.has_coe()) {
+      r.problems.push_back(who + " (" + it->sii.name + ") has no CoE mailbox: its parameters cannot be read");
+      continue;
+    }
+    NodeBackup b;
+    b.slave = static_cast<unsigned>(a.slave);
+    b.axis = a.letter;
+    char f[32];
+    std::snprintf(f, sizeof f, "slave-%02d-%c.dcf", a.slave, static_cast<char>(std::tolower(a.letter)));
+    b.file = f;
+    std::vector<BackupObject> list = ethercat_objects();
+    // The manufacturer objects from the drive's SDO information, with each
+    // entry's type and access.
+    std::string err;
+    const std::vector<uint16_t> indices = m.sdo_info_list(b.slave, err);
+    if (!err.empty()) {
+      b.missing.push_back("SDO information: " + err + " (manufacturer objects 0x2000-0x5FFF not read)");
+    }
+    for (uint16_t index : indices) {
+      if (index < 0x2000 || index > 0x5FFF) continue;
+      const auto obj = m.sdo_info_object(b.slave, index, err);
+      if (!obj) continue;
+      const uint8_t first = obj->object_code == 7 ? 0 : 1;
+      const uint8_t last = obj->object_code == 7 ? 0 : obj->max_sub;
+      for (unsigned sub = first; sub <= last; ++sub) {
+        const auto e = m.sdo_info_entry(b.slave, index, static_cast<uint8_t>(sub), err);
+        if (!e || !(e->access & 0x07) || !co::is_known_data_type(e->data_type)) continue;
+        list.push_back({{index, static_cast<uint8_t>(sub)}, static_cast<D>(e->data_type),
+                        e->name.empty() ? obj->name : e->name, coe_access(e->access)});
+      }
+    }
+    bool silent = false;
+    auto read = [&](const BackupObject& obj) {
+      if (silent) return;
+      const ethercat::SdoResult res = m.sdo_upload(b.slave, obj.addr.index, obj.addr.sub);
+      if (res.ok) b.values.push_back({obj, res.data});
+      else if (is_timeout(res)) silent = true;
+      else b.missing.push_back(section(obj.addr, false) + " " + obj.name + ": " + res.error);
+    };
+    for (const BackupObject& obj : list) read(obj);
+    // The PDO mapping entries their sub-index 0 announced.
+    std::vector<BackupObject> more;
+    for (const BackedUpValue& v : b.values) {
+      const uint16_t idx = v.object.addr.index;
+      const bool mapping = (idx >= 0x1600 && idx <= 0x1603) || (idx >= 0x1A00 && idx <= 0x1A03);
+      if (!mapping || v.object.addr.sub != 0 || v.data.empty()) continue;
+      for (uint8_t k = 1; k <= std::min<uint8_t>(v.data[0], 64); ++k)
+        more.push_back({{idx, k}, D::Unsigned32, v.object.name.substr(0, 5) + " mapping entry " + std::to_string(k), ""});
+    }
+    for (const BackupObject& obj : more) read(obj);
+    if (silent) {
+      r.problems.push_back(who + " does not answer its mailbox on " + m.config().interface +
+                           ": check its power and the cable; nothing was written");
+      continue;
+    }
+    std::sort(b.values.begin(), b.values.end(),
+              [](const BackedUpValue& x, const BackedUpValue& y) { return x.object.addr < y.object.addr; });
+    std::sort(b.missing.begin(), b.missing.end());
+    r.nodes.push_back(std::move(b));
+  }
+  return r;
+}
+
+BackupResult backup_ethercat_drives(const std::string& interface, const State& s) {
+  BackupResult r;
+  ethercat::MasterConfig cfg;
+  cfg.interface = interface;
+  try {
+    ethercat::Master m(cfg, nullptr);
+    m.to_preop();
+    r = backup_ethercat_drives(m, s);
+    m.release();
+  } catch (const std::exception& e) {
+    r.problems.push_back(interface + ": " + e.what() + "; nothing was written");
+  }
+  return r;
+}
+
 std::string format_backup(const NodeBackup& b, const State& s, const std::string& time) {
   std::string o;
-  o += "; Drive-parameter backup of node " + std::to_string(b.node) + " (axis " + std::string(1, b.axis) +
-       "), SDO upload by cnc-commission backup, " + time + "\n";
-  o += "; Bus " + s.interface + ". Sections [index] and [indexsubN] as in a DCF (CiA 306); ParameterValue as read.\n";
-  o += "; A restore writes the writable ones back with SDO downloads (cnc-canopen write IF NODE INDEX:SUB:TYPE VALUE)\n; and stores them in the drive (0x1010:1, signature \"save\").\n";
-  o += "\n[DeviceComissioning]\nNodeID=" + std::to_string(b.node) + "\nNodeName=" +
-       std::string(1, static_cast<char>(std::tolower(b.axis))) + "-axis\nBaudrate=" + std::to_string(s.bitrate / 1000) +
-       "\n";
+  const std::string name = std::string(1, static_cast<char>(std::tolower(b.axis))) + "-axis";
+  if (b.slave != 0) {
+    o += "; Drive-parameter backup of EtherCAT slave " + std::to_string(b.slave) + " (axis " + std::string(1, b.axis) +
+         "), CoE SDO upload by cnc-commission backup, " + time + "\n";
+    o += "; Segment " + s.ethercat_interface +
+         ". Sections [index] and [indexsubN] as in a DCF (CiA 306); ParameterValue as read.\n";
+    o += "; cnc-commission restore checks the identity (1018sub1-3) and writes the changed parameters of\n"
+         "; 0x2000-0x9FFF back with CoE SDO downloads (not those with AccessType ro or const).\n";
+    o += "\n[DeviceComissioning]\nEtherCATSlave=" + std::to_string(b.slave) + "\nNodeName=" + name + "\n";
+  } else {
+    o += "; Drive-parameter backup of node " + std::to_string(b.node) + " (axis " + std::string(1, b.axis) +
+         "), SDO upload by cnc-commission backup, " + time + "\n";
+    o += "; Bus " + s.interface + ". Sections [index] and [indexsubN] as in a DCF (CiA 306); ParameterValue as read.\n";
+    o += "; cnc-commission restore checks the identity (1018sub1-3), writes the changed parameters of\n"
+         "; 0x2000-0x9FFF back with SDO downloads and stores them in the drive (0x1010:1, \"save\").\n";
+    o += "\n[DeviceComissioning]\nNodeID=" + std::to_string(b.node) + "\nNodeName=" + name +
+         "\nBaudrate=" + std::to_string(s.bitrate / 1000) + "\n";
+  }
   if (!b.eds.empty()) o += "; described by " + b.eds + "\n";
   for (const BackedUpValue& v : b.values) {
     const bool plain = v.object.addr.sub == 0 && std::none_of(b.values.begin(), b.values.end(), [&](const BackedUpValue& w) {
                          return w.object.addr.index == v.object.addr.index && w.object.addr.sub != 0;
                        });
     o += "\n[" + section(v.object.addr, plain) + "]\nParameterName=" + v.object.name + "\nDataType=" +
-         hex(static_cast<uint32_t>(v.object.type), 4) + "\nParameterValue=" + value_text(v.object.type, v.data) + "\n";
+         hex(static_cast<uint32_t>(v.object.type), 4) + "\nParameterValue=" + backup_value_text(v.object.type, v.data) + "\n";
+    if (!v.object.access.empty()) o += "AccessType=" + v.object.access + "\n";
   }
   o += "\n[Missing]\n; objects the drive does not have, or would not give (SDO abort)\n";
   for (std::size_t i = 0; i < b.missing.size(); ++i) o += std::to_string(i + 1) + "=" + b.missing[i] + "\n";

@@ -12,11 +12,19 @@
 // [indexsubN] sections with ParameterValue), written atomically. An object
 // the drive lacks is listed in the file's [Missing] section; a node that
 // does not answer is a problem naming it, and then nothing is written.
-// Works on any can::Transport, as the bus scan. Non-realtime.
+// Works on any can::Transport, as the bus scan.
+// EtherCAT drives (axes with a slave position) are read the same way over
+// CoE SDO through the EtherCAT master in PREOP: the same CiA 402 list, the
+// identity 0x1018, the PDO assignment 0x1C12/0x1C13 and mappings, and the
+// manufacturer objects 0x2000-0x5FFF the drive lists in its SDO
+// information (with each entry's access, kept as AccessType so that a
+// restore leaves read-only values alone). Same file format, "slave-NN-l.dcf".
+// A restore (commission/restore.hpp) reads these files back. Non-realtime.
 #pragma once
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -25,12 +33,17 @@
 #include "fieldbus/can/transport.hpp"
 #include "fieldbus/canopen/types.hpp"
 
+namespace cnc::ethercat {
+class Master;
+}
+
 namespace cnc::commission {
 
 struct BackupObject {
   canopen::ObjectAddress addr;
   canopen::DataType type = canopen::DataType::Unsigned32;
   std::string name;
+  std::string access;   // "rw" "ro" "wo" "const" as the EDS or SDO information says; "" not known
 };
 
 // The fixed list read from every drive (the PDO mapping entries are added
@@ -43,7 +56,8 @@ struct BackedUpValue {
 };
 
 struct NodeBackup {
-  int node = 0;
+  int node = 0;                         // CANopen node-ID (0: an EtherCAT drive)
+  unsigned slave = 0;                   // EtherCAT: position in the segment (0: a CANopen drive)
   char axis = 'X';
   std::string eds;                      // the matched EDS ("" none)
   std::vector<BackedUpValue> values;    // in address order
@@ -62,8 +76,26 @@ struct BackupOptions {
   int64_t timeout_ns = 500'000'000;     // per SDO transfer
 };
 
-// Reads the drives of the state's enabled axes over `bus`.
+// Reads the CANopen drives of the state's enabled axes over `bus`.
 BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOptions& options = {});
+
+// Reads the EtherCAT drives of the state's enabled axes through `master`
+// (scanned and in PREOP: Master::to_preop). A slave position the segment
+// does not have, or a slave without CoE, is a problem naming it.
+BackupResult backup_ethercat_drives(ethercat::Master& master, const State& s);
+// The same on the segment of `interface` ("raw:eth0", "sim:<segment>"):
+// brings the slaves to PREOP, reads them, leaves them in INIT. A segment
+// that cannot be opened or scanned is a problem.
+BackupResult backup_ethercat_drives(const std::string& interface, const State& s);
+// Whether the state has enabled axes on CANopen (node) or EtherCAT (slave) drives.
+bool has_canopen_axes(const State& s);
+bool has_ethercat_axes(const State& s);
+
+// ParameterValue as written for `type` (unsigned as 0x-hex of the type's
+// size, signed decimal, reals, strings as text, others as hex bytes), and
+// back: nullopt when `text` is not a value of that type.
+std::string backup_value_text(canopen::DataType type, const std::vector<uint8_t>& data);
+std::optional<std::vector<uint8_t>> parse_backup_value(canopen::DataType type, const std::string& text);
 
 // The file of one drive (DCF-like INI text); `time` and `interface` go into
 // its header.

@@ -21,6 +21,9 @@
 #include <vector>
 
 #include "commission/backup.hpp"
+#include "commission/restore.hpp"
+#include "core/ipc/client.hpp"
+#include "fieldbus/ethercat/master.hpp"
 #include "commission/check.hpp"
 #include "commission/comp_camera.hpp"
 #include "commission/compensation.hpp"
@@ -114,9 +117,15 @@ const char* kHelp =
     "  axis L comp-fit [--out-dir DIR] [--install]\n"
     "      fit the error model (comp/), ISO 230-2 figures measured and predicted, the table;\n"
     "      --install: write puts the table and its COMP_FILE keys into the configuration\n"
-    "  backup --dir DIR [--interface SPEC] [--timeout-ms MS]\n"
-    "      SDO upload of the parameters that matter from every enabled axis's drive, a\n"
-    "      file per drive (DCF-like); write copies it into DIR/drive-backup/\n"
+    "  backup --dir DIR [--interface SPEC] [--ethercat-interface SPEC] [--timeout-ms MS]\n"
+    "      SDO upload (CANopen, or CoE on EtherCAT) of the parameters that matter from every\n"
+    "      enabled axis's drive, a file per drive (DCF-like); write copies it into\n"
+    "      DIR/drive-backup/\n"
+    "  restore [--dir DIR | --file FILE ...] [--dry-run] [--interface SPEC]\n"
+    "          [--ethercat-interface SPEC] [--timeout-ms MS]\n"
+    "      write a backup back (default: the last one taken): checks each drive's identity,\n"
+    "      writes the parameters that differ, reads each back; not while a controller\n"
+    "      runs; --dry-run lists what would be written\n"
     "  include [--ini FILE] [--hal-before-bus FILE] [--hal-after-bus FILE]\n"
     "      files the written configuration keeps (site I/O, a simulated machine)\n"
     "  bring-up --dir DIR [--name NAME] [--log FILE]\n"
@@ -466,35 +475,142 @@ int cmd_axis_comp(State& s, char letter, const std::string& step, Args& a) {
 
 int cmd_backup(State& s, Args& a) {
   std::filesystem::path dir;
-  std::string spec = s.interface;
+  std::string spec = s.interface, ecat = s.ethercat_interface;
   BackupOptions o;
   while (a.more()) {
     const std::string k = a.next("option");
     if (k == "--dir") dir = a.next("folder");
     else if (k == "--interface") spec = a.next("interface");
+    else if (k == "--ethercat-interface") ecat = a.next("interface");
     else if (k == "--timeout-ms") o.timeout_ns = static_cast<int64_t>(number(a.next("ms"), "--timeout-ms") * 1e6);
     else usage("backup: unknown option " + k);
   }
   if (dir.empty()) usage("backup: --dir DIR");
-  if (spec.empty()) usage("backup: no bus: scan first, or --interface SPEC");
   if (s.axes.empty()) throw std::invalid_argument("backup: no axis has a drive yet: assign them first");
-  auto bus = cnc::can::open_transport(spec);
-  BackupResult r = backup_drives(*bus, s, o);
+  const bool on_can = has_canopen_axes(s), on_ecat = has_ethercat_axes(s);
+  if (on_can && spec.empty()) usage("backup: no CAN bus: scan first, or --interface SPEC");
+  if (on_ecat && ecat.empty()) usage("backup: no EtherCAT segment: scan-ethercat first, or --ethercat-interface SPEC");
+  BackupResult r;
+  if (on_can || !on_ecat) {
+    if (spec.empty()) usage("backup: no bus: scan first, or --interface SPEC");
+    auto bus = cnc::can::open_transport(spec);
+    r = backup_drives(*bus, s, o);
+  }
+  if (on_ecat) {
+    BackupResult e = backup_ethercat_drives(ecat, s);
+    r.nodes.insert(r.nodes.end(), e.nodes.begin(), e.nodes.end());
+    r.skipped.insert(r.skipped.end(), e.skipped.begin(), e.skipped.end());
+    r.problems.insert(r.problems.end(), e.problems.begin(), e.problems.end());
+  }
   for (const auto& k : r.skipped) std::cout << k << "\n";
   for (const auto& n : r.nodes) {
-    std::cout << "node " << n.node << " (axis " << n.axis << "): " << n.values.size() << " values, "
-              << n.missing.size() << " object(s) the drive lacks\n";
+    std::cout << (n.slave ? "EtherCAT slave " + std::to_string(n.slave) : "node " + std::to_string(n.node)) << " (axis "
+              << n.axis << "): " << n.values.size() << " values, " << n.missing.size()
+              << " object(s) the drive lacks\n";
     for (const auto& m : n.missing) std::cout << "  missing: " << m << "\n";
   }
   if (!r.ok()) {
     for (const auto& p : r.problems) std::cout << "problem: " << p << "\n";
     return 1;
   }
+  if (on_ecat) s.ethercat_interface = ecat;
   for (const auto& f : write_backup(s, r, dir)) std::cout << "wrote " << f.string() << "\n";
   s.log.push_back("backup of " + std::to_string(r.nodes.size()) + " drive(s) to " + dir.string());
   return 0;
 }
 // --- end of helper C's block ---
+
+// --- Drive-parameter restore (issue 21) ---
+// A controller running on this instance (its segment and process alive):
+// "" when none.
+std::string running_controller() {
+  try {
+    const cnc::ipc::Client c;
+    if (c.controller_alive())
+      return "a controller (cncd, pid " + std::to_string(c.owner_pid()) + ", instance " + c.instance() + ")";
+  } catch (const std::exception&) {
+  }
+  return "";
+}
+
+int cmd_restore(State& s, Args& a) {
+  std::vector<std::filesystem::path> files;
+  std::filesystem::path dir;
+  std::string spec = s.interface, ecat = s.ethercat_interface;
+  bool dry_run = false;
+  RestoreBuses buses;
+  while (a.more()) {
+    const std::string k = a.next("option");
+    if (k == "--dir") dir = a.next("folder");
+    else if (k == "--file") files.push_back(a.next("file"));
+    else if (k == "--interface") spec = a.next("interface");
+    else if (k == "--ethercat-interface") ecat = a.next("interface");
+    else if (k == "--dry-run") dry_run = true;
+    else if (k == "--timeout-ms") buses.sdo_timeout_ns = static_cast<int64_t>(number(a.next("ms"), "--timeout-ms") * 1e6);
+    else usage("restore: unknown option " + k);
+  }
+  if (!dir.empty() && !files.empty()) usage("restore: --dir DIR or --file FILE, not both");
+  if (dir.empty() && files.empty()) {
+    if (!s.backup) usage("restore: --dir DIR or --file FILE (no backup taken yet in this state)");
+    dir = s.backup->dir;
+  }
+  // The drives' parameters change under a controller that runs them: it
+  // would go on with the old ones (or fault), and the EtherCAT mailbox
+  // would be shared by two masters.
+  if (const std::string c = running_controller(); !c.empty()) {
+    std::cout << "problem: " << c << " runs the machine: restore does not change drive parameters under it; stop it "
+              << "first (cnc-commission shutdown), then restore; nothing was written\n";
+    return 1;
+  }
+  std::vector<BackupFile> backups;
+  try {
+    if (!dir.empty()) backups = load_backup_dir(dir);
+    for (const auto& f : files) backups.push_back(load_backup_file(f));
+  } catch (const std::exception& e) {
+    std::cout << "problem: " << e.what() << "; nothing was written\n";
+    return 1;
+  }
+  const bool on_can = std::any_of(backups.begin(), backups.end(), [](const BackupFile& f) { return f.slave == 0; });
+  const bool on_ecat = std::any_of(backups.begin(), backups.end(), [](const BackupFile& f) { return f.slave != 0; });
+  std::unique_ptr<cnc::can::Transport> bus;
+  std::unique_ptr<cnc::ethercat::Master> master;
+  if (on_can && !spec.empty()) {
+    bus = cnc::can::open_transport(spec);
+    buses.can = bus.get();
+  }
+  if (on_ecat && !ecat.empty()) {
+    cnc::ethercat::MasterConfig cfg;
+    cfg.interface = ecat;
+    try {
+      master = std::make_unique<cnc::ethercat::Master>(cfg, nullptr);
+      master->to_preop();
+      buses.ethercat = master.get();
+    } catch (const std::exception& e) {
+      std::cout << "problem: " << ecat << ": " << e.what() << "; nothing was written\n";
+      return 1;
+    }
+  }
+  const RestoreResult r = restore_drives(backups, buses, dry_run);
+  if (master) master->release();
+  std::cout << describe(r);
+  if (!r.ok()) {
+    std::cout << (dry_run ? "dry run: problems above\n" : "restore: problems above\n");
+    return 1;
+  }
+  std::size_t written = 0;
+  for (const auto& d : r.drives)
+    for (const auto& k : d.changes) written += k.written ? 1 : 0;
+  if (dry_run) {
+    std::cout << "dry run: nothing written\n";
+    return 0;
+  }
+  std::cout << "restored " << written << " parameter(s) to " << r.drives.size() << " drive(s)\n";
+  s.log.push_back("restore of " + std::to_string(r.drives.size()) + " drive(s) from " +
+                  (dir.empty() ? files.front().parent_path().string() : dir.string()) + ": " + std::to_string(written) +
+                  " parameter(s) written");
+  return 0;
+}
+// --- end of the restore block ---
 
 // --- Steps 5 and 6 (helper A): switches, soft limits from them, homing. ---
 std::string fmt_mm(double v) {
@@ -984,6 +1100,7 @@ int main(int argc, char** argv) {
     } else if (cmd == "write") rc = cmd_write(s, a);
     else if (cmd == "bring-up") rc = cmd_bring_up(s, a);
     else if (cmd == "backup") rc = cmd_backup(s, a);
+    else if (cmd == "restore") rc = cmd_restore(s, a);
     else if (cmd == "check") rc = cmd_check(s, a);
     else if (cmd == "shutdown") {
       Controller(self_dir()).cnc({"shutdown"});

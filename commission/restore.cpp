@@ -1,0 +1,472 @@
+#include "commission/restore.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <stdexcept>
+
+#include "commission/backup.hpp"
+#include "fieldbus/canopen/sdo_client.hpp"
+#include "fieldbus/ethercat/master.hpp"
+
+namespace cnc::commission {
+
+namespace co = cnc::canopen;
+using D = co::DataType;
+
+namespace {
+
+constexpr uint32_t kAbortTimeout = 0x05040000;
+constexpr uint32_t kAbortReadOnly = 0x06010002;
+
+std::string trim(std::string s) {
+  const auto not_space = [](unsigned char c) { return !std::isspace(c); };
+  s.erase(s.begin(), std::find_if(s.begin(), s.end(), not_space));
+  s.erase(std::find_if(s.rbegin(), s.rend(), not_space).base(), s.end());
+  return s;
+}
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+std::string hex32(uint32_t v) {
+  char b[16];
+  std::snprintf(b, sizeof b, "0x%08X", v);
+  return b;
+}
+
+// "0x6099:01" for people.
+std::string addr_text(const co::ObjectAddress& a) {
+  char b[16];
+  std::snprintf(b, sizeof b, "0x%04X:%02X", a.index, a.sub);
+  return b;
+}
+
+bool is_hex(char c) { return std::isxdigit(static_cast<unsigned char>(c)) != 0; }
+
+// "6099sub1" or "6098": the object of a section name; nullopt for others.
+std::optional<co::ObjectAddress> object_section(const std::string& name) {
+  const std::string n = lower(name);
+  const auto sub = n.find("sub");
+  const std::string index = n.substr(0, sub);
+  if (index.empty() || index.size() > 4 || !std::all_of(index.begin(), index.end(), is_hex)) return std::nullopt;
+  co::ObjectAddress a;
+  a.index = static_cast<uint16_t>(std::stoul(index, nullptr, 16));
+  if (sub != std::string::npos) {
+    const std::string s = n.substr(sub + 3);
+    if (s.empty() || s.size() > 2 || !std::all_of(s.begin(), s.end(), is_hex)) return std::nullopt;
+    a.sub = static_cast<uint8_t>(std::stoul(s, nullptr, 16));
+  }
+  return a;
+}
+
+class CanopenChannel final : public DriveChannel {
+ public:
+  CanopenChannel(can::Transport& bus, int node, int64_t timeout_ns) : bus_(bus) {
+    co::SdoClientOptions o;
+    o.timeout_ns = timeout_ns;
+    sdo_ = std::make_unique<co::SdoClient>(bus, static_cast<uint8_t>(node), o);
+  }
+  Result upload(co::ObjectAddress a) override {
+    Result r;
+    sdo_->upload(a, [&r](const co::SdoResult& s) { take(s, r); });
+    run();
+    return r;
+  }
+  Result download(co::ObjectAddress a, const std::vector<uint8_t>& data) override {
+    Result r;
+    sdo_->download(a, data, [&r](const co::SdoResult& s) { take(s, r); });
+    run();
+    return r;
+  }
+
+ private:
+  static void take(const co::SdoResult& s, Result& r) {
+    r.ok = s.ok();
+    r.data = s.data;
+    r.abort_code = s.aborted_by_client ? 0 : s.abort_code;
+    r.silent = s.aborted_by_client && s.abort_code == kAbortTimeout;
+    if (!s.ok()) r.error = s.abort_text();
+  }
+  void run() {
+    while (!sdo_->idle()) {
+      can::Frame f;
+      while (bus_.receive(f)) {
+        if (f.id == sdo_->response_cob() && !f.is_error() && !f.is_remote()) sdo_->on_frame(f, bus_.now_ns());
+      }
+      sdo_->poll(bus_.now_ns());
+      if (sdo_->idle()) break;
+      bus_.wait(1'000'000);
+    }
+  }
+  can::Transport& bus_;
+  std::unique_ptr<co::SdoClient> sdo_;
+};
+
+class EthercatChannel final : public DriveChannel {
+ public:
+  EthercatChannel(ethercat::Master& m, unsigned position) : m_(m), position_(position) {}
+  Result upload(co::ObjectAddress a) override { return take(m_.sdo_upload(position_, a.index, a.sub)); }
+  Result download(co::ObjectAddress a, const std::vector<uint8_t>& data) override {
+    return take(m_.sdo_download(position_, a.index, a.sub, data));
+  }
+
+ private:
+  static Result take(const ethercat::SdoResult& s) {
+    Result r;
+    r.ok = s.ok;
+    r.data = s.data;
+    r.abort_code = s.abort_code;
+    r.silent = !s.ok && s.abort_code == 0;
+    r.error = s.error;
+    return r;
+  }
+  ethercat::Master& m_;
+  unsigned position_;
+};
+
+}  // namespace
+
+std::unique_ptr<DriveChannel> canopen_channel(can::Transport& bus, int node, int64_t timeout_ns) {
+  return std::make_unique<CanopenChannel>(bus, node, timeout_ns);
+}
+std::unique_ptr<DriveChannel> ethercat_channel(ethercat::Master& master, unsigned position) {
+  return std::make_unique<EthercatChannel>(master, position);
+}
+
+const BackupEntry* BackupFile::find(uint16_t index, uint8_t sub) const noexcept {
+  for (const BackupEntry& e : entries)
+    if (e.addr.index == index && e.addr.sub == sub) return &e;
+  return nullptr;
+}
+
+std::string BackupFile::label() const {
+  std::string s = slave ? "EtherCAT slave " + std::to_string(slave) : "node " + std::to_string(node);
+  s += " (";
+  if (axis) s += std::string("axis ") + axis + ", ";
+  return s + path.filename().string() + ")";
+}
+
+BackupFile load_backup_file(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error(file.string() + ": cannot be read (no such file?)");
+  BackupFile f;
+  f.path = file;
+  auto fail = [&](int line, const std::string& what) {
+    throw std::runtime_error(file.string() + ":" + std::to_string(line) + ": " + what);
+  };
+  enum class In { Nothing, Device, Missing, Object } where = In::Nothing;
+  BackupEntry cur;
+  std::optional<uint16_t> type_code;
+  bool has_value = false;
+  std::map<co::ObjectAddress, int> seen;
+  auto finish = [&] {
+    if (where != In::Object) return;
+    if (!type_code) fail(cur.line, "section [" + addr_text(cur.addr) + "] has no DataType");
+    if (!co::is_known_data_type(*type_code))
+      fail(cur.line, "DataType " + hex32(*type_code) + " of " + addr_text(cur.addr) + " is not a CiA 301 data type");
+    if (!has_value) fail(cur.line, "section of " + addr_text(cur.addr) + " has no ParameterValue");
+    cur.type = static_cast<D>(*type_code);
+    if (cur.type != D::VisibleString) cur.value = trim(cur.value);  // only a string keeps its spaces
+    const auto data = parse_backup_value(cur.type, cur.value);
+    if (!data)
+      fail(cur.line, "ParameterValue \"" + cur.value + "\" of " + addr_text(cur.addr) + " is not a value of type " +
+                         co::to_string(cur.type));
+    cur.data = *data;
+    f.entries.push_back(cur);
+  };
+  std::string raw;
+  int line = 0;
+  bool has_id = false;
+  while (std::getline(in, raw)) {
+    ++line;
+    const std::string t = trim(raw);
+    if (t.empty() || t[0] == ';' || t[0] == '#') continue;
+    if (t[0] == '[') {
+      finish();
+      if (t.back() != ']') fail(line, "\"" + t + "\": a section header without its ']'");
+      const std::string name = t.substr(1, t.size() - 2);
+      if (lower(name) == "devicecomissioning" || lower(name) == "devicecommissioning") {
+        where = In::Device;
+      } else if (lower(name) == "missing") {
+        where = In::Missing;
+      } else if (const auto a = object_section(name)) {
+        if (seen.count(*a)) fail(line, "object " + addr_text(*a) + " twice (first at line " + std::to_string(seen[*a]) + ")");
+        seen[*a] = line;
+        where = In::Object;
+        cur = BackupEntry{};
+        cur.addr = *a;
+        cur.line = line;
+        type_code.reset();
+        has_value = false;
+      } else {
+        fail(line, "section [" + name + "]: expected [DeviceComissioning], [Missing] or an object ([6065], [6099sub1])");
+      }
+      continue;
+    }
+    const auto eq = t.find('=');
+    if (eq == std::string::npos) fail(line, "\"" + t + "\": expected KEY=VALUE or a [section]");
+    if (where == In::Nothing) fail(line, "\"" + t + "\" before any [section]");
+    const std::string key = lower(trim(t.substr(0, eq)));
+    // The value keeps its spaces (a string parameter), only the line end is cut.
+    std::string value = raw.substr(raw.find('=') + 1);
+    while (!value.empty() && (value.back() == '\r' || value.back() == '\n')) value.pop_back();
+    if (where == In::Device) {
+      const std::string v = trim(value);
+      try {
+        std::size_t used = 0;
+        if (key == "nodeid") {
+          const unsigned long n = std::stoul(v, &used, 0);
+          if (used != v.size() || n < 1 || n > 127) throw std::invalid_argument(v);
+          f.node = static_cast<int>(n);
+          has_id = true;
+        } else if (key == "ethercatslave") {
+          const unsigned long n = std::stoul(v, &used, 0);
+          if (used != v.size() || n < 1 || n > 65535) throw std::invalid_argument(v);
+          f.slave = static_cast<unsigned>(n);
+          has_id = true;
+        }
+      } catch (const std::exception&) {
+        fail(line, key + " \"" + v + "\": expected a node-ID 1-127 (NodeID) or a slave position (EtherCATSlave)");
+      }
+      if (key == "nodename" && v.size() >= 6 && lower(v.substr(1)) == "-axis")
+        f.axis = static_cast<char>(std::toupper(static_cast<unsigned char>(v[0])));
+    } else if (where == In::Object) {
+      if (key == "parametervalue") {
+        cur.value = value;
+        if (cur.value.find_first_not_of(' ') == std::string::npos) cur.value.clear();
+        has_value = true;
+      } else if (key == "datatype") {
+        const std::string v = trim(value);
+        try {
+          std::size_t used = 0;
+          const unsigned long c = std::stoul(v, &used, 0);
+          if (used != v.size() || c > 0xFFFF) throw std::invalid_argument(v);
+          type_code = static_cast<uint16_t>(c);
+        } catch (const std::exception&) {
+          fail(line, "DataType \"" + v + "\": expected a number (0x0007)");
+        }
+      } else if (key == "parametername") {
+        cur.name = trim(value);
+      } else if (key == "accesstype") {
+        cur.access = lower(trim(value));
+      }
+    }
+  }
+  finish();
+  if (!has_id) fail(line, "no [DeviceComissioning] NodeID= or EtherCATSlave=: whose backup is it?");
+  if (f.node && f.slave) fail(line, "both NodeID and EtherCATSlave: one drive per file");
+  for (uint8_t sub = 1; sub <= 3; ++sub)
+    if (!f.find(0x1018, sub))
+      fail(line, "no identity " + addr_text({0x1018, sub}) +
+                     " ([1018sub" + std::to_string(sub) + "]): the drive cannot be checked against it");
+  return f;
+}
+
+std::vector<BackupFile> load_backup_dir(const std::filesystem::path& dir) {
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec)) throw std::runtime_error(dir.string() + ": not a folder (no backup there?)");
+  std::vector<std::filesystem::path> paths;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec))
+    if (lower(e.path().extension().string()) == ".dcf") paths.push_back(e.path());
+  std::sort(paths.begin(), paths.end());
+  if (paths.empty()) throw std::runtime_error(dir.string() + ": no backup files (*.dcf): take one with cnc-commission backup");
+  std::vector<BackupFile> out;
+  for (const auto& p : paths) out.push_back(load_backup_file(p));
+  return out;
+}
+
+bool restorable(const BackupEntry& e) noexcept {
+  return e.addr.index >= 0x2000 && e.addr.index <= 0x9FFF && e.access != "ro" && e.access != "const";
+}
+
+RestoreResult restore_drives(const std::vector<BackupFile>& files,
+                             const std::function<std::unique_ptr<DriveChannel>(const BackupFile&, std::string&)>& open,
+                             bool dry_run) {
+  RestoreResult r;
+  r.dry_run = dry_run;
+  // Two files for one drive would write it twice, in an order nobody chose.
+  for (std::size_t i = 0; i < files.size(); ++i)
+    for (std::size_t j = 0; j < i; ++j)
+      if (files[i].node == files[j].node && files[i].slave == files[j].slave)
+        r.problems.push_back(files[i].path.string() + " and " + files[j].path.string() +
+                             " are backups of the same drive: restore one of them");
+  if (!r.ok()) return r;
+  std::vector<std::unique_ptr<DriveChannel>> ch;
+  // Phase 1, nothing written: each drive answers, is the backed-up drive,
+  // has every parameter; the changes.
+  for (const BackupFile& f : files) {
+    DriveRestore d;
+    d.file = f;
+    std::string why;
+    std::unique_ptr<DriveChannel> c = open(f, why);
+    const std::string who = f.label();
+    auto add = [&] {
+      r.drives.push_back(std::move(d));
+      ch.push_back(std::move(c));
+    };
+    if (!c) {
+      r.problems.push_back(who + ": " + why);
+      add();
+      continue;
+    }
+    bool silent = false, other = false;
+    for (uint8_t sub = 1; sub <= 4 && !silent; ++sub) {
+      const BackupEntry* e = f.find(0x1018, sub);
+      if (!e) continue;
+      const DriveChannel::Result res = c->upload({0x1018, sub});
+      if (res.silent) {
+        silent = true;
+        r.problems.push_back(who + " does not answer (" + res.error +
+                             "): check its power, the cable, its address (node-ID or position); nothing was written");
+      } else if (!res.ok) {
+        r.problems.push_back(who + ": its identity " + addr_text(e->addr) + " cannot be read: " + res.error +
+                             "; nothing was written");
+        other = true;
+      } else if (backup_value_text(e->type, res.data) != backup_value_text(e->type, e->data)) {
+        if (sub == 4) {
+          d.notes.push_back("serial number " + backup_value_text(e->type, res.data) + ", the backup's " + e->value +
+                            ": a drive of the same type in its place");
+          continue;
+        }
+        other = true;
+      }
+    }
+    if (other && !silent) {
+      std::string now, was;
+      for (uint8_t sub = 1; sub <= 3; ++sub) {
+        const DriveChannel::Result res = c->upload({0x1018, sub});
+        const char* what = sub == 1 ? "vendor " : sub == 2 ? " product " : " revision ";
+        now += what + (res.ok ? backup_value_text(D::Unsigned32, res.data) : std::string("?"));
+        was += what + f.find(0x1018, sub)->value;
+      }
+      r.problems.push_back(who + " is another drive: " + now + ", the backup's " + was +
+                           ": put the backed-up drive there or restore its own backup; nothing was written");
+    }
+    if (silent || other) {
+      add();
+      continue;
+    }
+    for (const BackupEntry& e : f.entries) {
+      if (!restorable(e)) continue;
+      const DriveChannel::Result res = c->upload(e.addr);
+      if (res.silent) {
+        r.problems.push_back(who + " stopped answering (" + res.error + ") reading " + addr_text(e.addr) +
+                             "; nothing was written");
+        break;
+      }
+      if (!res.ok) {
+        r.problems.push_back(who + ": " + addr_text(e.addr) + " " + e.name + " (line " + std::to_string(e.line) +
+                             ") cannot be read from the drive: " + res.error + "; nothing was written");
+        continue;
+      }
+      const std::string now = backup_value_text(e.type, res.data);
+      if (now == backup_value_text(e.type, e.data)) {
+        ++d.unchanged;
+      } else {
+        RestoreChange k;
+        k.entry = e;
+        k.now = now;
+        d.changes.push_back(k);
+      }
+    }
+    d.checked = true;
+    add();
+  }
+  if (!r.ok() || dry_run) return r;
+
+  // Phase 2: the writes, each read back.
+  for (std::size_t i = 0; i < r.drives.size(); ++i) {
+    DriveRestore& d = r.drives[i];
+    DriveChannel& c = *ch[i];
+    const std::string who = d.file.label();
+    bool wrote = false;
+    for (RestoreChange& k : d.changes) {
+      const DriveChannel::Result w = c.download(k.entry.addr, k.entry.data);
+      if (!w.ok && w.abort_code == kAbortReadOnly) {
+        k.note = "read-only in this drive: left at " + k.now;
+        continue;
+      }
+      if (!w.ok) {
+        r.problems.push_back(who + ": writing " + addr_text(k.entry.addr) + " " + k.entry.name + " = " + k.entry.value +
+                             " failed: " + w.error);
+        if (w.silent) break;
+        continue;
+      }
+      k.written = wrote = true;
+      const DriveChannel::Result b = c.upload(k.entry.addr);
+      if (!b.ok) {
+        r.problems.push_back(who + ": " + addr_text(k.entry.addr) + " cannot be read back after writing it: " + b.error);
+        continue;
+      }
+      k.read_back = backup_value_text(k.entry.type, b.data);
+      if (k.read_back != backup_value_text(k.entry.type, k.entry.data))
+        r.problems.push_back(who + ": " + addr_text(k.entry.addr) + " " + k.entry.name + " reads back as " + k.read_back +
+                             " after writing " + k.entry.value);
+    }
+    if (!wrote) continue;
+    // Store parameters (CiA 301 0x1010:1): bit 0 of its value says the
+    // drive stores on command.
+    const DriveChannel::Result cap = c.upload({0x1010, 1});
+    if (cap.ok && !cap.data.empty() && (cap.data[0] & 1)) {
+      const DriveChannel::Result st = c.download({0x1010, 1}, {'s', 'a', 'v', 'e'});
+      if (st.ok) d.notes.push_back("stored in the drive (0x1010:01 \"save\")");
+      else r.problems.push_back(who + ": storing the parameters (0x1010:01 \"save\") failed: " + st.error);
+    } else {
+      d.notes.push_back("not stored: the drive has no \"store parameters\" (0x1010:01); the values hold until it is "
+                        "switched off unless it stores them its own way");
+    }
+  }
+  return r;
+}
+
+RestoreResult restore_drives(const std::vector<BackupFile>& files, const RestoreBuses& buses, bool dry_run) {
+  return restore_drives(
+      files,
+      [&](const BackupFile& f, std::string& why) -> std::unique_ptr<DriveChannel> {
+        if (f.slave) {
+          if (!buses.ethercat) {
+            why = "an EtherCAT backup, and no EtherCAT segment to reach it (scan-ethercat first, or --ethercat-interface)";
+            return nullptr;
+          }
+          return ethercat_channel(*buses.ethercat, f.slave);
+        }
+        if (!buses.can) {
+          why = "a CANopen backup, and no CAN bus to reach it (scan first, or --interface)";
+          return nullptr;
+        }
+        return canopen_channel(*buses.can, f.node, buses.sdo_timeout_ns);
+      },
+      dry_run);
+}
+
+std::string describe(const RestoreResult& r) {
+  std::string o;
+  for (const DriveRestore& d : r.drives) {
+    if (!d.checked) continue;  // its problem says why
+    o += d.file.label() + ": ";
+    if (d.changes.empty()) o += "every parameter as in the backup (" + std::to_string(d.unchanged) + ")\n";
+    else
+      o += std::to_string(d.changes.size()) + " parameter(s) differ from the backup, " + std::to_string(d.unchanged) +
+           " as in it\n";
+    for (const RestoreChange& k : d.changes) {
+      const std::string what = addr_text(k.entry.addr) + " " + k.entry.name;
+      if (r.dry_run || (!k.written && k.note.empty()))
+        o += "  " + std::string(r.dry_run ? "would write " : "not written: ") + what + ": " + k.now + " -> " +
+             k.entry.value + "\n";
+      else if (k.written)
+        o += "  wrote " + what + " = " + k.entry.value + " (was " + k.now + "), read back " + k.read_back + "\n";
+      else if (!k.note.empty())
+        o += "  " + what + ": " + k.note + "\n";
+    }
+    for (const std::string& n : d.notes) o += "  " + n + "\n";
+  }
+  for (const std::string& p : r.problems) o += "problem: " + p + "\n";
+  return o;
+}
+
+}  // namespace cnc::commission

@@ -1,0 +1,139 @@
+// The drive-parameter restore: the backup files of `cnc-commission backup`
+// (commission/backup.hpp, one DCF-like file per drive, CANopen or
+// EtherCAT) written back into the drives. For every drive, first (nothing
+// written yet): its identity 0x1018:1-3 (vendor, product, revision) must be
+// the backup's, else the restore refuses naming the drive; every
+// parameter of the backup is read from the drive, and the ones that differ
+// are the changes. Only when every drive passed this are the changes
+// downloaded (SDO, or CoE SDO over the EtherCAT master), each read back
+// and compared; a CANopen or CoE drive with "store parameters" (0x1010:1)
+// is then asked to store them ("save"). Restored are the parameters of
+// 0x2000-0x9FFF (manufacturer and profile objects) that are not read-only
+// (AccessType ro/const in the file); the communication objects below
+// 0x2000 (identity, names, PDO communication and mapping) are the
+// master's business at every start-up and only kept in the backup for the
+// record. A drive that refuses a write as read-only (SDO abort 0x06010002)
+// keeps its value and says so. Bad input (a missing file, a line that does
+// not parse, a drive that does not answer or is another drive) is a
+// problem naming file and line or drive, and then nothing is written.
+// Non-realtime.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fieldbus/can/transport.hpp"
+#include "fieldbus/canopen/types.hpp"
+
+namespace cnc::ethercat {
+class Master;
+}
+
+namespace cnc::commission {
+
+// One [index] / [indexsubN] section of a backup file.
+struct BackupEntry {
+  canopen::ObjectAddress addr;
+  canopen::DataType type = canopen::DataType::Unsigned32;
+  std::string name;
+  std::string access;        // "" not known
+  std::string value;         // ParameterValue as written
+  std::vector<uint8_t> data; // its bytes
+  int line = 0;              // of its section header
+};
+
+// One drive's backup file as read.
+struct BackupFile {
+  std::filesystem::path path;
+  int node = 0;              // CANopen node-ID (NodeID=)
+  unsigned slave = 0;        // EtherCAT position (EtherCATSlave=)
+  char axis = 0;             // from NodeName=x-axis (0: none)
+  std::vector<BackupEntry> entries;
+  const BackupEntry* find(uint16_t index, uint8_t sub) const noexcept;
+  // "node 3 (axis Z, node-03-z.dcf)", "EtherCAT slave 1 (axis X, slave-01-x.dcf)"
+  std::string label() const;
+};
+
+// Reads one backup file; throws std::runtime_error "FILE:LINE: what" for a
+// line that does not parse, a value that is not of its DataType, a
+// section without ParameterValue, a file without NodeID/EtherCATSlave.
+BackupFile load_backup_file(const std::filesystem::path& file);
+// Every *.dcf of `dir` (sorted), each as load_backup_file; throws naming
+// the folder when it has none.
+std::vector<BackupFile> load_backup_dir(const std::filesystem::path& dir);
+
+// Whether a restore writes this entry back (0x2000-0x9FFF, not ro/const).
+bool restorable(const BackupEntry& e) noexcept;
+
+// One drive as the restore reaches it.
+class DriveChannel {
+ public:
+  struct Result {
+    bool ok = false;
+    bool silent = false;       // no answer at all (time-out, no such slave)
+    uint32_t abort_code = 0;   // the drive's SDO abort
+    std::vector<uint8_t> data;
+    std::string error;         // "0x06010002 attempt to write a read only object", "no answer within 500 ms"
+  };
+  virtual ~DriveChannel() = default;
+  virtual Result upload(canopen::ObjectAddress a) = 0;
+  virtual Result download(canopen::ObjectAddress a, const std::vector<uint8_t>& data) = 0;
+};
+// A CANopen node over `bus` (SDO client; `timeout_ns` per transfer).
+std::unique_ptr<DriveChannel> canopen_channel(can::Transport& bus, int node, int64_t timeout_ns);
+// An EtherCAT slave over `master` (CoE SDO; the master in PREOP).
+std::unique_ptr<DriveChannel> ethercat_channel(ethercat::Master& master, unsigned position);
+
+// One parameter to write: the backup's value and the drive's.
+struct RestoreChange {
+  BackupEntry entry;
+  std::string now;           // the drive's value before (as ParameterValue text)
+  bool written = false;
+  std::string read_back;     // after the write
+  std::string note;          // "read-only in this drive: left at ..."
+};
+
+struct DriveRestore {
+  BackupFile file;
+  std::vector<RestoreChange> changes;  // restorable entries whose value differs
+  int unchanged = 0;                   // restorable entries already equal
+  std::vector<std::string> notes;      // serial number differs, stored or not
+  bool checked = false;                // identity matched and its parameters were read
+};
+
+struct RestoreResult {
+  std::vector<DriveRestore> drives;
+  std::vector<std::string> problems;   // any: nothing (more) written
+  bool dry_run = false;
+  bool ok() const noexcept { return problems.empty(); }
+};
+
+// Where each file's drive is reached: the CAN bus (CANopen files) and the
+// EtherCAT master (EtherCAT files, in PREOP); null: that bus is not there,
+// and its files are a problem.
+struct RestoreBuses {
+  can::Transport* can = nullptr;
+  ethercat::Master* ethercat = nullptr;
+  int64_t sdo_timeout_ns = 500'000'000;
+};
+
+// The restore as described above; with `dry_run` only the checks and the
+// list of changes (nothing written).
+RestoreResult restore_drives(const std::vector<BackupFile>& files, const RestoreBuses& buses, bool dry_run);
+// The same with a channel for each file given by `open` (tests, other
+// transports); `open` returns null when the file's bus is not there, with
+// `why` saying so.
+RestoreResult restore_drives(const std::vector<BackupFile>& files,
+                             const std::function<std::unique_ptr<DriveChannel>(const BackupFile&, std::string& why)>& open,
+                             bool dry_run);
+
+// Lines for people: per drive what was (or would be) written, read back,
+// left alone; then the problems.
+std::string describe(const RestoreResult& r);
+
+}  // namespace cnc::commission

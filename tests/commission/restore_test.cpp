@@ -1,0 +1,368 @@
+// The drive-parameter restore (commission/restore.hpp) and the EtherCAT
+// backup: backup -> a parameter changed in the drive -> restore -> the
+// drive's values equal the backup's again, on simulated CANopen drives
+// (in-process CAN bus, the simulator host's own thread, real-time clock)
+// and on simulated EtherCAT CoE drives (an in-process segment, "sim:").
+// Identity checks and bad input write nothing.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <thread>
+
+#include "commission/backup.hpp"
+#include "commission/restore.hpp"
+#include "core/ipc/server.hpp"
+#include "core/util/atomic_file.hpp"
+#include "fieldbus/ethercat/master.hpp"
+#include "sim/can/virtual_bus.hpp"
+#include "sim/cia402/sim_host.hpp"
+#include "sim/ethercat/segment.hpp"
+#include "tests/support/testing.hpp"
+
+namespace cnc::commission {
+namespace {
+
+struct CanBus {
+  std::shared_ptr<can::VirtualBus> bus;
+  std::unique_ptr<can::VirtualPort> host_port, client;
+  std::unique_ptr<cia402::sim::SimHost> host;
+
+  CanBus() {
+    can::VirtualBusOptions o;
+    o.manual_clock = false;
+    bus = can::VirtualBus::create(o);
+    host_port = bus->open_port("host");
+    client = bus->open_port("commission");
+    host = std::make_unique<cia402::sim::SimHost>(*host_port);
+  }
+  void add(uint8_t node, uint32_t product = 0x402) {
+    cia402::sim::SimNodeConfig c;
+    c.node_id = node;
+    c.identity.serial = node;
+    c.identity.product_code = product;
+    c.drive.plant.encoder_counts = 10000;
+    host->add(c, bus->open_port("node-" + std::to_string(node)));
+  }
+  void start() {
+    host->start();
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ~CanBus() { host->stop(); }
+};
+
+State canopen_state(const std::vector<std::pair<char, int>>& axes) {
+  State s;
+  s.interface = "virtual:restore";
+  int joint = 0;
+  for (const auto& [letter, node] : axes) {
+    Axis a;
+    a.letter = letter;
+    a.joint = joint++;
+    a.node = node;
+    s.axes.push_back(a);
+  }
+  return s;
+}
+
+constexpr int64_t kTimeout = 1'000'000'000;  // a loaded test host may stall the simulator's thread
+
+std::vector<uint8_t> u32(uint32_t v) { return {uint8_t(v), uint8_t(v >> 8), uint8_t(v >> 16), uint8_t(v >> 24)}; }
+uint32_t as_u32(const std::vector<uint8_t>& d) {
+  uint32_t v = 0;
+  for (std::size_t i = 0; i < d.size() && i < 4; ++i) v |= uint32_t{d[i]} << (8 * i);
+  return v;
+}
+
+// Backs up the state's drives into `dir` (CANopen over `bus`).
+std::vector<BackupFile> canopen_backup(can::Transport& bus, State& s, const std::filesystem::path& dir) {
+  BackupOptions o;
+  o.timeout_ns = kTimeout;
+  BackupResult r = backup_drives(bus, s, o);
+  EXPECT_TRUE(r.ok()) << (r.problems.empty() ? "" : r.problems[0]);
+  write_backup(s, r, dir);
+  return load_backup_dir(dir);
+}
+
+TEST(CommissionRestore, CanopenBackupThenAChangedParameterIsWrittenBackAndReadsBackEqual) {
+  CanBus b;
+  b.add(1);
+  b.add(2);
+  b.start();
+  State s = canopen_state({{'X', 1}, {'Y', 2}});
+  testing::TempDir dir;
+  const auto files = canopen_backup(*b.client, s, dir / "backup");
+  ASSERT_EQ(files.size(), 2u);
+  EXPECT_EQ(files[0].node, 1);
+  EXPECT_EQ(files[0].axis, 'X');
+  const uint32_t window = as_u32(files[0].find(0x6065, 0)->data);
+
+  // Someone changes node 1's following-error window and node 2's home offset.
+  auto x = canopen_channel(*b.client, 1, kTimeout);
+  auto y = canopen_channel(*b.client, 2, kTimeout);
+  ASSERT_TRUE(x->download({0x6065, 0}, u32(window + 777)).ok);
+  ASSERT_TRUE(y->download({0x607C, 0}, u32(static_cast<uint32_t>(-500))).ok);
+
+  RestoreBuses buses;
+  buses.can = b.client.get();
+  buses.sdo_timeout_ns = kTimeout;
+  // The dry run lists them and writes nothing.
+  const RestoreResult dry = restore_drives(files, buses, true);
+  ASSERT_TRUE(dry.ok()) << describe(dry);
+  ASSERT_EQ(dry.drives.size(), 2u);
+  ASSERT_EQ(dry.drives[0].changes.size(), 1u) << describe(dry);
+  EXPECT_EQ(dry.drives[0].changes[0].entry.addr, (canopen::ObjectAddress{0x6065, 0}));
+  EXPECT_NE(describe(dry).find("node 1 (axis X, node-01-x.dcf): 1 parameter(s) differ"), std::string::npos) << describe(dry);
+  EXPECT_NE(describe(dry).find("would write 0x607C:00 Home offset: -500 -> 0"), std::string::npos) << describe(dry);
+  EXPECT_EQ(as_u32(x->upload({0x6065, 0}).data), window + 777);
+
+  const RestoreResult r = restore_drives(files, buses, false);
+  ASSERT_TRUE(r.ok()) << describe(r);
+  EXPECT_TRUE(r.drives[0].changes[0].written);
+  EXPECT_NE(describe(r).find("wrote 0x6065:00 Following error window = " + backup_value_text(canopen::DataType::Unsigned32, u32(window))),
+            std::string::npos) << describe(r);
+  EXPECT_EQ(as_u32(x->upload({0x6065, 0}).data), window);
+  EXPECT_EQ(y->upload({0x607C, 0}).data, u32(0));
+  // Read back: every restorable parameter as in the backup.
+  const RestoreResult again = restore_drives(files, buses, true);
+  ASSERT_TRUE(again.ok());
+  for (const auto& d : again.drives) EXPECT_TRUE(d.changes.empty()) << describe(again);
+}
+
+TEST(CommissionRestore, AnotherDriveInTheBackedUpPlaceIsRefusedNamingItAndNothingIsWritten) {
+  CanBus b;
+  b.add(1);
+  b.add(2, 0x999);
+  b.start();
+  State s = canopen_state({{'X', 1}});
+  testing::TempDir dir;
+  auto files = canopen_backup(*b.client, s, dir / "backup");
+  ASSERT_EQ(files.size(), 1u);
+  // The backup of node 1, restored to node 2 (another product).
+  std::string text = read_file(files[0].path);
+  text.replace(text.find("NodeID=1\n"), 9, "NodeID=2\n");
+  write_file_atomically(dir / "node-02.dcf", text);
+  const BackupFile other = load_backup_file(dir / "node-02.dcf");
+  auto y = canopen_channel(*b.client, 2, kTimeout);
+  ASSERT_TRUE(y->download({0x6098, 0}, {35}).ok);
+  RestoreBuses buses;
+  buses.can = b.client.get();
+  buses.sdo_timeout_ns = kTimeout;
+  const RestoreResult r = restore_drives(std::vector<BackupFile>{other}, buses, false);
+  ASSERT_EQ(r.problems.size(), 1u) << describe(r);
+  EXPECT_NE(r.problems[0].find("node 2 (axis X, node-02.dcf) is another drive: vendor 0x00000CC1 product 0x00000999"),
+            std::string::npos) << r.problems[0];
+  EXPECT_NE(r.problems[0].find("the backup's vendor 0x00000CC1 product 0x00000402"), std::string::npos) << r.problems[0];
+  EXPECT_EQ(y->upload({0x6098, 0}).data, (std::vector<uint8_t>{35}));
+}
+
+TEST(CommissionRestore, ASilentNodeIsAProblemNamingItAndTheOtherDrivesAreNotWritten) {
+  CanBus b;
+  b.add(1);
+  b.add(2);
+  b.start();
+  State s = canopen_state({{'X', 1}, {'Y', 2}});
+  testing::TempDir dir;
+  const auto files = canopen_backup(*b.client, s, dir / "backup");
+  std::string text = read_file(files[1].path);
+  text.replace(text.find("NodeID=2\n"), 9, "NodeID=9\n");
+  write_file_atomically(files[1].path, text);
+  const auto changed = load_backup_dir(dir / "backup");
+  auto x = canopen_channel(*b.client, 1, kTimeout);
+  ASSERT_TRUE(x->download({0x6098, 0}, {35}).ok);
+  RestoreBuses buses;
+  buses.can = b.client.get();
+  buses.sdo_timeout_ns = 200'000'000;
+  const RestoreResult r = restore_drives(changed, buses, false);
+  ASSERT_EQ(r.problems.size(), 1u) << describe(r);
+  EXPECT_NE(r.problems[0].find("node 9 (axis Y, node-02-y.dcf) does not answer"), std::string::npos) << r.problems[0];
+  // Node 1 was fine, but a restore is all or nothing.
+  EXPECT_EQ(x->upload({0x6098, 0}).data, (std::vector<uint8_t>{35}));
+}
+
+TEST(CommissionRestore, BadBackupFilesAreErrorsNamingFileAndLine) {
+  testing::TempDir dir;
+  const std::string good =
+      "; a backup\n[DeviceComissioning]\nNodeID=3\nNodeName=z-axis\n"
+      "[1018sub1]\nDataType=0x0007\nParameterValue=0x00000CC1\n"
+      "[1018sub2]\nDataType=0x0007\nParameterValue=0x00000402\n"
+      "[1018sub3]\nDataType=0x0007\nParameterValue=0x00010000\n"
+      "[6065]\nParameterName=Following error window\nDataType=0x0007\nParameterValue=0x00002710\n"
+      "[2000]\nParameterName=Drive temperature\nDataType=0x0003\nParameterValue=-5\nAccessType=ro\n"
+      "[Missing]\n1=1009sub0 Manufacturer hardware version: 0x06020000\n";
+  write_file_atomically(dir / "good.dcf", good);
+  const BackupFile f = load_backup_file(dir / "good.dcf");
+  EXPECT_EQ(f.node, 3);
+  EXPECT_EQ(f.axis, 'Z');
+  ASSERT_EQ(f.entries.size(), 5u);
+  EXPECT_EQ(f.find(0x6065, 0)->data, u32(10000));
+  EXPECT_TRUE(restorable(*f.find(0x6065, 0)));
+  EXPECT_FALSE(restorable(*f.find(0x2000, 0)));  // read-only
+  EXPECT_FALSE(restorable(*f.find(0x1018, 1)));  // identity: checked, never written
+
+  auto error_of = [&](const std::string& text) {
+    write_file_atomically(dir / "bad.dcf", text);
+    try {
+      load_backup_file(dir / "bad.dcf");
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const std::string file = (dir / "bad.dcf").string();
+  std::string bad = good;
+  bad.insert(bad.find("[6065]"), "garbage\n");
+  EXPECT_EQ(error_of(bad), file + ":14: \"garbage\": expected KEY=VALUE or a [section]");
+  bad = good;
+  bad.replace(bad.find("0x00002710"), 10, "ten");
+  EXPECT_EQ(error_of(bad), file + ":14: ParameterValue \"ten\" of 0x6065:00 is not a value of type UNSIGNED32");
+  bad = good;
+  const std::string id2 = "[1018sub2]\nDataType=0x0007\nParameterValue=0x00000402\n";
+  bad.replace(bad.find(id2), id2.size(), "");
+  EXPECT_NE(error_of(bad).find("no identity 0x1018:02"), std::string::npos) << error_of(bad);
+  bad = good;
+  bad.replace(bad.find("NodeID=3"), 8, "NodeID=300");
+  EXPECT_EQ(error_of(bad), file + ":3: nodeid \"300\": expected a node-ID 1-127 (NodeID) or a slave position (EtherCATSlave)");
+  EXPECT_NE(error_of("[6065]\nDataType=0x0007\n").find(":1: section of 0x6065:00 has no ParameterValue"), std::string::npos);
+  EXPECT_THROW(load_backup_file(dir / "none.dcf"), std::runtime_error);
+  EXPECT_THROW(load_backup_dir(dir / "empty"), std::runtime_error);
+}
+
+// --- EtherCAT: simulated CoE drives on an in-process segment ---
+struct EcatSegment {
+  std::shared_ptr<ethercat::sim::Segment> segment = std::make_shared<ethercat::sim::Segment>();
+  std::string name = testing::unique_name("restore");
+  explicit EcatSegment(unsigned drives) {
+    segment->add_drives(drives);
+    ethercat::sim::register_sim_link_kind();
+    ethercat::sim::register_segment(name, segment);
+  }
+  ~EcatSegment() { ethercat::sim::unregister_segment(name); }
+  std::string interface() const { return "sim:" + name; }
+};
+
+State ethercat_state(const std::string& interface, const std::vector<std::pair<char, int>>& axes) {
+  State s;
+  s.ethercat_interface = interface;
+  int joint = 0;
+  for (const auto& [letter, slave] : axes) {
+    Axis a;
+    a.letter = letter;
+    a.joint = joint++;
+    a.slave = slave;
+    s.axes.push_back(a);
+  }
+  return s;
+}
+
+TEST(CommissionRestore, EthercatBackupOverCoeHasTheFactorGroupIdentityAndManufacturerObjects) {
+  EcatSegment seg(2);
+  State s = ethercat_state(seg.interface(), {{'X', 1}, {'Y', 2}});
+  BackupResult r = backup_ethercat_drives(seg.interface(), s);
+  ASSERT_TRUE(r.ok()) << r.problems[0];
+  ASSERT_EQ(r.nodes.size(), 2u);
+  EXPECT_EQ(r.nodes[0].slave, 1u);
+  EXPECT_EQ(r.nodes[0].file, "slave-01-x.dcf");
+  testing::TempDir dir;
+  write_backup(s, r, dir / "b");
+  const std::string text = read_file(dir / "b" / "slave-02-y.dcf");
+  const uint32_t counts = static_cast<uint32_t>(seg.segment->drive(1)->model().config().plant.encoder_counts);
+  EXPECT_NE(text.find("[DeviceComissioning]\nEtherCATSlave=2\nNodeName=y-axis\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("[608Fsub1]\nParameterName=Encoder increments\nDataType=0x0007\nParameterValue=" +
+                      backup_value_text(canopen::DataType::Unsigned32, u32(counts))),
+            std::string::npos) << text;
+  for (const char* sec : {"[6091sub1]", "[6092sub1]", "[607E]", "[6065]", "[6098]", "[1018sub3]", "[1C12sub1]", "[1A00sub1]"})
+    EXPECT_NE(text.find(sec), std::string::npos) << sec << "\n" << text;
+  // A manufacturer object from the drive's SDO information, read-only.
+  const auto t = text.find("[2000]\nParameterName=Drive temperature (0.1 C)\nDataType=0x0003\nParameterValue=");
+  ASSERT_NE(t, std::string::npos) << text;
+  EXPECT_EQ(text.substr(text.find('\n', text.find("ParameterValue=", t)) + 1, 14), "AccessType=ro\n") << text;
+  // No CANopen PDO communication objects on EtherCAT.
+  EXPECT_EQ(text.find("[1400sub1]"), std::string::npos);
+}
+
+TEST(CommissionRestore, EthercatChangedParameterIsWrittenBackOverCoeAndReadsBackEqual) {
+  EcatSegment seg(2);
+  State s = ethercat_state(seg.interface(), {{'X', 1}, {'Y', 2}});
+  BackupResult br = backup_ethercat_drives(seg.interface(), s);
+  ASSERT_TRUE(br.ok()) << br.problems[0];
+  testing::TempDir dir;
+  write_backup(s, br, dir / "b");
+  const auto files = load_backup_dir(dir / "b");
+  ASSERT_EQ(files.size(), 2u);
+  EXPECT_EQ(files[1].slave, 2u);
+
+  ethercat::MasterConfig cfg;
+  cfg.interface = seg.interface();
+  ethercat::Master m(cfg, nullptr);
+  m.to_preop();
+  ASSERT_TRUE(m.sdo_download(2, 0x6065, 0, u32(4321)).ok);
+  ASSERT_TRUE(m.sdo_download(2, 0x607C, 0, u32(static_cast<uint32_t>(-500))).ok);
+  RestoreBuses buses;
+  buses.ethercat = &m;
+  const RestoreResult dry = restore_drives(files, buses, true);
+  ASSERT_TRUE(dry.ok()) << describe(dry);
+  EXPECT_TRUE(dry.drives[0].changes.empty()) << describe(dry);
+  ASSERT_EQ(dry.drives[1].changes.size(), 2u) << describe(dry);
+  EXPECT_NE(describe(dry).find("would write 0x607C:00 Home offset: -500 -> 0"), std::string::npos) << describe(dry);
+  EXPECT_EQ(as_u32(m.sdo_upload(2, 0x6065, 0).data), 4321u);
+
+  const RestoreResult r = restore_drives(files, buses, false);
+  ASSERT_TRUE(r.ok()) << describe(r);
+  EXPECT_EQ(m.sdo_upload(2, 0x6065, 0).data, files[1].find(0x6065, 0)->data);
+  EXPECT_EQ(m.sdo_upload(2, 0x607C, 0).data, u32(0));
+  EXPECT_NE(describe(r).find("not stored: the drive has no \"store parameters\""), std::string::npos) << describe(r);
+  const RestoreResult again = restore_drives(files, buses, true);
+  for (const auto& d : again.drives) EXPECT_TRUE(d.changes.empty()) << describe(again);
+
+  // A slave position the segment does not have: refused, nothing written.
+  ASSERT_TRUE(m.sdo_download(1, 0x6065, 0, u32(99)).ok);
+  std::string text = read_file(files[1].path);
+  text.replace(text.find("EtherCATSlave=2"), 15, "EtherCATSlave=5");
+  write_file_atomically(dir / "slave-05.dcf", text);
+  const RestoreResult missing = restore_drives(std::vector<BackupFile>{files[0], load_backup_file(dir / "slave-05.dcf")}, buses, false);
+  ASSERT_EQ(missing.problems.size(), 1u) << describe(missing);
+  EXPECT_NE(missing.problems[0].find("EtherCAT slave 5 (axis Y, slave-05.dcf) does not answer"), std::string::npos)
+      << missing.problems[0];
+  EXPECT_EQ(as_u32(m.sdo_upload(1, 0x6065, 0).data), 99u);
+  m.release();
+}
+
+TEST(CommissionRestore, AnEthercatAxisOnASlaveTheSegmentLacksIsABackupProblem) {
+  EcatSegment seg(1);
+  State s = ethercat_state(seg.interface(), {{'X', 1}, {'Y', 3}});
+  const BackupResult r = backup_ethercat_drives(seg.interface(), s);
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_NE(r.problems[0].find("EtherCAT slave 3 (axis Y) is not on " + seg.interface() + " (1 slave(s) answer)"),
+            std::string::npos) << r.problems[0];
+}
+
+// `cnc-commission restore` refuses while a controller runs on its instance
+// (a controller's segment, here this test's own ipc::Server), before
+// reading any file or bus.
+TEST(CommissionRestore, TheCommandRefusesWhileAControllerRunsTheMachine) {
+  const std::string instance = testing::unique_name("restore-ctl");
+  ipc::Server server(instance);
+  testing::TempDir dir;
+  const std::filesystem::path program = testing::binary_dir() / "bin" / "cnc-commission";
+  ASSERT_TRUE(std::filesystem::exists(program)) << program;
+  const std::string cmd = "CNC_INSTANCE=" + instance + " " + program.string() + " --state " +
+                          (dir / "state.json").string() + " restore --dir " + (dir / "none").string() + " 2>&1";
+  FILE* p = ::popen(cmd.c_str(), "r");
+  ASSERT_TRUE(p);
+  std::string out;
+  char buf[256];
+  while (std::fgets(buf, sizeof buf, p)) out += buf;
+  const int status = ::pclose(p);
+  EXPECT_EQ(WEXITSTATUS(status), 1) << out;
+  EXPECT_NE(out.find("problem: a controller (cncd, pid " + std::to_string(::getpid()) + ", instance " + instance +
+                     ") runs the machine: restore does not change drive parameters under it; stop it first"),
+            std::string::npos) << out;
+  EXPECT_NE(out.find("nothing was written"), std::string::npos) << out;
+}
+
+}  // namespace
+}  // namespace cnc::commission
