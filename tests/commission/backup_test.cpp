@@ -12,37 +12,13 @@
 #include "core/util/atomic_file.hpp"
 #include "sim/can/virtual_bus.hpp"
 #include "sim/cia402/sim_host.hpp"
+#include "tests/commission/sim_bus_scan.hpp"
 #include "tests/support/testing.hpp"
 
 namespace cnc::commission {
 namespace {
 
-struct Bus {
-  std::shared_ptr<can::VirtualBus> bus;
-  std::unique_ptr<can::VirtualPort> host_port, client;
-  std::unique_ptr<cia402::sim::SimHost> host;
-
-  Bus() {
-    can::VirtualBusOptions o;
-    o.manual_clock = false;
-    bus = can::VirtualBus::create(o);
-    host_port = bus->open_port("host");
-    client = bus->open_port("commission");
-    host = std::make_unique<cia402::sim::SimHost>(*host_port);
-  }
-  cia402::sim::CanopenDrive& add(uint8_t node) {
-    cia402::sim::SimNodeConfig c;
-    c.node_id = node;
-    c.identity.serial = node;
-    c.drive.name = "drive " + std::to_string(node);
-    c.drive.plant.encoder_counts = 10000;
-    return host->add(c, bus->open_port("node-" + std::to_string(node)));
-  }
-  void start() {
-    host->start();
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-};
+using Bus = e2e::SimulatedCanDrives;
 
 // The state after scan and assignment: nodes found, axes on them.
 State state_of(const std::vector<std::pair<char, int>>& axes) {

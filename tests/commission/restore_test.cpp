@@ -21,38 +21,13 @@
 #include "sim/can/virtual_bus.hpp"
 #include "sim/cia402/sim_host.hpp"
 #include "sim/ethercat/segment.hpp"
+#include "tests/commission/sim_bus_scan.hpp"
 #include "tests/support/testing.hpp"
 
 namespace cnc::commission {
 namespace {
 
-struct CanBus {
-  std::shared_ptr<can::VirtualBus> bus;
-  std::unique_ptr<can::VirtualPort> host_port, client;
-  std::unique_ptr<cia402::sim::SimHost> host;
-
-  CanBus() {
-    can::VirtualBusOptions o;
-    o.manual_clock = false;
-    bus = can::VirtualBus::create(o);
-    host_port = bus->open_port("host");
-    client = bus->open_port("commission");
-    host = std::make_unique<cia402::sim::SimHost>(*host_port);
-  }
-  void add(uint8_t node, uint32_t product = 0x402) {
-    cia402::sim::SimNodeConfig c;
-    c.node_id = node;
-    c.identity.serial = node;
-    c.identity.product_code = product;
-    c.drive.plant.encoder_counts = 10000;
-    host->add(c, bus->open_port("node-" + std::to_string(node)));
-  }
-  void start() {
-    host->start();
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  ~CanBus() { host->stop(); }
-};
+using CanBus = e2e::SimulatedCanDrives;
 
 State canopen_state(const std::vector<std::pair<char, int>>& axes) {
   State s;

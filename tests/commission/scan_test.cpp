@@ -11,41 +11,13 @@
 #include "sim/can/virtual_bus.hpp"
 #include "sim/cia402/sim_host.hpp"
 #include "sim/ethercat/segment.hpp"
+#include "tests/commission/sim_bus_scan.hpp"
 #include "tests/support/testing.hpp"
 
 namespace cnc::commission {
 namespace {
 
-struct Bus {
-  std::shared_ptr<can::VirtualBus> bus;
-  std::unique_ptr<can::VirtualPort> host_port, scanner;
-  std::unique_ptr<cia402::sim::SimHost> host;
-
-  Bus() {
-    can::VirtualBusOptions o;
-    o.manual_clock = false;
-    bus = can::VirtualBus::create(o);
-    host_port = bus->open_port("host");
-    scanner = bus->open_port("scanner");
-    host = std::make_unique<cia402::sim::SimHost>(*host_port);
-  }
-  void add(uint8_t node, uint32_t product = 0x402, uint32_t serial = 0, bool lss_unconfigured = false) {
-    cia402::sim::SimNodeConfig c;
-    c.node_id = node;
-    c.lss_unconfigured = lss_unconfigured;
-    c.identity.product_code = product;
-    c.identity.serial = serial ? serial : node;
-    c.drive.name = "drive " + std::to_string(node);
-    c.drive.plant.encoder_counts = 10000;
-    host->add(c, bus->open_port("node-" + std::to_string(node) + "-" + std::to_string(host->size())));
-  }
-  void start() {
-    host->start();
-    // The drives' initialisation (20 ms), with room for a loaded host; the
-    // scan's SDO time-out (200 ms) covers a late one too.
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-};
+using Bus = e2e::SimulatedCanDrives;
 
 std::filesystem::path eds_dir() { return testing::source_dir() / "configs/canopen-mill/drives"; }
 
@@ -67,7 +39,7 @@ TEST(CommissionScan, FindsEveryDriveWithIdentityModesEncoderAndEds) {
   ScanOptions o = options();
   o.eds_dir = eds_dir();
   o.expected = {1, 2, 7};
-  const ScanResult r = scan_canopen(*b.scanner, o);
+  const ScanResult r = scan_canopen(*b.client, o);
   ASSERT_EQ(r.nodes.size(), 3u) << (r.problems.empty() ? "" : r.problems[0]);
   EXPECT_TRUE(r.ok()) << describe(r.nodes[0]);
   const ScannedNode& n = r.nodes[2];
@@ -96,7 +68,7 @@ TEST(CommissionScan, DrivesWithoutNodeIdAreReportedThenGivenFreeIdsByLss) {
   ScanOptions o = options();
   o.last = 10;
   o.lss_window_ns = 50'000'000;
-  const ScanResult before = scan_canopen(*b.scanner, o);
+  const ScanResult before = scan_canopen(*b.client, o);
   ASSERT_EQ(before.nodes.size(), 2u);
   ASSERT_EQ(before.problems.size(), 1u);
   EXPECT_NE(before.problems[0].find("without node-ID answer LSS"), std::string::npos) << before.problems[0];
@@ -106,7 +78,7 @@ TEST(CommissionScan, DrivesWithoutNodeIdAreReportedThenGivenFreeIdsByLss) {
   lo.taken = {1, 2};
   lo.window_ns = 20'000'000;  // a loaded test host (a real bus: 10 ms)
   lo.timeout_ns = 500'000'000;
-  const LssResult r = assign_node_ids(*b.scanner, lo);
+  const LssResult r = assign_node_ids(*b.client, lo);
   ASSERT_TRUE(r.ok()) << r.problems[0];
   ASSERT_EQ(r.assigned.size(), 2u);
   // Fastscan finds the lower serial first.
@@ -117,7 +89,7 @@ TEST(CommissionScan, DrivesWithoutNodeIdAreReportedThenGivenFreeIdsByLss) {
   EXPECT_NE(describe(r.assigned[0]).find("serial 0x00004000 -> node-ID 3"), std::string::npos) << describe(r.assigned[0]);
 
   std::this_thread::sleep_for(std::chrono::milliseconds(50));  // their boot-up
-  const ScanResult after = scan_canopen(*b.scanner, o);
+  const ScanResult after = scan_canopen(*b.client, o);
   EXPECT_TRUE(after.ok()) << (after.problems.empty() ? "" : after.problems[0]);
   ASSERT_EQ(after.nodes.size(), 4u);
   EXPECT_EQ(after.nodes[2].node_id, 3);
@@ -133,7 +105,7 @@ TEST(CommissionScan, NamesASilentExpectedNode) {
   ScanOptions o = options();
   o.expected = {1, 4};
   o.last = 10;
-  const ScanResult r = scan_canopen(*b.scanner, o);
+  const ScanResult r = scan_canopen(*b.client, o);
   ASSERT_EQ(r.nodes.size(), 1u);
   ASSERT_EQ(r.problems.size(), 1u);
   EXPECT_NE(r.problems[0].find("node 4 does not answer"), std::string::npos) << r.problems[0];
@@ -147,7 +119,7 @@ TEST(CommissionScan, SaysWhenNoEdsDescribesANode) {
   ScanOptions o = options();
   o.eds_dir = eds_dir();
   o.last = 5;
-  const ScanResult r = scan_canopen(*b.scanner, o);
+  const ScanResult r = scan_canopen(*b.client, o);
   ASSERT_EQ(r.nodes.size(), 1u);
   EXPECT_TRUE(r.nodes[0].eds.empty());
   ASSERT_EQ(r.nodes[0].problems.size(), 1u);
@@ -162,7 +134,7 @@ TEST(CommissionScan, ReportsTwoDevicesOnOneNodeId) {
   b.start();
   ScanOptions o = options();
   o.last = 8;
-  const ScanResult r = scan_canopen(*b.scanner, o);
+  const ScanResult r = scan_canopen(*b.client, o);
   ASSERT_EQ(r.nodes.size(), 1u);
   ASSERT_FALSE(r.nodes[0].problems.empty());
   EXPECT_NE(r.nodes[0].problems[0].find("two or more devices answer on node-ID 5"), std::string::npos)
@@ -180,7 +152,7 @@ TEST(CommissionScan, ReportsADriveInFaultWithItsErrorCode) {
   // loaded host may delay the simulator's thread).
   ScanResult r;
   for (int i = 0; i < 50; ++i) {
-    r = scan_canopen(*b.scanner, o);
+    r = scan_canopen(*b.client, o);
     if (r.nodes.size() == 1 && r.nodes[0].fault) break;
   }
   ASSERT_EQ(r.nodes.size(), 1u);
@@ -195,7 +167,7 @@ TEST(CommissionScan, AnEmptyBusGivesNoNodes) {
   b.start();
   ScanOptions o = options();
   o.last = 127;
-  const ScanResult r = scan_canopen(*b.scanner, o);
+  const ScanResult r = scan_canopen(*b.client, o);
   EXPECT_TRUE(r.nodes.empty());
   EXPECT_TRUE(r.ok());
 }

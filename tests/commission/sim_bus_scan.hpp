@@ -1,13 +1,15 @@
 // The bus scan of a simulated machine's drives for the commissioning tests:
 // the drives of `sim_ini` (the [CIA402_SIM] section cnc-sim-random-machine
 // and e2e::write_machine_files write) hosted in the test's own process on
-// their virtual bus and scanned there with the library's scan. A child
-// process (cnc-commission scan, the wizard's page 1) cannot reach them: a
-// `virtual:` bus is in-process, and inside cncd its drives are cncd's own.
+// their virtual bus and scanned there with the library's scan (a child
+// process reaches a `virtual:` bus only when it is shared, `,share`, and
+// the machine files do not share theirs). And the simulated CANopen drives
+// of the unit tests (scan, backup, restore) on a bus of their own.
 #pragma once
 
 #include <chrono>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <thread>
 #include <vector>
@@ -19,6 +21,43 @@
 #include "sim/cia402/sim_host.hpp"
 
 namespace cnc::commission::e2e {
+
+// Simulated CANopen drives on a virtual bus of the test's own (wall
+// clock), and `client`, the port the library under test uses.
+struct SimulatedCanDrives {
+  std::shared_ptr<can::VirtualBus> bus;
+  std::unique_ptr<can::VirtualPort> host_port, client;
+  std::unique_ptr<cia402::sim::SimHost> host;
+
+  SimulatedCanDrives() {
+    can::VirtualBusOptions o;
+    o.manual_clock = false;
+    bus = can::VirtualBus::create(o);
+    host_port = bus->open_port("host");
+    client = bus->open_port("commission");
+    host = std::make_unique<cia402::sim::SimHost>(*host_port);
+  }
+  ~SimulatedCanDrives() { host->stop(); }
+  // A drive "drive N" (10000 counts per turn); two on one node-ID get
+  // ports of their own.
+  cia402::sim::CanopenDrive& add(uint8_t node, uint32_t product = 0x402, uint32_t serial = 0,
+                                 bool lss_unconfigured = false) {
+    cia402::sim::SimNodeConfig c;
+    c.node_id = node;
+    c.lss_unconfigured = lss_unconfigured;
+    c.identity.product_code = product;
+    c.identity.serial = serial ? serial : node;
+    c.drive.name = "drive " + std::to_string(node);
+    c.drive.plant.encoder_counts = 10000;
+    return host->add(c, bus->open_port("node-" + std::to_string(node) + "-" + std::to_string(host->size())));
+  }
+  // The drives' initialisation (20 ms), with room for a loaded host; an
+  // SDO time-out of the library covers a late one too.
+  void start() {
+    host->start();
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+};
 
 inline ScanResult scan_simulated_bus(const std::filesystem::path& sim_ini, const std::vector<int>& expected, int last) {
   namespace csim = cnc::cia402::sim;
