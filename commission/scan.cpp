@@ -270,6 +270,42 @@ bool EthercatScanResult::ok() const noexcept {
   return true;
 }
 
+namespace {
+// The CiA 402 objects the scaling step uses, read over CoE from every slave
+// with a mailbox once the segment is in PREOP: supported modes (0x6502)
+// and the factor group (0x608F, 0x6091, 0x6092), as the CANopen scan
+// reads them. An object a slave lacks stays unknown; a segment that does
+// not reach PREOP is a problem (the identities stand).
+void read_factor_groups(ethercat::Master& m, EthercatScanResult& r) {
+  const bool any = std::any_of(r.slaves.begin(), r.slaves.end(), [](const ScannedSlave& s) { return s.coe; });
+  if (!any) return;
+  try {
+    m.to_preop();
+  } catch (const std::exception& e) {
+    r.problems.push_back(std::string("the slaves did not reach PREOP (") + e.what() +
+                         "): their encoder resolution and gear (0x608F, 0x6091) were not read");
+    return;
+  }
+  for (ScannedSlave& n : r.slaves) {
+    if (!n.coe) continue;
+    auto u32 = [&](uint16_t index, uint8_t sub) -> std::optional<uint32_t> {
+      const ethercat::SdoResult res = m.sdo_upload(n.position, index, sub);
+      if (!res.ok || res.data.empty()) return std::nullopt;
+      uint32_t v = 0;
+      for (std::size_t i = 0; i < res.data.size() && i < 4; ++i) v |= static_cast<uint32_t>(res.data[i]) << (8 * i);
+      return v;
+    };
+    n.supported_modes = u32(0x6502, 0);
+    n.encoder_increments = u32(0x608F, 1);
+    n.encoder_motor_revs = u32(0x608F, 2);
+    n.gear_motor_revs = u32(0x6091, 1);
+    n.gear_shaft_revs = u32(0x6091, 2);
+    n.feed = u32(0x6092, 1);
+    n.feed_shaft_revs = u32(0x6092, 2);
+  }
+}
+}  // namespace
+
 EthercatScanResult scan_ethercat(const std::string& interface, const std::filesystem::path& esi_dir) {
   EthercatScanResult r;
   std::vector<ethercat::EsiFile> esis;
@@ -322,6 +358,7 @@ EthercatScanResult scan_ethercat(const std::string& interface, const std::filesy
       }
       r.slaves.push_back(n);
     }
+    read_factor_groups(m, r);
     m.stop();
   } catch (const std::exception& e) {
     r.problems.push_back(interface + ": " + e.what());
@@ -335,6 +372,7 @@ std::string describe(const ScannedSlave& n) {
   if (!n.order.empty()) s += ", order " + n.order;
   s += n.coe ? ", CoE" : ", no mailbox";
   if (n.dc) s += ", DC";
+  if (n.encoder_increments) s += ", " + std::to_string(*n.encoder_increments) + " increments/rev";
   s += n.esi.empty() ? ", no ESI" : ", ESI " + n.esi;
   for (const auto& p : n.problems) s += "\n  problem: " + p;
   return s;

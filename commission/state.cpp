@@ -26,6 +26,11 @@ Axis* State::axis(char letter) noexcept {
     if (a.letter == letter) return &a;
   return nullptr;
 }
+const ScannedSlave* State::slave(int position) const noexcept {
+  for (const auto& n : slaves)
+    if (static_cast<int>(n.position) == position) return &n;
+  return nullptr;
+}
 const Axis* State::axis(char letter) const noexcept { return const_cast<State*>(this)->axis(letter); }
 
 namespace {
@@ -42,6 +47,25 @@ template <class T>
 void get(const json& j, const char* key, T& v) {
   if (j.contains(key)) v = j[key].get<T>();
 }
+// The factor group (0x608F, 0x6091, 0x6092) of a scanned node or slave.
+template <class N>
+void put_factors(json& j, const N& n) {
+  put_opt(j, "encoder_increments", n.encoder_increments);
+  put_opt(j, "encoder_motor_revs", n.encoder_motor_revs);
+  put_opt(j, "gear_motor_revs", n.gear_motor_revs);
+  put_opt(j, "gear_shaft_revs", n.gear_shaft_revs);
+  put_opt(j, "feed", n.feed);
+  put_opt(j, "feed_shaft_revs", n.feed_shaft_revs);
+}
+template <class N>
+void get_factors(const json& j, N& n) {
+  get_opt(j, "encoder_increments", n.encoder_increments);
+  get_opt(j, "encoder_motor_revs", n.encoder_motor_revs);
+  get_opt(j, "gear_motor_revs", n.gear_motor_revs);
+  get_opt(j, "gear_shaft_revs", n.gear_shaft_revs);
+  get_opt(j, "feed", n.feed);
+  get_opt(j, "feed_shaft_revs", n.feed_shaft_revs);
+}
 
 json node_json(const ScannedNode& n) {
   json j = {{"node_id", n.node_id}, {"device_type", n.device_type}, {"vendor_id", n.vendor_id},
@@ -51,12 +75,7 @@ json node_json(const ScannedNode& n) {
   put_opt(j, "supported_modes", n.supported_modes);
   put_opt(j, "statusword", n.statusword);
   put_opt(j, "error_code", n.error_code);
-  put_opt(j, "encoder_increments", n.encoder_increments);
-  put_opt(j, "encoder_motor_revs", n.encoder_motor_revs);
-  put_opt(j, "gear_motor_revs", n.gear_motor_revs);
-  put_opt(j, "gear_shaft_revs", n.gear_shaft_revs);
-  put_opt(j, "feed", n.feed);
-  put_opt(j, "feed_shaft_revs", n.feed_shaft_revs);
+  put_factors(j, n);
   return j;
 }
 
@@ -77,19 +96,17 @@ ScannedNode node_from(const json& j) {
   get_opt(j, "supported_modes", n.supported_modes);
   get_opt(j, "statusword", n.statusword);
   get_opt(j, "error_code", n.error_code);
-  get_opt(j, "encoder_increments", n.encoder_increments);
-  get_opt(j, "encoder_motor_revs", n.encoder_motor_revs);
-  get_opt(j, "gear_motor_revs", n.gear_motor_revs);
-  get_opt(j, "gear_shaft_revs", n.gear_shaft_revs);
-  get_opt(j, "feed", n.feed);
-  get_opt(j, "feed_shaft_revs", n.feed_shaft_revs);
+  get_factors(j, n);
   return n;
 }
 
 json slave_json(const ScannedSlave& n) {
-  return {{"position", n.position}, {"vendor_id", n.vendor_id}, {"product_code", n.product_code},
+  json j = {{"position", n.position}, {"vendor_id", n.vendor_id}, {"product_code", n.product_code},
           {"revision", n.revision}, {"serial", n.serial}, {"name", n.name}, {"order", n.order},
           {"coe", n.coe}, {"dc", n.dc}, {"esi", n.esi}, {"problems", n.problems}};
+  put_opt(j, "supported_modes", n.supported_modes);
+  put_factors(j, n);
+  return j;
 }
 
 ScannedSlave slave_from(const json& j) {
@@ -105,6 +122,8 @@ ScannedSlave slave_from(const json& j) {
   get(j, "dc", n.dc);
   get(j, "esi", n.esi);
   get(j, "problems", n.problems);
+  get_opt(j, "supported_modes", n.supported_modes);
+  get_factors(j, n);
   return n;
 }
 

@@ -39,6 +39,12 @@ struct ScannedSlave {
   std::string name, order;
   bool coe = false, dc = false;
   std::string esi;                          // matched ESI file ("" unknown)
+  // Read over CoE where the slave has a mailbox and the objects (as a
+  // CANopen node's: ScannedNode).
+  std::optional<uint32_t> supported_modes;                          // 0x6502
+  std::optional<uint32_t> encoder_increments, encoder_motor_revs;  // 0x608F:1/2
+  std::optional<uint32_t> gear_motor_revs, gear_shaft_revs;        // 0x6091:1/2
+  std::optional<uint32_t> feed, feed_shaft_revs;                   // 0x6092:1/2
   std::vector<std::string> problems;
 };
 
@@ -238,6 +244,7 @@ struct State {
   std::optional<CheckRun> check;  // step 9: the last `check` on it
 
   const ScannedNode* node(int id) const noexcept;
+  const ScannedSlave* slave(int position) const noexcept;
   Axis* axis(char letter) noexcept;
   const Axis* axis(char letter) const noexcept;
 };

@@ -150,13 +150,35 @@ Axis& assign_axis_ethercat(State& s, char letter, int joint, int position, std::
   a->node = 0;
   a->slave = position;
   a->gantry = gantry;
+  if (a->scaling.encoder_counts <= 0 && sl->encoder_increments) {
+    const double revs = sl->encoder_motor_revs.value_or(1) ? sl->encoder_motor_revs.value_or(1) : 1;
+    a->scaling.encoder_counts = *sl->encoder_increments / revs;
+  }
   return *a;
 }
+
+namespace {
+// The factor group the scan read from an axis' drive, a CANopen node or an
+// EtherCAT slave (0x608F encoder increments per motor revolutions, 0x6091
+// gear), as set_scaling uses it.
+struct DriveFactors {
+  std::optional<uint32_t> encoder_increments, encoder_motor_revs, gear_motor_revs, gear_shaft_revs;
+};
+template <class N>
+DriveFactors factors_of(const N* n) {
+  if (!n) return {};
+  return {n->encoder_increments, n->encoder_motor_revs, n->gear_motor_revs, n->gear_shaft_revs};
+}
+DriveFactors factors_of(const State& s, const Axis& a) {
+  return a.slave ? factors_of(s.slave(a.slave)) : factors_of(s.node(a.node));
+}
+}  // namespace
 
 double set_scaling(State& s, char letter, double screw_lead, double encoder_counts, double gear_motor_revs,
                    double gear_load_revs) {
   Axis& a = need_axis(s, letter);
-  const ScannedNode* n = s.node(a.node);
+  const DriveFactors f = factors_of(s, a);
+  const DriveFactors* n = &f;
   if (!(screw_lead > 0)) throw std::invalid_argument(axis_name(letter) + ": screw lead " + num(screw_lead) + " mm: expected > 0");
   AxisScaling& sc = a.scaling;
   std::string src;
@@ -166,7 +188,7 @@ double set_scaling(State& s, char letter, double screw_lead, double encoder_coun
   } else if (n && n->encoder_increments && *n->encoder_increments > 0) {
     const uint32_t revs = n->encoder_motor_revs.value_or(1) ? n->encoder_motor_revs.value_or(1) : 1;
     sc.encoder_counts = static_cast<double>(*n->encoder_increments) / revs;
-    src = "counts/rev from the drive (0x608F)";
+    src = std::string("counts/rev from the drive (0x608F") + (a.slave ? " over CoE)" : ")");
   } else {
     throw std::invalid_argument(axis_name(letter) + ": the drive (" +
                                 (a.slave ? "EtherCAT slave " + std::to_string(a.slave) : "node " + std::to_string(a.node)) +
@@ -179,7 +201,7 @@ double set_scaling(State& s, char letter, double screw_lead, double encoder_coun
   } else if (n && n->gear_motor_revs && n->gear_shaft_revs && *n->gear_shaft_revs > 0) {
     sc.gear_motor_revs = *n->gear_motor_revs;
     sc.gear_load_revs = *n->gear_shaft_revs;
-    src += ", gear from the drive (0x6091)";
+    src += a.slave ? ", gear from the drive (0x6091 over CoE)" : ", gear from the drive (0x6091)";
   } else {
     sc.gear_motor_revs = sc.gear_load_revs = 1;
     src += ", no gear";

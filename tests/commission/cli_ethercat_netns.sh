@@ -56,9 +56,14 @@ expect "slave 2: drive-2,"
 expect "CoE"
 expect "ESI servo.xml"
 expect "2 slave(s) on raw:ecm, no problems"
+expect "131072 increments/rev, ESI servo.xml"  # 0x608F read over CoE in PREOP
 # Step 2: the axes.
 cc axis X assign --slave 1 --joint 0 || fail "assign X"
 cc axis Y assign --slave 2 --joint 1 || fail "assign Y"
+# Step 3: the scaling takes the encoder resolution and gear from the
+# drive (over CoE) as for a CANopen node; only the lead is entered.
+cc axis X scaling --lead 5 || fail "scaling X from the drive"
+expect "counts/rev from the drive (0x608F over CoE)"
 
 # Step 9's backup over CoE.
 cc backup --dir "$work/backup" || fail "backup failed"
