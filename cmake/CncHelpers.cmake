@@ -45,7 +45,7 @@ endfunction()
 # (default: unit). Labels: unit, vm, netns, gui, slow. RESOURCE_LOCK: tests
 # holding the same lock never run at once (heavy ones that run cncd).
 function(cnc_gtest name)
-  cmake_parse_arguments(ARG "" "TIMEOUT;RESOURCE_LOCK" "SOURCES;DEPS;LABELS;ENV" ${ARGN})
+  cmake_parse_arguments(ARG "RUN_SERIAL" "TIMEOUT;RESOURCE_LOCK" "SOURCES;DEPS;LABELS;ENV" ${ARGN})
   if(NOT ARG_LABELS)
     set(ARG_LABELS unit)
   endif()
@@ -57,6 +57,11 @@ function(cnc_gtest name)
   set(lock)
   if(ARG_RESOURCE_LOCK)
     set(lock RESOURCE_LOCK ${ARG_RESOURCE_LOCK})
+  endif()
+  # RUN_SERIAL: nothing else runs beside it (long end-to-end runs whose
+  # simulated servo thread stalls when the 2-core host is also busy).
+  if(ARG_RUN_SERIAL)
+    list(APPEND lock RUN_SERIAL TRUE)
   endif()
   gtest_discover_tests(${name}
     DISCOVERY_MODE PRE_TEST

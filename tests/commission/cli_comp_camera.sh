@@ -36,7 +36,7 @@ t = json.load(open('$work/m/sim-truth.json'))['axes'][0]
 s = json.load(open('$work/state.json'))['axes'][0]['scaling']
 print(2 * s['counts_per_mm'] / t['counts_per_mm'] * (-1 if t['motor_reversed'] else 1))")
 cc axis X direction-test --distance 2 --velocity 5 --dial "$dial" --bring-up "$work/m" >/dev/null || fail "direction test"
-cc axis X comp-program --out "$work/x.ngc" --min -15 --max 65 --targets 5 --runs 2 --dwell 1 --feed 1200 > "$work/out"
+cc axis X comp-program --out "$work/x.ngc" --min -15 --max 65 --targets 5 --runs 2 --dwell 3 --feed 1200 > "$work/out"
 stops=$(grep -c "^stop " "$work/out")
 
 # Bad input: two sources refused (usage), a camera that is not there named
