@@ -29,17 +29,24 @@ namespace {
 
 using CanBus = e2e::SimulatedCanDrives;
 
-State canopen_state(const std::vector<std::pair<char, int>>& axes) {
+// Axes on joints 0, 1, ... driven by the given CANopen nodes or, with
+// `ethercat`, EtherCAT slave positions.
+State state_with_axes(const std::vector<std::pair<char, int>>& axes, bool ethercat) {
   State s;
-  s.interface = "virtual:restore";
   int joint = 0;
-  for (const auto& [letter, node] : axes) {
+  for (const auto& [letter, drive] : axes) {
     Axis a;
     a.letter = letter;
     a.joint = joint++;
-    a.node = node;
+    (ethercat ? a.slave : a.node) = drive;
     s.axes.push_back(a);
   }
+  return s;
+}
+
+State canopen_state(const std::vector<std::pair<char, int>>& axes) {
+  State s = state_with_axes(axes, false);
+  s.interface = "virtual:restore";
   return s;
 }
 
@@ -220,16 +227,8 @@ struct EcatSegment {
 };
 
 State ethercat_state(const std::string& interface, const std::vector<std::pair<char, int>>& axes) {
-  State s;
+  State s = state_with_axes(axes, true);
   s.ethercat_interface = interface;
-  int joint = 0;
-  for (const auto& [letter, slave] : axes) {
-    Axis a;
-    a.letter = letter;
-    a.joint = joint++;
-    a.slave = slave;
-    s.axes.push_back(a);
-  }
   return s;
 }
 
