@@ -200,7 +200,9 @@ int cmd_scan(State& s, Args& a) {
     const std::string k = a.next("option");
     if (k == "--interface") spec = a.next("interface");
     else if (k == "--bitrate") s.bitrate = static_cast<uint32_t>(number(a.next("bit rate"), "bit rate"));
-    else if (k == "--eds-dir") s.eds_dir = a.next("folder");
+    // Kept absolute: the written configuration names files in it from
+    // another folder, and the state may be used from anywhere.
+    else if (k == "--eds-dir") s.eds_dir = std::filesystem::absolute(a.next("folder")).lexically_normal().string();
     else if (k == "--first") o.first = static_cast<int>(number(a.next("node-ID"), "--first"));
     else if (k == "--last") o.last = static_cast<int>(number(a.next("node-ID"), "--last"));
     else if (k == "--timeout-ms") o.timeout_ns = static_cast<int64_t>(number(a.next("ms"), "--timeout-ms") * 1e6);
@@ -253,7 +255,7 @@ int cmd_scan_ethercat(State& s, Args& a) {
   while (a.more()) {
     const std::string k = a.next("option");
     if (k == "--interface") spec = a.next("interface");
-    else if (k == "--esi-dir") s.esi_dir = a.next("folder");
+    else if (k == "--esi-dir") s.esi_dir = std::filesystem::absolute(a.next("folder")).lexically_normal().string();
     else usage("scan-ethercat: unknown option " + k);
   }
   if (spec.empty()) spec = s.ethercat_interface;
