@@ -203,6 +203,10 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
       if (sl && !sl->esi.empty() && !s.esi_dir.empty())
         ini << "ESI = " << (std::filesystem::path(s.esi_dir) / sl->esi).string() << "\n";
       if (sl) ini << id;
+      // The inputs the controller and commissioning read every cycle, as
+      // the CANopen nodes' TPDOs carry them: torque (tuning), the digital
+      // inputs (limit and home switches), the mode shown and the error code.
+      ini << "TXPDO = 0x6041:0:u16 0x6064:0:s32 0x606C:0:s32 0x6077:0:s16 0x60FD:0:u32 0x6061:0:s8 0x603F:0:u16\n";
       if (!a->enabled) ini << "# Disabled for commissioning: it may be missing.\n";
       ini << "\n";
     }

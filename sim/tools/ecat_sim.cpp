@@ -6,11 +6,16 @@
 // enabled -> quick stop active"), so tests can see how a master left them.
 //
 //   ecat-sim --iface ecs --drives 3 [--fault break:2|drop|wkc|refuse:<n>:<state>|sdo-abort:<n>:<index>]
-//            [--fault-after-ms 1000] [--seconds 0]
+//            [--fault-after-ms 1000] [--seconds 0] [--switches NEG,HOME_MIN,HOME_MAX,POS]
+// --switches: every drive's table has limit switches at NEG and POS and a
+// home switch over [HOME_MIN, HOME_MAX] (mm from where it powers up).
+// --reversed K: drive K's motor is mounted the other way round (what a
+// commissioning direction test finds).
 #include <sched.h>
 #include <signal.h>
 #include <time.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
@@ -38,7 +43,7 @@ int64_t now_ns() {
 [[noreturn]] void usage(const char* why) {
   std::fprintf(stderr,
                "ecat-sim: %s\nusage: ecat-sim --iface IF [--drives N] [--fault break:K|drop|wkc|refuse:K:STATE|"
-               "sdo-abort:K:INDEX] [--fault-after-ms MS] [--seconds S]\n",
+               "sdo-abort:K:INDEX] [--fault-after-ms MS] [--seconds S] [--switches NEG,HOME_MIN,HOME_MAX,POS] [--reversed K]\n",
                why);
   std::exit(2);
 }
@@ -56,6 +61,8 @@ int main(int argc, char** argv) {
   std::string iface, fault;
   unsigned drives = 3;
   int64_t fault_after_ms = 1000, seconds = 0;
+  sim::CoeDriveConfig base;
+  std::vector<unsigned> reversed;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -67,6 +74,16 @@ int main(int argc, char** argv) {
     else if (a == "--fault") fault = value();
     else if (a == "--fault-after-ms") fault_after_ms = std::stoll(value());
     else if (a == "--seconds") seconds = std::stoll(value());
+    else if (a == "--reversed") reversed.push_back(static_cast<unsigned>(std::stoul(value())));
+    else if (a == "--switches") {
+      double mm[4];
+      const std::string v = value();
+      if (std::sscanf(v.c_str(), "%lf,%lf,%lf,%lf", &mm[0], &mm[1], &mm[2], &mm[3]) != 4 || !(mm[0] < mm[1]) ||
+          !(mm[1] < mm[2]) || !(mm[2] < mm[3]))
+        usage(("--switches " + v + ": expected NEG,HOME_MIN,HOME_MAX,POS in mm, increasing").c_str());
+      auto& p = base.drive.plant;
+      p.neg_limit = mm[0] / 1000, p.home_min = mm[1] / 1000, p.home_max = mm[2] / 1000, p.pos_limit = mm[3] / 1000;
+    }
     else usage(("unknown option " + a).c_str());
   }
   if (iface.empty()) usage("--iface is required");
@@ -78,7 +95,13 @@ int main(int argc, char** argv) {
   signal(SIGTERM, on_signal);
 
   auto seg = std::make_shared<sim::Segment>();
-  seg->add_drives(drives);
+  for (unsigned k : reversed)
+    if (k < 1 || k > drives) usage("--reversed K needs 1 <= K <= drives");
+  for (unsigned k = 1; k <= drives; ++k) {
+    sim::CoeDriveConfig c = base;
+    c.drive.motor_reversed = std::find(reversed.begin(), reversed.end(), k) != reversed.end();
+    seg->add_drives(1, c);
+  }
   std::unique_ptr<Link> link;
   try {
     link = open_raw_link(iface);

@@ -2,11 +2,15 @@
 # The commissioning steps that move, on EtherCAT: cnc-commission brings up
 # cncd on the configuration of its state (the drives on raw:ecm) inside a
 # network namespace of its own, with ecat-sim's two CiA 402 CoE drives on
-# the other end of a veth pair, and runs the direction test with a dial
-# reading that finds a wrong lead and a reversed axis (the script plays the
-# dial as a machine with a 4 mm screw on X and Y turning the other way
-# would show it), the test again (confirmed), the tuning, the write and
-# the check program to its end. Every step's controller runs on the real kernel link; the machine
+# the other end of a veth pair (5 mm screws, limit switches at -30 and
+# +70 mm, a home switch over 38-42 mm, Y's motor mounted the other way
+# round), and runs the direction test with a dial reading that finds a
+# wrong lead (4 mm entered for X) and the reversed Y (the script plays the
+# dial with what the simulated table moved), the test again (confirmed),
+# the switch search over the drives' digital inputs (0x60FD in the
+# written TXPDO), the soft limits, the controller's homing repeated, the
+# tuning (torque read from 0x6077), the write and the check program to its
+# end. Every step's controller runs on the real kernel link; the machine
 # is off after each. Needs root (ip netns) and AF_PACKET.
 #
 #   cli_ethercat_motion_netns.sh BIN_DIR ECAT_SIM SOURCE_DIR
@@ -17,7 +21,11 @@ src="$3"
 ns="cnc-comm-ecatm-$$"
 work="$(mktemp -d)"
 simpid=""
-export CNC_INSTANCE="commission-ecatm-$$" CNC_NO_REALTIME=1
+# The controllers run with realtime scheduling (as root; as the netns
+# mill test's): the drives' sync-manager watchdog (100 ms) trips on a
+# servo thread that a loaded host stalls for longer.
+export CNC_INSTANCE="commission-ecatm-$$"
+unset CNC_NO_REALTIME
 cleanup() {
   "$bin/cnc" shutdown >/dev/null 2>&1 || true
   if [ -n "$simpid" ]; then kill "$simpid" 2>/dev/null || true; wait "$simpid" 2>/dev/null || true; fi
@@ -37,7 +45,7 @@ ip -n "$ns" link set lo up
 ip -n "$ns" link add ecm type veth peer name ecs
 ip -n "$ns" link set ecm up
 ip -n "$ns" link set ecs up
-ip netns exec "$ns" "$sim" --iface ecs --drives 2 --seconds 900 2>"$work/sim.log" &
+ip netns exec "$ns" "$sim" --iface ecs --drives 2 --seconds 900 --switches -30,38,42,70 --reversed 2 2>"$work/sim.log" &
 simpid=$!
 sleep 0.3
 
@@ -59,20 +67,20 @@ cc scan-ethercat --interface raw:ecm --esi-dir "$src/configs/ethercat-mill/drive
 expect "2 slave(s) on raw:ecm, no problems"
 cc axis X assign --slave 1 --joint 0 || fail "assign X"
 cc axis Y assign --slave 2 --joint 1 || fail "assign Y"
-cc axis X scaling --lead 5 || fail "scaling X"
+cc axis X scaling --lead 4 || fail "scaling X"
 cc axis Y scaling --lead 5 || fail "scaling Y"
 cc axis X limits --min -20 --max 60 --velocity 20 --acceleration 200 || fail "limits X"
 cc axis Y limits --min -20 --max 60 --velocity 20 --acceleration 200 || fail "limits Y"
 x_counts="$(state "s['axes'][0]['scaling']['counts_per_mm'] if s['axes'][0]['letter'] == 'X' else s['axes'][1]['scaling']['counts_per_mm']")"
 
 # Step 4 on a controller of its own over the kernel link: the first test
-# jogs 2 mm; the dial shows 1.6 mm on X (a 4 mm screw, not 5) and -2 mm on
-# Y (the axis turns the other way).
+# jogs 2 mm; the dial shows 2.5 mm on X (a 5 mm screw, not the 4 mm
+# entered) and -2 mm on Y (its motor turns the other way).
 cc axis X direction-test --distance 10 --velocity 5 --bring-up "$work/m" || fail "direction-test X"
 expect "the machine is off again"
 expect "jogged 2 mm, not 10"
 grep -q "^INTERFACE = raw:ecm" "$work/m/"*.ini || fail "the brought-up configuration is not on raw:ecm"
-cc axis X dial 1.6 || fail "dial X"
+cc axis X dial 2.5 || fail "dial X"
 cc axis Y direction-test --distance 10 --velocity 5 --bring-up "$work/m" || fail "direction-test Y"
 expect "the machine is off again"
 cc axis Y dial -2 || fail "dial Y"
@@ -82,9 +90,10 @@ s = json.load(open(sys.argv[1]))
 ax = {a["letter"]: a for a in s["axes"]}
 nominal = float(sys.argv[2])
 x, y = ax["X"]["scaling"], ax["Y"]["scaling"]
-# 2 mm commanded moved the table 1.6 mm: 1.6/2 of the counts per mm were
-# needed per mm... i.e. the machine needs 2/1.6 times the counts per mm.
-assert abs(x["counts_per_mm"] / (nominal * 2 / 1.6) - 1) < 1e-3, (x, nominal)
+# 2 mm commanded moved the table 2.5 mm: 2/2.5 of the counts per mm, the
+# 131072 increments per 5 mm turn.
+assert abs(x["counts_per_mm"] / (nominal * 2 / 2.5) - 1) < 1e-3, (x, nominal)
+assert abs(x["counts_per_mm"] / (131072 / 5) - 1) < 1e-3, x
 assert not x["reverse"], x
 assert y["reverse"], y
 print("X", x["counts_per_mm"], "counts/mm (nominal", nominal, "); Y reversed")
@@ -95,8 +104,29 @@ cc axis X direction-test --distance 10 --velocity 5 --bring-up "$work/m" || fail
 expect "the machine is off again"
 cc axis X dial 10 || fail "second dial X"
 expect "direction right; scale right"
-# (Steps 5 and 6 need switches, which ecat-sim's drives do not have: the
-# written joints take their position where they stand when homed.)
+cc axis Y direction-test --distance 10 --velocity 5 --bring-up "$work/m" || fail "second direction-test Y"
+cc axis Y dial 10 || fail "second dial Y"
+expect "direction right; scale right"
+# Step 5: the switches through the drives' inputs, on both sides.
+cc axis X switches --search 80 --velocity 5 --bring-up "$work/m" || fail "switches X"
+cc axis Y switches --search 80 --velocity 5 --bring-up "$work/m" || fail "switches Y"
+python3 - "$work/state.json" <<'PY' || fail "the switches are not where the simulator has them"
+import json, sys
+ax = {a["letter"]: a for a in json.load(open(sys.argv[1]))["axes"]}
+for letter in "XY":
+    sw = ax[letter]["switches"]
+    def at(name):
+        return sw[name]["position"]
+    for name, want in (("neg_limit", -30), ("pos_limit", 70), ("home", 38)):
+        assert sw[name]["seen"], (letter, name, sw)
+        assert abs(at(name) - want) < 0.1, (letter, name, at(name), want)
+    print(letter, "switches at", at("neg_limit"), at("home"), at("pos_limit"))
+PY
+cc axis X soft-limits || fail "soft limits X"
+cc axis Y soft-limits || fail "soft limits Y"
+# Step 6: the controller's homing on the home switch, 3 times.
+cc axis X homing --method controller --repeat 3 --away 2 --bring-up "$work/m" || fail "homing X"
+state "abs(s['axes'][0]['homing']['spread']) < 0.01" | grep -qx True || fail "homing X: spread too large"
 # Step 7: a short tuning run on the link.
 cc axis X tune --max-velocity 40 --max-acceleration 800 --steps 2 --bring-up "$work/m" || fail "tune X"
 expect "recommended (margin 20 %): MAX_VELOCITY = "
