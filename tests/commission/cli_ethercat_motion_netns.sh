@@ -108,8 +108,8 @@ cc axis Y direction-test --distance 10 --velocity 5 --bring-up "$work/m" || fail
 cc axis Y dial 10 || fail "second dial Y"
 expect "direction right; scale right"
 # Step 5: the switches through the drives' inputs, on both sides.
-cc axis X switches --search 80 --velocity 5 --bring-up "$work/m" || fail "switches X"
-cc axis Y switches --search 80 --velocity 5 --bring-up "$work/m" || fail "switches Y"
+cc axis X switches --search 80 --velocity 2 --bring-up "$work/m" || fail "switches X"
+cc axis Y switches --search 80 --velocity 2 --bring-up "$work/m" || fail "switches Y"
 python3 - "$work/state.json" <<'PY' || fail "the switches are not where the simulator has them"
 import json, sys
 ax = {a["letter"]: a for a in json.load(open(sys.argv[1]))["axes"]}
