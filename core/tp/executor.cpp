@@ -50,6 +50,26 @@ struct Executor::Rows {
   double j[kMaxRows] = {};
 };
 
+// What a piece's limit table depends on, from the configuration alone:
+// the limit rows, the averaging time, the generous bounds and the grid.
+// The servo side and the producer each hold one; `gen` says which
+// configuration it was made from.
+struct Executor::Limits {
+  Rows rows;
+  std::array<double, kGrid> grid{};
+  double tf = 0, v_bound = 0, a_top = 0;
+  int n = 1;  // samples averaged
+  uint64_t gen = 0;
+};
+
+// A piece's limit table: the tree leaf (the limit at each grid velocity,
+// ceiling, feed, rapid) and its ceiling, for configuration `gen`.
+struct Executor::PieceLimits {
+  double vals[kChannels] = {};
+  double v = 0;
+  uint64_t gen = UINT64_MAX;
+};
+
 // Per ingested piece: its ceiling (capped at v_bound_), and a compact
 // copy of where it lies, whether it is a stop and its epoch: the range
 // searches and the span splitting walk many neighbouring pieces, and a
@@ -123,10 +143,14 @@ struct Executor::Span {
 };
 
 Executor::Executor(const PlannerConfig& config, PathStore& store)
-    : cfg_(config), store_(store), rows_(std::make_unique<Rows>()) {
+    : cfg_(config),
+      store_(store),
+      lim_(std::make_unique<Limits>()),
+      prep_lim_(std::make_unique<Limits>()) {
   std::size_t c = 2;
   while (c < store.pieces.capacity()) c *= 2;
   pdata_ = std::make_unique<PieceData[]>(c);
+  plim_ = std::make_unique<PieceLimits[]>(c);
   pmask_ = c - 1;
   tree_ = std::make_unique<Tree>();
   tree_->n = c;
@@ -144,6 +168,7 @@ Executor::Executor(const PlannerConfig& config, PathStore& store)
   halpha_ = std::make_unique<double[]>(kRing);
   hmax_ = std::make_unique<double[]>(kRing);
   configure(config);
+  *prep_lim_ = *lim_;
   clear_history(0);
 }
 
@@ -155,10 +180,13 @@ inline Executor::Span& Executor::span(uint64_t seq) noexcept { return spans_[seq
 inline const Executor::Span& Executor::span(uint64_t seq) const noexcept { return spans_[seq & smask_]; }
 inline int Executor::ring(int ago) const noexcept { return (hist_pos_ - ago) & (kRing - 1); }
 
-void Executor::configure(const PlannerConfig& config) noexcept {
-  cfg_ = config;
-  T_ = config.cycle_time_s;
-  Rows& r = *rows_;
+namespace {
+
+// The limit rows, averaging window, generous bounds and grid a
+// configuration gives (Executor::configure and the producer's copy).
+template <class L>
+void make_limits(const PlannerConfig& config, L& lim) noexcept {
+  auto& r = lim.rows;
   r.n = 0;
   double tf = 0;
   double vsum = 0, asum = 0;
@@ -182,19 +210,33 @@ void Executor::configure(const PlannerConfig& config) noexcept {
     }
     ++r.n;
   }
-  n_ = std::clamp(static_cast<int>(std::ceil(tf / T_ - 1e-9)), 1, kMaxFilter);
-  tf_ = n_ * T_;
+  const double T = config.cycle_time_s;
+  lim.n = std::clamp(static_cast<int>(std::ceil(tf / T - 1e-9)), 1, kMaxFilter);
+  lim.tf = lim.n * T;
   // Generous bounds: no piece is faster (pieces are capped to it), no input
   // sample accelerates harder.
-  v_bound_ = 2 * std::sqrt(vsum);
-  if (config.max_linear_velocity > 0) v_bound_ = std::min(v_bound_, 2 * config.max_linear_velocity);
-  a_top_ = 2 * std::sqrt(asum);
-  reach_ = v_bound_ * (0.5 * tf_ + 2 * T_) + 1e-9;
-  env_tol_ = 2 * a_top_ * kEnvTol;
+  lim.v_bound = 2 * std::sqrt(vsum);
+  if (config.max_linear_velocity > 0) lim.v_bound = std::min(lim.v_bound, 2 * config.max_linear_velocity);
+  lim.a_top = 2 * std::sqrt(asum);
   for (int i = 0; i < kGrid; ++i) {
     const double f = static_cast<double>(i + 1) / kGrid;
-    grid_[static_cast<std::size_t>(i)] = v_bound_ * f * f;
+    lim.grid[static_cast<std::size_t>(i)] = lim.v_bound * f * f;
   }
+}
+
+}  // namespace
+
+void Executor::configure(const PlannerConfig& config) noexcept {
+  cfg_ = config;
+  T_ = config.cycle_time_s;
+  make_limits(config, *lim_);
+  n_ = lim_->n;
+  tf_ = lim_->tf;
+  v_bound_ = lim_->v_bound;
+  a_top_ = lim_->a_top;
+  reach_ = v_bound_ * (0.5 * tf_ + 2 * T_) + 1e-9;
+  env_tol_ = 2 * a_top_ * kEnvTol;
+  grid_ = lim_->grid;
 }
 
 void Executor::clear_history(double x) noexcept {
@@ -213,11 +255,12 @@ void Executor::clear_history(double x) noexcept {
   v_ = w_ = b_ = 0;
 }
 
-void Executor::set_config(const PlannerConfig& config) noexcept {
+void Executor::set_config(const PlannerConfig& config, uint64_t config_gen) noexcept {
   // The averaging window and the rows change only while nothing moves or
   // is queued; new limits apply from the next idle moment.
   if (is_idle() && out_ == ptail_) {
     configure(config);
+    lim_->gen = config_gen;
     clear_history(x_);
   } else {
     cfg_ = config;
@@ -419,11 +462,58 @@ double Executor::ceiling(const Span& sp) const noexcept {
 // ---------------------------------------------------------------------------
 // Ingest, spans and the envelope
 
-void Executor::ingest() noexcept {
+namespace {
+
+// A piece's limit table under `lim`. Ceilings of curved pieces are rounded
+// down to 1 % steps: neighbours with nearly equal ceilings then share
+// spans (fewer for the envelope).
+template <class L, class T>
+void piece_limits(const Piece& p, const L& lim, T& out) noexcept {
+  out.gen = lim.gen;
+  if (p.stop != StopKind::None) {
+    out.v = 0;
+    for (int c = 0; c < kChannels; ++c) out.vals[c] = kInf;
+    return;
+  }
+  double v = std::min(p.v_hard, lim.v_bound);
+  bool curved = p.bounds.lin2 > 0 || p.bounds.lin3 > 0;
+  for (int i = 0; i < kNumAxes && !curved; ++i) curved = p.bounds.c2[static_cast<std::size_t>(i)] > 0;
+  if (curved && v > 1e-9) v = std::exp(std::floor(std::log(v) / kCeilingStep) * kCeilingStep);
+  out.v = v;
+  const auto& r = lim.rows;
+  for (int i = 0; i < kGrid; ++i) {
+    const double u = std::min(lim.grid[static_cast<std::size_t>(i)], v);
+    out.vals[i] = std::min({limit_at(p.bounds, r.axis, r.a, r.j, r.n, lim.tf, u), p.a_cap, lim.a_top});
+  }
+  out.vals[kChV] = v;
+  out.vals[kChFeed] = p.v_feed;
+  out.vals[kChRapid] = p.v_rapid;
+}
+
+}  // namespace
+
+void Executor::set_prepare_config(const PlannerConfig& config, uint64_t config_gen) noexcept {
+  make_limits(config, *prep_lim_);
+  prep_lim_->gen = config_gen;
+}
+
+void Executor::prepare_published() noexcept {
+  // The builder published these (on this thread); their slots are free:
+  // a piece is published only with room in the ring, so the servo side
+  // has taken in and released the piece that used the slot before.
   const uint64_t pub = store_.pieces.published();
+  if (prep_next_ >= pub) return;
+  for (; prep_next_ < pub; ++prep_next_) piece_limits(piece(prep_next_), *prep_lim_, plim_[prep_next_ & pmask_]);
+  prepared_.store(pub, std::memory_order_release);
+}
+
+void Executor::ingest() noexcept {
+  const uint64_t pub = prepared_.load(std::memory_order_acquire);
   const uint64_t first = ptail_;
+  PieceLimits own;
   // At most kIngestPerCycle pieces per cycle: the rest wait in the ring
-  // (the builder may publish thousands at once).
+  // (the builder may publish thousands at once). Each is a copy of the
+  // table the producer computed.
   for (int budget = kIngestPerCycle; ptail_ < pub && budget > 0; --budget) {
     ++work_.ingested;
     const Piece& p = piece(ptail_);
@@ -447,30 +537,20 @@ void Executor::ingest() noexcept {
       clear_history(p.s0);
     }
     PieceData& d = pdata(ptail_);
-    // Ceilings of curved pieces rounded down to 1 % steps: neighbours with
-    // nearly equal ceilings then share spans (fewer for the envelope).
-    d.v = std::min(p.v_hard, v_bound_);
-    bool curved = p.bounds.lin2 > 0 || p.bounds.lin3 > 0;
-    for (int i = 0; i < kNumAxes && !curved; ++i) curved = p.bounds.c2[static_cast<std::size_t>(i)] > 0;
-    if (curved && d.v > 1e-9) d.v = std::exp(std::floor(std::log(d.v) / kCeilingStep) * kCeilingStep);
-    double vals[kChannels];
+    const PieceLimits* t = &plim_[ptail_ & pmask_];
+    if (t->gen != lim_->gen) {
+      // Made for other limits than these (changed while moving).
+      piece_limits(p, *lim_, own);
+      t = &own;
+      ++work_.limits;
+    }
+    d.v = t->v;
     if (p.stop != StopKind::None) {
-      d.v = 0;
       last_stop_ = ptail_;
       if (stop_tail_ - stop_head_ > pmask_) ++stop_head_;
       stops_[stop_tail_++ & pmask_] = ptail_;
-      for (int c = 0; c < kChannels; ++c) vals[c] = kInf;
-    } else {
-      const Rows& r = *rows_;
-      for (int i = 0; i < kGrid; ++i) {
-        const double u = std::min(grid_[static_cast<std::size_t>(i)], d.v);
-        vals[i] = std::min({limit_at(p.bounds, r.axis, r.a, r.j, r.n, tf_, u), p.a_cap, a_top_});
-      }
-      vals[kChV] = d.v;
-      vals[kChFeed] = p.v_feed;
-      vals[kChRapid] = p.v_rapid;
     }
-    tree_->set_leaf(static_cast<std::size_t>(ptail_ & pmask_), vals);
+    tree_->set_leaf(static_cast<std::size_t>(ptail_ & pmask_), t->vals);
     tail_s_ = p.s0 + p.length;
     ++ptail_;
   }
@@ -739,6 +819,26 @@ void Executor::envelope_request(bool full) noexcept {
   // newest span (it may be new or grown), nor anywhere when the ceilings
   // changed everywhere (overrides).
   env_floor_ = full ? 0 : stail_ - 1;
+  if (!full && !span(in_).enveloped && span(in_).stop == StopKind::None) {
+    // The input stands on spans no walk has reached: a start, where the
+    // whole look-ahead arrives at once and the walk from the tail takes
+    // many cycles to come down to the input (15 on a dense spiral, the
+    // machine standing). Walk first from a few spans ahead of the input:
+    // the spans after them, not walked yet, have an envelope of zero, so
+    // this is the envelope of the path ending there (within the published
+    // path, lower than the full one); the walk from the tail follows and
+    // raises it.
+    uint64_t m = in_;
+    while (m + 1 < stail_ && m - in_ < kStartWalkSpans && span(m + 1).stop == StopKind::None &&
+           span(m).b < x_ + kStartWalkNear * (v_bound_ * v_bound_ / std::max(a_top_, 1e-9))) {
+      ++m;
+    }
+    if (m + 1 < stail_) {
+      env_k_ = m;
+      env_floor_ = m;
+      env_pending_ = true;
+    }
+  }
 }
 
 void Executor::envelope_work(int budget, int queries) noexcept {

@@ -22,6 +22,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <memory>
 
@@ -37,7 +38,9 @@ class Executor {
   Executor(const Executor&) = delete;
   Executor& operator=(const Executor&) = delete;
 
-  void set_config(const PlannerConfig& config) noexcept;
+  // `config_gen` numbers the configurations the owner hands out (the same
+  // number to set_prepare_config for the same configuration).
+  void set_config(const PlannerConfig& config, uint64_t config_gen) noexcept;
   void set_position(const Pose& pose) noexcept;
   void run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept;
 
@@ -82,6 +85,9 @@ class Executor {
   // (kSpanQueriesMax).
   struct CycleWork {
     int ingested = 0, split = 0, enveloped = 0, queries = 0, envelope_queries = 0;
+    // Pieces whose limit table the servo thread computed itself (only
+    // after a change of limits while moving; prepare_published() does it).
+    int limits = 0;
     int walks = 0;  // walks from the tail requested (new spans)
   };
   const CycleWork& cycle_work() const noexcept { return work_; }
@@ -104,6 +110,23 @@ class Executor {
   static constexpr double kDeferNear = 2.0;
   static constexpr double kDeferBatch = 0.25;
   static constexpr int kDeferIdle = 8;
+  // At a start (the input on spans never walked), the first walk begins
+  // at most kStartWalkSpans spans and kStartWalkNear of a stop from top
+  // speed (v_bound_^2 / a_top_) ahead of the input, then one from the tail
+  // (executor.cpp, envelope_request).
+  static constexpr int kStartWalkSpans = 24;
+  static constexpr double kStartWalkNear = 0.05;
+
+  // Producer side: runs where the builder runs (the planner's own thread,
+  // or inline after add_* and flush), never in the servo thread. Computes
+  // the limit table of every newly published piece (its acceleration
+  // limit at each grid velocity, its rounded ceiling) and hands the tables
+  // over through a counter (release / acquire): run_cycle takes in only
+  // pieces whose table is ready, and copies it. A table computed for
+  // another configuration than the servo side runs with (limits changed
+  // while moving) is recomputed in run_cycle (CycleWork::limits).
+  void set_prepare_config(const PlannerConfig& config, uint64_t config_gen) noexcept;
+  void prepare_published() noexcept;
 
   // Position on the smoothed path at global position s (tests: dense
   // evaluation of the path that is being executed). Only for s within the
@@ -114,6 +137,8 @@ class Executor {
   struct PieceData;
   struct Span;
   struct Rows;
+  struct Limits;
+  struct PieceLimits;
   struct Tree;
 
   void configure(const PlannerConfig& config) noexcept;
@@ -160,7 +185,11 @@ class Executor {
   std::size_t pmask_ = 0;
   std::unique_ptr<Span[]> spans_;
   std::size_t smask_ = 0;
-  std::unique_ptr<Rows> rows_;
+  std::unique_ptr<Limits> lim_;        // what the servo side runs with
+  std::unique_ptr<Limits> prep_lim_;   // producer side's
+  std::unique_ptr<PieceLimits[]> plim_;  // per piece slot, like pdata_
+  uint64_t prep_next_ = 0;             // producer only: next piece to prepare
+  alignas(64) std::atomic<uint64_t> prepared_{0};  // pieces [.., prepared_) have tables
   std::unique_ptr<Tree> tree_;
   std::unique_ptr<uint64_t[]> stops_;  // ring of stop pieces, in order
   uint64_t stop_head_ = 0, stop_tail_ = 0;

@@ -28,6 +28,9 @@ void check_config(const PlannerConfig& c) {
   }
 }
 
+// What counts as standing at the end of what is published (units).
+constexpr double kStallGap = 1e-9;
+
 std::size_t segments_capacity(const PlannerConfig& c) {
   return static_cast<std::size_t>(c.lookahead_segments) + 8 * static_cast<std::size_t>(c.blend_span_segments) + 128;
 }
@@ -81,7 +84,10 @@ void LookaheadPlanner::process(const Command& c) noexcept {
     case CommandKind::Circle: builder_->add_circle(c.pose, c.center, c.normal, c.turns, c.params); break;
     case CommandKind::Dwell: builder_->add_dwell(c.seconds, c.params); break;
     case CommandKind::SetPosition: builder_->set_position(c.pose); break;
-    case CommandKind::SetConfig: builder_->set_config(c.config); break;
+    case CommandKind::SetConfig:
+      builder_->set_config(c.config);
+      exec_->set_prepare_config(c.config, c.config_gen);
+      break;
     case CommandKind::Flush: builder_->flush(); break;
     case CommandKind::Reset: builder_->reset(c.epoch); break;
   }
@@ -104,6 +110,8 @@ void LookaheadPlanner::thread_main() {
       if (motion && !builder_->can_accept()) break;
       process(c);
       input_->release_upto(seq + 1);
+      // The pieces' limit tables, as soon as they are published.
+      exec_->prepare_published();
       worked = true;
     }
     if (builder_->has_held() && input_->released() == input_->published()) {
@@ -113,6 +121,7 @@ void LookaheadPlanner::thread_main() {
                         !full_.load(std::memory_order_relaxed);
       if (idle || urgent_.load(std::memory_order_relaxed)) {
         builder_->flush();
+        exec_->prepare_published();
         worked = true;
       }
     }
@@ -125,6 +134,10 @@ void LookaheadPlanner::thread_main() {
 
 // ---------------------------------------------------------------------------
 // Servo thread
+
+void LookaheadPlanner::prepare_inline() noexcept {
+  if (threading_ == PlannerThreading::Inline) exec_->prepare_published();
+}
 
 bool LookaheadPlanner::push(const Command& c, bool control) noexcept {
   if (!input_->has_room(control ? 1 : 4)) return false;
@@ -157,6 +170,7 @@ void LookaheadPlanner::set_position(const Pose& pose) noexcept {
   exec_->set_position(pose);
   if (threading_ == PlannerThreading::Inline) {
     builder_->set_position(pose);
+    prepare_inline();
   } else {
     Command c;
     c.kind = CommandKind::SetPosition;
@@ -175,6 +189,7 @@ void LookaheadPlanner::reset(const Pose& pose) noexcept {
   if (threading_ == PlannerThreading::Inline) {
     builder_->reset(epoch);
     builder_->set_position(pose);
+    prepare_inline();
   } else {
     reset_pending_ = true;
     position_pending_ = true;
@@ -196,6 +211,7 @@ Result LookaheadPlanner::add_line(const Pose& end, const SegmentParams& params) 
   if (params.type == MotionType::Probe) exec_->clear_probe();
   if (threading_ == PlannerThreading::Inline) {
     const Result b = builder_->add_line(end, params);
+    prepare_inline();
     if (b != Result::Ok) return b;
   } else {
     Command cmd;
@@ -221,6 +237,7 @@ Result LookaheadPlanner::add_circle(const Pose& end, const std::array<double, 3>
   if (r != Result::Ok) return r;
   if (threading_ == PlannerThreading::Inline) {
     const Result b = builder_->add_circle(end, center, normal, turns, params);
+    prepare_inline();
     if (b != Result::Ok) return b;
   } else {
     Command cmd;
@@ -243,6 +260,7 @@ Result LookaheadPlanner::add_dwell(double seconds, const SegmentParams& params) 
   if (reset_pending_ || position_pending_ || is_queue_full()) return Result::QueueFull;
   if (threading_ == PlannerThreading::Inline) {
     const Result b = builder_->add_dwell(seconds, params);
+    prepare_inline();
     if (b != Result::Ok) return b;
   } else {
     Command cmd;
@@ -263,7 +281,12 @@ void LookaheadPlanner::run_cycle(const CycleInputs& in, CycleOutputs& out) noexc
   // stands (the held moves are the whole queue: a short look-ahead, or
   // long merged chords) would wait forever: plan to the end of what is
   // held. The stop this bakes in costs nothing, the machine stands anyway.
-  const bool stalled = full && !exec_->is_moving() && !exec_->is_paused() && in.feed_scale > 0;
+  // Standing with path left ahead is not that: at a start the machine
+  // waits a few cycles for the envelope (the whole look-ahead arrives at
+  // once), and a flush then baked a stop into the end of the look-ahead
+  // (and ran the builder's flush inside this cycle, inline).
+  const bool stalled = full && !exec_->is_moving() && !exec_->is_paused() && in.feed_scale > 0 &&
+                       exec_->distance_to_tail() <= kStallGap;
   stall_cycles_ = stalled ? stall_cycles_ + 1 : 0;
   const bool stall = stall_cycles_ >= static_cast<uint64_t>(std::max(1, cfg_.flush_idle_cycles));
   if (threading_ == PlannerThreading::Inline) {
@@ -280,7 +303,10 @@ void LookaheadPlanner::run_cycle(const CycleInputs& in, CycleOutputs& out) noexc
       const bool urgent = starving && exec_->is_moving() &&
                           exec_->distance_to_tail() < 1.5 * exec_->stop_distance() +
                                                           4 * exec_->path_velocity() * cfg_.cycle_time_s;
-      if (idle || urgent || stall) builder_->flush();
+      if (idle || urgent || stall) {
+        builder_->flush();
+        prepare_inline();
+      }
     }
   } else {
     // As in the inline case: only when the input has dried up.
@@ -303,6 +329,7 @@ void LookaheadPlanner::run_cycle(const CycleInputs& in, CycleOutputs& out) noexc
     if (threading_ == PlannerThreading::Inline) {
       builder_->reset(epoch);
       builder_->set_position(end_pose_);
+      prepare_inline();
     } else {
       reset_pending_ = true;
       position_pending_ = true;
@@ -348,13 +375,16 @@ void LookaheadPlanner::set_config(const PlannerConfig& config) noexcept {
   c.blend_span_segments = cfg_.blend_span_segments;
   if (!(c.cycle_time_s > 0)) c.cycle_time_s = cfg_.cycle_time_s;
   cfg_ = c;
-  exec_->set_config(c);
+  ++config_gen_;
+  exec_->set_config(c, config_gen_);
   if (threading_ == PlannerThreading::Inline) {
     builder_->set_config(c);
+    exec_->set_prepare_config(c, config_gen_);
   } else {
     Command cmd;
     cmd.kind = CommandKind::SetConfig;
     cmd.config = c;
+    cmd.config_gen = config_gen_;
     push(cmd, true);
   }
 }
@@ -362,6 +392,7 @@ void LookaheadPlanner::set_config(const PlannerConfig& config) noexcept {
 void LookaheadPlanner::flush() noexcept {
   if (threading_ == PlannerThreading::Inline) {
     builder_->flush();
+    prepare_inline();
   } else {
     Command c;
     c.kind = CommandKind::Flush;

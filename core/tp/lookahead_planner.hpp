@@ -60,6 +60,8 @@ class LookaheadPlanner final : public TrajectoryPlanner {
  private:
   void thread_main();
   void process(const Command& c) noexcept;
+  // Inline: the producer's share after the builder may have published.
+  void prepare_inline() noexcept;
   bool push(const Command& c, bool control) noexcept;
   bool pending_input() const noexcept;
   Result check_move(const Curve& curve, const SegmentParams& params) const noexcept;
@@ -78,6 +80,7 @@ class LookaheadPlanner final : public TrajectoryPlanner {
   uint64_t cycle_ = 0;
   uint64_t stall_cycles_ = 0;  // cycles standing with a full queue
   uint32_t epoch_ = 0;
+  uint64_t config_gen_ = 0;    // set_config calls so far (servo thread)
   bool reset_pending_ = false;
   bool position_pending_ = false;
   Pose end_pose_;              // where the next move starts

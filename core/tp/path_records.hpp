@@ -125,6 +125,7 @@ struct Command {
   double seconds = 0;
   SegmentParams params;
   PlannerConfig config;  // SetConfig only
+  uint64_t config_gen = 0;  // SetConfig only: which configuration (Executor::set_prepare_config)
   uint32_t epoch = 0;
 };
 

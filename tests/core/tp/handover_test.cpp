@@ -1,0 +1,171 @@
+// What the planner's own side (the builder's thread, or inline after add_*)
+// hands the servo thread ready-made, so that run_cycle only copies it
+// (issue 20: the servo thread's work per cycle). Counted, never timed.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <thread>
+#include <vector>
+
+#include "tests/core/tp/tp_test_util.hpp"
+
+namespace cnc::tp {
+namespace {
+
+using test::expect_clean;
+using test::feed_params;
+using test::line_to;
+using test::pose;
+using test::profile;
+
+// A spiral polyline of `n` moves of 0.2 mm (G64 P0.01): curved pieces.
+Program spiral(int n) {
+  Program prog;
+  const SegmentParams p = feed_params(100, 0.01);
+  double theta = 0;
+  for (int i = 0; i < n; ++i) {
+    const double r = 5 + 0.5 / (2 * std::numbers::pi) * theta;
+    theta += 0.2 / r;
+    prog.moves.push_back(line_to(r * std::cos(theta), r * std::sin(theta), 0, p));
+  }
+  prog.start = pose(5, 0, 0);
+  return prog;
+}
+
+struct Totals {
+  uint64_t ingested = 0, limits = 0;
+  int most_ingested = 0;
+};
+
+RunOptions counting(Totals& t, bool yield) {
+  RunOptions opt;
+  opt.flush_at_end = true;
+  opt.moves_per_cycle = 1 << 20;
+  opt.before_cycle = [&t, yield](uint64_t, TrajectoryPlanner& planner, CycleInputs&) {
+    // A real servo thread sleeps between cycles: let the builder run.
+    if (yield) std::this_thread::yield();
+    const Executor::CycleWork& w = dynamic_cast<LookaheadPlanner&>(planner).executor().cycle_work();
+    t.ingested += static_cast<uint64_t>(w.ingested);
+    t.limits += static_cast<uint64_t>(w.limits);
+    t.most_ingested = std::max(t.most_ingested, w.ingested);
+  };
+  return opt;
+}
+
+// The whole look-ahead of a dense program arrives at once at its start:
+// the servo thread used to compute every piece's limit table (16 grid
+// velocities per piece, a logarithm and an exponential for the ceiling)
+// while taking the pieces in, 128 of them in one cycle, a third of the
+// start's burst. The builder's side computes them now; the servo thread
+// computes none, in both threading modes.
+TEST(TpHandover, PieceLimitTablesAreNotComputedInTheServoCycle) {
+  PlannerConfig cfg = profile("lc", 0.001);
+  cfg.lookahead_segments = 1000;
+  const Program prog = spiral(1500);
+  for (PlannerThreading th : {PlannerThreading::Inline, PlannerThreading::OwnThread}) {
+    SCOPED_TRACE(th == PlannerThreading::Inline ? "inline" : "own thread");
+    Totals t;
+    auto planner = make_planner(cfg, th);
+    const RunResult r = run_program(*planner, cfg, prog, counting(t, th == PlannerThreading::OwnThread));
+    expect_clean(r);
+    EXPECT_GT(t.ingested, 1500u);
+    EXPECT_EQ(t.limits, 0u);
+    EXPECT_LE(t.most_ingested, Executor::kIngestPerCycle);
+  }
+}
+
+// Limits handed over while the machine moves apply from the next idle
+// moment on the servo side (the averaging window cannot change under a
+// moving machine), while the builder's side has taken them at once: the
+// tables it made for them do not match what the servo side runs with, so
+// the servo thread computes those itself, as before, and the motion holds
+// every limit.
+TEST(TpHandover, TablesForOtherLimitsAreRecomputedInTheServoCycle) {
+  PlannerConfig cfg = profile("lc", 0.001);
+  cfg.lookahead_segments = 200;
+  const Program prog = spiral(1500);
+  for (PlannerThreading th : {PlannerThreading::Inline, PlannerThreading::OwnThread}) {
+    SCOPED_TRACE(th == PlannerThreading::Inline ? "inline" : "own thread");
+    Totals t;
+    auto planner = make_planner(cfg, th);
+    RunOptions opt = counting(t, th == PlannerThreading::OwnThread);
+    auto count = opt.before_cycle;
+    bool changed = false;
+    opt.before_cycle = [&](uint64_t cycle, TrajectoryPlanner& p, CycleInputs& in) {
+      count(cycle, p, in);
+      // The same limits, a new configuration, once the machine moves (the
+      // builder's thread may be late on a loaded machine).
+      if (!changed && dynamic_cast<LookaheadPlanner&>(p).executor().is_moving()) {
+        p.set_config(cfg);
+        changed = true;
+      }
+    };
+    const RunResult r = run_program(*planner, cfg, prog, opt);
+    expect_clean(r);
+    EXPECT_TRUE(changed);
+    EXPECT_GT(t.limits, 100u);
+  }
+}
+
+// At a start the whole look-ahead arrives at once, and the envelope's
+// first walk from the tail came down to the input only after many cycles
+// at the urgent slice, the machine standing meanwhile (15 cycles on this
+// spiral: a burst of servo-thread work that bought nothing). The first
+// walk now begins a few spans ahead of the input and the machine moves
+// from the fourth cycle; the walk from the tail follows at its pace.
+TEST(TpHandover, AStartMovesWithinAFewCyclesWhenTheWholeLookaheadArrivesAtOnce) {
+  PlannerConfig cfg = profile("lc", 0.001);
+  cfg.lookahead_segments = 1000;
+  RunOptions opt;
+  opt.flush_at_end = true;
+  opt.moves_per_cycle = 1 << 20;
+  uint64_t first_moving = 0;
+  int urgent_cycles = 0;
+  opt.before_cycle = [&](uint64_t cycle, TrajectoryPlanner& planner, CycleInputs&) {
+    const Executor& e = dynamic_cast<LookaheadPlanner&>(planner).executor();
+    if (first_moving == 0 && e.is_moving()) first_moving = cycle;
+    if (cycle < 20 && e.cycle_work().envelope_queries > Executor::kQueriesPerCycle + Executor::kSpanQueriesMax) {
+      ++urgent_cycles;
+    }
+  };
+  const RunResult r = test::run_inline(cfg, spiral(1500), opt);
+  expect_clean(r);
+  EXPECT_GT(first_moving, 0u);
+  EXPECT_LE(first_moving, 6u);
+  // Cycles above the walk's ordinary slice while the look-ahead arrives
+  // (the first 20): 10 before, 4 now.
+  EXPECT_LE(urgent_cycles, 6);
+}
+
+// The machine waits a few cycles for the envelope at a start, with the
+// queue full (the whole look-ahead arrives at once). The rule that
+// flushes a full queue when the machine stands (a look-ahead shorter than
+// the executor's reach would wait forever otherwise) took that wait for a
+// stall: after 4 cycles it flushed the builder, inside the servo cycle
+// when inline, and the flush baked a stop into the end of the look-ahead,
+// where the machine then stopped in the middle of the spiral. The rule now
+// needs the machine to stand at the end of what is published.
+TEST(TpHandover, AFullQueueAtTheStartIsNotFlushedWhileTheMachineWaitsForTheEnvelope) {
+  PlannerConfig cfg = profile("lc", 0.001);
+  cfg.lookahead_segments = 500;
+  RunOptions opt;
+  opt.flush_at_end = true;
+  opt.moves_per_cycle = 1 << 20;
+  std::vector<double> v;
+  opt.before_cycle = [&](uint64_t, TrajectoryPlanner& planner, CycleInputs&) {
+    v.push_back(dynamic_cast<LookaheadPlanner&>(planner).executor().path_velocity());
+  };
+  const RunResult r = test::run_inline(cfg, spiral(2000), opt);
+  expect_clean(r);
+  ASSERT_GT(v.size(), 1000u);
+  // Moving all the way from its start to its final braking.
+  std::size_t first = 0;
+  while (first < v.size() && !(v[first] > 0)) ++first;
+  double slowest = 1e300;
+  for (std::size_t i = first + 200; i + 400 < v.size(); ++i) slowest = std::min(slowest, v[i]);
+  EXPECT_GT(slowest, 10.0);
+}
+
+}  // namespace
+}  // namespace cnc::tp
