@@ -262,9 +262,22 @@ void Executor::set_config(const PlannerConfig& config, uint64_t config_gen) noex
     configure(config);
     lim_->gen = config_gen;
     clear_history(x_);
+    config_pending_ = false;
   } else {
     cfg_ = config;
+    pending_gen_ = config_gen;
+    config_pending_ = true;
   }
+}
+
+void Executor::apply_pending_config() noexcept {
+  // Idle with what it has taken in: pieces published meanwhile are taken
+  // in after this, their limit tables checked against the new number.
+  if (!config_pending_ || !idle_ingested() || out_ != ptail_) return;
+  configure(cfg_);
+  lim_->gen = pending_gen_;
+  clear_history(x_);
+  config_pending_ = false;
 }
 
 void Executor::set_position(const Pose& pose) noexcept {
@@ -1422,6 +1435,9 @@ double Executor::stop_distance() const noexcept {
 void Executor::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
   ++cycles_;
   work_ = CycleWork{};
+  // Limits given while moving, at the first idle moment (before anything
+  // new is taken in).
+  apply_pending_config();
   ingest();
   const double kf = std::max(0.0, in.feed_scale);
   const double kr = std::max(0.0, in.rapid_scale);

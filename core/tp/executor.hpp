@@ -179,7 +179,10 @@ class Executor {
   Span& span(uint64_t seq) noexcept;
   const Span& span(uint64_t seq) const noexcept;
 
-  PlannerConfig cfg_;
+  PlannerConfig cfg_;  // the configuration given last (applied, or pending while moving)
+  bool config_pending_ = false;
+  uint64_t pending_gen_ = 0;
+  void apply_pending_config() noexcept;
   PathStore& store_;
   std::unique_ptr<PieceData[]> pdata_;
   std::size_t pmask_ = 0;

@@ -167,5 +167,44 @@ TEST(TpHandover, AFullQueueAtTheStartIsNotFlushedWhileTheMachineWaitsForTheEnvel
   EXPECT_GT(slowest, 10.0);
 }
 
+// Lower limits given while the machine moves (a program paused with moves
+// queued, the operator's new INI values): the moves already planned keep
+// theirs, and the servo side takes the new ones at the next idle moment,
+// so that the next program holds them at the output. It used to keep the
+// old ones until another configuration arrived while idle.
+TEST(TpHandover, LimitsGivenWhileMovingHoldForTheNextProgram) {
+  const PlannerConfig high = profile("lc", 0.001);
+  PlannerConfig low = high;
+  for (int i = 0; i < 3; ++i) low.axes[static_cast<std::size_t>(i)] = AxisLimits{50, 250, 10000};
+  for (PlannerThreading th : {PlannerThreading::Inline, PlannerThreading::OwnThread}) {
+    SCOPED_TRACE(th == PlannerThreading::Inline ? "inline" : "own thread");
+    auto planner = make_planner(high, th);
+    RunOptions opt;
+    opt.flush_at_end = true;
+    bool changed = false;
+    opt.before_cycle = [&](uint64_t, TrajectoryPlanner& p, CycleInputs&) {
+      if (th == PlannerThreading::OwnThread) std::this_thread::yield();
+      if (!changed && dynamic_cast<LookaheadPlanner&>(p).executor().is_moving()) {
+        p.set_config(low);
+        changed = true;
+      }
+    };
+    Program first;
+    first.start = pose(0, 0, 0);
+    first.moves.push_back(line_to(40, 0, 0, feed_params(100, 0.01, TermCond::ExactStop)));
+    expect_clean(run_program(*planner, high, first, opt));
+    ASSERT_TRUE(changed);
+    // The next program, checked against the lower limits.
+    Program second;
+    second.start = pose(40, 0, 0);
+    second.moves.push_back(line_to(0, 30, 0, feed_params(100, 0.01, TermCond::ExactStop)));
+    second.moves.push_back(line_to(10, 0, 0, feed_params(100, 0.01, TermCond::ExactStop)));
+    RunOptions plain;
+    plain.flush_at_end = true;
+    if (th == PlannerThreading::OwnThread) plain.before_cycle = [](uint64_t, TrajectoryPlanner&, CycleInputs&) { std::this_thread::yield(); };
+    expect_clean(run_program(*planner, low, second, plain));
+  }
+}
+
 }  // namespace
 }  // namespace cnc::tp
