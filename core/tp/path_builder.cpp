@@ -546,11 +546,11 @@ uint64_t PathBuilder::horizon(uint64_t j, uint64_t n) const noexcept {
   return j + n;
 }
 
-double PathBuilder::tolerance_at(double s, uint64_t near) const noexcept {
+uint64_t PathBuilder::segment_at(double s, uint64_t near) const noexcept {
   uint64_t k = near;
   while (k > first_seq_ && held(k).rec.s0 > s) --k;
   while (k + 1 < next_seq_ && held(k).rec.s0 + held(k).rec.curve.length < s) ++k;
-  return tolerance_of(k);
+  return k;
 }
 
 // Sum over the windows that cover s (vertices [lo, hi)) of each corner's
@@ -717,6 +717,7 @@ void PathBuilder::final_half(uint64_t j) noexcept {
   while (hi < next_tent_ && hi <= j + 2 * span && held(hi - 1).junction != Junction::Stop) ++hi;
   const double s_j = h.vx.s;
   Near* near = near_.get();  // hi - lo <= 4 span + 1 entries
+  double seg_lo = 0, seg_hi = 0, seg_tol = 0;  // the segment of the last sample: (s0, end), tolerance
   h.final = false;  // counts with h.tent while being checked
   for (int it = 0; it < 24; ++it) {
     const double d = h.tent;
@@ -740,17 +741,29 @@ void PathBuilder::final_half(uint64_t j) noexcept {
     const int n = std::clamp(static_cast<int>(std::ceil((b - a) / (d / 8))), 1, 64);
     const double step = (b - a) / n;
     const double margin = step * step / 8 * sec;
-    check_terms_ += static_cast<uint64_t>(n + 1) * static_cast<uint64_t>(nw);
     double worst = 1;
     double s_worst = s_j;
+    int first = 0;  // windows before it end before the sample (samples go forward)
     for (int i = 0; i <= n; ++i) {
       const double x = a + step * i;
-      const double tol = tolerance_at(x, j);
+      // The tolerance of the segment holding x (segment_at(x, j)): the
+      // previous sample's while x lies strictly inside that segment.
+      if (!(x > seg_lo && x < seg_hi)) {
+        const uint64_t k = segment_at(x, j);
+        seg_lo = held(k).rec.s0;
+        seg_hi = seg_lo + held(k).rec.curve.length;
+        seg_tol = tolerance_of(k);
+      }
+      const double tol = seg_tol;
       if (!(tol < kInf)) continue;
+      while (first < nw && x - near[first].s >= near[first].d) ++first;  // adds 0 from here on
+      check_terms_ += static_cast<uint64_t>(nw - first);
       double dev = margin;
       {
         double sum = 0;
-        for (int w = 0; w < nw; ++w) sum += correction_norm_at(near[w].dt_norm, near[w].m2, near[w].d, x - near[w].s);
+        for (int w = first; w < nw; ++w) {
+          sum += correction_norm_at(near[w].dt_norm, near[w].m2, near[w].d, x - near[w].s);
+        }
         dev += sum;
       }
       const double ratio = tol > 0 ? dev / tol : kInf;

@@ -78,7 +78,7 @@ class PathBuilder {
   double deviation_bound(double s, uint64_t lo, uint64_t hi, double* second) const noexcept;
   int dense_neighbours(uint64_t j, double d_max) const noexcept;
   double dense_deviation(int n, double d) const noexcept;
-  double tolerance_at(double s, uint64_t near) const noexcept;
+  uint64_t segment_at(double s, uint64_t near) const noexcept;
   bool emit_vertices_upto(uint64_t j) noexcept;
   bool emit_pieces(uint64_t m) noexcept;
   void compute_junction(uint64_t j) noexcept;
