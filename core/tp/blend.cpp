@@ -89,6 +89,7 @@ void add_correction_bounds(const Vertex& vx, double x0, double x1, const Curve& 
   const double g4 = b4 ? max_abs_pdf2(u0, u1) / (8 * d * d * d) : 0.0;
   for (std::size_t k = 0; k < b2.size(); ++k) {
     const double t = std::fabs(vx.dt[k]);
+    if (t == 0) continue;  // adds nothing (the factors are finite)
     b1[k] += t * g0;
     b2[k] += t * g1;
     b3[k] += t * g2;
@@ -116,17 +117,6 @@ double correction_size(const Vertex& vx, const Curve& in, const Curve& out) noex
     size += 0.25 * norm(m2) * vx.half * vx.half;
   }
   return size;
-}
-
-double correction_norm_at(double dt_norm, double m2, double d, double x, double* second) noexcept {
-  if (second) *second = dt_norm * kernel::kPdfMax / (2 * d) + 3.1 * m2;
-  const double ax = std::fabs(x);
-  if (!(d > 0) || ax >= d) return 0;
-  const double u = (d - ax) / (2 * d);
-  double e = dt_norm * 2 * d * kernel::ramp(u);
-  // The curvature blend g q0: |g| = W(u) here, |q0| <= m2 x^2 / 2.
-  if (m2 > 0) e += 0.5 * m2 * x * x * kernel::cdf(u);
-  return e;
 }
 
 }  // namespace cnc::tp

@@ -10,6 +10,8 @@
 // Realtime-safe: plain functions, no allocation.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 
 #include "core/tp/curve.hpp"
@@ -52,6 +54,24 @@ struct Vertex {
 void add_correction(const Vertex& vx, double x, bool after, const Curve& in, const Curve& out, AxisVec& p,
                     AxisVec* d1, AxisVec* d2, AxisVec* d3) noexcept;
 
+// The derivatives add_correction adds for a corner without a curved
+// neighbour (vx.curved false), without the position: the same values.
+inline void add_kink_derivatives(const Vertex& vx, double x, bool after, AxisVec& d1, AxisVec& d2,
+                                 AxisVec& d3) noexcept {
+  const double d = vx.half;
+  const double u = std::clamp((x + d) / (2 * d), 0.0, 1.0);
+  const double g = kernel::cdf(u) - (after ? 1.0 : 0.0);
+  const double g1 = kernel::pdf(u) / (2 * d);
+  const double g2 = kernel::pdf1(u) / (4 * d * d);
+  for (std::size_t k = 0; k < d1.size(); ++k) {
+    const double t = vx.dt[k];
+    if (t == 0) continue;
+    d1[k] += g * t;
+    d2[k] += g1 * t;
+    d3[k] += g2 * t;
+  }
+}
+
 // Per-axis bounds, over x in [x0, x1] (relative to the vertex), of the
 // first, second and third derivatives of the correction, added to b1, b2
 // and b3, and (when b4 is given, corners between straight moves only) of
@@ -70,6 +90,15 @@ double correction_size(const Vertex& vx, const Curve& in, const Curve& out) noex
 // Each term grows with d, so a sum over corners only shrinks when windows
 // do. `second`, if given, gets a bound of the second derivative over the
 // whole window.
-double correction_norm_at(double dt_norm, double m2, double d, double x, double* second = nullptr) noexcept;
+inline double correction_norm_at(double dt_norm, double m2, double d, double x, double* second = nullptr) noexcept {
+  if (second) *second = dt_norm * kernel::kPdfMax / (2 * d) + 3.1 * m2;
+  const double ax = std::fabs(x);
+  if (!(d > 0) || ax >= d) return 0;
+  const double u = (d - ax) / (2 * d);
+  double e = dt_norm * 2 * d * kernel::ramp(u);
+  // The curvature blend g q0: |g| = W(u) here, |q0| <= m2 x^2 / 2.
+  if (m2 > 0) e += 0.5 * m2 * x * x * kernel::cdf(u);
+  return e;
+}
 
 }  // namespace cnc::tp

@@ -93,6 +93,13 @@ struct PathBuilder::Held {
   bool final = false;       // vx.half is final
 };
 
+// A corner near the one being sized or checked: its position (or offset),
+// half width, |tangent jump| and curvature bound (scratch of tentative_half
+// and final_half, so their inner loops skip the corners out of reach).
+struct PathBuilder::Near {
+  double s, d, dt_norm, m2;
+};
+
 // The vertex smoothing stage (smoothing.hpp): the newest lines of a band,
 // held until the vertices around them are known.
 struct PathBuilder::Fit {
@@ -130,6 +137,7 @@ PathBuilder::PathBuilder(const PlannerConfig& config, PathStore& store)
   while (c < static_cast<std::size_t>(8 * span_ + 64)) c *= 2;
   held_ = std::make_unique<Held[]>(c);
   held_mask_ = c - 1;
+  near_ = std::make_unique<Near[]>(c);
 }
 
 PathBuilder::~PathBuilder() = default;
@@ -538,11 +546,11 @@ uint64_t PathBuilder::horizon(uint64_t j, uint64_t n) const noexcept {
   return j + n;
 }
 
-double PathBuilder::tolerance_at(double s, uint64_t near) const noexcept {
+uint64_t PathBuilder::segment_at(double s, uint64_t near) const noexcept {
   uint64_t k = near;
   while (k > first_seq_ && held(k).rec.s0 > s) --k;
   while (k + 1 < next_seq_ && held(k).rec.s0 + held(k).rec.curve.length < s) ++k;
-  return tolerance_of(k);
+  return k;
 }
 
 // Sum over the windows that cover s (vertices [lo, hi)) of each corner's
@@ -566,11 +574,14 @@ double PathBuilder::deviation_bound(double s, uint64_t lo, uint64_t hi, double* 
   return sum;
 }
 
-// Deviation at vertex j if every corner near it had half width d (the
-// first estimate of how wide a window a dense run of corners allows).
-double PathBuilder::dense_deviation(uint64_t j, double d) const noexcept {
+// The corners whose windows at half width d_max may reach vertex j (j
+// itself first, then the later ones, then the earlier ones): their offsets
+// from j into near_ (s), returns how many. dense_deviation() sums over them.
+int PathBuilder::dense_neighbours(uint64_t j, double d_max) const noexcept {
   const Held& h = held(j);
-  double sum = correction_norm_at(h.dt_norm, h.m2, d, 0);
+  Near* near = near_.get();
+  int n = 0;
+  near[n++] = {0, 0, h.dt_norm, h.m2};
   for (uint64_t k = j + 1; k < next_seq_; ++k) {
     const Held& o = held(k - 1);
     if (o.junction == Junction::Stop || o.junction == Junction::Unknown) break;
@@ -580,8 +591,8 @@ double PathBuilder::dense_deviation(uint64_t j, double d) const noexcept {
       continue;
     }
     const double x = held(k).vx.s - h.vx.s;
-    if (x >= d) break;
-    sum += correction_norm_at(held(k).dt_norm, held(k).m2, d, x);
+    if (x >= d_max) break;
+    near[n++] = {x, 0, held(k).dt_norm, held(k).m2};
   }
   for (uint64_t k = j; k > first_seq_;) {
     --k;
@@ -589,8 +600,21 @@ double PathBuilder::dense_deviation(uint64_t j, double d) const noexcept {
     if (o.junction == Junction::Stop) break;
     if (o.junction != Junction::Window) continue;
     const double x = h.vx.s - o.vx.s;
-    if (x >= d) break;
-    sum += correction_norm_at(o.dt_norm, o.m2, d, x);
+    if (x >= d_max) break;
+    near[n++] = {x, 0, o.dt_norm, o.m2};
+  }
+  return n;
+}
+
+// Deviation at vertex j if every corner near it had half width d <= d_max
+// (the first estimate of how wide a window a dense run of corners allows),
+// over the n corners dense_neighbours(j, d_max) found (the others are
+// farther than d: they add nothing).
+double PathBuilder::dense_deviation(int n, double d) const noexcept {
+  const Near* near = near_.get();
+  double sum = correction_norm_at(near[0].dt_norm, near[0].m2, d, 0);
+  for (int i = 1; i < n; ++i) {
+    if (near[i].s < d) sum += correction_norm_at(near[i].dt_norm, near[i].m2, d, near[i].s);
   }
   return sum;
 }
@@ -634,11 +658,12 @@ void PathBuilder::tentative_half(uint64_t j) noexcept {
   } else {
     const double budget = kTolShare * tol;
     d = std::min(d, solve_half(kernel::kDeviationPerHalfWidth * h.dt_norm, 0.25 * h.m2, budget));
-    if (d > 0 && dense_deviation(j, d) > budget) {
+    const int n = d > 0 ? dense_neighbours(j, d) : 0;
+    if (d > 0 && dense_deviation(n, d) > budget) {
       double lo = 0, hi = d;
       for (int it = 0; it < 14; ++it) {
         const double mid = 0.5 * (lo + hi);
-        (dense_deviation(j, mid) <= budget ? lo : hi) = mid;
+        (dense_deviation(n, mid) <= budget ? lo : hi) = mid;
       }
       d = lo;
     }
@@ -691,15 +716,18 @@ void PathBuilder::final_half(uint64_t j) noexcept {
   uint64_t hi = j + 1;
   while (hi < next_tent_ && hi <= j + 2 * span && held(hi - 1).junction != Junction::Stop) ++hi;
   const double s_j = h.vx.s;
+  Near* near = near_.get();  // hi - lo <= 4 span + 1 entries
+  double seg_lo = 0, seg_hi = 0, seg_tol = 0;  // the segment of the last sample: (s0, end), tolerance
   h.final = false;  // counts with h.tent while being checked
   for (int it = 0; it < 24; ++it) {
     const double d = h.tent;
     const double a = s_j - d;
     const double b = s_j + d;
     if (!(b > a) || !(d > 1e-12)) break;
-    // One bound of the second derivative over [a, b]: the sum over the
-    // windows that reach it.
+    // The windows that reach [a, b] (the others add nothing to any point
+    // of it), and one bound of the second derivative over [a, b]: their sum.
     double sec = 0;
+    int nw = 0;
     for (uint64_t k = lo; k < hi; ++k) {
       const Held& o = held(k);
       if (o.junction != Junction::Window) continue;
@@ -708,17 +736,36 @@ void PathBuilder::final_half(uint64_t j) noexcept {
       double sk = 0;
       correction_norm_at(o.dt_norm, o.m2, dk, dk, &sk);
       sec += sk;
+      near[nw++] = {o.vx.s, dk, o.dt_norm, o.m2};
     }
     const int n = std::clamp(static_cast<int>(std::ceil((b - a) / (d / 8))), 1, 64);
     const double step = (b - a) / n;
     const double margin = step * step / 8 * sec;
     double worst = 1;
     double s_worst = s_j;
+    int first = 0;  // windows before it end before the sample (samples go forward)
     for (int i = 0; i <= n; ++i) {
       const double x = a + step * i;
-      const double tol = tolerance_at(x, j);
+      // The tolerance of the segment holding x (segment_at(x, j)): the
+      // previous sample's while x lies strictly inside that segment.
+      if (!(x > seg_lo && x < seg_hi)) {
+        const uint64_t k = segment_at(x, j);
+        seg_lo = held(k).rec.s0;
+        seg_hi = seg_lo + held(k).rec.curve.length;
+        seg_tol = tolerance_of(k);
+      }
+      const double tol = seg_tol;
       if (!(tol < kInf)) continue;
-      const double dev = deviation_bound(x, lo, hi, nullptr) + margin;
+      while (first < nw && x - near[first].s >= near[first].d) ++first;  // adds 0 from here on
+      check_terms_ += static_cast<uint64_t>(nw - first);
+      double dev = margin;
+      {
+        double sum = 0;
+        for (int w = first; w < nw; ++w) {
+          sum += correction_norm_at(near[w].dt_norm, near[w].m2, near[w].d, x - near[w].s);
+        }
+        dev += sum;
+      }
       const double ratio = tol > 0 ? dev / tol : kInf;
       if (ratio > worst) {
         worst = ratio;
@@ -936,16 +983,31 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
       const double step = (b - a) / n;
       AxisVec m1{}, m2{}, m3{};
       double speed = 0;
+      // The windows on this piece; a corner between two lines adds only
+      // its kink's derivatives (no position, no neighbouring curves).
+      const Held* win[2 * 32 + 2];
+      uint64_t win_seq[2 * 32 + 2];
+      int nwin = 0;
+      for (uint64_t k = tlo; k < thi; ++k) {
+        const Held& o = held(k);
+        if (o.junction != Junction::Window || !(o.vx.half > 0)) continue;
+        win_seq[nwin] = k;
+        win[nwin++] = &o;
+      }
       for (int i = 0; i <= n; ++i) {
         const double x = a + step * i;
         AxisVec pos, d1, d2, d3;
         curve.eval(x, pos, &d1, &d2, &d3);
-        for (uint64_t k = tlo; k < thi; ++k) {
-          const Held& o = held(k);
-          if (o.junction != Junction::Window || !(o.vx.half > 0)) continue;
-          const double dx = h.rec.s0 + x - o.vx.s;
-          if (std::fabs(dx) >= o.vx.half) continue;
-          add_correction(o.vx, dx, m > k, held(k).rec.curve, held(k + 1).rec.curve, pos, &d1, &d2, &d3);
+        for (int w = 0; w < nwin; ++w) {
+          const Vertex& vx = win[w]->vx;
+          const uint64_t k = win_seq[w];
+          const double dx = h.rec.s0 + x - vx.s;
+          if (std::fabs(dx) >= vx.half) continue;
+          if (vx.curved) {
+            add_correction(vx, dx, m > k, held(k).rec.curve, held(k + 1).rec.curve, pos, &d1, &d2, &d3);
+            continue;
+          }
+          add_kink_derivatives(vx, dx, m > k, d1, d2, d3);
         }
         for (std::size_t k = 0; k < d1.size(); ++k) {
           m1[k] = std::max(m1[k], std::fabs(d1[k]));

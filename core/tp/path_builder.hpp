@@ -52,11 +52,15 @@ class PathBuilder {
   bool has_held() const noexcept;
   const Pose& position() const noexcept { return position_; }
   uint64_t segments_built() const noexcept { return built_; }
+  // Work of the final window checks: (sample, window) terms evaluated, a
+  // sample's deviation being the sum over the windows that may reach it.
+  uint64_t check_terms() const noexcept { return check_terms_; }
 
  private:
   struct Held;
   struct Merge;
   struct Fit;
+  struct Near;
   enum class Junction : uint8_t { Unknown, Smooth, Window, Stop };
 
   Result append(const Curve& curve, const SegmentParams& params, uint32_t inputs, double merge_err) noexcept;
@@ -72,8 +76,9 @@ class PathBuilder {
   void tentative_half(uint64_t j) noexcept;
   void final_half(uint64_t j) noexcept;
   double deviation_bound(double s, uint64_t lo, uint64_t hi, double* second) const noexcept;
-  double dense_deviation(uint64_t j, double d) const noexcept;
-  double tolerance_at(double s, uint64_t near) const noexcept;
+  int dense_neighbours(uint64_t j, double d_max) const noexcept;
+  double dense_deviation(int n, double d) const noexcept;
+  uint64_t segment_at(double s, uint64_t near) const noexcept;
   bool emit_vertices_upto(uint64_t j) noexcept;
   bool emit_pieces(uint64_t m) noexcept;
   void compute_junction(uint64_t j) noexcept;
@@ -86,6 +91,7 @@ class PathBuilder {
   PathStore& store_;
   std::unique_ptr<Held[]> held_;
   std::size_t held_mask_ = 0;
+  std::unique_ptr<Near[]> near_;  // scratch, one per held segment
   std::unique_ptr<Merge> merge_;
   std::unique_ptr<Fit> fit_;
   Pose position_;
@@ -98,6 +104,7 @@ class PathBuilder {
   double s_end_ = 0;             // global path position of the end of the last segment
   uint32_t epoch_ = 0;
   uint64_t built_ = 0;
+  uint64_t check_terms_ = 0;
   int span_ = 8;
 };
 
