@@ -256,7 +256,7 @@ std::optional<LoopGains> read_loop_gains(can::Transport& bus, int node, std::str
   LoopGains g;
   const auto kv = upload(bus, node, {0x60F9, 1}, timeout_ns);
   if (!kv.ok()) {
-    why = "node " + std::to_string(node) + " has no velocity control parameter set 0x60F9 (" + kv.abort_text() + ")";
+    why = "node " + std::to_string(node) + " has no readable velocity control parameter set 0x60F9 (" + kv.abort_text() + ")";
     return std::nullopt;
   }
   g.velocity_gain = value_of<uint32_t>(kv);

@@ -9,6 +9,7 @@
 
 #include "commission/response.hpp"
 #include "commission/state.hpp"
+#include "tests/commission/sim_bus_scan.hpp"
 #include "tests/support/testing.hpp"
 
 namespace cnc::commission {
@@ -173,6 +174,35 @@ TEST(ResponseConfiguration, MapsTheTargetVelocityAndWiresTheSignalGeneratorToThe
   s.axes[1].node = 0;
   s.axes[1].slave = 2;
   EXPECT_THROW(response_configuration(s, 'Y', dir.path(), "r"), std::invalid_argument);
+}
+
+// The gains by SDO on a simulated drive: read, written and read back; a
+// gain the drive refuses names the object; a drive without 0x60F9 is
+// skipped with the reason.
+TEST(ResponseGains, AreReadAndWrittenBySdoAndADriveWithoutThemIsSkipped) {
+  e2e::SimulatedCanDrives d;
+  d.add(1);
+  auto& other = d.add(2);
+  other.od().set_before_read({0x60F9, 1}, [](const canopen::OdEntry&) { return 0x06020000u; });
+  d.start();
+  std::string why;
+  const auto g = read_loop_gains(*d.client, 1, why);
+  ASSERT_TRUE(g) << why;
+  EXPECT_GT(g->velocity_gain, 0u);
+  EXPECT_EQ(g->velocity_integral, 60);
+  ASSERT_TRUE(g->position_gain);
+  EXPECT_EQ(*g->position_gain, 15000u);
+  write_velocity_gain(*d.client, 1, 777);
+  EXPECT_EQ(read_loop_gains(*d.client, 1, why)->velocity_gain, 777u);
+  try {
+    write_velocity_gain(*d.client, 1, 0);
+    FAIL() << "a zero gain was taken";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("0x60F9:01"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(read_loop_gains(*d.client, 2, why));
+  EXPECT_NE(why.find("node 2 has no readable velocity control parameter set 0x60F9"), std::string::npos) << why;
+  EXPECT_NE(why.find("06020000"), std::string::npos) << why;
 }
 
 }  // namespace
