@@ -41,6 +41,27 @@ class ResponseE2e : public ::testing::Test {
     std::fflush(stdout);
     return r;
   }
+  // A random one-axis machine and a state with X assigned on it, its
+  // travel entered (-10..10 mm around where the table powers up).
+  void write_machine() {
+    std::filesystem::create_directories(m_);
+    const csim::RandomMachine m = csim::make_random_machine(e2e::machine_seed(), {1}, "virtual:" + testing::unique_name("resp"));
+    e2e::write_machine_files(m_, m);
+    State s;
+    s.interface = m.interface;
+    ScannedNode n;
+    n.node_id = 1;
+    n.cia402 = true;
+    n.encoder_increments = static_cast<uint32_t>(m.axes[0].encoder_counts);
+    s.nodes.push_back(n);
+    assign_axis(s, 'X', 0, 1);
+    set_scaling(s, 'X', 5.0);  // the scaling may be wrong: command and feedback share it
+    s.axis('X')->min_limit = -10;
+    s.axis('X')->max_limit = 10;
+    s.axis('X')->limits_source = "entered";
+    e2e::include_machine_files(s);
+    save_state(s, state_);
+  }
   AxisResponse measure(const std::string& gain) {
     const auto r = cc("axis X response --bring-up '" + m_.string() + "' --record '" + (dir_ / "rec").string() + "' --amplitude 4" +
                       (gain.empty() ? "" : " --velocity-gain " + gain));
@@ -59,23 +80,7 @@ class ResponseE2e : public ::testing::Test {
 };
 
 TEST_F(ResponseE2e, AHigherVelocityGainWrittenTo60F9GivesAFasterStepAndAHigherBandwidth) {
-  std::filesystem::create_directories(m_);
-  const csim::RandomMachine m = csim::make_random_machine(e2e::machine_seed(), {1}, "virtual:" + testing::unique_name("resp"));
-  e2e::write_machine_files(m_, m);
-  State s;
-  s.interface = m.interface;
-  ScannedNode n;
-  n.node_id = 1;
-  n.cia402 = true;
-  n.encoder_increments = static_cast<uint32_t>(m.axes[0].encoder_counts);
-  s.nodes.push_back(n);
-  assign_axis(s, 'X', 0, 1);
-  set_scaling(s, 'X', 5.0);  // the scaling may be wrong: command and feedback share it
-  s.axis('X')->min_limit = -10;
-  s.axis('X')->max_limit = 10;
-  s.axis('X')->limits_source = "entered";
-  e2e::include_machine_files(s);
-  save_state(s, state_);
+  write_machine();
 
   // The drive's own gains (200 Hz): read, and recorded.
   const AxisResponse defaults = measure("");
@@ -101,6 +106,23 @@ TEST_F(ResponseE2e, AHigherVelocityGainWrittenTo60F9GivesAFasterStepAndAHigherBa
   EXPECT_FALSE(low.chirp->bandwidth_above) << "the low gain's bandwidth must lie inside the sweep";
   EXPECT_GT(high.chirp->bandwidth_hz, 1.3 * low.chirp->bandwidth_hz);
   EXPECT_LT(high.step->rise_time_s * 1.3, low.step->rise_time_s);
+}
+
+TEST_F(ResponseE2e, CtrlCDuringTheSweepStopsWithTheMachineOffAndLeavesTheStateAlone) {
+  write_machine();
+  const std::string before = e2e::read_text(state_);
+  const auto out = dir_ / "out.txt";
+  // SIGINT once the sweep runs (the third test), as Ctrl-C does.
+  const auto r = testing::run_shell(
+      "'" + (bin_ / "cnc-commission").string() + "' --state '" + state_.string() + "' axis X response --bring-up '" +
+      m_.string() + "' > '" + out.string() + "' 2>&1 & pid=$!; for i in $(seq 600); do grep -q '^progress: 3/' '" +
+      out.string() + "' && break; sleep 0.1; done; kill -INT $pid; wait $pid; echo \"status $?\"");
+  const std::string text = e2e::read_text(out);
+  std::printf("%s%s", text.c_str(), r.text.c_str());
+  EXPECT_NE(r.text.find("status 1"), std::string::npos) << r.text;
+  EXPECT_NE(text.find("aborted"), std::string::npos) << text;
+  EXPECT_NE(text.find("the machine is off again, the drives disabled"), std::string::npos) << text;
+  EXPECT_EQ(e2e::read_text(state_), before) << "an aborted response changed the state";
 }
 
 }  // namespace
