@@ -780,7 +780,10 @@ int cmd_response(State& s, Args& a, char letter) {
   if (!(o.amplitude_mm_s > 0 && o.amplitude_mm_s <= kMaxResponseAmplitude)) usage("response: --amplitude MM/S: 0 to 20");
   if (gain && *gain == 0) usage("response: --velocity-gain must be > 0");
   if (bring_up.empty()) usage("response: --bring-up DIR (the test runs on a response configuration of its own)");
-  if (step || chirp) o.step = step, o.chirp = chirp;
+  if (step || chirp) {  // one named: only it; neither: both
+    o.step = step;
+    o.chirp = chirp;
+  }
   if (o.record_dir.empty())
     o.record_dir = g_state_file.parent_path() / ("response-" + std::string(1, static_cast<char>(std::tolower(letter))));
   o.progress = [](const std::string& l) { std::cout << "progress: " << l << std::endl; };
