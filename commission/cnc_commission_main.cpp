@@ -37,6 +37,7 @@
 #include "commission/steps.hpp"
 #include "core/util/atomic_file.hpp"
 #include "commission/tuning.hpp"
+#include "commission/response.hpp"
 #include "core/util/strings.hpp"
 #include "fieldbus/can/transport.hpp"
 
@@ -85,6 +86,11 @@ const char* kHelp =
     "      soft limits, recorded every servo cycle as CSV in DIR), stopped at the first\n"
     "      saturation; recommends MAX_VELOCITY, MAX_ACCELERATION, MAX_JERK, FERROR and\n"
     "      MIN_FERROR (the highest clean test less PCT, default 20 %) for write\n"
+    "  axis L response [--step] [--chirp] [--amplitude MM/S] [--velocity-gain N]\n"
+    "              [--record DIR] [--bin DIR] --bring-up DIR\n"
+    "      step and swept-sine response of the drive's velocity loop (CSV, small\n"
+    "      amplitude) where the drive has 0x60F9: rise, overshoot, settling, gain and\n"
+    "      phase, -3 dB bandwidth; --velocity-gain writes 0x60F9:1 first (both: default)\n"
     "  axis L dial MM\n"
     "      the dial indicator's reading of the last test: flips REVERSE, corrects scale\n"
     "  axis L switches [--search MM] [--velocity MM/S] [--bin DIR] [--bring-up DIR]\n"
@@ -752,6 +758,77 @@ int cmd_tune(State& s, Args& a, char letter) {
   s.log.push_back("axis " + std::string(1, letter) + " tuned");
   return 0;
 }
+
+// Step 7's loop response (commission/response.hpp): on a controller of its
+// own (the response configuration), the drive's gains read by SDO first.
+int cmd_response(State& s, Args& a, char letter) {
+  ResponseOptions o;
+  std::filesystem::path bin = self_dir(), bring_up;
+  std::optional<uint32_t> gain;
+  bool step = false, chirp = false;
+  while (a.more()) {
+    const std::string k = a.next("option");
+    if (k == "--step") step = true;
+    else if (k == "--chirp") chirp = true;
+    else if (k == "--amplitude") o.amplitude_mm_s = number(a.next("mm/s"), "--amplitude");
+    else if (k == "--velocity-gain") gain = static_cast<uint32_t>(number(a.next("gain"), "--velocity-gain"));
+    else if (k == "--record") o.record_dir = a.next("folder");
+    else if (k == "--bin") bin = a.next("folder");
+    else if (k == "--bring-up") bring_up = a.next("folder");
+    else usage("response: unknown option " + k);
+  }
+  Axis* ax = s.axis(letter);
+  if (!ax) usage(std::string("axis ") + letter + " has no drive yet");
+  if (!(o.amplitude_mm_s > 0 && o.amplitude_mm_s <= kMaxResponseAmplitude)) usage("response: --amplitude MM/S: 0 to 20");
+  if (gain && *gain == 0) usage("response: --velocity-gain must be > 0");
+  if (bring_up.empty()) usage("response: --bring-up DIR (the test runs on a response configuration of its own)");
+  if (step || chirp) {  // one named: only it; neither: both
+    o.step = step;
+    o.chirp = chirp;
+  }
+  if (o.record_dir.empty())
+    o.record_dir = g_state_file.parent_path() / ("response-" + std::string(1, static_cast<char>(std::tolower(letter))));
+  o.progress = [](const std::string& l) { std::cout << "progress: " << l << std::endl; };
+  o.report = [](const std::string& l) { std::cout << l << std::endl; };
+  std::filesystem::create_directories(bring_up);
+  write_config(response_configuration(s, letter, bring_up, "commission-response"));
+  std::string out;
+  if (check_config(bin / "cncd", bring_up / "commission-response.ini", out) != 0)
+    throw std::runtime_error("the configuration written to " + bring_up.string() + " does not pass cncd --check --strict:\n" + out);
+  ControllerProcess own(bin, bring_up / "commission-response.ini", bring_up / "cncd.log");
+  AxisResponse r;
+  {
+    auto bus = cnc::can::open_transport(response_sdo_interface(s));
+    std::string why;
+    const auto gains = read_loop_gains(*bus, ax->node, why);
+    if (!gains) {
+      r.skipped = why;
+    } else {
+      r.gains = *gains;
+      if (gain) {
+        write_velocity_gain(*bus, ax->node, *gain);
+        r.gains = *read_loop_gains(*bus, ax->node, why);
+        std::cout << "axis " << letter << ": wrote " << *gain << " to 0x60F9:01\n";
+      }
+    }
+  }
+  if (!r.skipped.empty()) {
+    std::cout << "axis " << letter << ": no loop response measured: " << r.skipped << "\n";
+  } else {
+    std::cout << "axis " << letter << ": velocity gain 0x60F9:01 = " << r.gains.velocity_gain
+              << " (0.1 mN m s/rad on the simulated drive), integration time 0x60F9:02 = " << r.gains.velocity_integral;
+    if (r.gains.position_gain) std::cout << ", position gain 0x60FB:01 = " << *r.gains.position_gain;
+    std::cout << "\n";
+    const AxisResponse m = run_response(Controller(bin), *ax, o);
+    r.step = m.step;
+    r.chirp = m.chirp;
+  }
+  if (own.stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
+  std::cout << "axis " << letter << ": the machine is off again\n";
+  ax->response = r;
+  s.log.push_back("axis " + std::string(1, letter) + (r.skipped.empty() ? " loop response measured" : " loop response skipped"));
+  return 0;
+}
 // --- end of step 7 ---
 
 int cmd_axis(State& s, Args& a) {
@@ -881,6 +958,8 @@ int cmd_axis(State& s, Args& a) {
     s.log.push_back("axis " + std::string(1, letter) + " direction test");
   } else if (step == "tune") {
     return cmd_tune(s, a, letter);
+  } else if (step == "response") {
+    return cmd_response(s, a, letter);
   } else if (step == "dial") {
     const double dial = number(a.next("dial reading (mm)"), "dial");
     const Axis* ax = s.axis(letter);

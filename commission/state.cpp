@@ -323,6 +323,63 @@ AxisTuning tuning_from(const json& j) {
   get(j, "acceleration_limit", t.acceleration_limit);
   return t;
 }
+json response_json(const AxisResponse& r) {
+  json j = {{"skipped", r.skipped},
+            {"gains", {{"velocity_gain", r.gains.velocity_gain}, {"velocity_integral", r.gains.velocity_integral}}}};
+  put_opt(j["gains"], "position_gain", r.gains.position_gain);
+  if (r.step)
+    j["step"] = {{"amplitude_mm_s", r.step->amplitude_mm_s}, {"edges", r.step->edges},
+                 {"rise_time_s", r.step->rise_time_s}, {"overshoot_pct", r.step->overshoot_pct},
+                 {"settling_time_s", r.step->settling_time_s}, {"csv", r.step->csv}};
+  if (r.chirp) {
+    json points = json::array();
+    for (const FrequencyPoint& p : r.chirp->points)
+      points.push_back({{"frequency_hz", p.frequency_hz}, {"gain_db", p.gain_db}, {"phase_deg", p.phase_deg}});
+    j["chirp"] = {{"amplitude_mm_s", r.chirp->amplitude_mm_s}, {"points", points},
+                  {"bandwidth_hz", r.chirp->bandwidth_hz}, {"bandwidth_above", r.chirp->bandwidth_above},
+                  {"csv", r.chirp->csv}};
+  }
+  return j;
+}
+
+AxisResponse response_from(const json& j) {
+  AxisResponse r;
+  get(j, "skipped", r.skipped);
+  if (j.contains("gains")) {
+    get(j["gains"], "velocity_gain", r.gains.velocity_gain);
+    get(j["gains"], "velocity_integral", r.gains.velocity_integral);
+    get_opt(j["gains"], "position_gain", r.gains.position_gain);
+  }
+  if (j.contains("step")) {
+    StepResponse s;
+    const json& w = j["step"];
+    get(w, "amplitude_mm_s", s.amplitude_mm_s);
+    get(w, "edges", s.edges);
+    get(w, "rise_time_s", s.rise_time_s);
+    get(w, "overshoot_pct", s.overshoot_pct);
+    get(w, "settling_time_s", s.settling_time_s);
+    get(w, "csv", s.csv);
+    r.step = s;
+  }
+  if (j.contains("chirp")) {
+    ChirpResponse c;
+    const json& w = j["chirp"];
+    get(w, "amplitude_mm_s", c.amplitude_mm_s);
+    if (w.contains("points"))
+      for (const json& x : w["points"]) {
+        FrequencyPoint p;
+        get(x, "frequency_hz", p.frequency_hz);
+        get(x, "gain_db", p.gain_db);
+        get(x, "phase_deg", p.phase_deg);
+        c.points.push_back(p);
+      }
+    get(w, "bandwidth_hz", c.bandwidth_hz);
+    get(w, "bandwidth_above", c.bandwidth_above);
+    get(w, "csv", c.csv);
+    r.chirp = c;
+  }
+  return r;
+}
 // --- end of step 7 ---
 
 json axis_json(const Axis& a) {
@@ -348,6 +405,7 @@ json axis_json(const Axis& a) {
   if (a.compensation) j["compensation"] = compensation_json(*a.compensation);
   put_steps56(j, a);
   if (a.tuning) j["tuning"] = tuning_json(*a.tuning);
+  if (a.response) j["response"] = response_json(*a.response);
   return j;
 }
 
@@ -411,6 +469,7 @@ Axis axis_from(const json& j, const std::string& origin) {
   if (j.contains("compensation")) a.compensation = compensation_from(j["compensation"], origin);
   get_steps56(j, a);
   if (j.contains("tuning")) a.tuning = tuning_from(j["tuning"]);
+  if (j.contains("response")) a.response = response_from(j["response"]);
   return a;
 }
 

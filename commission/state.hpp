@@ -176,6 +176,38 @@ struct AxisTuning {
   double ferror = 0, min_ferror = 0;                            // recommended
   std::string velocity_limit, acceleration_limit;  // what bounded each: a saturated test, a ceiling, the travel
 };
+// Step 7's response of the drive's velocity loop (commission/response.hpp):
+// the gains read from the drive (raw object values; units in
+// docs/commissioning.md), the step's figures and the swept sine's points.
+struct LoopGains {
+  uint32_t velocity_gain = 0;       // 0x60F9:1
+  uint16_t velocity_integral = 0;   // 0x60F9:2
+  std::optional<uint32_t> position_gain;  // 0x60FB:1 (when the drive has it)
+};
+struct StepResponse {
+  double amplitude_mm_s = 0;        // the command steps between -amplitude and +amplitude
+  int edges = 0;                    // steps analysed
+  double rise_time_s = 0;           // 10 % to 90 %, mean over the edges
+  double overshoot_pct = 0;         // peak over the step, mean
+  double settling_time_s = -1;      // from the edge into +-5 % for good (-1: did not settle)
+  std::string csv;                  // the record
+};
+struct FrequencyPoint {
+  double frequency_hz = 0, gain_db = 0, phase_deg = 0;  // velocity feedback over command
+};
+struct ChirpResponse {
+  double amplitude_mm_s = 0;
+  std::vector<FrequencyPoint> points;
+  double bandwidth_hz = 0;          // -3 dB against the lowest frequency's gain
+  bool bandwidth_above = false;     // no point below -3 dB: it lies above bandwidth_hz (the highest tested)
+  std::string csv;
+};
+struct AxisResponse {
+  std::string skipped;              // why nothing was measured ("" measured)
+  LoopGains gains;
+  std::optional<StepResponse> step;
+  std::optional<ChirpResponse> chirp;
+};
 // --- end of step 7 ---
 
 // --- Step 9's check (cnc-commission check) ---
@@ -219,6 +251,7 @@ struct Axis {
   std::optional<AxisSwitches> switches;  // step 5
   std::optional<AxisHoming> homing;      // step 6
   std::optional<AxisTuning> tuning;  // step 7: the writer uses its recommendations
+  std::optional<AxisResponse> response;  // step 7: the velocity loop's step and swept-sine response
 };
 
 struct State {

@@ -21,9 +21,11 @@
 #include <QtCharts/QChart>
 #include <QtCharts/QChartView>
 #include <QtCharts/QLineSeries>
+#include <QtCharts/QLogValueAxis>
 #include <QtCharts/QValueAxis>
 #include <cmath>
 
+#include "commission/response.hpp"
 #include "commission/scan.hpp"
 #include "commission/steps.hpp"  // machine_joints
 #include "commission/wizard/wizard_window.hpp"
@@ -550,6 +552,108 @@ void plot(QChartView* v, const std::vector<double>& t, const std::vector<double>
   v->chart()->axes(Qt::Vertical).at(0)->setRange(lo - pad, hi + pad);
 }
 
+// The step response: command and velocity feedback against time.
+QChartView* step_chart() {
+  QChartView* v = trace_chart("stepChart", "velocity loop: step", "mm/s");
+  auto* fb = new QLineSeries;
+  fb->setName("velocity");
+  v->chart()->addSeries(fb);
+  fb->attachAxis(v->chart()->axes(Qt::Horizontal).at(0));
+  fb->attachAxis(v->chart()->axes(Qt::Vertical).at(0));
+  v->chart()->series().at(0)->setName("command");
+  v->chart()->legend()->show();
+  return v;
+}
+
+void plot_step(QChartView* v, const std::vector<ResponseSample>& r) {
+  std::vector<double> t, cmd, fb;
+  for (const ResponseSample& x : r) {
+    t.push_back(x.time_s);
+    cmd.push_back(x.vel_cmd_mm_s);
+    fb.push_back(x.velocity_mm_s);
+  }
+  plot(v, t, cmd);  // the axes' ranges from the command; the feedback's overshoot widens them
+  QList<QPointF> pts;
+  double lo = 0, hi = 0;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    pts.append(QPointF(t[i], fb[i]));
+    lo = std::min({lo, fb[i], cmd[i]});
+    hi = std::max({hi, fb[i], cmd[i]});
+  }
+  static_cast<QLineSeries*>(v->chart()->series().at(1))->replace(pts);
+  if (hi > lo) v->chart()->axes(Qt::Vertical).at(0)->setRange(lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo));
+}
+
+// The swept sine: gain (dB, left) and phase (degrees, right) over a
+// logarithmic frequency axis.
+QChartView* bode_chart() {
+  auto* chart = new QChart;
+  chart->setTitle("velocity loop: swept sine");
+  auto* gain = new QLineSeries;
+  gain->setName("gain dB");
+  auto* phase = new QLineSeries;
+  phase->setName("phase deg");
+  chart->addSeries(gain);
+  chart->addSeries(phase);
+  auto* f = new QLogValueAxis;
+  f->setTitleText("Hz");
+  f->setLabelFormat("%g");
+  f->setBase(10);
+  auto* db = new QValueAxis;
+  db->setTitleText("dB");
+  auto* deg = new QValueAxis;
+  deg->setTitleText("deg");
+  chart->addAxis(f, Qt::AlignBottom);
+  chart->addAxis(db, Qt::AlignLeft);
+  chart->addAxis(deg, Qt::AlignRight);
+  gain->attachAxis(f);
+  gain->attachAxis(db);
+  phase->attachAxis(f);
+  phase->attachAxis(deg);
+  auto* v = new QChartView(chart);
+  v->setObjectName("bodeChart");
+  v->setMinimumHeight(260);
+  v->setRenderHint(QPainter::Antialiasing);
+  return v;
+}
+
+void plot_bode(QChartView* v, const std::vector<FrequencyPoint>& p) {
+  QList<QPointF> g, ph;
+  double glo = -6, ghi = 3, plo = -180, phi = 0;
+  for (const FrequencyPoint& x : p) {
+    g.append(QPointF(x.frequency_hz, x.gain_db));
+    ph.append(QPointF(x.frequency_hz, x.phase_deg));
+    glo = std::min(glo, x.gain_db);
+    ghi = std::max(ghi, x.gain_db);
+    plo = std::min(plo, x.phase_deg);
+    phi = std::max(phi, x.phase_deg);
+  }
+  static_cast<QLineSeries*>(v->chart()->series().at(0))->replace(g);
+  static_cast<QLineSeries*>(v->chart()->series().at(1))->replace(ph);
+  v->chart()->axes(Qt::Horizontal).at(0)->setRange(p.empty() ? 1 : p.front().frequency_hz, p.empty() ? 100 : p.back().frequency_hz);
+  v->chart()->axes(Qt::Vertical).at(0)->setRange(glo - 1, ghi + 1);
+  v->chart()->axes(Qt::Vertical).at(1)->setRange(plo - 10, phi + 10);
+}
+
+QString response_text(const AxisResponse& r) {
+  if (!r.skipped.empty()) return "not measured: " + QString::fromStdString(r.skipped);
+  QString t = QString("0x60F9 velocity gain %1, integration time %2").arg(r.gains.velocity_gain).arg(r.gains.velocity_integral);
+  if (r.gains.position_gain) t += QString(", 0x60FB position gain %1").arg(*r.gains.position_gain);
+  if (r.step)
+    t += QString("\nstep +-%1 mm/s: rise %2 ms, overshoot %3 %, settling %4")
+             .arg(r.step->amplitude_mm_s)
+             .arg(r.step->rise_time_s * 1000, 0, 'f', 1)
+             .arg(r.step->overshoot_pct, 0, 'f', 1)
+             .arg(r.step->settling_time_s < 0 ? QString("not within the step")
+                                               : QString("%1 ms").arg(r.step->settling_time_s * 1000, 0, 'f', 1));
+  if (r.chirp)
+    t += QString("\nswept sine: -3 dB bandwidth %1%2 Hz (%3 frequencies)")
+             .arg(r.chirp->bandwidth_above ? "above " : "")
+             .arg(r.chirp->bandwidth_hz, 0, 'f', 1)
+             .arg(r.chirp->points.size());
+  return t;
+}
+
 class TuningPage : public AxisPage {
  public:
   explicit TuningPage(WizardWindow& w)
@@ -582,6 +686,23 @@ class TuningPage : public AxisPage {
     charts->addWidget(torque_ = trace_chart("torqueChart", "torque", "%"));
     charts->addWidget(velocity_ = trace_chart("velocityChart", "velocity", "mm/s"));
     column_->addLayout(charts, 1);
+    // The drive's velocity loop (step and swept sine), where the drive
+    // exposes its gains (0x60F9).
+    response_gain_ = count("responseGain", 0, 2'000'000'000, 0);
+    response_gain_->setSpecialValueText("as the drive has it");
+    auto* rb = button("Measure response", "responseButton");
+    form_->addRow("Velocity loop: gain 0x60F9:1 to write", row({response_gain_, rb}));
+    form_->addRow("Loop response", response_ = shown("responseResult"));
+    auto* rcharts = new QHBoxLayout;
+    rcharts->addWidget(step_ = step_chart());
+    rcharts->addWidget(bode_ = bode_chart());
+    column_->addLayout(rcharts, 1);
+    connect(rb, &QPushButton::clicked, this, [this] {
+      run([this] {
+        return w_.builder().response(letter(), response_gain_->value(), response_dir().toStdString(),
+                                     w_.options().config_dir.toStdString());
+      });
+    });
     connect(tb, &QPushButton::clicked, this, [this] {
       run([this] {
         return w_.builder().tune(letter(), maxv_->value(), maxa_->value(), margin_->value(), record_dir().toStdString(),
@@ -598,8 +719,29 @@ class TuningPage : public AxisPage {
     connect(recordings_, &QComboBox::currentIndexChanged, this, [this] { show_recording(); });
   }
   QString record_dir() const { return w_.options().config_dir + "/tune-" + QString(QChar(letter())); }
+  QString response_dir() const { return w_.options().config_dir + "/response-" + QString(QChar(letter())); }
+  void show_response(const Axis* a) {
+    std::vector<ResponseSample> step;
+    std::vector<FrequencyPoint> points;
+    response_->setText("(not measured yet)");
+    if (a && a->response) {
+      QString text = response_text(*a->response);
+      if (a->response->step) {
+        try {
+          step = load_response_csv(a->response->step->csv);
+        } catch (const std::exception& e) {
+          text += "\n" + QString::fromStdString(e.what());
+        }
+      }
+      if (a->response->chirp) points = a->response->chirp->points;
+      response_->setText(text);
+    }
+    plot_step(step_, step);
+    plot_bode(bode_, points);
+  }
   void show_axis(const State& s) override {
     const Axis* a = axis(s);
+    show_response(a);
     if (a && a->tuning) {
       const AxisTuning& t = *a->tuning;
       recommended_->setText(QString("MAX_VELOCITY %1 mm/s, MAX_ACCELERATION %2 mm/s2, MAX_JERK %3 mm/s3, FERROR %4 mm, "
@@ -654,6 +796,9 @@ class TuningPage : public AxisPage {
   QSpinBox* steps_;
   QLabel *recommended_, *accepted_, *trace_error_;
   QChartView *ferror_, *torque_, *velocity_;
+  QSpinBox* response_gain_;
+  QLabel* response_;
+  QChartView *step_, *bode_;
 };
 
 // ------------------------------------------------------------ 8 compensation

@@ -227,6 +227,18 @@ Argv CommandBuilder::accept_tuning(const Axis& ax) const {
   return limits(ax.letter, ax.min_limit, ax.max_limit, ax.tuning->max_velocity, ax.tuning->max_acceleration);
 }
 
+Argv CommandBuilder::response(char letter, long velocity_gain, const std::string& record_dir,
+                              const std::string& bring_up_dir) const {
+  require(bring_up_dir, "configuration folder");
+  Argv a = axis(letter, "response");
+  if (velocity_gain < 0 || velocity_gain > 4'000'000'000L)
+    throw std::invalid_argument("velocity gain " + std::to_string(velocity_gain) + ": expected 0 (keep) to 4000000000");
+  if (velocity_gain > 0) a.insert(a.end(), {"--velocity-gain", std::to_string(velocity_gain)});
+  if (!trim_copy(record_dir).empty()) a.insert(a.end(), {"--record", trim_copy(record_dir)});
+  add_bring_up(a, bring_up_dir);
+  return a;
+}
+
 Argv CommandBuilder::comp_program(char letter, const std::string& out_ngc, const CompCycle& c) const {
   require(out_ngc, "program file");
   Argv a = axis(letter, "comp-program");

@@ -89,6 +89,10 @@ class CommandBuilder {
   // steps after it (the compensation cycle's feed) run at them; `write`
   // takes all of them from the tuning. Throws when the axis has none.
   Argv accept_tuning(const Axis& a) const;
+  // Step 7's loop response (step and swept sine of the drive's velocity
+  // loop), always on a response configuration of its own in
+  // `bring_up_dir`; velocity_gain > 0 is written to 0x60F9:1 first.
+  Argv response(char letter, long velocity_gain, const std::string& record_dir, const std::string& bring_up_dir) const;
   // Step 8.
   Argv comp_program(char letter, const std::string& out_ngc, const CompCycle& cycle = {}) const;
   // The cycle run; the readings from a laser's HAL pin (laser_pin, mm) or

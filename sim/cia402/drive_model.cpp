@@ -111,6 +111,26 @@ void DriveModel::add_objects() {
   od.add({0x60FE, 2}, D::Unsigned32, A::ReadWrite, 0, false, "Bit mask");
   add(obj::kTargetVelocity, D::Integer32, A::ReadWrite, 0, true, "Target velocity");
   add(obj::kSupportedModes, D::Unsigned32, A::ReadOnly, cfg_.supported_modes, false, "Supported drive modes");
+  // The loops' parameter sets (ServoGains: units).
+  const double kv_default = cfg_.gains.velocity_gain > 0 ? cfg_.gains.velocity_gain
+                                                         : j * 6.283185307179586 * cfg_.gains.velocity_bandwidth_hz;
+  auto scaled = [](double v, double unit, double max) {
+    return static_cast<uint64_t>(std::llround(std::clamp(v / unit, 0.0, max)));
+  };
+  count(0x60F9, 2, "Velocity control parameter set");
+  od.add({0x60F9, 1}, D::Unsigned32, A::ReadWrite, std::max<uint64_t>(1, scaled(kv_default, 1e-4, 4e9)), false,
+         "Velocity gain (0.1 mN m s/rad)");
+  od.add({0x60F9, 2}, D::Unsigned16, A::ReadWrite, scaled(cfg_.gains.velocity_integral_time, 1e-4, 65535), false,
+         "Velocity integration time constant (0.1 ms)");
+  count(0x60FB, 5, "Position control parameter set");
+  od.add({0x60FB, 1}, D::Unsigned32, A::ReadWrite, scaled(cfg_.gains.position_gain, 0.01, 4e9), false,
+         "Position gain (0.01 1/s)");
+  od.add({0x60FB, 2}, D::Unsigned16, A::ReadOnly, 0, false, "Position integration time constant (none)");
+  od.add({0x60FB, 3}, D::Unsigned16, A::ReadOnly, 0, false, "Position differentiation time constant (none)");
+  od.add({0x60FB, 4}, D::Unsigned16, A::ReadWrite, scaled(cfg_.gains.velocity_ff, 1e-3, 1000), false,
+         "Velocity feed-forward (per mille)");
+  od.add({0x60FB, 5}, D::Unsigned16, A::ReadWrite, scaled(cfg_.gains.torque_ff, 1e-3, 1000), false,
+         "Acceleration feed-forward (per mille)");
   // Simulator objects (manufacturer range).
   od.add({0x2000, 0}, D::Integer16, A::ReadOnly, 0, true, "Drive temperature (0.1 C)");
   od.add({0x2001, 0}, D::Real64, A::ReadOnly, 0, false, "True table position (mm, interferometer)");
@@ -163,13 +183,18 @@ void DriveModel::add_objects() {
   ip_value_ = od.var<uint8_t>(at(obj::kInterpolationPeriodValue));
   temperature_obj_ = od.var<int16_t>({0x2000, 0});
   table_position_obj_ = od.var<double>({0x2001, 0});
+  velocity_gain_obj_ = od.var<uint32_t>({0x60F9, 1});
+  velocity_ti_obj_ = od.var<uint16_t>({0x60F9, 2});
+  position_gain_obj_ = od.var<uint32_t>({0x60FB, 1});
+  velocity_ff_obj_ = od.var<uint16_t>({0x60FB, 4});
+  torque_ff_obj_ = od.var<uint16_t>({0x60FB, 5});
   if (od.find({0x1001, 0})) error_register_ = od.var<uint8_t>({0x1001, 0});
   if (od.find({0x1006, 0})) comm_cycle_us_ = od.var<uint32_t>({0x1006, 0});
 
   auto check = [this](const canopen::OdEntry& e, const uint8_t* d, std::size_t n) { return check_write(e, d, n); };
   for (uint16_t index : {0x6007, 0x605A, 0x605B, 0x605C, 0x605D, 0x605E, 0x6060, 0x6065, 0x6066, 0x6067, 0x6068, 0x6071,
                          0x6072, 0x607A, 0x607C, 0x607D, 0x607F, 0x6080, 0x6083, 0x6084, 0x6085, 0x6098, 0x6099, 0x609A,
-                         0x60B1, 0x60B2, 0x60B8, 0x60C2, 0x60FE, 0x60FF}) {
+                         0x60B1, 0x60B2, 0x60B8, 0x60C2, 0x60F9, 0x60FB, 0x60FE, 0x60FF}) {
     od.set_write_check(index, check);
   }
   od.set_after_write(obj::kControlword.index, [this](const canopen::OdEntry&) { controlword_written(); });
@@ -183,6 +208,11 @@ uint32_t DriveModel::check_write(const canopen::OdEntry& e, const uint8_t* d, st
     const int bit = supported_mode_bit(m);
     if (m != Mode::None && (bit < 0 || !((supported_modes_.get() >> bit) & 1u))) return kAbortValueRange;
   }
+  // A velocity loop without gain does not hold the axis; feed-forward
+  // above 100 % is not a drive's.
+  if (e.addr == ObjectAddress{0x60F9, 1} && n >= 4 && (d[0] | d[1] | d[2] | d[3]) == 0) return kAbortValueRange;
+  if (e.addr.index == 0x60FB && (e.addr.sub == 4 || e.addr.sub == 5) && n >= 2 && (d[0] | (d[1] << 8)) > 1000)
+    return kAbortValueRange;
   if (e.addr.index == obj::kHomingMethod.index) {
     const int m = static_cast<int8_t>(d[0]);
     if (!HomingEngine::is_supported(m)) return kAbortValueRange;
@@ -757,26 +787,29 @@ void DriveModel::step(double dt) noexcept {
 
   // Cascaded loops: position (P + velocity feed-forward) -> velocity (PI +
   // torque feed-forward) -> current limit and lag in the plant.
-  const ServoGains& g = cfg_.gains;
+  // The gains as 0x60F9 and 0x60FB hold them now.
   const double j = plant_.reflected_inertia();
-  const double kv = g.velocity_gain > 0 ? g.velocity_gain : j * 6.283185307179586 * g.velocity_bandwidth_hz;
+  const double kv = velocity_gain_obj_.get() * 1e-4;
+  const double ti = velocity_ti_obj_.get() * 1e-4;
+  const double kp = position_gain_obj_.get() * 0.01;
+  const double velocity_ff = velocity_ff_obj_.get() * 1e-3, torque_ff = torque_ff_obj_.get() * 1e-3;
   torque_limited_ = false;
   if (power && !torque_mode) {
-    if (position_loop) v_ref = g.position_gain * (demand_ - measured_) + g.velocity_ff * vff_;
+    if (position_loop) v_ref = kp * (demand_ - measured_) + velocity_ff * vff_;
     const double ev = (v_ref - velocity_est_) / cpr;  // rad/s
-    const double wanted = kv * ev + integral_ + g.torque_ff * j * aff_ / cpr;
+    const double wanted = kv * ev + integral_ + torque_ff * j * aff_ / cpr;
     // The torque the drive can give: 0x6072, and never more than the power
     // stage's current limit.
     const double max_t = std::min(max_torque_.get() * 0.001 * cfg_.plant.rated_torque,
                                   cfg_.plant.torque_constant * cfg_.plant.max_current);
     torque_cmd = std::clamp(wanted, -max_t, max_t);
     torque_limited_ = wanted != torque_cmd || plant_.current_limited();
-    if (g.velocity_integral_time > 0) {
+    if (ti > 0) {
       // Anti-windup (conditional integration): while the command is at the
       // torque limit the integral may only move back towards it, and it
       // never holds more than the limit. Without this a saturated loop winds
       // up and the axis swings out further with every reversal.
-      const double di = kv / g.velocity_integral_time * ev * dt;
+      const double di = kv / ti * ev * dt;
       if (!torque_limited_ || (di > 0) != (wanted > 0)) integral_ = std::clamp(integral_ + di, -max_t, max_t);
     }
   } else if (!power) {

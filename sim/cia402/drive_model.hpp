@@ -5,7 +5,8 @@
 // following-error window and time-out (0x6065/0x6066), quick stop, halt and
 // fault reactions (0x605A-0x605E, 0x6007), and a cascaded position /
 // velocity loop with feed-forward over the plant (plant.hpp) at a fine
-// time step. Faults raise an error code (0x603F) and an emergency through a
+// time step, its gains in the dictionary (0x60F9 velocity and 0x60FB
+// position control parameter sets, ServoGains: units), read every step. Faults raise an error code (0x603F) and an emergency through a
 // hook. Injected faults: overcurrent, overtemperature, a mechanical jam
 // (following error), encoder loss, refused parameter writes.
 //
@@ -26,6 +27,14 @@
 
 namespace cnc::cia402::sim {
 
+// The loops' gains, the defaults of the parameter-set objects (written
+// by SDO or CoE at run time, they take effect at the next step):
+// 0x60F9:1 velocity gain, UNSIGNED32 in 0.1 mN m s/rad (1e-4 N m per rad/s);
+// 0x60F9:2 integration time constant, UNSIGNED16 in 0.1 ms (0: none);
+// 0x60FB:1 position gain, UNSIGNED32 in 0.01 1/s; 0x60FB:2 and :3
+// (integration and differentiation time) read 0: the position loop is P;
+// 0x60FB:4 velocity and :5 acceleration (torque) feed-forward, UNSIGNED16
+// in per mille.
 struct ServoGains {
   double position_gain = 150;         // 1/s
   double velocity_bandwidth_hz = 200; // the velocity loop's P gain = reflected inertia x 2 pi f
@@ -167,6 +176,8 @@ class DriveModel {
   canopen::ObjectDictionary::Var<uint32_t> comm_cycle_us_;  // 0x1006 when present
   canopen::ObjectDictionary::Var<int16_t> temperature_obj_;
   canopen::ObjectDictionary::Var<double> table_position_obj_;
+  canopen::ObjectDictionary::Var<uint32_t> velocity_gain_obj_, position_gain_obj_;
+  canopen::ObjectDictionary::Var<uint16_t> velocity_ti_obj_, velocity_ff_obj_, torque_ff_obj_;
 
   // state machine
   State state_ = State::NotReadyToSwitchOn;

@@ -372,6 +372,43 @@ TEST(Cia402Sim, CsvFollowsTheTargetVelocity) {
   EXPECT_NEAR(d.model.plant().table_velocity() * 1000.0, 10.0, 0.2);
 }
 
+// 0x60F9 / 0x60FB: the loops' gains as objects (ServoGains: units).
+TEST(Cia402Sim, LoopGainsAreObjectsWithTheConfiguredDefaults) {
+  SimDrive d;
+  const double j = d.model.plant().reflected_inertia();
+  const double kv = j * 2 * M_PI * base_config().gains.velocity_bandwidth_hz;
+  EXPECT_EQ(d.od.get<uint8_t>({0x60F9, 0}), 2);
+  EXPECT_NEAR(d.od.get<uint32_t>({0x60F9, 1}), kv / 1e-4, 1.0);
+  EXPECT_EQ(d.od.get<uint16_t>({0x60F9, 2}), std::lround(base_config().gains.velocity_integral_time / 1e-4));
+  EXPECT_EQ(d.od.get<uint8_t>({0x60FB, 0}), 5);
+  EXPECT_EQ(d.od.get<uint32_t>({0x60FB, 1}), std::lround(base_config().gains.position_gain * 100));
+  EXPECT_EQ(d.od.get<uint16_t>({0x60FB, 4}), 1000);
+  EXPECT_EQ(d.sdo_write(0x60F9, 1, 0, 4), 0x06090030u);    // no gain: refused
+  EXPECT_EQ(d.sdo_write(0x60FB, 4, 1001, 2), 0x06090030u); // above 100 %
+  EXPECT_NE(d.sdo_write(0x60FB, 2, 5, 2), 0u);             // the position loop has no integral
+}
+
+// The time the velocity takes to reach 90 % of a CSV step, for a
+// velocity gain written by SDO (0.1 mN m s/rad).
+static int csv_rise_ms(uint32_t velocity_gain) {
+  SimDrive d;
+  EXPECT_EQ(d.sdo_write(0x60F9, 1, velocity_gain, 4), 0u);
+  d.enable(Mode::CyclicSyncVelocity);
+  d.syncs(50);
+  d.od.set<int32_t>({0x60FF, 0}, 20'000);  // 10 mm/s
+  for (int ms = 1; ms <= 500; ++ms) {
+    d.sync();
+    if (d.model.plant().table_velocity() * 1000.0 >= 9.0) return ms;
+  }
+  return 1000;
+}
+
+TEST(Cia402Sim, AHigherVelocityGainWrittenTo60F9RisesFaster) {
+  const uint32_t kv = SimDrive().od.get<uint32_t>({0x60F9, 1});
+  const int slow = csv_rise_ms(kv / 10), fast = csv_rise_ms(kv / 5);
+  EXPECT_LT(fast * 1.4, slow) << "rise " << fast << " ms at 20 %, " << slow << " ms at 10 % of the default gain";
+}
+
 TEST(Cia402Sim, CstAppliesTheTargetTorque) {
   SimDrive d;
   d.enable(Mode::CyclicSyncTorque);

@@ -105,6 +105,14 @@ TEST(WizardCommands, TuneRecordsIntoTheGivenFolder) {
   EXPECT_THROW(b.tune('X', 0, 0, 100, ""), std::invalid_argument);
 }
 
+TEST(WizardCommands, ResponseAlwaysBringsUpItsOwnControllerAndWritesAGainOnlyWhenGiven) {
+  EXPECT_EQ(b.response('X', 0, "/m/response-X", "/m"),
+            with_state({"axis", "X", "response", "--record", "/m/response-X", "--bring-up", "/m"}));
+  EXPECT_EQ(b.response('Y', 700, "", "/m"), with_state({"axis", "Y", "response", "--velocity-gain", "700", "--bring-up", "/m"}));
+  EXPECT_THROW(b.response('X', 0, "/m/r", ""), std::invalid_argument);
+  EXPECT_THROW(b.response('X', -1, "/m/r", "/m"), std::invalid_argument);
+}
+
 TEST(WizardCommands, CompensationStepsTakeValuesOrACsvFile) {
   EXPECT_EQ(b.comp_program('X', "/m/c.ngc"), with_state({"axis", "X", "comp-program", "--out", "/m/c.ngc"}));
   EXPECT_EQ(b.comp_run('X'), with_state({"axis", "X", "comp-run"}));

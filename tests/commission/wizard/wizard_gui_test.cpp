@@ -54,6 +54,7 @@
 #include <QCheckBox>
 #include <QRegularExpression>
 
+#include "commission/response.hpp"
 #include "commission/state.hpp"
 #include "commission/wizard/wizard_window.hpp"
 #include "core/ipc/admin.hpp"
@@ -402,6 +403,20 @@ class WizardGuiTests : public QObject {
     QVERIFY2(text_of("tuneAccepted").startsWith("yes"), qPrintable(text_of("tuneAccepted")));
     QCOMPARE(w_->state().axis('X')->max_velocity, t.max_velocity);
     shot("tuning-accepted");
+    // The drive's velocity loop: step and swept sine on the response
+    // configuration, the gains as the simulated drive has them.
+    QVERIFY(text_of("responseResult").contains("not measured"));
+    click_and_wait("responseButton", 300000);
+    expect_done();
+    QVERIFY(w_->state().axis('X')->response);
+    const AxisResponse r = *w_->state().axis('X')->response;
+    QVERIFY2(r.skipped.empty() && r.step && r.chirp, qPrintable(text_of("responseResult")));
+    QVERIFY2(text_of("responseResult").contains("bandwidth"), qPrintable(text_of("responseResult")));
+    QCOMPARE(static_cast<QLineSeries*>(find<QChartView>("bodeChart")->chart()->series().at(0))->count(),
+             static_cast<int>(r.chirp->points.size()));
+    QCOMPARE(static_cast<QLineSeries*>(find<QChartView>("stepChart")->chart()->series().at(1))->count(),
+             static_cast<int>(load_response_csv(r.step->csv).size()));
+    shot("tuning-response");
   }
 
   void t10_compensation_page_runs_the_cycle_fits_and_installs() {

@@ -27,6 +27,19 @@ TEST(EthercatCoe, ExpeditedUploadAndDownload) {
   EXPECT_EQ(r.data, (std::vector<uint8_t>{0x10, 0x27, 0, 0}));
 }
 
+// The simulated drive's loop gains (0x60F9, 0x60FB: sim/cia402/drive_model)
+// over CoE: the same dictionary as on CANopen, a refused gain decoded.
+TEST(EthercatCoe, TheDrivesLoopGainsAreReadAndWrittenOverCoe) {
+  test::Bus bus(1);
+  const SdoResult r = bus.master->sdo_upload(1, 0x60F9, 1);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_EQ(r.data.size(), 4u);
+  EXPECT_EQ(bus.master->sdo_upload(1, 0x60FB, 1).data, (std::vector<uint8_t>{0x98, 0x3A, 0, 0}));  // 150 1/s
+  ASSERT_TRUE(bus.master->sdo_download(1, 0x60F9, 1, {0xE8, 0x03, 0, 0}).ok);
+  EXPECT_EQ(bus.segment->drive(0)->od().get<uint32_t>({0x60F9, 1}), 1000u);
+  EXPECT_EQ(bus.master->sdo_download(1, 0x60F9, 1, {0, 0, 0, 0}).abort_code, 0x06090030u);
+}
+
 TEST(EthercatCoe, NormalUploadOfAString) {
   test::Bus bus(1);
   const SdoResult r = bus.master->sdo_upload(1, 0x1008, 0);

@@ -1,0 +1,559 @@
+#include "commission/response.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+#include <thread>
+
+#include "commission/steps.hpp"
+#include "commission/tuning.hpp"
+#include "core/ipc/segment.hpp"
+#include "core/util/atomic_file.hpp"
+#include "core/util/strings.hpp"
+#include "fieldbus/can/transport.hpp"
+#include "fieldbus/canopen/sdo_client.hpp"
+
+namespace cnc::commission {
+
+namespace co = cnc::canopen;
+
+namespace {
+
+std::string fmt(const char* f, double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
+
+std::string axis_name(const Axis& a) { return std::string("axis ") + a.letter; }
+
+double mean(const std::vector<double>& v) {
+  double s = 0;
+  for (double x : v) s += x;
+  return v.empty() ? 0 : s / static_cast<double>(v.size());
+}
+
+}  // namespace
+
+// ---- records ----
+
+std::string response_csv(const std::vector<ResponseSample>& samples, double frequency_hz) {
+  std::string out;
+  char b[160];
+  for (const ResponseSample& s : samples) {
+    std::snprintf(b, sizeof b, "%.4f,%.6f,%.5f,%.5f,%.2f\n", frequency_hz, s.time_s, s.vel_cmd_mm_s, s.velocity_mm_s,
+                  s.torque_pct);
+    out += b;
+  }
+  return out;
+}
+
+std::vector<ResponseSample> load_response_csv(const std::filesystem::path& file, std::vector<double>* frequency_hz) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error(file.string() + ": cannot be read");
+  std::string line;
+  if (!std::getline(in, line) || std::string(trim(line)) != kResponseCsvHeader)
+    throw std::runtime_error(file.string() + ":1: expected the header " + kResponseCsvHeader);
+  const auto names = split(kResponseCsvHeader, ',');
+  std::vector<ResponseSample> out;
+  int n = 1;
+  while (std::getline(in, line)) {
+    ++n;
+    if (trim(line).empty()) continue;
+    const auto w = split(std::string(trim(line)), ',');
+    if (w.size() != names.size())
+      throw std::runtime_error(file.string() + ":" + std::to_string(n) + ": " + std::to_string(w.size()) + " columns, expected " +
+                               std::to_string(names.size()));
+    double v[5];
+    for (std::size_t k = 0; k < names.size(); ++k) {
+      const auto d = parse_double(trim(w[k]));
+      if (!d)
+        throw std::runtime_error(file.string() + ":" + std::to_string(n) + ": column " + names[k] + ": \"" + w[k] +
+                                 "\" is not a number");
+      v[k] = *d;
+    }
+    if (frequency_hz) frequency_hz->push_back(v[0]);
+    out.push_back({v[1], v[2], v[3], v[4]});
+  }
+  return out;
+}
+
+std::vector<std::string> response_scope_pins(int drive) {
+  char d[40];
+  std::snprintf(d, sizeof d, "cia402.0.drive.%02d.", drive);
+  return {std::string(d) + "vel-cmd", std::string(d) + "vel-fb", std::string(d) + "torque"};
+}
+
+std::vector<ResponseSample> parse_response_scope_csv(const std::string& text) {
+  std::istringstream in(text);
+  std::string line;
+  if (!std::getline(in, line)) throw std::runtime_error("scope csv: empty");
+  if (split(std::string(trim(line)), ',').size() != 4)
+    throw std::runtime_error("scope csv: unexpected header \"" + line + "\" (time_s and the 3 response pins)");
+  std::vector<ResponseSample> out;
+  int n = 1;
+  while (std::getline(in, line)) {
+    ++n;
+    if (trim(line).empty()) continue;
+    const auto w = split(std::string(trim(line)), ',');
+    double v[4];
+    if (w.size() != 4) throw std::runtime_error("scope csv:" + std::to_string(n) + ": expected 4 columns");
+    for (int k = 0; k < 4; ++k) {
+      const auto d = parse_double(trim(w[k]));
+      if (!d) throw std::runtime_error("scope csv:" + std::to_string(n) + ": \"" + w[k] + "\" is not a number");
+      v[k] = *d;
+    }
+    out.push_back({v[0], v[1], v[2], v[3]});
+  }
+  return out;
+}
+
+// ---- analysis ----
+
+StepResponse analyse_step(const std::vector<ResponseSample>& s, double band, double min_hold_s) {
+  if (s.size() < 3) throw std::invalid_argument("step response: fewer than 3 samples");
+  double lo = s[0].vel_cmd_mm_s, hi = lo;
+  for (const ResponseSample& x : s) {
+    lo = std::min(lo, x.vel_cmd_mm_s);
+    hi = std::max(hi, x.vel_cmd_mm_s);
+  }
+  const double span = hi - lo;
+  std::vector<std::size_t> edges;
+  for (std::size_t i = 1; span > 0 && i < s.size(); ++i)
+    if (std::fabs(s[i].vel_cmd_mm_s - s[i - 1].vel_cmd_mm_s) > 0.75 * span) edges.push_back(i);
+  std::vector<double> rise, overshoot, settle;
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    const std::size_t i = edges[e], end = e + 1 < edges.size() ? edges[e + 1] : s.size();
+    if (s[end - 1].time_s - s[i].time_s < min_hold_s) continue;
+    const double v0 = s[i - 1].vel_cmd_mm_s, v1 = s[i].vel_cmd_mm_s, t0 = s[i].time_s;
+    auto y = [&](std::size_t k) { return (s[k].velocity_mm_s - v0) / (v1 - v0); };
+    // Crossing times, interpolated between samples.
+    auto crossing = [&](double level) {
+      for (std::size_t k = i; k < end; ++k)
+        if (y(k) >= level) {
+          const double ya = y(k - 1), yb = y(k);
+          const double f = yb > ya ? std::clamp((level - ya) / (yb - ya), 0.0, 1.0) : 1.0;
+          return s[k - 1].time_s + f * (s[k].time_s - s[k - 1].time_s);
+        }
+      return -1.0;
+    };
+    const double t10 = crossing(0.1), t90 = crossing(0.9);
+    if (t10 < 0 || t90 < 0) continue;  // never rose: not a step this record can say anything of
+    double peak = 0;
+    std::size_t last_out = i;
+    for (std::size_t k = i; k < end; ++k) {
+      peak = std::max(peak, y(k));
+      if (std::fabs(y(k) - 1.0) > band) last_out = k;
+    }
+    rise.push_back(t90 - t10);
+    overshoot.push_back(std::max(0.0, peak - 1.0) * 100.0);
+    settle.push_back(last_out + 1 < end ? s[last_out + 1].time_s - t0 : -1.0);
+  }
+  if (rise.empty())
+    throw std::invalid_argument("step response: no edge of the command followed by a rise of the velocity (" +
+                                std::to_string(edges.size()) + " edges)");
+  StepResponse r;
+  r.amplitude_mm_s = span / 2;
+  r.edges = static_cast<int>(rise.size());
+  r.rise_time_s = mean(rise);
+  r.overshoot_pct = mean(overshoot);
+  r.settling_time_s = std::any_of(settle.begin(), settle.end(), [](double t) { return t < 0; }) ? -1 : mean(settle);
+  return r;
+}
+
+FrequencyPoint analyse_sine(const std::vector<ResponseSample>& s, double f) {
+  if (s.size() < 4 || !(f > 0)) throw std::invalid_argument("sine response: no samples or no frequency");
+  const double t_end = s.back().time_s;
+  const double cycles = std::floor((t_end - s.front().time_s) * f + 1e-6);
+  if (cycles < 1) throw std::invalid_argument("sine response at " + fmt("%g", f) + " Hz: less than one cycle recorded");
+  const double t_start = t_end - cycles / f;
+  std::complex<double> u(0), y(0);
+  double mu = 0, my = 0;
+  int n = 0;
+  for (const ResponseSample& x : s)
+    if (x.time_s > t_start + 1e-9) {
+      mu += x.vel_cmd_mm_s;
+      my += x.velocity_mm_s;
+      ++n;
+    }
+  mu /= n;
+  my /= n;
+  const double w = 2 * M_PI * f;
+  for (const ResponseSample& x : s)
+    if (x.time_s > t_start + 1e-9) {
+      const std::complex<double> e = std::polar(1.0, -w * x.time_s);
+      u += (x.vel_cmd_mm_s - mu) * e;
+      y += (x.velocity_mm_s - my) * e;
+    }
+  if (std::abs(u) == 0) throw std::invalid_argument("sine response at " + fmt("%g", f) + " Hz: the command does not move");
+  const std::complex<double> h = y / u;
+  FrequencyPoint p;
+  p.frequency_hz = f;
+  p.gain_db = 20 * std::log10(std::max(std::abs(h), 1e-12));
+  p.phase_deg = std::arg(h) * 180 / M_PI;
+  return p;
+}
+
+double bandwidth_hz(std::vector<FrequencyPoint>& p, bool& above) {
+  above = false;
+  if (p.empty()) throw std::invalid_argument("bandwidth: no frequency point");
+  for (std::size_t i = 1; i < p.size(); ++i) {  // phase lag grows with frequency: unwrap
+    while (p[i].phase_deg - p[i - 1].phase_deg > 180) p[i].phase_deg -= 360;
+    while (p[i].phase_deg - p[i - 1].phase_deg < -180) p[i].phase_deg += 360;
+  }
+  const double level = p.front().gain_db - 3.0;
+  for (std::size_t i = 1; i < p.size(); ++i)
+    if (p[i].gain_db < level) {
+      const double a = std::log(p[i - 1].frequency_hz), b = std::log(p[i].frequency_hz);
+      const double f = (level - p[i - 1].gain_db) / (p[i].gain_db - p[i - 1].gain_db);
+      return std::exp(a + f * (b - a));
+    }
+  above = true;
+  return p.back().frequency_hz;
+}
+
+// ---- the drive's gains, by SDO ----
+
+namespace {
+
+void sdo_wait(can::Transport& bus, co::SdoClient& sdo) {
+  while (!sdo.idle()) {
+    can::Frame f;
+    while (bus.receive(f))
+      if (f.id == sdo.response_cob() && !f.is_error() && !f.is_remote()) sdo.on_frame(f, bus.now_ns());
+    sdo.poll(bus.now_ns());
+    if (sdo.idle()) break;
+    bus.wait(1'000'000);
+  }
+}
+
+co::SdoResult upload(can::Transport& bus, int node, co::ObjectAddress a, int64_t timeout_ns) {
+  co::SdoClientOptions o;
+  o.timeout_ns = timeout_ns;
+  co::SdoClient sdo(bus, static_cast<uint8_t>(node), o);
+  co::SdoResult out;
+  sdo.upload(a, [&out](const co::SdoResult& r) { out = r; });
+  sdo_wait(bus, sdo);
+  return out;
+}
+
+template <class T>
+T value_of(const co::SdoResult& r) {
+  T v = 0;
+  for (std::size_t i = 0; i < sizeof(T) && i < r.data.size(); ++i) v = static_cast<T>(v | (T(r.data[i]) << (8 * i)));
+  return v;
+}
+
+}  // namespace
+
+std::optional<LoopGains> read_loop_gains(can::Transport& bus, int node, std::string& why, int64_t timeout_ns) {
+  LoopGains g;
+  const auto kv = upload(bus, node, {0x60F9, 1}, timeout_ns);
+  if (!kv.ok()) {
+    why = "node " + std::to_string(node) + " has no readable velocity control parameter set 0x60F9 (" + kv.abort_text() + ")";
+    return std::nullopt;
+  }
+  g.velocity_gain = value_of<uint32_t>(kv);
+  const auto ti = upload(bus, node, {0x60F9, 2}, timeout_ns);
+  if (ti.ok()) g.velocity_integral = value_of<uint16_t>(ti);
+  const auto kp = upload(bus, node, {0x60FB, 1}, timeout_ns);
+  if (kp.ok()) g.position_gain = value_of<uint32_t>(kp);
+  return g;
+}
+
+void write_velocity_gain(can::Transport& bus, int node, uint32_t gain, int64_t timeout_ns) {
+  co::SdoClientOptions o;
+  o.timeout_ns = timeout_ns;
+  co::SdoClient sdo(bus, static_cast<uint8_t>(node), o);
+  co::SdoResult out;
+  std::vector<uint8_t> d(4);
+  for (int i = 0; i < 4; ++i) d[i] = static_cast<uint8_t>(gain >> (8 * i));
+  sdo.download({0x60F9, 1}, d, [&out](const co::SdoResult& r) { out = r; });
+  sdo_wait(bus, sdo);
+  if (!out.ok())
+    throw std::runtime_error("node " + std::to_string(node) + ": writing the velocity gain " + std::to_string(gain) +
+                             " to 0x60F9:01 failed: " + out.abort_text());
+}
+
+// ---- the configuration ----
+
+std::vector<GeneratedFile> response_configuration(const State& s, char letter, const std::filesystem::path& dir,
+                                                  const std::string& name) {
+  const Axis* a = s.axis(letter);
+  if (!a) throw std::invalid_argument(std::string("axis ") + letter + " has no drive yet");
+  if (a->node <= 0)
+    throw std::invalid_argument(std::string("axis ") + letter +
+                                ": the response test needs a CANopen drive (EtherCAT drives are not done yet)");
+  TuneOptions t;
+  t.max_velocity = std::max(a->max_velocity, 1.0);
+  t.max_acceleration = std::max(a->max_acceleration, 10.0);
+  State r = tuning_configuration(s, letter, t);
+  // Motion's command stands while the drive runs in CSV: its following
+  // error is the excursion, which run_response keeps under 1 mm.
+  r.axis(letter)->tuning->min_ferror = 3;
+  r.axis(letter)->tuning->ferror = std::max(r.axis(letter)->tuning->ferror, 4.0);
+  auto files = generate_config(r, dir, name);
+  const std::string section = "[CANOPEN_NODE_" + std::to_string(a->node) + "]";
+  for (GeneratedFile& f : files) {
+    std::string& c = f.content;
+    if (f.path.extension() == ".ini") {
+      const auto at = c.find(section);
+      const auto rpdo = at == std::string::npos ? at : c.find("RPDO1 = ", at);
+      if (rpdo == std::string::npos) throw std::logic_error("response configuration: no RPDO1 in " + section);
+      c.insert(c.find('\n', rpdo) + 1, "# cnc-commission response: the target velocity for CSV\nRPDO2 = 0x60FF:0:s32\n");
+      const std::string key = "INTERFACE = " + s.interface;
+      const auto i = c.find(key + "\n");
+      if (s.interface.rfind("virtual:", 0) == 0 && s.interface.find("share") == std::string::npos && i != std::string::npos)
+        c.insert(i + key.size(), ",share");
+    } else if (f.path.extension() == ".hal") {
+      char d[64];
+      std::snprintf(d, sizeof d, "cia402.0.drive.%02d.", a->joint);
+      c += "\n# cnc-commission axis " + std::string(1, letter) +
+           " response: a signal generator on the drive's velocity command\n"
+           "# (used in CSV only; sel 0 sine, 1 square).\n"
+           "loadrt siggen names=response\nloadrt mux2 names=response-mux\n"
+           "addf response.update servo-thread\naddf response-mux servo-thread\n"
+           "setp response.amplitude 0\nsetp response.reset 1\n"
+           "net response-sine response.sine => response-mux.in0\n"
+           "net response-square response.square => response-mux.in1\n"
+           "net response-vel response-mux.out => " + std::string(d) + "vel-cmd\n";
+    }
+  }
+  return files;
+}
+
+std::string response_sdo_interface(const State& s) {
+  const std::string& i = s.interface;
+  if (i.rfind("virtual:", 0) == 0) {
+    const std::string name = i.substr(8, i.find(',') == std::string::npos ? std::string::npos : i.find(',') - 8);
+    return "unix:/dev/shm/cnc-" + ipc::default_instance() + ".can-" + name;
+  }
+  return i;
+}
+
+// ---- the tests on a controller ----
+
+namespace {
+
+struct Now {
+  double pos = 0;
+  bool enabled = false, on = false, fault = false;
+};
+
+Now now_of(const Controller& c, int joint) {
+  const auto j = nlohmann::json::parse(c.cnc({"status", "--json"}));
+  const auto& js = j.at("joints").at(joint);
+  Now n;
+  n.pos = js.at("pos_fb").get<double>();
+  n.fault = js.value("fault", false);
+  n.enabled = j.at("motion").value("enabled", false);
+  n.on = j.at("task").value("state", std::string()) == "ON";
+  return n;
+}
+
+double period_of(const Controller& c) {
+  const auto j = nlohmann::json::parse(c.cnc({"status", "--json"}));
+  for (const auto& t : j.value("threads", nlohmann::json::array()))
+    if (t.value("name", std::string()) == "servo-thread" && t.value("period_ns", 0.0) > 0)
+      return t["period_ns"].get<double>() * 1e-9;
+  return 1e-3;
+}
+
+class Session {
+ public:
+  Session(const Controller& c, const Axis& a, const ResponseOptions& o, double start, double period)
+      : c_(c), a_(a), o_(o), start_(start), period_(period) {
+    std::snprintf(drive_, sizeof drive_, "cia402.0.drive.%02d.", a.joint);
+  }
+  // On, CSV, the generator quiet.
+  void begin() {
+    setp("response.amplitude", "0");
+    setp("response.reset", "1");
+    c_.cnc({"on"});
+    c_.cnc({"mode", "manual"});
+    setp(std::string(drive_) + "mode-request", "9");
+    wait_mode(9);
+  }
+  // The generator quiet, off, back to CSP (motion takes the feedback as
+  // its command while off).
+  void end() {
+    setp("response.amplitude", "0");
+    setp("response.reset", "1");
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    c_.cnc({"off"});
+    setp(std::string(drive_) + "mode-request", "8");
+  }
+  // The generator at `frequency`, `amplitude` (its sign against the
+  // excursion so far), square or sine; records `seconds` after `settle_s`.
+  std::vector<ResponseSample> record(bool square, double frequency, double settle_s, double seconds) {
+    check();
+    const double here = now_of(c_, a_.joint).pos - start_;
+    const double amplitude = here > 0 ? -o_.amplitude_mm_s : o_.amplitude_mm_s;
+    setp("response-mux.sel", square ? "1" : "0");
+    setp("response.frequency", fmt("%.6f", frequency));
+    const auto samples = std::min(60000L, static_cast<long>(std::ceil(seconds / period_)) + 1);
+    std::string list;
+    for (const auto& p : response_scope_pins(a_.joint)) list += (list.empty() ? "" : ",") + p;
+    c_.halcmd({"scope", "stop"});
+    c_.halcmd({"scope", "setup", list, "samples=" + std::to_string(samples), "pre=0", "mode=single"});
+    if (square) c_.halcmd({"scope", "arm"});
+    setp("response.amplitude", fmt("%.6f", amplitude));
+    setp("response.reset", "0");
+    sleep_checked(settle_s);
+    if (!square) c_.halcmd({"scope", "arm"});
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds * 3 + 5);
+    while (std::string(trim(c_.halcmd({"scope", "state"}))).rfind("done", 0) != 0) {
+      if (std::chrono::steady_clock::now() > until) throw std::runtime_error("the scope did not finish its capture");
+      sleep_checked(0.05);
+    }
+    setp("response.amplitude", "0");
+    setp("response.reset", "1");
+    check();
+    return parse_response_scope_csv(c_.halcmd({"scope", "csv"}));
+  }
+
+ private:
+  void setp(const std::string& pin, const std::string& v) const { c_.halcmd({"setp", pin, v}); }
+  void wait_mode(int mode) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(3);
+    while (static_cast<int>(c_.getp(std::string(drive_) + "mode-display")) != mode) {
+      if (std::chrono::steady_clock::now() > until)
+        throw std::runtime_error(axis_name(a_) + ": the drive did not switch to mode " + std::to_string(mode) +
+                                 " within 3 s (mode-display " +
+                                 fmt("%.0f", c_.getp(std::string(drive_) + "mode-display")) + ")");
+      sleep_checked(0.02);
+    }
+  }
+  void sleep_checked(double s) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(s);
+    while (std::chrono::steady_clock::now() < until) {
+      if (abort_requested()) throw std::runtime_error(axis_name(a_) + ": the response test was aborted");
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  // The E-stop chain, motion and the excursion, between records.
+  void check() {
+    if (abort_requested()) throw std::runtime_error(axis_name(a_) + ": the response test was aborted");
+    if (!c_.estop_chain_ok()) throw std::runtime_error(axis_name(a_) + ": the E-stop chain opened");
+    const Now n = now_of(c_, a_.joint);
+    if (!n.on || !n.enabled || n.fault)
+      throw std::runtime_error(axis_name(a_) + ": motion stopped during the response test (a fault, E-stop)");
+    if (std::fabs(n.pos - start_) > o_.max_excursion_mm)
+      throw std::runtime_error(axis_name(a_) + ": the axis wandered " + fmt("%.3f", n.pos - start_) +
+                               " mm from where the test started (at most " + fmt("%g", o_.max_excursion_mm) +
+                               " mm): stopped");
+  }
+
+  const Controller& c_;
+  const Axis& a_;
+  const ResponseOptions& o_;
+  double start_, period_;
+  char drive_[40];
+};
+
+}  // namespace
+
+AxisResponse run_response(const Controller& c, const Axis& a, const ResponseOptions& o) {
+  if (!(o.amplitude_mm_s > 0 && o.amplitude_mm_s <= kMaxResponseAmplitude))
+    throw std::invalid_argument(axis_name(a) + ": --amplitude " + fmt("%g", o.amplitude_mm_s) + ": expected 0 to " +
+                                fmt("%g", kMaxResponseAmplitude) + " mm/s");
+  if (!(o.step_period_s >= 0.02 && o.step_period_s <= 5)) throw std::invalid_argument("response: step period 0.02 to 5 s");
+  if (o.step_edges < 1 || o.step_edges > 50) throw std::invalid_argument("response: 1 to 50 step edges");
+  if (o.frequencies < 2 || o.frequencies > 40) throw std::invalid_argument("response: 2 to 40 frequencies");
+  if (!(o.min_frequency_hz > 0)) throw std::invalid_argument("response: the lowest frequency must be > 0");
+  // The excursion of the tests: a square's half period, a sine's 2A/w.
+  const double excursion = std::max(o.amplitude_mm_s * o.step_period_s / 2, o.amplitude_mm_s / (M_PI * o.min_frequency_hz));
+  if (excursion > o.max_excursion_mm)
+    throw std::invalid_argument(axis_name(a) + ": amplitude " + fmt("%g", o.amplitude_mm_s) + " mm/s would move the axis " +
+                                fmt("%.2f", excursion) + " mm (at most " + fmt("%g", o.max_excursion_mm) +
+                                "): lower --amplitude or raise the lowest frequency");
+  const Travel travel = known_travel(a);
+  auto progress = [&](const std::string& s) { if (o.progress) o.progress(s); };
+  auto report = [&](const std::string& s) { if (o.report) o.report(s); };
+  std::filesystem::create_directories(o.record_dir);
+
+  clear_abort();
+  c.cnc({"estop-reset"});
+  if (!c.estop_chain_ok())
+    throw std::runtime_error(axis_name(a) + ": the E-stop chain is open: close it before the response test");
+  AxisResponse result;
+  try {
+    const double period = period_of(c);
+    const double f_max = o.max_frequency_hz > 0 ? std::min(o.max_frequency_hz, 0.2 / period) : 0.2 / period;
+    if (!(f_max > o.min_frequency_hz)) throw std::invalid_argument("response: the highest frequency is below the lowest");
+    const double start = now_of(c, a.joint).pos;
+    if (start < travel.min + 2 * o.max_excursion_mm || start > travel.max - 2 * o.max_excursion_mm)
+      throw std::runtime_error(axis_name(a) + " stands at " + fmt("%.3f", start) + " mm, closer than " +
+                               fmt("%g", 2 * o.max_excursion_mm) + " mm to the end of its travel " + fmt("%g", travel.min) +
+                               ".." + fmt("%g", travel.max) + " mm (" + travel.source + "): jog it inside first");
+    Session session(c, a, o, start, period);
+    const char l = static_cast<char>(std::tolower(a.letter));
+    const int total = (o.step ? 1 : 0) + (o.chirp ? o.frequencies : 0);
+    int index = 0;
+    if (o.step) {
+      progress(std::to_string(++index) + "/" + std::to_string(total) + " step: +-" + fmt("%g", o.amplitude_mm_s) +
+               " mm/s every " + fmt("%g", o.step_period_s / 2) + " s");
+      session.begin();
+      const auto record = session.record(true, 1.0 / o.step_period_s, 0, o.step_period_s * (o.step_edges + 1) / 2);
+      session.end();
+      StepResponse step = analyse_step(record);
+      step.csv = (o.record_dir / (std::string(1, l) + "-response-step.csv")).string();
+      write_file_atomically(step.csv, std::string(kResponseCsvHeader) + "\n" + response_csv(record, 0));
+      step.amplitude_mm_s = o.amplitude_mm_s;
+      report("step: rise " + fmt("%.1f", step.rise_time_s * 1000) + " ms, overshoot " + fmt("%.1f", step.overshoot_pct) +
+             " %, settling " +
+             (step.settling_time_s < 0 ? std::string("not within the step") : fmt("%.1f", step.settling_time_s * 1000) + " ms") +
+             " (" + std::to_string(step.edges) + " edges, " + step.csv + ")");
+      result.step = step;
+    }
+    if (o.chirp) {
+      ChirpResponse chirp;
+      chirp.amplitude_mm_s = o.amplitude_mm_s;
+      chirp.csv = (o.record_dir / (std::string(1, l) + "-response-chirp.csv")).string();
+      std::string csv = std::string(kResponseCsvHeader) + "\n";
+      session.begin();
+      for (int k = 0; k < o.frequencies; ++k) {
+        const double f = o.min_frequency_hz * std::pow(f_max / o.min_frequency_hz, static_cast<double>(k) / (o.frequencies - 1));
+        progress(std::to_string(++index) + "/" + std::to_string(total) + " sine: " + fmt("%.1f", f) + " Hz, +-" +
+                 fmt("%g", o.amplitude_mm_s) + " mm/s");
+        // Settle three cycles (at least 0.1 s), record at least four
+        // cycles and 0.3 s.
+        const auto record = session.record(false, f, std::max(0.1, 3 / f), std::max(0.3, 4 / f) + 2 * period);
+        FrequencyPoint p = analyse_sine(record, f);
+        chirp.points.push_back(p);
+        csv += response_csv(record, f);
+      }
+      session.end();
+      write_file_atomically(chirp.csv, csv);
+      chirp.bandwidth_hz = bandwidth_hz(chirp.points, chirp.bandwidth_above);
+      for (const FrequencyPoint& p : chirp.points)
+        report("sine " + fmt("%.2f", p.frequency_hz) + " Hz: gain " + fmt("%.2f", p.gain_db) + " dB, phase " +
+               fmt("%.1f", p.phase_deg) + " deg");
+      report(std::string("bandwidth (-3 dB): ") + (chirp.bandwidth_above ? "above " : "") +
+             fmt("%.1f", chirp.bandwidth_hz) + " Hz (" + chirp.csv + ")");
+      result.chirp = chirp;
+    }
+  } catch (const std::exception& e) {
+    std::string off = switch_off_after_failure(c);
+    try {
+      c.halcmd({"setp", "response.amplitude", "0"});
+      char d[64];
+      std::snprintf(d, sizeof d, "cia402.0.drive.%02d.mode-request", a.joint);
+      c.halcmd({"setp", d, "8"});
+    } catch (const std::exception&) {
+    }
+    std::string why = e.what();
+    if (abort_requested() && why.find("aborted") == std::string::npos)
+      why = axis_name(a) + ": the response test was aborted (" + why + ")";
+    throw std::runtime_error(why + off);
+  }
+  return result;
+}
+
+}  // namespace cnc::commission

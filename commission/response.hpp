@@ -1,0 +1,120 @@
+// Step 7's loop response: a step and a swept sine (a stepped chirp) of the
+// drive's velocity loop, on drives that expose its gains (CiA 402 0x60F9,
+// read by SDO; a drive without it is skipped and the result says so). The
+// drive is switched to CSV for each test (the drive layer's mode-request)
+// and its velocity command comes from a signal generator in the servo
+// thread (siggen), small in amplitude, time-limited, inside the known
+// travel, with the E-stop chain live; whatever happens the machine ends off
+// and the drive disabled. The analysis (step figures, gain and phase, the
+// -3 dB bandwidth) is pure and tested on synthetic records; the tests run
+// on a controller this step brings up itself on the response configuration.
+// Non-realtime.
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "commission/config_writer.hpp"
+#include "commission/controller.hpp"
+#include "commission/state.hpp"
+
+namespace cnc::can {
+class Transport;
+}
+
+namespace cnc::commission {
+
+// One servo cycle of a response test.
+struct ResponseSample {
+  double time_s = 0;
+  double vel_cmd_mm_s = 0;    // the drive's velocity command (cia402...vel-cmd)
+  double velocity_mm_s = 0;   // its velocity feedback (vel-fb, 0x606C)
+  double torque_pct = 0;      // torque actual (0x6077), % of rated
+};
+
+inline constexpr const char* kResponseCsvHeader = "frequency_hz,time_s,vel_cmd_mm_s,velocity_mm_s,torque_pct";
+// `frequency_hz` 0 for the step's rows.
+std::string response_csv(const std::vector<ResponseSample>& samples, double frequency_hz);
+// A record written as kResponseCsvHeader + response_csv rows: the samples
+// and each one's frequency. Throws std::runtime_error naming the file,
+// line and column.
+std::vector<ResponseSample> load_response_csv(const std::filesystem::path& file, std::vector<double>* frequency_hz = nullptr);
+// The scope's CSV of response_scope_pins as samples.
+std::vector<ResponseSample> parse_response_scope_csv(const std::string& text);
+// vel-cmd, vel-fb, torque of CiA 402 drive `drive` of group 0.
+std::vector<std::string> response_scope_pins(int drive);
+
+// The step figures of a record whose command is a square wave: every edge
+// (a change of more than 3/4 of the command's span between two samples)
+// followed by at least `min_hold_s` of command is analysed against the
+// command's levels before and after it (10-90 % rise time, overshoot, and
+// the time from the edge until the response stays within `band` of the
+// step for good), and the figures are the edges' means. Throws
+// std::invalid_argument when no edge is found.
+StepResponse analyse_step(const std::vector<ResponseSample>& samples, double band = 0.05, double min_hold_s = 0.02);
+
+// Gain and phase of the feedback over the command at `frequency_hz`, from
+// the whole cycles at the end of `samples` (a single-bin Fourier transform
+// of each). Throws std::invalid_argument without a whole cycle.
+FrequencyPoint analyse_sine(const std::vector<ResponseSample>& samples, double frequency_hz);
+
+// The -3 dB bandwidth of `points` (ascending frequencies; phases are
+// unwrapped in place): the first crossing below the lowest frequency's
+// gain less 3 dB, interpolated on a logarithmic frequency axis; without one
+// the highest frequency with `above` set.
+double bandwidth_hz(std::vector<FrequencyPoint>& points, bool& above);
+
+// --- the drive's gains, by SDO ---
+
+// 0x60F9:1/2 and 0x60FB:1 of CANopen node `node` over `bus`. nullopt with
+// `why` (the object, the abort) when the drive has no 0x60F9 or does not
+// answer.
+std::optional<LoopGains> read_loop_gains(can::Transport& bus, int node, std::string& why,
+                                         int64_t timeout_ns = 1'000'000'000);
+// Writes 0x60F9:1 (the velocity loop's gain); throws std::runtime_error
+// naming the object and the abort.
+void write_velocity_gain(can::Transport& bus, int node, uint32_t gain, int64_t timeout_ns = 1'000'000'000);
+
+// --- on a controller ---
+
+struct ResponseOptions {
+  bool step = true, chirp = true;
+  double amplitude_mm_s = 2;        // at most kMaxResponseAmplitude
+  double step_period_s = 0.2;       // the square wave's period: each step holds half of it
+  int step_edges = 6;
+  double min_frequency_hz = 2;
+  double max_frequency_hz = 0;      // 0: a fifth of the servo rate
+  int frequencies = 10;             // logarithmically spaced
+  double max_excursion_mm = 1.0;    // the axis may wander this far from where it started
+  std::filesystem::path record_dir;
+  std::function<void(const std::string&)> progress;
+  std::function<void(const std::string&)> report;
+};
+inline constexpr double kMaxResponseAmplitude = 20;  // mm/s
+
+// Runs the tests on joint `a.joint` (drive index = joint) of the
+// controller (the response configuration: siggen "response" wired to the
+// drive's vel-cmd). Switches the machine on and the drive to CSV for each
+// test, off and back to CSP after it. Throws std::runtime_error (machine
+// off) on an abort, a time limit, an open E-stop chain, a joint outside its
+// travel or wandering beyond max_excursion_mm.
+AxisResponse run_response(const Controller& c, const Axis& a, const ResponseOptions& o);
+
+// The response configuration for axis `letter`: tuning_configuration's
+// files (its following-error limits wide enough for the excursion) with
+// the target velocity 0x60FF mapped (RPDO2) on the axis' node, a signal
+// generator in the servo thread on the drive's vel-cmd (siggen "response",
+// mux2 "response-mux": sel 0 sine, 1 square), and a virtual bus shared
+// (",share") so that this program reaches the drive by SDO. CANopen only:
+// throws std::invalid_argument for an EtherCAT axis.
+std::vector<GeneratedFile> response_configuration(const State& s, char letter, const std::filesystem::path& dir,
+                                                  const std::string& name);
+// The CAN interface this program opens to reach the drives of the response
+// configuration by SDO: the shared socket of a virtual bus, else the
+// state's interface itself.
+std::string response_sdo_interface(const State& s);
+
+}  // namespace cnc::commission
