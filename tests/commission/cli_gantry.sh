@@ -19,7 +19,11 @@ bin="$1"
 work="$(mktemp -d)"
 trap 'CNC_INSTANCE=$CNC_INSTANCE "$bin/cnc" shutdown >/dev/null 2>&1 || true; rm -rf "$work"' EXIT
 export CNC_INSTANCE="commission-gantry-$$" CNC_NO_REALTIME=1
-fail() { echo "FAIL: $*"; [ -f "$work/m/check-cncd.log" ] && tail -20 "$work/m/check-cncd.log"; exit 1; }
+fail() {
+  echo "FAIL: $*"
+  for log in "$work/m/check-cncd.log" "$work/m/cncd.log"; do [ -f "$log" ] && grep -v "late spell\|no cycle for\|on time again" "$log" | tail -15; done
+  exit 1
+}
 cc() { "$bin/cnc-commission" --state "$work/state.json" "$@"; }
 
 "$bin/cnc-sim-random-machine" --seed 7 --dir "$work/m" --interface "virtual:gantry-$$" --nodes 1,2,3 >/dev/null
@@ -144,7 +148,7 @@ cc bring-up --dir "$work/m" --name gantry | grep -q "cncd runs on" || fail "brin
 sleep 0.3
 l0="$(table 2)"; r0="$(table 3)"
 "$bin/cnc" mode mdi >/dev/null
-"$bin/cnc" mdi "G53 G1 Y4 F300" >/dev/null || fail "MDI move"
+"$bin/cnc" mdi "G91 G1 Y4 F300" >/dev/null && "$bin/cnc" mdi "G90" >/dev/null || fail "MDI move"
 sleep 0.3
 l1="$(table 2)"; r1="$(table 3)"
 "$bin/cnc" off >/dev/null
