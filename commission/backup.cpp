@@ -1,5 +1,7 @@
 #include "commission/backup.hpp"
 
+#include "commission/steps.hpp"  // machine_joints
+
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
@@ -233,7 +235,8 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
   std::vector<Channel> ch;
   std::vector<NodeBackup> nodes;
   std::vector<std::vector<BackupObject>> lists;
-  for (const Axis& a : s.axes) {
+  for (const MachineJoint& mj : machine_joints(s)) {  // a gantry pair: both its drives
+    const Axis& a = mj.axis;
     if (a.slave != 0) continue;  // an EtherCAT drive: backup_ethercat_drives
     if (!a.enabled) {
       r.skipped.push_back(std::string("axis ") + a.letter + " (node " + std::to_string(a.node) +
@@ -368,7 +371,8 @@ bool is_timeout(const ethercat::SdoResult& r) { return !r.ok && r.abort_code == 
 
 BackupResult backup_ethercat_drives(ethercat::Master& m, const State& s) {
   BackupResult r;
-  for (const Axis& a : s.axes) {
+  for (const MachineJoint& mj : machine_joints(s)) {  // a gantry pair: both its drives
+    const Axis& a = mj.axis;
     if (a.slave == 0) continue;  // a CANopen drive: backup_drives
     const std::string who =
         "EtherCAT slave " + std::to_string(a.slave) + " (axis " + std::string(1, a.letter) + ")";

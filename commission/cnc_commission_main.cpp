@@ -73,11 +73,12 @@ const char* kHelp =
     "  axis L limits --min MM --max MM [--velocity MM/S] [--acceleration MM/S2]\n"
     "      soft limits (the travel tune and comp-run may use until the switches are\n"
     "      found) and the axis' speed and acceleration\n"
-    "  axis L direction-test [--distance MM] [--velocity MM/S] [--dial MM] [--bin DIR]\n"
-    "                        [--bring-up DIR]\n"
+    "  axis L direction-test [--distance MM] [--velocity MM/S] [--dial MM] [--dial2 MM]\n"
+    "                        [--bin DIR] [--bring-up DIR]\n"
     "      jog the axis on the running controller (at most 2 mm until a dial reading\n"
     "      checked the scaling, then 20 mm; at most 5 mm/s; time-limited, switched off\n"
-    "      afterwards) and compare the drive's feedback;\n"
+    "      afterwards) and compare the drive's feedback; a gantry pair: both joints\n"
+    "      jogged together, --dial2 the second side's reading;\n"
     "      --bring-up writes the configuration of the state to DIR and runs the\n"
     "      test on a controller of its own, shut down afterwards\n"
     "  axis L tune [--max-velocity MM/S] [--max-acceleration MM/S2] [--margin PCT]\n"
@@ -91,8 +92,9 @@ const char* kHelp =
     "      step and swept-sine response of the drive's velocity loop (CSV, small\n"
     "      amplitude) where the drive has 0x60F9: rise, overshoot, settling, gain and\n"
     "      phase, -3 dB bandwidth; --velocity-gain writes 0x60F9:1 first (both: default)\n"
-    "  axis L dial MM\n"
+    "  axis L dial MM [MM2]\n"
     "      the dial indicator's reading of the last test: flips REVERSE, corrects scale\n"
+    "      (MM2: a gantry's second side, each side on its own)\n"
     "  axis L switches [--search MM] [--velocity MM/S] [--bin DIR] [--bring-up DIR]\n"
     "      jog towards each end (up to 50 mm, 5 mm/s, time-limited) watching the limit\n"
     "      and home switch inputs: where each changed, its active level\n"
@@ -101,8 +103,10 @@ const char* kHelp =
     "  homing-methods\n"
     "      the homing methods: the controller's sequence, the CiA 402 drive methods\n"
     "  axis L homing --method controller|drive:N [--repeat N] [--away MM] [--bin DIR]\n"
-    "                [--bring-up DIR]\n"
-    "      home N times (5), moving away between runs: reference of each run, spread\n"
+    "                [--bring-up DIR] [--square MM | --square-pins PIN,PIN]\n"
+    "      home N times (5), moving away between runs: reference of each run, spread;\n"
+    "      a gantry: each side on its own switch, the racking after homing (entered,\n"
+    "      or read from each side's position pin) squared into the second HOME_OFFSET\n"
     "  axis L enable|disable\n"
     "      keep the axis in, or leave it out of, the written configuration\n"
     "  axis L comp-program --out FILE.ngc [--min MM] [--max MM] [--targets N] [--runs N]\n"
@@ -158,9 +162,9 @@ const char* kHelp =
 // Writes the state's configuration to `dir` and starts cncd on it.
 std::unique_ptr<ControllerProcess> bring_up_controller(const State& s, const std::filesystem::path& bin,
                                                        const std::filesystem::path& dir, const std::string& name,
-                                                       const std::filesystem::path& log) {
+                                                       const std::filesystem::path& log, bool gantry_joints_apart = false) {
   std::filesystem::create_directories(dir);
-  write_config(generate_config(s, dir, name));
+  write_config(generate_config(s, dir, name, gantry_joints_apart));
   std::string out;
   if (check_config(bin / "cncd", dir / (name + ".ini"), out) != 0)
     throw std::runtime_error("the configuration written to " + dir.string() + " does not pass cncd --check --strict:\n" + out);
@@ -664,31 +668,38 @@ int axis_steps56(State& s, Args& a, char letter, const std::string& step) {
     }
     if (!(search > 0) || !(velocity > 0)) usage("switches: --search and --velocity must be > 0");
     std::unique_ptr<ControllerProcess> own;
-    if (!bring_up.empty()) own = bring_up_controller(s, bin, bring_up, "commission", bring_up / "cncd.log");
-    const AxisSwitches r = find_switches(Controller(bin), *ax, search, velocity, stdout);
-    if (own && own->stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
-    std::cout << "axis " << letter << ": searched " << fmt_mm(search) << " mm each way from " << fmt_mm(r.start)
-              << " mm at " << fmt_mm(r.velocity) << " mm/s; the machine is off again\n"
-              << "  " << describe_switch("negative limit", r.neg_limit) << "\n  "
-              << describe_switch("positive limit", r.pos_limit) << "\n  " << describe_switch("home switch", r.home) << "\n";
-    if (!r.problems.empty()) {
-      std::string all;
+    if (!bring_up.empty()) own = bring_up_controller(s, bin, bring_up, "commission", bring_up / "cncd.log", true);
+    std::vector<AxisSwitches> found;  // a gantry pair: each joint's own switches
+    std::string all;
+    for (const Axis& j : step_joints(*ax)) {
+      const AxisSwitches r = find_switches(Controller(bin), j, search, velocity, stdout);
+      std::cout << "axis " << letter << (found.empty() ? "" : " (gantry joint " + std::to_string(j.joint) + ")")
+                << ": searched " << fmt_mm(search) << " mm each way from " << fmt_mm(r.start)
+                << " mm at " << fmt_mm(r.velocity) << " mm/s; the machine is off again\n"
+                << "  " << describe_switch("negative limit", r.neg_limit) << "\n  "
+                << describe_switch("positive limit", r.pos_limit) << "\n  " << describe_switch("home switch", r.home) << "\n";
       for (const auto& p : r.problems) all += (all.empty() ? "" : "\n") + p;
-      throw std::runtime_error(all + "\n(nothing saved)");
+      found.push_back(r);
     }
-    ax->switches = r;
+    if (own && own->stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
+    if (!all.empty()) throw std::runtime_error(all + "\n(nothing saved)");
+    ax->switches = found.front();
+    if (ax->gantry) ax->gantry->switches = found.back();
     s.log.push_back("axis " + L + " switches found");
     return 0;
   }
   // homing
   std::string method;
   int repeat = 5;
-  double away = 5;
+  double away = 5, square = 0;  // a gantry: the second side's measured lead after homing (mm)
+  std::vector<std::string> square_pins;
   while (a.more()) {
     const std::string k = a.next("option");
     if (k == "--method") method = a.next("method");
     else if (k == "--repeat") repeat = static_cast<int>(number(a.next("count"), "--repeat"));
     else if (k == "--away") away = number(a.next("mm"), "--away");
+    else if (k == "--square") square = number(a.next("mm"), "--square");
+    else if (k == "--square-pins") square_pins = cnc::split(a.next("PIN,PIN"), ',');
     else if (k == "--bin") bin = a.next("folder");
     else if (k == "--bring-up") bring_up = a.next("folder");
     else usage("homing: unknown option " + k);
@@ -696,20 +707,40 @@ int axis_steps56(State& s, Args& a, char letter, const std::string& step) {
   if (method.empty()) usage("homing: --method controller|drive:N (cnc-commission homing-methods)");
   if (repeat < 1 || repeat > 100) usage("homing: --repeat 1..100");
   if (!(away > 0)) usage("homing: --away must be > 0");
+  if (!square_pins.empty() && (square_pins.size() != 2 || !ax->gantry))
+    usage("homing: --square-pins FIRST,SECOND (two HAL pins, each side's position) on a gantry pair");
+  if (square != 0 && !ax->gantry) usage("homing: --square is for a gantry pair");
   Axis planned = *ax;
   planned.homing = plan_homing(*ax, method);
+  if (ax->gantry) {  // each side on its own switch, one synchronised group
+    planned.gantry->homing = plan_gantry_homing(*ax, *planned.homing, method, square);
+    planned.gantry->squaring = square;
+  }
   std::unique_ptr<ControllerProcess> own;
   if (!bring_up.empty()) {
     State with = s;
     *with.axis(letter) = planned;
     own = bring_up_controller(with, bin, bring_up, "commission", bring_up / "cncd.log");
   }
-  const std::vector<double> refs = run_homing(Controller(bin), planned, repeat, away, stdout);
+  for (const Axis& j : step_joints(planned)) {
+    const std::vector<double> refs = run_homing(Controller(bin), j, repeat, away, stdout);
+    AxisHoming& h = j.joint == planned.joint ? *planned.homing : *planned.gantry->homing;
+    h.references = refs;
+    h.spread = spread(refs);
+    std::cout << "axis " << letter << (j.joint == planned.joint ? "" : " (gantry joint " + std::to_string(j.joint) + ")")
+              << ": " << method << ", " << refs.size() << " runs, spread " << fmt_mm(h.spread * 1000) << " um ("
+              << h.measured << ")\n";
+  }
+  if (!square_pins.empty()) {  // the squaring: the racking left by the switch edges, folded into HOME_OFFSET
+    const double d = measure_racking(Controller(bin), planned, square_pins[0], square_pins[1]);
+    planned.gantry->homing->home_offset += d;
+    planned.gantry->squaring += d;
+    std::cout << "axis " << letter << ": homed, the second side stood " << fmt_mm(d) << " mm ahead of the first ("
+              << square_pins[1] << " - " << square_pins[0] << "): its HOME_OFFSET is now "
+              << fmt_mm(planned.gantry->homing->home_offset) << " mm (squaring " << fmt_mm(planned.gantry->squaring)
+              << " mm)\n";
+  }
   if (own && own->stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
-  planned.homing->references = refs;
-  planned.homing->spread = spread(refs);
-  std::cout << "axis " << letter << ": " << method << ", " << refs.size() << " runs, spread "
-            << fmt_mm(planned.homing->spread * 1000) << " um (" << planned.homing->measured << ")\n";
   *ax = planned;
   s.log.push_back("axis " + L + " homing " + method);
   return 0;
@@ -721,6 +752,7 @@ std::filesystem::path g_state_file = "commission.json";
 
 int cmd_tune(State& s, Args& a, char letter) {
   TuneOptions o;
+  bool torque_given = false;
   std::filesystem::path bin = self_dir(), bring_up;
   while (a.more()) {
     const std::string k = a.next("option");
@@ -729,7 +761,10 @@ int cmd_tune(State& s, Args& a, char letter) {
     else if (k == "--margin") o.margin_pct = number(a.next("percent"), "--margin");
     else if (k == "--record") o.record_dir = a.next("folder");
     else if (k == "--steps") o.steps = static_cast<int>(number(a.next("count"), "--steps"));
-    else if (k == "--torque-limit") o.rule.torque_limit_pct = number(a.next("percent"), "--torque-limit");
+    else if (k == "--torque-limit") {
+      o.rule.torque_limit_pct = number(a.next("percent"), "--torque-limit");
+      torque_given = true;
+    }
     else if (k == "--bin") bin = a.next("folder");
     else if (k == "--bring-up") bring_up = a.next("folder");
     else usage("tune: unknown option " + k);
@@ -745,9 +780,12 @@ int cmd_tune(State& s, Args& a, char letter) {
   o.progress = [](const std::string& l) { std::cout << "progress: " << l << std::endl; };
   o.report = [](const std::string& l) { std::cout << l << std::endl; };
   std::unique_ptr<ControllerProcess> own;
+  if (!torque_given)  // the drive's own limit (0x6072) as the scan read it
+    if (const auto pct = drive_max_torque_pct(s, *ax)) o.rule.torque_limit_pct = *pct;
   if (!bring_up.empty())
-    own = bring_up_controller(tuning_configuration(s, letter, o), bin, bring_up, "commission-tune", bring_up / "cncd.log");
-  const AxisTuning t = run_tuning(Controller(bin), *ax, o);
+    own = bring_up_controller(tuning_configuration(s, letter, o), bin, bring_up, "commission-tune", bring_up / "cncd.log", true);
+  AxisTuning t = run_tuning(Controller(bin), *ax, o);
+  if (ax->gantry) t = worse_tuning(t, run_tuning(Controller(bin), gantry_view(*ax), o));  // each side, the worse
   if (own && own->stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
   std::cout << "axis " << letter << ": the machine is off again\n"
             << "velocity: " << t.velocity_limit << "\nacceleration: " << t.acceleration_limit << "\n"
@@ -926,8 +964,8 @@ int cmd_axis(State& s, Args& a) {
     if (!(ax->max_velocity > 0) || !(ax->max_acceleration > 0))
       throw std::invalid_argument(std::string("axis ") + letter + ": velocity and acceleration must be > 0");
   } else if (step == "direction-test") {
-    double distance = 5, velocity = 2, dial = 0;
-    bool has_dial = false;
+    double distance = 5, velocity = 2, dial = 0, dial2 = 0;
+    bool has_dial = false, has_dial2 = false;  // dial2: a gantry's second side
     std::filesystem::path bin = self_dir(), bring_up;
     while (a.more()) {
       const std::string k = a.next("option");
@@ -936,6 +974,9 @@ int cmd_axis(State& s, Args& a) {
       else if (k == "--dial") {
         dial = number(a.next("mm"), "--dial");
         has_dial = true;
+      } else if (k == "--dial2") {
+        dial2 = number(a.next("mm"), "--dial2");
+        has_dial2 = true;
       } else if (k == "--bin") bin = a.next("folder");
       else if (k == "--bring-up") bring_up = a.next("folder");
       else usage("direction-test: unknown option " + k);
@@ -943,7 +984,8 @@ int cmd_axis(State& s, Args& a) {
     Axis* ax = s.axis(letter);
     if (!ax) usage(std::string("axis ") + letter + " has no drive yet");
     std::unique_ptr<ControllerProcess> own;
-    if (!bring_up.empty()) own = bring_up_controller(s, bin, bring_up, "commission", bring_up / "cncd.log");
+    if (has_dial2 && !ax->gantry) usage("direction-test: --dial2 is the second side of a gantry pair");
+    if (!bring_up.empty()) own = bring_up_controller(s, bin, bring_up, "commission", bring_up / "cncd.log", true);
     const JogResult r = direction_jog(Controller(bin), *ax, distance, velocity);
     if (r.limited)
       std::cout << "axis " << letter << ": jogged " << r.commanded_mm << " mm, not " << distance << ": "
@@ -955,6 +997,8 @@ int cmd_axis(State& s, Args& a) {
     std::cout << "axis " << letter << ": commanded " << r.commanded_mm << " mm, drive feedback " << r.feedback_mm
               << " mm; the machine is off again\n";
     std::cout << apply_direction_test(s, letter, r.commanded_mm, r.feedback_mm, dial, has_dial).verdict << "\n";
+    if (r.gantry_feedback_mm)  // the gantry's second drive, jogged with the first
+      std::cout << apply_direction_test(s, letter, r.commanded_mm, *r.gantry_feedback_mm, dial2, has_dial2, true).verdict << "\n";
     s.log.push_back("axis " + std::string(1, letter) + " direction test");
   } else if (step == "tune") {
     return cmd_tune(s, a, letter);
@@ -965,7 +1009,13 @@ int cmd_axis(State& s, Args& a) {
     const Axis* ax = s.axis(letter);
     if (!ax || !ax->direction) usage(std::string("axis ") + letter + ": no direction test to go with the dial reading");
     const DirectionTest t = *ax->direction;
+    std::optional<double> dial2;  // a gantry pair: the second side's reading
+    if (a.more()) dial2 = number(a.next("second dial reading (mm)"), "dial");
+    if (dial2 && (!ax->gantry || !ax->gantry->direction))
+      usage(std::string("axis ") + letter + ": a second dial reading is for a gantry pair's second drive after its direction test");
+    const std::optional<DirectionTest> t2 = ax->gantry ? ax->gantry->direction : std::nullopt;
     std::cout << apply_direction_test(s, letter, t.commanded_mm, t.feedback_mm, dial, true).verdict << "\n";
+    if (dial2) std::cout << apply_direction_test(s, letter, t2->commanded_mm, t2->feedback_mm, *dial2, true, true).verdict << "\n";
     s.log.push_back("axis " + std::string(1, letter) + " dial " + l);
   } else if (step.rfind("comp-", 0) == 0) {
     return cmd_axis_comp(s, letter, step, a);  // step 8
@@ -993,7 +1043,12 @@ int cmd_bring_up(State& s, Args& a) {
   }
   if (dir.empty()) usage("bring-up: --dir DIR");
   if (log.empty()) log = dir / "cncd.log";
-  auto c = bring_up_controller(s, self_dir(), dir, name, log);
+  // A gantry pair whose sides are not both homing-commissioned yet: its
+  // joints apart, so the steps may jog each before homing.
+  const bool apart = std::any_of(s.axes.begin(), s.axes.end(), [](const Axis& x) {
+    return x.gantry && (!x.homing || !x.gantry->homing);
+  });
+  auto c = bring_up_controller(s, self_dir(), dir, name, log, apart);
   std::cout << "cncd runs on " << (dir / (name + ".ini")).string() << " (process " << c->pid() << ", log "
             << log.string() << "); cnc-commission shutdown stops it\n";
   c->detach();

@@ -45,11 +45,23 @@ std::vector<std::string> lines_of(const std::string& t) {
 
 }  // namespace
 
+// The drive's torque limit 0x6072 as the scan read it (the tuning step
+// measured saturation against it): written back at every start-up so the
+// configuration holds the limit the axis was tuned with.
+static std::string max_torque_key(const State& s, const Axis& a) {
+  const std::optional<double> pct = drive_max_torque_pct(s, a);
+  if (!pct) return "";
+  char b[96];
+  std::snprintf(b, sizeof b, "# The drive's 0x6072 as scanned (the tuning's torque limit).\nMAX_TORQUE = %g\n", *pct);
+  return b;
+}
+
 long servo_period_ns(std::size_t drives) noexcept {
   return static_cast<long>(1'000'000 * std::max<std::size_t>(1, (drives + 1) / 2));
 }
 
-std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem::path& dir, const std::string& name) {
+std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem::path& dir, const std::string& name,
+                                           bool gantry_joints_apart) {
   // The axes (one [AXIS_L] each) and the joints (one [JOINT_n], drive and
   // node each): a gantry pair is one axis on two joints (steps.hpp,
   // machine_joints).
@@ -92,7 +104,8 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
   // A gantry pair homes together: both joints the same negative
   // HOME_SEQUENCE (-1 for the first pair, -2 for the next ...), the other
   // joints keep theirs (0).
-  const auto home_sequence = [&axes](const Axis& a) {
+  const auto home_sequence = [&axes, gantry_joints_apart](const Axis& a) {
+    if (gantry_joints_apart) return 0;
     int pair = 0;
     for (const Axis* x : axes) {
       if (x->gantry) ++pair;
@@ -142,6 +155,9 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
       << "[TRAJ]\nCOORDINATES = " << coords << "\nLINEAR_UNITS = mm\nANGULAR_UNITS = degree\n"
       << "MAX_LINEAR_VELOCITY = " << num(max_v) << "\nMAX_LINEAR_ACCELERATION = " << num(max_a) << "\n\n"
       << (gantry ? "# A gantry: a letter twice, its two joints homed and jogged apart in joint mode (kinstype=BOTH).\n" : "")
+      << (gantry && gantry_joints_apart
+              ? "# Commissioning the gantry's drives: the pair's joints are not homed together (HOME_SEQUENCE 0).\n"
+              : "")
       << "[KINS]\nKINEMATICS = trivkins coordinates=" << [&] {
            std::string c;
            for (const Axis* a : joint_axes) c += a->letter;
@@ -244,7 +260,7 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
         << a.joint << "\nENCODER_COUNTS = " << num(sc.encoder_counts) << "\nGEAR_MOTOR_REVS = "
         << num(sc.gear_motor_revs) << "\nGEAR_LOAD_REVS = " << num(sc.gear_load_revs)
         << "\nSCREW_LEAD = " << num(sc.screw_lead / sc.correction) << "\nREVERSE = " << (sc.reverse ? "YES" : "NO")
-        << "\nPROBE = NO\n" << drive_homing_keys(a) << (a.enabled ? "" : "DISABLED = YES\n") << "FERROR_WINDOW = 1\nFERROR_TIMEOUT_MS = 20\nQUICK_STOP_DECEL = "
+        << "\nPROBE = NO\n" << max_torque_key(s, a) << drive_homing_keys(a) << (a.enabled ? "" : "DISABLED = YES\n") << "FERROR_WINDOW = 1\nFERROR_TIMEOUT_MS = 20\nQUICK_STOP_DECEL = "
         << num(a.tuning && a.tuning->max_acceleration > 0  // tuned: the highest clean test's acceleration
                    ? limits(a).a / (1 - a.tuning->margin_pct / 100)
                    : a.max_acceleration * 2)

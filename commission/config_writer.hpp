@@ -27,7 +27,12 @@ struct GeneratedFile {
 // there is none yet, tool.tbl. Throws
 // std::invalid_argument when the state cannot make a configuration (no
 // axis, an axis without scaling), naming what is missing.
-std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem::path& dir, const std::string& name);
+// `gantry_joints_apart`: a configuration for commissioning a gantry's
+// drives one joint at a time (steps 4, 5 and 7 jog each joint of the pair
+// before it is homed): the pair's joints get HOME_SEQUENCE 0 instead of
+// their synchronised group, whose joints motion does not jog unhomed.
+std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem::path& dir, const std::string& name,
+                                           bool gantry_joints_apart = false);
 
 // The servo period the written configuration runs at: 1 ms per two axis
 // drives on the one bus (their PDOs at 1 Mbit/s stay inside the bus-load

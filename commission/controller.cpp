@@ -161,11 +161,12 @@ void home_all(const Controller& c, const std::string& who, double timeout_s) {
 }
 
 JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, double velocity) {
-  const double cap = direction_test_travel_limit(a);
+  const std::vector<Axis> joints = step_joints(a);  // a gantry pair: both, jogged together
+  double cap = direction_test_travel_limit(a);
+  for (const Axis& j : joints) cap = std::min(cap, direction_test_travel_limit(j));
   const double dist = std::copysign(std::min(std::fabs(distance_mm), cap), distance_mm);
   const double vel = std::min(std::fabs(velocity), kMaxTestVelocity);
   if (!(std::fabs(dist) > 0) || !(vel > 0)) throw std::runtime_error("direction test: no travel or no speed given");
-  const std::string joint = std::to_string(a.joint);
   g_abort.store(false, std::memory_order_relaxed);
   c.cnc({"estop-reset"});
   if (!c.estop_chain_ok())
@@ -175,35 +176,47 @@ JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, 
   JogResult r;
   r.commanded_mm = dist;
   r.limited = std::fabs(distance_mm) > cap;
-  const double before = c.motor_position(a.joint);
+  std::vector<double> before, now;
+  for (const Axis& j : joints) before.push_back(c.motor_position(j.joint));
+  now = before;
+  const auto stop_all = [&c, &joints]() {
+    for (const Axis& j : joints) c.cnc({"jog-stop", std::to_string(j.joint)});
+  };
+  const auto moved = [&]() {
+    std::string m;
+    for (std::size_t i = 0; i < joints.size(); ++i)
+      m += (i ? ", joint " : "moved ") + (i ? std::to_string(joints[i].joint) + " " : std::string()) +
+           std::to_string(now[i] - before[i]) + " mm";
+    return m + " of " + std::to_string(dist);
+  };
   const auto limit = std::chrono::duration<double>(2 * std::fabs(dist) / vel + 3.0);
   const auto start = std::chrono::steady_clock::now();
   try {
-    c.cnc({"jog", joint, std::to_string(vel), std::to_string(dist)});
-    double last = before;
+    for (const Axis& j : joints) c.cnc({"jog", std::to_string(j.joint), std::to_string(vel), std::to_string(dist)});
+    std::vector<double> last = before;
     int still = 0;
     for (;;) {
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
-      const double now = c.motor_position(a.joint);
-      if (std::fabs(now - before - dist) < 0.001 && std::fabs(now - last) < 1e-5) {
-        if (++still >= 3) break;
-      } else {
-        still = 0;
+      bool arrived = true;
+      for (std::size_t i = 0; i < joints.size(); ++i) {
+        now[i] = c.motor_position(joints[i].joint);
+        arrived = arrived && std::fabs(now[i] - before[i] - dist) < 0.001 && std::fabs(now[i] - last[i]) < 1e-5;
       }
+      still = arrived ? still + 1 : 0;
+      if (still >= 3) break;
       last = now;
       if (g_abort.load(std::memory_order_relaxed)) {
-        c.cnc({"jog-stop", joint});
-        throw std::runtime_error(std::string("axis ") + a.letter + ": the test move was aborted (moved " +
-                                 std::to_string(now - before) + " mm of " + std::to_string(dist) + ")");
+        stop_all();
+        throw std::runtime_error(std::string("axis ") + a.letter + ": the test move was aborted (" + moved() + ")");
       }
       if (std::chrono::steady_clock::now() - start > limit) {
-        c.cnc({"jog-stop", joint});
+        stop_all();
         throw std::runtime_error(std::string("axis ") + a.letter + ": the test move did not end within " +
-                                 std::to_string(limit.count()) + " s (moved " + std::to_string(now - before) +
-                                 " mm of " + std::to_string(dist) + "): stopped");
+                                 std::to_string(limit.count()) + " s (" + moved() + "): stopped");
       }
     }
-    r.feedback_mm = c.motor_position(a.joint) - before;
+    r.feedback_mm = c.motor_position(a.joint) - before[0];
+    if (joints.size() > 1) r.gantry_feedback_mm = c.motor_position(joints[1].joint) - before[1];
   } catch (const std::exception& e) {
     // Whatever stopped the test, the drives end disabled.
     const std::string off = switch_off_after_failure(c);

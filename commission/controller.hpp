@@ -7,6 +7,7 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -81,6 +82,7 @@ struct JogResult {
   double commanded_mm = 0;
   double feedback_mm = 0;   // motor feedback after - before
   bool limited = false;     // the distance asked for was cut to direction_test_travel_limit()
+  std::optional<double> gantry_feedback_mm;  // a gantry pair: its second drive's joint, jogged with the first
 };
 
 // The direction test's motion: joint `a.joint` jogs `distance_mm` (at most
@@ -89,7 +91,10 @@ struct JogResult {
 // (at most kMaxTestVelocity) in free (joint) mode, switched on for the move and off
 // afterwards, stopped after a time limit (twice the travel time + 3 s).
 // Refuses when the E-stop chain is open. Throws std::runtime_error saying
-// why it stopped (time limit, request_abort(), a failing command).
+// why it stopped (time limit, request_abort(), a failing command). A
+// gantry pair's two joints are jogged at once by the same distance (the
+// shorter limit of the two), so the pair stays as square as it stood
+// while each drive's own travel is measured.
 JogResult direction_jog(const Controller& c, const Axis& a, double distance_mm, double velocity);
 
 }  // namespace cnc::commission

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "commission/steps.hpp"
 #include "commission/switches.hpp"
 
 namespace cnc::commission {
@@ -117,6 +118,48 @@ AxisHoming plan_homing(const Axis& a, const std::string& method) {
   h.measured = dm == 0 ? "motor position of the latched home switch edge (mm)"
                        : "home switch edge in the frame the drive set (mm), crossed again slowly until two polls are within 10 um";
   return h;
+}
+
+AxisHoming plan_gantry_homing(const Axis& a, const AxisHoming& first, const std::string& method, double squaring_mm) {
+  const Axis second = gantry_view(a);
+  if (!a.gantry->switches)
+    throw std::invalid_argument(std::string("axis ") + a.letter + ": the gantry's second drive (joint " +
+                                std::to_string(second.joint) + ") has no switch search of its own: run `cnc-commission axis " +
+                                a.letter + " switches` again (it searches both sides)");
+  AxisHoming h;
+  try {
+    h = plan_homing(second, method);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string(e.what()) + " (the gantry's second drive, joint " + std::to_string(second.joint) + ")");
+  }
+  h.home = first.home;
+  h.home_offset += squaring_mm;
+  return h;
+}
+
+double measure_racking(const Controller& c, const Axis& a, const std::string& first_pin, const std::string& second_pin) {
+  clear_abort();
+  c.cnc({"estop-reset"});
+  if (!c.estop_chain_ok())
+    throw std::runtime_error(std::string("axis ") + a.letter + ": the E-stop chain is open: close it before homing");
+  double d = 0;
+  try {
+    machine_on(c);
+    c.cnc({"--timeout", "150", "home", std::to_string(a.joint)});
+    const double home = a.homing ? std::clamp(a.homing->home, a.min_limit, a.max_limit) : 0.0;
+    for (int i = 0; i < 100; ++i) {
+      const auto jt = nlohmann::json::parse(c.cnc({"status", "--json"})).at("joints").at(a.joint);
+      if (jt.value("homed", false) && jt.value("inpos", false) && std::fabs(jt.at("pos_fb").get<double>() - home) < 0.01) break;
+      if (abort_requested()) throw std::runtime_error(std::string("axis ") + a.letter + ": aborted while homing");
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    d = c.getp(second_pin) - c.getp(first_pin);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(e.what() + switch_off_after_failure(c));
+  }
+  c.cnc({"off"});
+  return d;
 }
 
 std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, double away_mm, std::FILE* progress) {

@@ -38,6 +38,24 @@ int drive_method(const std::string& method);
 // edge nearer the start of the switch search), which becomes HOME_OFFSET.
 double home_switch_reference(const AxisSwitches& s, double search_velocity);
 
+// A gantry pair (LinuxCNC's way: both joints in one synchronised homing
+// group, a negative HOME_SEQUENCE; each joint homes on its own home
+// switch, and the per-joint HOME_OFFSET squares the gantry): the second
+// drive's homing for `method`, planned on the switches the search found on
+// its own joint (gantry_view), with the first joint's HOME so the pair
+// ends side by side, and `squaring_mm` added to its HOME_OFFSET: how far
+// the second side stood ahead of the first (in the axis' + direction)
+// after homing on the switch edges alone. Throws as plan_homing, naming
+// the second drive.
+AxisHoming plan_gantry_homing(const Axis& a, const AxisHoming& first, const std::string& method, double squaring_mm);
+
+// The racking of a gantry pair after homing: machine on, the pair homed
+// (`cnc home` of the first joint homes the synchronised group), at rest,
+// the two HAL pins read (each side's position in mm: linear scales, or
+// the simulated drives' table positions); returns second - first. The
+// machine is off at the end whatever happens.
+double measure_racking(const Controller& c, const Axis& a, const std::string& first_pin, const std::string& second_pin);
+
 // Spread (max - min) of the references; 0 for fewer than two.
 double spread(const std::vector<double>& v) noexcept;
 

@@ -284,6 +284,101 @@ bool restorable(const BackupEntry& e) noexcept {
   return e.addr.index >= 0x2000 && e.addr.index <= 0x9FFF && e.access != "ro" && e.access != "const";
 }
 
+bool pdo_entry(const BackupEntry& e) noexcept {
+  const uint16_t i = e.addr.index;
+  return ((i >= 0x1400 && i <= 0x1BFF) || i == 0x1C12 || i == 0x1C13) && e.access != "ro" && e.access != "const";
+}
+
+namespace {
+
+// The PDO configuration of one drive written back in order (see
+// DriveRestore::pdo_changes); each write logged in d.pdo_steps. Returns
+// false with a problem in `r` at the first refused write.
+bool restore_pdos(DriveRestore& d, DriveChannel& c, RestoreResult& r) {
+  const BackupFile& f = d.file;
+  const std::string who = f.label();
+  const auto write = [&](co::ObjectAddress a, const std::vector<uint8_t>& data, const std::string& why) {
+    const DriveChannel::Result w = c.download(a, data);
+    std::string v;
+    for (std::size_t i = data.size(); i-- > 0;) {
+      char b[4];
+      std::snprintf(b, sizeof b, "%02X", data[i]);
+      v += b;
+    }
+    d.pdo_steps.push_back(addr_text(a) + " = 0x" + v + " (" + why + ")" + (w.ok ? "" : ": refused, " + w.error));
+    if (!w.ok) r.problems.push_back(who + ": restoring the PDO configuration, writing " + addr_text(a) + " (" + why + ") failed: " + w.error);
+    return w.ok;
+  };
+  const auto differs = [&d](uint16_t index) {
+    return std::any_of(d.pdo_changes.begin(), d.pdo_changes.end(),
+                       [index](const RestoreChange& k) { return k.entry.addr.index == index; });
+  };
+  // A mapping: sub-index 0 to 0, the backup's entries, sub-index 0.
+  const auto mapping = [&](uint16_t map) {
+    const BackupEntry* count = f.find(map, 0);
+    if (!count || count->data.empty()) return true;
+    if (!write({map, 0}, {0}, "mapping off")) return false;
+    for (uint8_t k = 1; k <= count->data[0]; ++k) {
+      const BackupEntry* e = f.find(map, k);
+      if (!e) {
+        r.problems.push_back(who + ": the backup's " + addr_text({map, 0}) + " announces " + std::to_string(count->data[0]) +
+                             " entries but has no " + addr_text({map, k}));
+        return false;
+      }
+      if (!write(e->addr, e->data, "mapping entry")) return false;
+    }
+    return write({map, 0}, count->data, "mapping on");
+  };
+  if (f.slave) {  // EtherCAT, in PREOP: the assignments emptied first
+    bool any = false;
+    for (const RestoreChange& k : d.pdo_changes) any = any || k.entry.addr.index >= 0x1600;
+    if (!any) return true;
+    for (uint16_t sm : {uint16_t{0x1C12}, uint16_t{0x1C13}})
+      if (f.find(sm, 0) && !write({sm, 0}, {0}, "assignment off")) return false;
+    for (uint16_t map = 0x1600; map <= 0x1BFF; ++map)
+      if (differs(map) && !mapping(map)) return false;
+    for (uint16_t sm : {uint16_t{0x1C12}, uint16_t{0x1C13}}) {
+      const BackupEntry* count = f.find(sm, 0);
+      if (!count || count->data.empty()) continue;
+      for (uint8_t k = 1; k <= count->data[0]; ++k)
+        if (const BackupEntry* e = f.find(sm, k); e && !write(e->addr, e->data, "assigned PDO")) return false;
+      if (!write({sm, 0}, count->data, "assignment on")) return false;
+    }
+    return true;
+  }
+  // CANopen: each PDO whose communication or mapping differs, disabled
+  // while its mapping is written (CiA 301 7.5.2.36), enabled by its COB-ID.
+  for (bool tpdo : {false, true}) {
+    for (uint16_t n = 0; n < 0x200; ++n) {
+      const uint16_t comm = static_cast<uint16_t>((tpdo ? 0x1800 : 0x1400) + n);
+      const uint16_t map = static_cast<uint16_t>((tpdo ? 0x1A00 : 0x1600) + n);
+      if (!differs(comm) && !differs(map)) continue;
+      const BackupEntry* cob = f.find(comm, 1);
+      if (!cob || cob->data.size() < 4) {
+        r.problems.push_back(who + ": the backup has no COB-ID " + addr_text({comm, 1}) + " for " + addr_text({map, 0}) +
+                             ": the PDO cannot be disabled to restore it");
+        return false;
+      }
+      const DriveChannel::Result now = c.upload({comm, 1});
+      if (!now.ok || now.data.size() < 4) {
+        r.problems.push_back(who + ": " + addr_text({comm, 1}) + " cannot be read: " + now.error);
+        return false;
+      }
+      std::vector<uint8_t> off = now.data;
+      off[3] |= 0x80;  // bit 31: PDO not valid
+      if (!write({comm, 1}, off, "PDO off")) return false;
+      if (differs(map) && !mapping(map)) return false;
+      for (const RestoreChange& k : d.pdo_changes)
+        if (k.entry.addr.index == comm && k.entry.addr.sub != 1 && !write(k.entry.addr, k.entry.data, "communication parameter"))
+          return false;
+      if (!write({comm, 1}, cob->data, "the backup's COB-ID")) return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
 RestoreResult restore_drives(const std::vector<BackupFile>& files,
                              const std::function<std::unique_ptr<DriveChannel>(const BackupFile&, std::string&)>& open,
                              bool dry_run) {
@@ -352,7 +447,8 @@ RestoreResult restore_drives(const std::vector<BackupFile>& files,
       continue;
     }
     for (const BackupEntry& e : f.entries) {
-      if (!restorable(e)) continue;
+      const bool pdo = pdo_entry(e);
+      if (!restorable(e) && !pdo) continue;
       const DriveChannel::Result res = c->upload(e.addr);
       if (res.silent) {
         r.problems.push_back(who + " stopped answering (" + res.error + ") reading " + addr_text(e.addr) +
@@ -371,7 +467,7 @@ RestoreResult restore_drives(const std::vector<BackupFile>& files,
         RestoreChange k;
         k.entry = e;
         k.now = now;
-        d.changes.push_back(k);
+        (pdo ? d.pdo_changes : d.changes).push_back(k);
       }
     }
     d.checked = true;
@@ -407,6 +503,18 @@ RestoreResult restore_drives(const std::vector<BackupFile>& files,
       if (k.read_back != backup_value_text(k.entry.type, k.entry.data))
         r.problems.push_back(who + ": " + addr_text(k.entry.addr) + " " + k.entry.name + " reads back as " + k.read_back +
                              " after writing " + k.entry.value);
+    }
+    if (!d.pdo_changes.empty()) {
+      const bool done = restore_pdos(d, c, r);
+      for (RestoreChange& k : d.pdo_changes) {
+        const DriveChannel::Result b = c.upload(k.entry.addr);
+        k.read_back = b.ok ? backup_value_text(k.entry.type, b.data) : "?";
+        k.written = done && b.ok && k.read_back == backup_value_text(k.entry.type, k.entry.data);
+        if (done && !k.written)
+          r.problems.push_back(who + ": " + addr_text(k.entry.addr) + " " + k.entry.name + " reads back as " + k.read_back +
+                               " after restoring the PDO configuration, the backup's " + k.entry.value);
+      }
+      wrote = true;
     }
     if (!wrote) continue;
     // Store parameters (CiA 301 0x1010:1): bit 0 of its value says the
@@ -449,7 +557,7 @@ std::string describe(const RestoreResult& r) {
   for (const DriveRestore& d : r.drives) {
     if (!d.checked) continue;  // its problem says why
     o += d.file.label() + ": ";
-    if (d.changes.empty()) o += "every parameter as in the backup (" + std::to_string(d.unchanged) + ")\n";
+    if (d.changes.empty()) o += "every parameter as in the backup (" + std::to_string(d.unchanged) + ")\n";  // PDOs below
     else
       o += std::to_string(d.changes.size()) + " parameter(s) differ from the backup, " + std::to_string(d.unchanged) +
            " as in it\n";
@@ -462,6 +570,19 @@ std::string describe(const RestoreResult& r) {
         o += "  wrote " + what + " = " + k.entry.value + " (was " + k.now + "), read back " + k.read_back + "\n";
       else if (!k.note.empty())
         o += "  " + what + ": " + k.note + "\n";
+    }
+    if (!d.pdo_changes.empty()) {
+      o += "  " + std::to_string(d.pdo_changes.size()) + " PDO entr" + (d.pdo_changes.size() == 1 ? "y" : "ies") +
+           " differ" + (d.pdo_changes.size() == 1 ? "s" : "") + " from the backup" +
+           (r.dry_run ? ": the PDOs would be rewritten in order" : "") + "\n";
+      for (const RestoreChange& k : d.pdo_changes) {
+        const std::string what = addr_text(k.entry.addr) + " " + k.entry.name;
+        if (r.dry_run || !k.written)
+          o += "  " + std::string(r.dry_run ? "would write " : "not restored: ") + what + ": " + k.now + " -> " + k.entry.value + "\n";
+        else
+          o += "  restored " + what + " = " + k.entry.value + " (was " + k.now + "), read back " + k.read_back + "\n";
+      }
+      for (const std::string& s : d.pdo_steps) o += "    pdo write " + s + "\n";
     }
     for (const std::string& n : d.notes) o += "  " + n + "\n";
   }

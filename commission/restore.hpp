@@ -9,9 +9,12 @@
 // and compared; a CANopen or CoE drive with "store parameters" (0x1010:1)
 // is then asked to store them ("save"). Restored are the parameters of
 // 0x2000-0x9FFF (manufacturer and profile objects) that are not read-only
-// (AccessType ro/const in the file); the communication objects below
-// 0x2000 (identity, names, PDO communication and mapping) are the
-// master's business at every start-up and only kept in the backup for the
+// (AccessType ro/const in the file), and the PDO configuration: CANopen's
+// communication parameters 0x1400-0x15FF / 0x1800-0x19FF and mappings
+// 0x1600-0x17FF / 0x1A00-0x1BFF, EtherCAT's mappings and sync-manager
+// assignments 0x1C12/0x1C13, written in the order CiA 301 and ETG.1000.6
+// require (restore_pdos below). The other objects below 0x2000
+// (identity, names, heartbeat) are only kept in the backup for the
 // record. A drive that refuses a write as read-only (SDO abort 0x06010002)
 // keeps its value and says so. Bad input (a missing file, a line that does
 // not parse, a drive that does not answer or is another drive) is a
@@ -67,8 +70,12 @@ BackupFile load_backup_file(const std::filesystem::path& file);
 // the folder when it has none.
 std::vector<BackupFile> load_backup_dir(const std::filesystem::path& dir);
 
-// Whether a restore writes this entry back (0x2000-0x9FFF, not ro/const).
+// Whether a restore writes this entry back as a parameter (0x2000-0x9FFF,
+// not ro/const).
 bool restorable(const BackupEntry& e) noexcept;
+// Whether it is part of the PDO configuration a restore writes back in
+// order (not ro/const): 0x1400-0x1BFF, 0x1C12, 0x1C13.
+bool pdo_entry(const BackupEntry& e) noexcept;
 
 // One drive as the restore reaches it.
 class DriveChannel {
@@ -101,6 +108,14 @@ struct RestoreChange {
 struct DriveRestore {
   BackupFile file;
   std::vector<RestoreChange> changes;  // restorable entries whose value differs
+  // PDO entries whose value differs; restoring them rewrites each PDO they
+  // belong to in order: CANopen: the PDO disabled (COB-ID bit 31), its
+  // mapping's sub-index 0 set to 0, the entries, sub-index 0, the other
+  // communication parameters, the backup's COB-ID last; EtherCAT (in
+  // PREOP): 0x1C12/0x1C13 sub-index 0 to 0 first, the mappings as above,
+  // then the assignments and their sub-index 0.
+  std::vector<RestoreChange> pdo_changes;
+  std::vector<std::string> pdo_steps;  // the writes of that sequence, in order
   int unchanged = 0;                   // restorable entries already equal
   std::vector<std::string> notes;      // serial number differs, stored or not
   bool checked = false;                // identity matched and its parameters were read

@@ -205,6 +205,7 @@ ScanResult scan_canopen(can::Transport& bus, const ScanOptions& o) {
       up({0x6091, 2}, [n](const co::SdoResult& s) { n->gear_shaft_revs = s.as<uint32_t>(); });
       up({0x6092, 1}, [n](const co::SdoResult& s) { n->feed = s.as<uint32_t>(); });
       up({0x6092, 2}, [n](const co::SdoResult& s) { n->feed_shaft_revs = s.as<uint32_t>(); });
+      up({0x6072, 0}, [n](const co::SdoResult& s) { n->max_torque = s.as<uint16_t>(); });  // the tuning's torque limit
     }
   }
   run(bus, live, o);
@@ -302,6 +303,7 @@ void read_factor_groups(ethercat::Master& m, EthercatScanResult& r) {
     n.gear_shaft_revs = u32(0x6091, 2);
     n.feed = u32(0x6092, 1);
     n.feed_shaft_revs = u32(0x6092, 2);
+    if (const auto t = u32(0x6072, 0)) n.max_torque = static_cast<uint16_t>(*t);  // the tuning's torque limit
   }
 }
 }  // namespace

@@ -56,6 +56,7 @@ void put_factors(json& j, const N& n) {
   put_opt(j, "gear_shaft_revs", n.gear_shaft_revs);
   put_opt(j, "feed", n.feed);
   put_opt(j, "feed_shaft_revs", n.feed_shaft_revs);
+  put_opt(j, "max_torque", n.max_torque);  // 0x6072, read with the factor group
 }
 template <class N>
 void get_factors(const json& j, N& n) {
@@ -65,6 +66,7 @@ void get_factors(const json& j, N& n) {
   get_opt(j, "gear_shaft_revs", n.gear_shaft_revs);
   get_opt(j, "feed", n.feed);
   get_opt(j, "feed_shaft_revs", n.feed_shaft_revs);
+  get_opt(j, "max_torque", n.max_torque);
 }
 
 json node_json(const ScannedNode& n) {
@@ -382,6 +384,22 @@ AxisResponse response_from(const json& j) {
 }
 // --- end of step 7 ---
 
+json direction_json(const DirectionTest& d) {
+  return {{"commanded_mm", d.commanded_mm}, {"feedback_mm", d.feedback_mm}, {"dial_mm", d.dial_mm},
+          {"has_dial", d.has_dial}, {"reversed", d.reversed}, {"correction", d.correction}, {"verdict", d.verdict}};
+}
+DirectionTest direction_from(const json& d) {
+  DirectionTest t;
+  get(d, "commanded_mm", t.commanded_mm);
+  get(d, "feedback_mm", t.feedback_mm);
+  get(d, "dial_mm", t.dial_mm);
+  get(d, "has_dial", t.has_dial);
+  get(d, "reversed", t.reversed);
+  get(d, "correction", t.correction);
+  get(d, "verdict", t.verdict);
+  return t;
+}
+
 json axis_json(const Axis& a) {
   json j = {{"letter", std::string(1, a.letter)}, {"joint", a.joint}, {"node", a.node}, {"slave", a.slave},
             {"min_limit", a.min_limit}, {"max_limit", a.max_limit},
@@ -393,15 +411,18 @@ json axis_json(const Axis& a) {
                   {"correction", s.correction}, {"reverse", s.reverse}, {"dial_checked", s.dial_checked},
                   {"source", s.source},
                   {"counts_per_mm", s.counts_per_mm()}};
-  if (a.direction) {
-    const DirectionTest& d = *a.direction;
-    j["direction_test"] = {{"commanded_mm", d.commanded_mm}, {"feedback_mm", d.feedback_mm},
-                           {"dial_mm", d.dial_mm}, {"has_dial", d.has_dial}, {"reversed", d.reversed},
-                           {"correction", d.correction}, {"verdict", d.verdict}};
+  if (a.direction) j["direction_test"] = direction_json(*a.direction);
+  if (a.gantry) {
+    const GantryDrive& g = *a.gantry;
+    json gj = {{"node", g.node}, {"slave", g.slave}, {"joint", g.joint}, {"reverse", g.reverse},
+               {"correction", g.correction}, {"dial_checked", g.dial_checked}, {"squaring", g.squaring}};
+    if (g.direction) gj["direction_test"] = direction_json(*g.direction);
+    Axis steps;  // its switches and homing as an axis' (put_steps56)
+    steps.switches = g.switches;
+    steps.homing = g.homing;
+    put_steps56(gj, steps);
+    j["gantry"] = gj;
   }
-  if (a.gantry)
-    j["gantry"] = {{"node", a.gantry->node}, {"slave", a.gantry->slave}, {"joint", a.gantry->joint},
-                   {"reverse", a.gantry->reverse}};
   if (a.compensation) j["compensation"] = compensation_json(*a.compensation);
   put_steps56(j, a);
   if (a.tuning) j["tuning"] = tuning_json(*a.tuning);
@@ -428,6 +449,14 @@ Axis axis_from(const json& j, const std::string& origin) {
     get(g, "slave", d.slave);
     get(g, "joint", d.joint);
     get(g, "reverse", d.reverse);
+    get(g, "correction", d.correction);
+    get(g, "dial_checked", d.dial_checked);
+    get(g, "squaring", d.squaring);
+    if (g.contains("direction_test")) d.direction = direction_from(g["direction_test"]);
+    Axis steps;
+    get_steps56(g, steps);
+    d.switches = steps.switches;
+    d.homing = steps.homing;
     a.gantry = d;
   }
   get(j, "min_limit", a.min_limit);
@@ -454,18 +483,7 @@ Axis axis_from(const json& j, const std::string& origin) {
     get(s, "dial_checked", a.scaling.dial_checked);
     get(s, "source", a.scaling.source);
   }
-  if (j.contains("direction_test")) {
-    const json& d = j["direction_test"];
-    DirectionTest t;
-    get(d, "commanded_mm", t.commanded_mm);
-    get(d, "feedback_mm", t.feedback_mm);
-    get(d, "dial_mm", t.dial_mm);
-    get(d, "has_dial", t.has_dial);
-    get(d, "reversed", t.reversed);
-    get(d, "correction", t.correction);
-    get(d, "verdict", t.verdict);
-    a.direction = t;
-  }
+  if (j.contains("direction_test")) a.direction = direction_from(j["direction_test"]);
   if (j.contains("compensation")) a.compensation = compensation_from(j["compensation"], origin);
   get_steps56(j, a);
   if (j.contains("tuning")) a.tuning = tuning_from(j["tuning"]);

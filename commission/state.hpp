@@ -26,6 +26,7 @@ struct ScannedNode {
   std::optional<uint32_t> encoder_increments, encoder_motor_revs;  // 0x608F:1/2
   std::optional<uint32_t> gear_motor_revs, gear_shaft_revs;        // 0x6091:1/2
   std::optional<uint32_t> feed, feed_shaft_revs;                   // 0x6092:1/2
+  std::optional<uint16_t> max_torque;       // 0x6072, per thousand of rated torque
   std::string eds;                          // matched description file ("" unknown)
   bool cia402 = false;                      // device profile 402 with CSP among its modes
   bool fault = false;                       // statusword says Fault
@@ -45,6 +46,7 @@ struct ScannedSlave {
   std::optional<uint32_t> encoder_increments, encoder_motor_revs;  // 0x608F:1/2
   std::optional<uint32_t> gear_motor_revs, gear_shaft_revs;        // 0x6091:1/2
   std::optional<uint32_t> feed, feed_shaft_revs;                   // 0x6092:1/2
+  std::optional<uint16_t> max_torque;                               // 0x6072, per thousand of rated torque
   std::vector<std::string> problems;
 };
 
@@ -229,7 +231,15 @@ struct GantryDrive {
   int node = 0;                 // CANopen node-ID (0: an EtherCAT drive)
   int slave = 0;                // EtherCAT position (0: CANopen)
   int joint = 0;
-  bool reverse = false;
+  bool reverse = false;         // REVERSE against the axis' (the first drive's)
+  // What steps 4-6 found on this drive's own joint, each side of the pair
+  // measured on its own (none: the axis' findings stand for it too).
+  double correction = 1.0;      // its counts-per-mm correction (as AxisScaling::correction)
+  bool dial_checked = false;
+  std::optional<DirectionTest> direction;
+  std::optional<AxisSwitches> switches;
+  std::optional<AxisHoming> homing;   // its own switch's HOME_OFFSET, plus `squaring`
+  double squaring = 0;          // mm added to its HOME_OFFSET so the pair ends square
 };
 
 struct Axis {

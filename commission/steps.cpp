@@ -60,17 +60,32 @@ void check_free(const State& s, char letter, int joint, int node, int slave, con
 }
 }  // namespace
 
+Axis gantry_view(const Axis& a) {
+  if (!a.gantry) throw std::invalid_argument(axis_name(a.letter) + " is not a gantry pair");
+  const GantryDrive& g = *a.gantry;
+  Axis v = a;
+  v.joint = g.joint;
+  v.node = g.node;
+  v.slave = g.slave;
+  v.scaling.reverse = a.scaling.reverse != g.reverse;
+  v.scaling.correction = g.correction;
+  v.scaling.dial_checked = g.dial_checked;
+  v.direction = g.direction;
+  if (g.switches) v.switches = g.switches;
+  if (g.homing) v.homing = g.homing;
+  return v;
+}
+
+std::vector<Axis> step_joints(const Axis& a) {
+  if (!a.gantry) return {a};
+  return {a, gantry_view(a)};
+}
+
 std::vector<MachineJoint> machine_joints(const State& s) {
   std::vector<MachineJoint> out;
   for (const Axis& a : s.axes) {
     out.push_back({a, false});
-    if (!a.gantry) continue;
-    MachineJoint second{a, true};
-    second.axis.joint = a.gantry->joint;
-    second.axis.node = a.gantry->node;
-    second.axis.slave = a.gantry->slave;
-    second.axis.scaling.reverse = a.scaling.reverse != a.gantry->reverse;
-    out.push_back(second);
+    if (a.gantry) out.push_back({gantry_view(a), true});
   }
   std::stable_sort(out.begin(), out.end(), [](const MachineJoint& x, const MachineJoint& y) { return x.axis.joint < y.axis.joint; });
   return out;
@@ -211,14 +226,26 @@ double set_scaling(State& s, char letter, double screw_lead, double encoder_coun
   sc.dial_checked = false;
   sc.source = src + ", entered lead";
   a.direction.reset();
+  if (a.gantry) {  // the same screw and gear on both sides: a new nominal scaling for both
+    a.gantry->correction = 1.0;
+    a.gantry->dial_checked = false;
+    a.gantry->direction.reset();
+  }
   return sc.counts_per_mm();
 }
 
 const DirectionTest& apply_direction_test(State& s, char letter, double commanded_mm, double feedback_mm,
-                                          double dial_mm, bool has_dial) {
+                                          double dial_mm, bool has_dial, bool gantry_second) {
   Axis& a = need_axis(s, letter);
+  if (gantry_second && !a.gantry) throw std::invalid_argument(axis_name(letter) + " is not a gantry pair: it has one drive");
+  // The side tested: the axis' own drive, or the gantry's second drive.
+  GantryDrive* g = gantry_second ? &*a.gantry : nullptr;
+  std::optional<DirectionTest>& stored = g ? g->direction : a.direction;
+  double& correction = g ? g->correction : a.scaling.correction;
+  bool& dial_checked = g ? g->dial_checked : a.scaling.dial_checked;
+  const std::string who = axis_name(letter) + (g ? " (the gantry's second drive, joint " + std::to_string(g->joint) + ")" : "");
   if (!(std::fabs(commanded_mm) > 0))
-    throw std::invalid_argument(axis_name(letter) + ": the test commanded no travel");
+    throw std::invalid_argument(who + ": the test commanded no travel");
   DirectionTest t;
   t.commanded_mm = commanded_mm;
   t.feedback_mm = feedback_mm;
@@ -227,37 +254,79 @@ const DirectionTest& apply_direction_test(State& s, char letter, double commande
   // The controller closes the loop on the encoder: its travel must follow
   // the command within a few percent, else the drive did not move as told.
   if (std::fabs(feedback_mm - commanded_mm) > 0.05 * std::fabs(commanded_mm) + 0.01) {
-    t.verdict = axis_name(letter) + ": the drive's encoder moved " + num(feedback_mm) + " mm for " + num(commanded_mm) +
+    t.verdict = who + ": the drive's encoder moved " + num(feedback_mm) + " mm for " + num(commanded_mm) +
                 " mm commanded: the drive did not follow (fault, torque limit, brake?); nothing changed";
-    a.direction = t;
+    stored = t;
     throw std::invalid_argument(t.verdict);
   }
   if (!has_dial) {
-    t.verdict = axis_name(letter) + ": encoder travel " + num(feedback_mm) + " mm as commanded; enter the dial reading to check direction and scaling";
-    a.direction = t;
-    return *a.direction;
+    t.verdict = who + ": encoder travel " + num(feedback_mm) + " mm as commanded; enter the dial reading to check direction and scaling";
+    stored = t;
+    return *stored;
   }
   if (std::fabs(dial_mm) < 0.01 * std::fabs(commanded_mm)) {
-    t.verdict = axis_name(letter) + ": the dial showed " + num(dial_mm) + " mm for " + num(commanded_mm) +
+    t.verdict = who + ": the dial showed " + num(dial_mm) + " mm for " + num(commanded_mm) +
                 " mm commanded: the table did not move (coupling, brake, dial not touching?); nothing changed";
-    a.direction = t;
+    stored = t;
     throw std::invalid_argument(t.verdict);
   }
   const bool against = (dial_mm > 0) != (commanded_mm > 0);
   t.correction = std::fabs(feedback_mm) / std::fabs(dial_mm);
   if (against) {
-    a.scaling.reverse = !a.scaling.reverse;
+    if (g) {
+      g->reverse = !g->reverse;  // its REVERSE is the axis' flipped by this
+    } else {
+      a.scaling.reverse = !a.scaling.reverse;
+      if (a.gantry) a.gantry->reverse = !a.gantry->reverse;  // the second drive keeps its direction
+    }
     t.reversed = true;
   }
-  a.scaling.correction *= t.correction;
-  a.scaling.dial_checked = true;
-  t.verdict = axis_name(letter) + ": " + (against ? "the table moved against the command: REVERSE flipped to " +
-                                                        std::string(a.scaling.reverse ? "YES" : "NO")
-                                                  : std::string("direction right")) +
+  const bool reverse_now = g ? a.scaling.reverse != g->reverse : a.scaling.reverse;
+  correction *= t.correction;
+  dial_checked = true;
+  AxisScaling now = a.scaling;
+  now.correction = correction;
+  t.verdict = who + ": " + (against ? "the table moved against the command: REVERSE flipped to " +
+                                          std::string(reverse_now ? "YES" : "NO")
+                                    : std::string("direction right")) +
               "; scale " + (std::fabs(t.correction - 1) < 1e-3 ? "right" : "corrected by " + num(t.correction)) +
-              ", now " + num(a.scaling.counts_per_mm()) + " counts/mm";
-  a.direction = t;
-  return *a.direction;
+              ", now " + num(now.counts_per_mm()) + " counts/mm";
+  stored = t;
+  return *stored;
+}
+
+AxisTuning worse_tuning(const AxisTuning& first, const AxisTuning& second) {
+  AxisTuning w = first;
+  for (TuningTest x : second.tests) {
+    x.series = "second drive " + x.series;
+    w.tests.push_back(x);
+  }
+  const auto pick = [](double x, double y, const std::string& bx, const std::string& by, bool lower,
+                       std::string* which) {
+    const bool take_y = lower ? y < x : y > x;
+    if (which) *which = take_y ? "the gantry's second drive: " + by : bx;
+    return take_y ? y : x;
+  };
+  w.max_velocity = pick(first.max_velocity, second.max_velocity, first.velocity_limit, second.velocity_limit, true,
+                        &w.velocity_limit);
+  w.max_acceleration = pick(first.max_acceleration, second.max_acceleration, first.acceleration_limit,
+                            second.acceleration_limit, true, &w.acceleration_limit);
+  w.max_jerk = std::min(first.max_jerk, second.max_jerk);
+  w.ferror = std::max(first.ferror, second.ferror);
+  w.min_ferror = std::max(first.min_ferror, second.min_ferror);
+  w.margin_pct = std::max(first.margin_pct, second.margin_pct);
+  return w;
+}
+
+std::optional<double> drive_max_torque_pct(const State& s, const Axis& a) {
+  std::optional<uint16_t> t;
+  if (a.slave) {
+    if (const ScannedSlave* x = s.slave(a.slave)) t = x->max_torque;
+  } else if (const ScannedNode* n = s.node(a.node)) {
+    t = n->max_torque;
+  }
+  if (!t || *t == 0) return std::nullopt;
+  return *t / 10.0;
 }
 
 double direction_test_travel_limit(const Axis& a) noexcept {

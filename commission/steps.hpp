@@ -33,6 +33,14 @@ struct MachineJoint {
   bool gantry_second = false; // the second drive of a gantry pair
 };
 std::vector<MachineJoint> machine_joints(const State& s);
+// The axis as its gantry's second drive sees it (its joint, drive,
+// absolute REVERSE, scale correction, and the switches, homing and
+// direction test found on its own joint where steps 4-6 ran on it; the
+// axis' otherwise). `a` must have a gantry.
+Axis gantry_view(const Axis& a);
+// The joints steps 4-7 act on: the axis, and for a gantry pair its second
+// drive's view as well.
+std::vector<Axis> step_joints(const Axis& a);
 
 // Sets the axis' scaling: encoder increments per motor revolution from the
 // drive (0x608F) unless given (> 0), gear from the drive (0x6091) unless
@@ -59,8 +67,23 @@ double direction_test_travel_limit(const Axis& a) noexcept;
 // not measured yet). The table moving against the command flips REVERSE;
 // a dial travel unlike the feedback corrects the counts per mm. The axis'
 // scaling is updated and the test stored in the state.
+// On a gantry pair each drive is tested on its own (`gantry_second`: the
+// second drive's jog and dial, stored in Axis::gantry): either side may
+// turn the other way or scale differently. Flipping the first drive's
+// REVERSE leaves the second drive's direction as it was.
 const DirectionTest& apply_direction_test(State& s, char letter, double commanded_mm, double feedback_mm,
-                                          double dial_mm, bool has_dial);
+                                          double dial_mm, bool has_dial, bool gantry_second = false);
+
+// A gantry pair's tuning: each joint is tuned on its own; the pair runs
+// at the worse of the two (the lower velocity, acceleration and jerk, the
+// larger following-error limits), the tests of both kept, `second`'s
+// findings named so.
+AxisTuning worse_tuning(const AxisTuning& first, const AxisTuning& second);
+
+// The drive's torque limit as the scan read it (0x6072, per thousand of
+// rated torque) in percent of rated torque; none when the scan did not
+// read it.
+std::optional<double> drive_max_torque_pct(const State& s, const Axis& a);
 
 // The travel a commissioning motion may use on axis `a` (the tuning tests,
 // the compensation cycle): its soft limits when they were given (`axis L

@@ -260,12 +260,23 @@ double cross_edge(const Controller& c, const Axis& a, bool SwitchSample::*input,
   double at = edge;
   double backoff = 1.0;  // then twice the last gap: each try is short
   for (int attempt = 0; attempt < 3; ++attempt, slow /= 4) {
-    Poll p = poll(c, a, prefix);
-    if (!p.enabled) machine_on(c, true);
-    else c.cnc({"override-limits"});
-    p = poll(c, a, prefix);
-    leg(c, a, prefix, (at - dir * backoff) - p.pos_cmd, fast, nullptr);
-    const auto s = leg(c, a, prefix, dir * (2.5 * backoff), slow, input);
+    // Crossing a limit switch again, the drive halts at it and the
+    // controller may stop on following error a poll later (the machine off,
+    // in E-stop): the try is made again once with the machine on.
+    std::vector<SwitchSample> s;
+    for (int again = 0;; ++again) {
+      try {
+        Poll p = poll(c, a, prefix);
+        if (!p.enabled) machine_on(c, true);
+        else c.cnc({"override-limits"});
+        p = poll(c, a, prefix);
+        leg(c, a, prefix, (at - dir * backoff) - p.pos_cmd, fast, nullptr);
+        s = leg(c, a, prefix, dir * (2.5 * backoff), slow, input);
+        break;
+      } catch (const std::runtime_error& e) {
+        if (again > 0 || abort_requested() || std::string(e.what()).find("the machine is not on") == std::string::npos) throw;
+      }
+    }
     double gap = 0;
     for (std::size_t i = 1; i < s.size(); ++i)
       if (s[i].*input != s[0].*input) {

@@ -162,5 +162,31 @@ TEST(CommissionBackup, TheManufacturerObjectsTheEdsListsAreBackedUpToo) {
   EXPECT_FALSE(value(r.nodes[0], 0x2001, 0));
 }
 
+// A gantry pair's second drive is backed up with the first (issue 21):
+// one file per drive, both named after the axis.
+TEST(CommissionBackup, ReadsBothDrivesOfAGantryPair) {
+  Bus b;
+  b.add(1).od().set<int8_t>({0x6098, 0}, 19);
+  b.add(2).od().set<int8_t>({0x6098, 0}, 21);
+  b.start();
+  State s = state_of({{'Y', 1}});
+  ScannedNode second;
+  second.node_id = 2;
+  second.cia402 = true;
+  s.nodes.push_back(second);
+  s.axes[0].gantry = GantryDrive{2, 0, 1, true};
+  BackupResult r = backup_drives(*b.client, s, options());
+  ASSERT_TRUE(r.ok()) << r.problems[0];
+  ASSERT_EQ(r.nodes.size(), 2u);
+  EXPECT_EQ(r.nodes[1].node, 2);
+  EXPECT_EQ(r.nodes[1].axis, 'Y');
+  ASSERT_TRUE(value(r.nodes[1], 0x6098, 0));
+  EXPECT_EQ(value(r.nodes[1], 0x6098, 0)->data, (std::vector<uint8_t>{21}));
+  testing::TempDir dir;
+  const auto files = write_backup(s, r, dir / "backup");
+  ASSERT_EQ(files.size(), 2u);
+  EXPECT_EQ(files[1].filename(), "node-02-y.dcf");
+}
+
 }  // namespace
 }  // namespace cnc::commission

@@ -114,6 +114,67 @@ TEST(CommissionRestore, CanopenBackupThenAChangedParameterIsWrittenBackAndReadsB
   for (const auto& d : again.drives) EXPECT_TRUE(d.changes.empty()) << describe(again);
 }
 
+// A TPDO's mapping and transmission type changed in the drive (as CiA 301
+// allows it: the PDO disabled, sub-index 0 to 0, the entry, sub-index 0,
+// enabled) are restored in that order; the simulated drive refuses a
+// mapping written out of order (sub-index 0 not 0, or the PDO valid).
+TEST(CommissionRestore, CanopenChangedPdoMappingIsRestoredInTheCia301Order) {
+  CanBus b;
+  auto& drive = b.add(1);
+  // TPDO1 as a master configures it (the simulated drive starts with none
+  // mapped): two objects, valid on 0x181.
+  drive.od().set<uint32_t>({0x1A00, 1}, 0x60410010);
+  drive.od().set<uint32_t>({0x1A00, 2}, 0x60640020);
+  drive.od().set<uint8_t>({0x1A00, 0}, 2);
+  drive.od().set<uint32_t>({0x1800, 1}, 0x181);
+  b.start();
+  State s = canopen_state({{'X', 1}});
+  testing::TempDir dir;
+  const auto files = canopen_backup(*b.client, s, dir / "backup");
+  ASSERT_EQ(files.size(), 1u);
+  const BackupEntry* count = files[0].find(0x1A00, 0);
+  const BackupEntry* cob = files[0].find(0x1800, 1);
+  ASSERT_TRUE(count && cob);
+  ASSERT_GE(count->data.at(0), 2) << "TPDO1 maps two objects or more in the simulated drive";
+  ASSERT_EQ(cob->data.at(3) & 0x80, 0) << "TPDO1 is valid in the simulated drive";
+
+  auto x = canopen_channel(*b.client, 1, kTimeout);
+  EXPECT_FALSE(x->download({0x1A00, 1}, u32(0x60640020)).ok) << "the drive takes a mapping of a valid PDO";
+  ASSERT_TRUE(x->download({0x1800, 1}, u32(as_u32(cob->data) | 0x80000000u)).ok);
+  ASSERT_TRUE(x->download({0x1A00, 0}, {0}).ok);
+  ASSERT_TRUE(x->download({0x1A00, 1}, u32(0x60640020)).ok);
+  ASSERT_TRUE(x->download({0x1A00, 0}, {1}).ok);
+  ASSERT_TRUE(x->download({0x1800, 2}, {1}).ok);
+  ASSERT_TRUE(x->download({0x1800, 1}, cob->data).ok);
+
+  RestoreBuses buses;
+  buses.can = b.client.get();
+  buses.sdo_timeout_ns = kTimeout;
+  const RestoreResult dry = restore_drives(files, buses, true);
+  ASSERT_TRUE(dry.ok()) << describe(dry);
+  EXPECT_TRUE(dry.drives[0].changes.empty()) << describe(dry);
+  EXPECT_GE(dry.drives[0].pdo_changes.size(), 3u) << describe(dry);  // 0x1A00:0, 0x1A00:1, 0x1800:2
+  EXPECT_NE(describe(dry).find("would write 0x1A00:00"), std::string::npos) << describe(dry);
+  EXPECT_EQ(x->upload({0x1A00, 0}).data, (std::vector<uint8_t>{1})) << "a dry run wrote";
+
+  const RestoreResult r = restore_drives(files, buses, false);
+  ASSERT_TRUE(r.ok()) << describe(r);
+  const std::string text = describe(r);
+  const auto at = [&text](const std::string& s) { return text.find("pdo write " + s); };
+  ASSERT_NE(at("0x1800:01 = 0x8"), std::string::npos) << text;
+  EXPECT_LT(at("0x1800:01 = 0x8"), at("0x1A00:00 = 0x00 (mapping off)")) << text;
+  EXPECT_LT(at("0x1A00:00 = 0x00 (mapping off)"), at("0x1A00:01")) << text;
+  EXPECT_LT(at("0x1A00:01"), at("0x1A00:00 = 0x0" + std::to_string(count->data[0]) + " (mapping on)")) << text;
+  EXPECT_LT(at("0x1A00:00 = 0x0" + std::to_string(count->data[0]) + " (mapping on)"), at("0x1800:01 = 0x0")) << text;
+  for (uint8_t k = 0; k <= count->data[0]; ++k)
+    EXPECT_EQ(x->upload({0x1A00, k}).data, files[0].find(0x1A00, k)->data) << "0x1A00:" << int(k);
+  EXPECT_EQ(x->upload({0x1800, 2}).data, files[0].find(0x1800, 2)->data);
+  EXPECT_EQ(x->upload({0x1800, 1}).data, cob->data);
+  const RestoreResult again = restore_drives(files, buses, true);
+  ASSERT_TRUE(again.ok());
+  EXPECT_TRUE(again.drives[0].pdo_changes.empty()) << describe(again);
+}
+
 TEST(CommissionRestore, AnotherDriveInTheBackedUpPlaceIsRefusedNamingItAndNothingIsWritten) {
   CanBus b;
   b.add(1);
@@ -303,6 +364,48 @@ TEST(CommissionRestore, EthercatChangedParameterIsWrittenBackOverCoeAndReadsBack
       << missing.problems[0];
   EXPECT_EQ(as_u32(m.sdo_upload(1, 0x6065, 0).data), 99u);
   m.release();
+}
+
+// EtherCAT in PREOP: a TxPDO mapping and its assignment changed are
+// restored with 0x1C12/0x1C13 emptied first, the mapping rewritten, then
+// the assignments (the simulated drive checks each against the mapping).
+TEST(CommissionRestore, EthercatChangedPdoMappingAndAssignmentAreRestored) {
+  EcatSegment seg(1);
+  State s = ethercat_state(seg.interface(), {{'X', 1}});
+  BackupResult br = backup_ethercat_drives(seg.interface(), s);
+  ASSERT_TRUE(br.ok()) << br.problems[0];
+  testing::TempDir dir;
+  write_backup(s, br, dir / "b");
+  const auto files = load_backup_dir(dir / "b");
+  ASSERT_TRUE(files[0].find(0x1C13, 1) && files[0].find(0x1A00, 0) && files[0].find(0x1A01, 0)) << "not backed up";
+
+  ethercat::MasterConfig cfg;
+  cfg.interface = seg.interface();
+  ethercat::Master m(cfg, nullptr);
+  m.to_preop();
+  // TxPDO 0x1A01 mapping the statusword assigned instead of 0x1A00, whose
+  // mapping loses its last entry.
+  ASSERT_TRUE(m.sdo_download(1, 0x1C13, 0, {0}).ok);
+  ASSERT_TRUE(m.sdo_download(1, 0x1A01, 0, {0}).ok);
+  ASSERT_TRUE(m.sdo_download(1, 0x1A01, 1, u32(0x60410010)).ok);
+  ASSERT_TRUE(m.sdo_download(1, 0x1A01, 0, {1}).ok);
+  ASSERT_TRUE(m.sdo_download(1, 0x1A00, 0, {2}).ok);
+  ASSERT_TRUE(m.sdo_download(1, 0x1C13, 1, {0x01, 0x1A}).ok);
+  ASSERT_TRUE(m.sdo_download(1, 0x1C13, 0, {1}).ok);
+  RestoreBuses buses;
+  buses.ethercat = &m;
+  const RestoreResult dry = restore_drives(files, buses, true);
+  ASSERT_TRUE(dry.ok()) << describe(dry);
+  EXPECT_GE(dry.drives[0].pdo_changes.size(), 3u) << describe(dry);  // 0x1A00:0, 0x1A01:0, 0x1C13:1
+  const RestoreResult r = restore_drives(files, buses, false);
+  ASSERT_TRUE(r.ok()) << describe(r);
+  const std::string text = describe(r);
+  EXPECT_LT(text.find("pdo write 0x1C13:00 = 0x00 (assignment off)"), text.find("pdo write 0x1A00:00 = 0x00")) << text;
+  EXPECT_LT(text.find("pdo write 0x1A01:00"), text.find("pdo write 0x1C13:01")) << text;
+  for (const auto& [index, sub] : std::vector<std::pair<uint16_t, uint8_t>>{{0x1C13, 0}, {0x1C13, 1}, {0x1A00, 0}, {0x1A00, 4}, {0x1A01, 0}})
+    EXPECT_EQ(m.sdo_upload(1, index, sub).data, files[0].find(index, sub)->data) << std::hex << index << ":" << int(sub);
+  const RestoreResult again = restore_drives(files, buses, true);
+  EXPECT_TRUE(again.drives[0].pdo_changes.empty()) << describe(again);
 }
 
 TEST(CommissionRestore, AnEthercatAxisOnASlaveTheSegmentLacksIsABackupProblem) {

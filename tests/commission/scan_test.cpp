@@ -52,6 +52,7 @@ TEST(CommissionScan, FindsEveryDriveWithIdentityModesEncoderAndEds) {
   EXPECT_TRUE(n.cia402);
   EXPECT_FALSE(n.fault);
   EXPECT_EQ(n.encoder_increments.value_or(0), 10000u);
+  EXPECT_EQ(n.max_torque.value_or(0), 3000u) << "0x6072, the tuning's torque limit (300 % of rated)";
   EXPECT_EQ(n.eds, "servo.eds");
 }
 
@@ -187,6 +188,7 @@ TEST(CommissionScan, FindsEthercatSlavesWithTheirSiiIdentityAndEsi) {
   EXPECT_EQ(r.slaves[0].product_code, 0x402u);
   EXPECT_TRUE(r.slaves[0].coe);
   EXPECT_EQ(r.slaves[0].esi, "servo.xml");
+  EXPECT_EQ(r.slaves[1].max_torque.value_or(0), 3000u) << "0x6072 over CoE";
 }
 
 TEST(CommissionScan, AnEthercatSegmentThatCannotBeOpenedIsAProblem) {

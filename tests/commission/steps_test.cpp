@@ -94,5 +94,113 @@ TEST(CommissionSteps, DirectionTestRefusesAStuckTableOrADriveThatDidNotFollow) {
   EXPECT_FALSE(s.axis('X')->scaling.reverse);
 }
 
+// A gantry pair (issue 21): each drive's direction and scale are found on
+// its own; a random machine may have its second motor turn the same way or
+// the other way whatever the assignment said.
+State gantry_pair() {
+  State s = scanned();
+  s.nodes[2].fault = false;
+  assign_axis(s, 'Y', 0, 1, GantryDrive{2, 0, 1, false});
+  set_scaling(s, 'Y', 5);
+  return s;
+}
+
+TEST(CommissionSteps, GantrySecondDriveAgainstTheCommandFlipsOnlyItsOwnReverse) {
+  State s = gantry_pair();
+  // First side right, 0.5 % short of the command; second side moved the other way.
+  apply_direction_test(s, 'Y', 2, 2, 1.99, true);
+  apply_direction_test(s, 'Y', 2, 2, -2.0, true, true);
+  const Axis& y = *s.axis('Y');
+  EXPECT_FALSE(y.scaling.reverse);
+  ASSERT_TRUE(y.gantry);
+  EXPECT_TRUE(y.gantry->reverse);
+  EXPECT_NEAR(y.scaling.correction, 2 / 1.99, 1e-12);
+  EXPECT_DOUBLE_EQ(y.gantry->correction, 1.0);
+  EXPECT_TRUE(y.gantry->dial_checked);
+  const auto joints = machine_joints(s);
+  ASSERT_EQ(joints.size(), 2u);
+  EXPECT_FALSE(joints[0].axis.scaling.reverse);
+  EXPECT_TRUE(joints[1].axis.scaling.reverse);
+  EXPECT_NEAR(joints[0].axis.scaling.counts_per_mm(), 2000 * 2 / 1.99, 1e-9);
+  EXPECT_DOUBLE_EQ(joints[1].axis.scaling.counts_per_mm(), 2000);
+}
+
+TEST(CommissionSteps, GantryFirstDriveFlippedKeepsTheSecondDrivesDirection) {
+  State s = gantry_pair();
+  s.axis('Y')->gantry->reverse = true;  // assigned --gantry-reverse: the second joint REVERSE YES
+  apply_direction_test(s, 'Y', 2, 2, -2.02, true);  // the first drive ran backwards and 1 % long
+  const auto joints = machine_joints(s);
+  EXPECT_TRUE(joints[0].axis.scaling.reverse);
+  EXPECT_TRUE(joints[1].axis.scaling.reverse) << "the second drive's direction was not tested: it stays";
+  apply_direction_test(s, 'Y', 2, 2, 2.0, true, true);  // and it was right
+  EXPECT_TRUE(machine_joints(s)[1].axis.scaling.reverse);
+  EXPECT_NEAR(machine_joints(s)[0].axis.scaling.correction, 2 / 2.02, 1e-12);
+  // A new nominal scaling starts both sides over.
+  set_scaling(s, 'Y', 5);
+  EXPECT_FALSE(s.axis('Y')->gantry->dial_checked);
+  EXPECT_DOUBLE_EQ(s.axis('Y')->gantry->correction, 1.0);
+  // The second side of a single-drive axis is refused.
+  assign_axis(s, 'X', 2, 3);
+  EXPECT_THROW(apply_direction_test(s, 'X', 2, 2, 2, true, true), std::invalid_argument);
+}
+
+TEST(CommissionSteps, GantryFindingsOfEachSideSurviveTheStateFile) {
+  State s = gantry_pair();
+  apply_direction_test(s, 'Y', 2, 2, -2.01, true, true);
+  GantryDrive& g = *s.axis('Y')->gantry;
+  g.switches = AxisSwitches{};
+  g.switches->home.seen = true;
+  g.switches->home.position = 12.5;
+  g.homing = AxisHoming{};
+  g.homing->home_offset = 12.75;
+  g.squaring = 0.25;
+  const State back = from_json_text(to_json_text(s), "test");
+  const GantryDrive& b = *back.axis('Y')->gantry;
+  EXPECT_TRUE(b.reverse);
+  EXPECT_NEAR(b.correction, 2 / 2.01, 1e-12);
+  ASSERT_TRUE(b.direction && b.switches && b.homing);
+  EXPECT_DOUBLE_EQ(b.switches->home.position, 12.5);
+  EXPECT_DOUBLE_EQ(b.homing->home_offset, 12.75);
+  EXPECT_DOUBLE_EQ(b.squaring, 0.25);
+  const Axis v = gantry_view(*back.axis('Y'));
+  EXPECT_EQ(v.joint, 1);
+  EXPECT_EQ(v.node, 2);
+  EXPECT_DOUBLE_EQ(v.homing->home_offset, 12.75);
+}
+
+TEST(CommissionSteps, GantryTuningIsTheWorseOfTheTwoSides) {
+  AxisTuning a, b;
+  a.max_velocity = 200;
+  a.max_acceleration = 3000;
+  a.max_jerk = 1e6;
+  a.ferror = 0.5;
+  a.min_ferror = 0.1;
+  a.velocity_limit = "torque at 250 mm/s";
+  a.acceleration_limit = "torque at 3750 mm/s2";
+  a.tests.resize(3);
+  b = a;
+  b.max_velocity = 150;
+  b.ferror = 0.8;
+  b.velocity_limit = "torque at 190 mm/s";
+  b.tests.resize(2);
+  const AxisTuning w = worse_tuning(a, b);
+  EXPECT_DOUBLE_EQ(w.max_velocity, 150);
+  EXPECT_DOUBLE_EQ(w.max_acceleration, 3000);
+  EXPECT_DOUBLE_EQ(w.ferror, 0.8);
+  EXPECT_DOUBLE_EQ(w.min_ferror, 0.1);
+  EXPECT_EQ(w.velocity_limit, "the gantry's second drive: torque at 190 mm/s");
+  EXPECT_EQ(w.acceleration_limit, "torque at 3750 mm/s2");
+  EXPECT_EQ(w.tests.size(), 5u);
+}
+
+TEST(CommissionSteps, TheDrivesTorqueLimitComesFromTheScan) {
+  State s = scanned();
+  const Axis& x = assign_axis(s, 'X', 0, 1);
+  EXPECT_FALSE(drive_max_torque_pct(s, x));
+  s.nodes[0].max_torque = 2500;  // per thousand of rated
+  EXPECT_DOUBLE_EQ(*drive_max_torque_pct(s, x), 250);
+  EXPECT_EQ(from_json_text(to_json_text(s), "t").nodes[0].max_torque, std::optional<uint16_t>(2500));
+}
+
 }  // namespace
 }  // namespace cnc::commission

@@ -255,6 +255,48 @@ TEST(CommissionWriter, NetsTheSwitchesOfBothGantryDrivesUnderTheirOwnNames) {
   EXPECT_NE(hal.find("net y2-neg-lim y2-neg-lim-inv.out => joint.2.neg-lim-sw-in\n"), std::string::npos) << hal;
 }
 
+// Each drive of the pair with what steps 4-6 found on its own joint: its
+// scale correction and direction, its home switch's HOME_OFFSET (with the
+// squaring) and the first joint's HOME; the pair's joints apart (HOME_SEQUENCE
+// 0) in the configuration the gantry's steps bring up.
+TEST(CommissionWriter, WritesEachGantryDrivesOwnScaleDirectionAndHomeOffset) {
+  State s = gantry_machine();
+  Axis& y = *s.axis('Y');
+  y.gantry->reverse = false;  // the second motor turned out to run the same way
+  y.gantry->correction = 1.25;
+  AxisHoming h;
+  h.method = "controller";
+  h.search_velocity = -5;
+  h.latch_velocity = 0.5;
+  h.home_offset = -1.5;
+  h.home = 3.5;
+  y.homing = h;
+  h.home_offset = -1.2;  // its own switch 0.1 mm further, plus 0.2 mm squaring
+  y.gantry->homing = h;
+  y.gantry->squaring = 0.2;
+  testing::TempDir dir;
+  const std::string ini = generate_config(s, dir.path(), "g")[0].content;
+  EXPECT_NE(section(ini, "CIA402_DRIVE_2").find("SCREW_LEAD = 4\nREVERSE = NO\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "JOINT_1").find("HOME_OFFSET = -1.5\nHOME = 3.5\nHOME_SEQUENCE = -1\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "JOINT_2").find("HOME_OFFSET = -1.2\nHOME = 3.5\nHOME_SEQUENCE = -1\n"), std::string::npos) << ini;
+  const std::string apart = generate_config(s, dir.path(), "g", true)[0].content;
+  EXPECT_NE(section(apart, "JOINT_2").find("HOME_SEQUENCE = 0\n"), std::string::npos) << apart;
+  EXPECT_NE(apart.find("the pair's joints are not homed together"), std::string::npos) << apart;
+}
+
+// The drive's torque limit (0x6072) the scan read is written back with the
+// drive ([CIA402_DRIVE_n]MAX_TORQUE, % of rated); none when not read.
+TEST(CommissionWriter, WritesTheScannedTorqueLimitOfEachDrive) {
+  State s = gantry_machine();
+  s.nodes[1].max_torque = 2500;
+  s.nodes[2].max_torque = 3000;
+  testing::TempDir dir;
+  const std::string ini = generate_config(s, dir.path(), "g")[0].content;
+  EXPECT_NE(section(ini, "CIA402_DRIVE_1").find("MAX_TORQUE = 250\n"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "CIA402_DRIVE_2").find("MAX_TORQUE = 300\n"), std::string::npos) << ini;
+  EXPECT_EQ(section(ini, "CIA402_DRIVE_0").find("MAX_TORQUE"), std::string::npos) << ini;
+}
+
 TEST(CommissionWriter, GantryAssignmentRefusesADriveOrJointInUseAndAFaultyDrive) {
   State s = gantry_machine();
   EXPECT_THROW(assign_axis(s, 'A', 4, 5, GantryDrive{3, 0, 5, false}), std::invalid_argument) << "node 3 is Y's second drive";
