@@ -354,17 +354,24 @@ namespace {
 // alpha); 0 when even alpha = 0 is over. Without the d term the root of a
 // quadratic (taken a hair low against rounding), else by bisection.
 double largest_within(double m, double e0, double e1, double f0, double f1, double d, double L, double hi) noexcept {
-  auto over = [&](double al) { return m * std::hypot(e0 + e1 * al, f0 + f1 * al) + d * al - L; };
-  if (!(over(0.0) <= 0)) return 0;
-  if (over(hi) <= 0) return hi;
+  auto over = [&](double al) {
+    const double e = e0 + e1 * al, f = f0 + f1 * al;
+    return m * std::sqrt(e * e + f * f) + d * al - L;
+  };
   if (d == 0) {
-    const double q = e1 * e1 + f1 * f1;
-    const double bq = e0 * e1 + f0 * f1;
+    if (!(m > 0)) return L >= 0 ? hi : 0;
     const double lm = L / m;
     const double c = e0 * e0 + f0 * f0 - lm * lm;
-    const double al = (1 - 1e-9) * (-c / (bq + std::sqrt(bq * bq - q * c)));
-    if (al >= 0 && over(al) <= 0) return std::min(al, hi);
+    if (!(c <= 0)) return 0;
+    const double q = e1 * e1 + f1 * f1;
+    const double bq = e0 * e1 + f0 * f1;
+    const double den = bq + std::sqrt(bq * bq - q * c);
+    if (!(den > 0)) return c == 0 ? 0 : hi;
+    const double al = std::min(hi, (1 - 1e-9) * (-c / den));
+    if (over(al) <= 0) return al;
   }
+  if (!(over(0.0) <= 0)) return 0;
+  if (over(hi) <= 0) return hi;
   double lo = 0;
   for (int it = 0; it < 48; ++it) {
     const double mid = 0.5 * (lo + hi);
@@ -416,7 +423,7 @@ double limit_at(const PieceBounds& b, const Curve* arc, const int* axis, const d
     double jerk = (J[i] - c3 * u * u * u) / (c1 / tf + 3 * c2 * u);
     if (arc && ax >= 0 && ax < 3) {
       const auto k = static_cast<std::size_t>(ax);
-      const double m = std::hypot(arc->u[k], arc->v[k]);
+      const double m = std::sqrt(arc->u[k] * arc->u[k] + arc->v[k] * arc->v[k]);
       const double nz = dh * std::fabs(arc->n[k]);
       const double u2 = u * u, u3 = u2 * u;
       // Acceleration: E = |dr| al + rho om^2 u^2, F = rho om al + 2 |dr| om u^2.
