@@ -349,18 +349,94 @@ void Executor::abort() noexcept {
 
 namespace {
 
-// Largest |a| for one piece's bounds at output velocity u.
-double limit_at(const PieceBounds& b, const int* axis, const double* A, const double* J, int n, double tf,
-                double u) noexcept {
+// Largest alpha in [0, hi] with m |(e0 + e1 alpha, f0 + f1 alpha)| +
+// d alpha <= L (all coefficients >= 0, so the left side rises with
+// alpha); 0 when even alpha = 0 is over. Without the d term the root of a
+// quadratic (taken a hair low against rounding), else by bisection.
+double largest_within(double m, double e0, double e1, double f0, double f1, double d, double L, double hi) noexcept {
+  auto over = [&](double al) {
+    const double e = e0 + e1 * al, f = f0 + f1 * al;
+    return m * std::sqrt(e * e + f * f) + d * al - L;
+  };
+  if (d == 0) {
+    if (!(m > 0)) return L >= 0 ? hi : 0;
+    const double lm = L / m;
+    const double c = e0 * e0 + f0 * f0 - lm * lm;
+    if (!(c <= 0)) return 0;
+    const double q = e1 * e1 + f1 * f1;
+    const double bq = e0 * e1 + f0 * f1;
+    const double den = bq + std::sqrt(bq * bq - q * c);
+    if (!(den > 0)) return c == 0 ? 0 : hi;
+    const double al = std::min(hi, (1 - 1e-9) * (-c / den));
+    if (over(al) <= 0) return al;
+  }
+  if (!(over(0.0) <= 0)) return 0;
+  if (over(hi) <= 0) return hi;
+  double lo = 0;
+  for (int it = 0; it < 48; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    if (over(mid) <= 0) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return lo;
+}
+
+// Largest |a| for one piece's bounds at output velocity u. `arc`, when
+// not null, is the helix (arc, helix or spiral) the piece follows with no
+// corner window on it: its in-plane derivatives are then known in
+// direction, not only in size. On a helix P(s) = c + rho (cos(ws) u +
+// sin(ws) v) + h n, axis x's derivatives are m (E e_x + F f_x) + n_x
+// (...) with (e_x, f_x) a unit vector turning with s (m = |(u_x, v_x)|),
+// so the output's acceleration P' b + P'' w^2 and jerk P' g + 3 P'' w b +
+// P''' w^3 on that axis are at most m sqrt(E^2 + F^2) + |dh n_x| |b|
+// (|g| for the jerk) with
+//   acceleration E = |dr| |b| + rho om^2 u^2,  F = rho om |b| + 2 |dr| om u^2,
+//   jerk         E = |dr| |g| + 3 rho om^2 u |b| + 3 |dr| om^2 u^3,
+//                F = rho om |g| + 6 |dr| om u |b| + rho om^3 u^3
+// (om the angle per unit s, u the output velocity; |b| <= alpha and
+// |g| <= alpha / T_f as below). The sums c1 |b| + c2 u^2 and
+// c1 |g| + 3 c2 u |b| + c3 u^3 add parts that lie at right angles: on a
+// circle the normal jerk of a speed change (3 c2 u |b|) adds in
+// quadrature to the tangential one (c1 |g| + c3 u^3), which leaves a
+// curved piece near its velocity ceiling about twice the tangential
+// acceleration. Either bound holds, so each axis takes the larger alpha.
+double limit_at(const PieceBounds& b, const Curve* arc, const int* axis, const double* A, const double* J, int n,
+                double tf, double u, double hi) noexcept {
   double a = kInf;
+  double rho = 0, om = 0, dr = 0, dh = 0;
+  if (arc) {
+    rho = std::max(std::fabs(arc->r0), std::fabs(arc->r0 + arc->dr * arc->length));
+    om = std::fabs(arc->omega);
+    dr = std::fabs(arc->dr);
+    dh = std::fabs(arc->dh);
+  }
   for (int i = 0; i < n; ++i) {
     const int ax = axis[i];
     const double c1 = ax >= 0 ? b.c1[static_cast<std::size_t>(ax)] : b.lin1;
     if (!(c1 > 1e-12)) continue;
     const double c2 = ax >= 0 ? b.c2[static_cast<std::size_t>(ax)] : b.lin2;
     const double c3 = ax >= 0 ? b.c3[static_cast<std::size_t>(ax)] : b.lin3;
-    a = std::min(a, (A[i] - c2 * u * u) / c1);
-    a = std::min(a, (J[i] - c3 * u * u * u) / (c1 / tf + 3 * c2 * u));
+    double acc = (A[i] - c2 * u * u) / c1;
+    double jerk = (J[i] - c3 * u * u * u) / (c1 / tf + 3 * c2 * u);
+    if (arc && ax >= 0 && ax < 3) {
+      const auto k = static_cast<std::size_t>(ax);
+      const double m = std::sqrt(arc->u[k] * arc->u[k] + arc->v[k] * arc->v[k]);
+      const double nz = dh * std::fabs(arc->n[k]);
+      const double u2 = u * u, u3 = u2 * u;
+      // Acceleration: E = |dr| al + rho om^2 u^2, F = rho om al + 2 |dr| om u^2.
+      const double acc_arc = largest_within(m, rho * om * om * u2, dr, 2 * dr * om * u2, rho * om, nz, A[i], hi);
+      // Jerk (|g| = al / T_f): E = (|dr| / T_f + 3 rho om^2 u) al + 3 |dr| om^2 u^3,
+      // F = (rho om / T_f + 6 |dr| om u) al + rho om^3 u^3.
+      const double jerk_arc =
+          largest_within(m, 3 * dr * om * om * u3, dr / tf + 3 * rho * om * om * u, rho * om * om * om * u3,
+                         rho * om / tf + 6 * dr * om * u, nz / tf, J[i], hi);
+      acc = std::max(acc, acc_arc);
+      jerk = std::max(jerk, jerk_arc);
+    }
+    a = std::min({a, acc, jerk});
   }
   return std::max(a, 0.0);
 }
@@ -481,7 +557,7 @@ namespace {
 // down to 1 % steps: neighbours with nearly equal ceilings then share
 // spans (fewer for the envelope).
 template <class L, class T>
-void piece_limits(const Piece& p, const L& lim, T& out) noexcept {
+void piece_limits(const Piece& p, const Curve* arc, const L& lim, T& out) noexcept {
   out.gen = lim.gen;
   if (p.stop != StopKind::None) {
     out.v = 0;
@@ -496,7 +572,7 @@ void piece_limits(const Piece& p, const L& lim, T& out) noexcept {
   const auto& r = lim.rows;
   for (int i = 0; i < kGrid; ++i) {
     const double u = std::min(lim.grid[static_cast<std::size_t>(i)], v);
-    out.vals[i] = std::min({limit_at(p.bounds, r.axis, r.a, r.j, r.n, lim.tf, u), p.a_cap, lim.a_top});
+    out.vals[i] = std::min({limit_at(p.bounds, arc, r.axis, r.a, r.j, r.n, lim.tf, u, lim.a_top), p.a_cap, lim.a_top});
   }
   out.vals[kChV] = v;
   out.vals[kChFeed] = p.v_feed;
@@ -504,6 +580,14 @@ void piece_limits(const Piece& p, const L& lim, T& out) noexcept {
 }
 
 }  // namespace
+
+// The helix a piece follows when no corner window touches it (its exact
+// shape for limit_at), else null.
+const Curve* Executor::bare_helix(const Piece& p) const noexcept {
+  if (p.stop != StopKind::None || p.v_lo != p.v_hi) return nullptr;
+  const Curve& c = store_.segs.at(p.seg).curve;
+  return c.kind == CurveKind::Helix ? &c : nullptr;
+}
 
 void Executor::set_prepare_config(const PlannerConfig& config, uint64_t config_gen) noexcept {
   make_limits(config, *prep_lim_);
@@ -516,7 +600,10 @@ void Executor::prepare_published() noexcept {
   // has taken in and released the piece that used the slot before.
   const uint64_t pub = store_.pieces.published();
   if (prep_next_ >= pub) return;
-  for (; prep_next_ < pub; ++prep_next_) piece_limits(piece(prep_next_), *prep_lim_, plim_[prep_next_ & pmask_]);
+  for (; prep_next_ < pub; ++prep_next_) {
+    const Piece& p = piece(prep_next_);
+    piece_limits(p, bare_helix(p), *prep_lim_, plim_[prep_next_ & pmask_]);
+  }
   prepared_.store(pub, std::memory_order_release);
 }
 
@@ -553,7 +640,7 @@ void Executor::ingest() noexcept {
     const PieceLimits* t = &plim_[ptail_ & pmask_];
     if (t->gen != lim_->gen) {
       // Made for other limits than these (changed while moving).
-      piece_limits(p, *lim_, own);
+      piece_limits(p, bare_helix(p), *lim_, own);
       t = &own;
       ++work_.limits;
     }

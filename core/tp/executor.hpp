@@ -174,6 +174,7 @@ class Executor {
   double final_end() const noexcept;
   int ring(int ago) const noexcept;
   const Piece& piece(uint64_t seq) const noexcept { return store_.pieces.at(seq); }
+  const Curve* bare_helix(const Piece& p) const noexcept;
   PieceData& pdata(uint64_t seq) noexcept;
   const PieceData& pdata(uint64_t seq) const noexcept;
   Span& span(uint64_t seq) noexcept;
