@@ -798,7 +798,8 @@ int cmd_tune(State& s, Args& a, char letter) {
 }
 
 // Step 7's loop response (commission/response.hpp): on a controller of its
-// own (the response configuration), the drive's gains read by SDO first.
+// own (the response configuration), the drive's gains read by SDO (CoE
+// SDO on EtherCAT) first.
 int cmd_response(State& s, Args& a, char letter) {
   ResponseOptions o;
   std::filesystem::path bin = self_dir(), bring_up;
@@ -833,23 +834,19 @@ int cmd_response(State& s, Args& a, char letter) {
   std::string out;
   if (check_config(bin / "cncd", bring_up / "commission-response.ini", out) != 0)
     throw std::runtime_error("the configuration written to " + bring_up.string() + " does not pass cncd --check --strict:\n" + out);
-  ControllerProcess own(bin, bring_up / "commission-response.ini", bring_up / "cncd.log");
+  // The gains (--velocity-gain written first): EtherCAT before cncd
+  // starts, CANopen while it runs (response_gains).
   AxisResponse r;
-  {
-    auto bus = cnc::can::open_transport(response_sdo_interface(s));
-    std::string why;
-    const auto gains = read_loop_gains(*bus, ax->node, why);
-    if (!gains) {
-      r.skipped = why;
-    } else {
-      r.gains = *gains;
-      if (gain) {
-        write_velocity_gain(*bus, ax->node, *gain);
-        r.gains = *read_loop_gains(*bus, ax->node, why);
-        std::cout << "axis " << letter << ": wrote " << *gain << " to 0x60F9:01\n";
-      }
+  auto gains = [&] {
+    const auto g = response_gains(s, *ax, gain, r.skipped);
+    if (g) {
+      r.gains = *g;
+      if (gain) std::cout << "axis " << letter << ": wrote " << *gain << " to 0x60F9:01\n";
     }
-  }
+  };
+  if (response_gains_before_controller(*ax)) gains();
+  ControllerProcess own(bin, bring_up / "commission-response.ini", bring_up / "cncd.log");
+  if (!response_gains_before_controller(*ax)) gains();
   if (!r.skipped.empty()) {
     std::cout << "axis " << letter << ": no loop response measured: " << r.skipped << "\n";
   } else {

@@ -16,12 +16,11 @@
 #include "core/ipc/segment.hpp"
 #include "core/util/atomic_file.hpp"
 #include "core/util/strings.hpp"
+#include "commission/restore.hpp"
 #include "fieldbus/can/transport.hpp"
-#include "fieldbus/canopen/sdo_client.hpp"
+#include "fieldbus/ethercat/master.hpp"
 
 namespace cnc::commission {
-
-namespace co = cnc::canopen;
 
 namespace {
 
@@ -218,33 +217,12 @@ double bandwidth_hz(std::vector<FrequencyPoint>& p, bool& above) {
   return p.back().frequency_hz;
 }
 
-// ---- the drive's gains, by SDO ----
+// ---- the drive's gains, by SDO or CoE SDO ----
 
 namespace {
 
-void sdo_wait(can::Transport& bus, co::SdoClient& sdo) {
-  while (!sdo.idle()) {
-    can::Frame f;
-    while (bus.receive(f))
-      if (f.id == sdo.response_cob() && !f.is_error() && !f.is_remote()) sdo.on_frame(f, bus.now_ns());
-    sdo.poll(bus.now_ns());
-    if (sdo.idle()) break;
-    bus.wait(1'000'000);
-  }
-}
-
-co::SdoResult upload(can::Transport& bus, int node, co::ObjectAddress a, int64_t timeout_ns) {
-  co::SdoClientOptions o;
-  o.timeout_ns = timeout_ns;
-  co::SdoClient sdo(bus, static_cast<uint8_t>(node), o);
-  co::SdoResult out;
-  sdo.upload(a, [&out](const co::SdoResult& r) { out = r; });
-  sdo_wait(bus, sdo);
-  return out;
-}
-
 template <class T>
-T value_of(const co::SdoResult& r) {
+T value_of(const DriveChannel::Result& r) {
   T v = 0;
   for (std::size_t i = 0; i < sizeof(T) && i < r.data.size(); ++i) v = static_cast<T>(v | (T(r.data[i]) << (8 * i)));
   return v;
@@ -252,33 +230,66 @@ T value_of(const co::SdoResult& r) {
 
 }  // namespace
 
-std::optional<LoopGains> read_loop_gains(can::Transport& bus, int node, std::string& why, int64_t timeout_ns) {
+std::optional<LoopGains> read_loop_gains(DriveChannel& drive, const std::string& who, std::string& why) {
   LoopGains g;
-  const auto kv = upload(bus, node, {0x60F9, 1}, timeout_ns);
-  if (!kv.ok()) {
-    why = "node " + std::to_string(node) + " has no readable velocity control parameter set 0x60F9 (" + kv.abort_text() + ")";
+  const auto kv = drive.upload({0x60F9, 1});
+  if (!kv.ok) {
+    why = who + " has no readable velocity control parameter set 0x60F9 (" + kv.error + ")";
     return std::nullopt;
   }
   g.velocity_gain = value_of<uint32_t>(kv);
-  const auto ti = upload(bus, node, {0x60F9, 2}, timeout_ns);
-  if (ti.ok()) g.velocity_integral = value_of<uint16_t>(ti);
-  const auto kp = upload(bus, node, {0x60FB, 1}, timeout_ns);
-  if (kp.ok()) g.position_gain = value_of<uint32_t>(kp);
+  const auto ti = drive.upload({0x60F9, 2});
+  if (ti.ok) g.velocity_integral = value_of<uint16_t>(ti);
+  const auto kp = drive.upload({0x60FB, 1});
+  if (kp.ok) g.position_gain = value_of<uint32_t>(kp);
   return g;
 }
 
-void write_velocity_gain(can::Transport& bus, int node, uint32_t gain, int64_t timeout_ns) {
-  co::SdoClientOptions o;
-  o.timeout_ns = timeout_ns;
-  co::SdoClient sdo(bus, static_cast<uint8_t>(node), o);
-  co::SdoResult out;
+void write_velocity_gain(DriveChannel& drive, const std::string& who, uint32_t gain) {
   std::vector<uint8_t> d(4);
   for (int i = 0; i < 4; ++i) d[i] = static_cast<uint8_t>(gain >> (8 * i));
-  sdo.download({0x60F9, 1}, d, [&out](const co::SdoResult& r) { out = r; });
-  sdo_wait(bus, sdo);
-  if (!out.ok())
-    throw std::runtime_error("node " + std::to_string(node) + ": writing the velocity gain " + std::to_string(gain) +
-                             " to 0x60F9:01 failed: " + out.abort_text());
+  const auto r = drive.download({0x60F9, 1}, d);
+  if (!r.ok)
+    throw std::runtime_error(who + ": writing the velocity gain " + std::to_string(gain) + " to 0x60F9:01 failed: " + r.error);
+}
+
+namespace {
+
+std::optional<LoopGains> gains_of(DriveChannel& drive, const std::string& who, std::optional<uint32_t> velocity_gain,
+                                  std::string& why) {
+  if (velocity_gain) {
+    // A drive without a readable 0x60F9 is skipped, not written to.
+    if (!read_loop_gains(drive, who, why)) return std::nullopt;
+    write_velocity_gain(drive, who, *velocity_gain);
+  }
+  return read_loop_gains(drive, who, why);
+}
+
+}  // namespace
+
+std::optional<LoopGains> response_gains(const State& s, const Axis& a, std::optional<uint32_t> velocity_gain,
+                                        std::string& why) {
+  if (a.slave == 0) {
+    auto bus = can::open_transport(response_sdo_interface(s));
+    const auto drive = canopen_channel(*bus, a.node, 1'000'000'000);
+    return gains_of(*drive, "node " + std::to_string(a.node), velocity_gain, why);
+  }
+  if (s.ethercat_interface.empty())
+    throw std::runtime_error(axis_name(a) + ": no EtherCAT segment in the state (scan-ethercat first)");
+  ethercat::MasterConfig cfg;
+  cfg.interface = s.ethercat_interface;
+  ethercat::Master m(cfg, nullptr);
+  std::optional<LoopGains> g;
+  try {
+    m.to_preop();
+    g = gains_of(*ethercat_channel(m, static_cast<unsigned>(a.slave)), "EtherCAT slave " + std::to_string(a.slave),
+                 velocity_gain, why);
+  } catch (const std::exception& e) {
+    m.release();
+    throw std::runtime_error(s.ethercat_interface + ": " + e.what());
+  }
+  m.release();
+  return g;
 }
 
 // ---- the configuration ----
@@ -287,9 +298,6 @@ std::vector<GeneratedFile> response_configuration(const State& s, char letter, c
                                                   const std::string& name) {
   const Axis* a = s.axis(letter);
   if (!a) throw std::invalid_argument(std::string("axis ") + letter + " has no drive yet");
-  if (a->node <= 0)
-    throw std::invalid_argument(std::string("axis ") + letter +
-                                ": the response test needs a CANopen drive (EtherCAT drives are not done yet)");
   TuneOptions t;
   t.max_velocity = std::max(a->max_velocity, 1.0);
   t.max_acceleration = std::max(a->max_acceleration, 10.0);
@@ -299,14 +307,22 @@ std::vector<GeneratedFile> response_configuration(const State& s, char letter, c
   r.axis(letter)->tuning->min_ferror = 3;
   r.axis(letter)->tuning->ferror = std::max(r.axis(letter)->tuning->ferror, 4.0);
   auto files = generate_config(r, dir, name);
-  const std::string section = "[CANOPEN_NODE_" + std::to_string(a->node) + "]";
+  const bool ethercat = a->slave != 0;
+  const std::string section = ethercat ? "[ETHERCAT_SLAVE_" + std::to_string(a->slave) + "]"
+                                       : "[CANOPEN_NODE_" + std::to_string(a->node) + "]";
+  // After the PDO the writer gives every drive: the target velocity for CSV.
+  const std::string after = ethercat ? "TXPDO = " : "RPDO1 = ";
+  const std::string mapping = ethercat ? std::string("RXPDO = ") + kResponseEthercatRxPdo + "\n" : "RPDO2 = 0x60FF:0:s32\n";
   for (GeneratedFile& f : files) {
     std::string& c = f.content;
     if (f.path.extension() == ".ini") {
       const auto at = c.find(section);
-      const auto rpdo = at == std::string::npos ? at : c.find("RPDO1 = ", at);
-      if (rpdo == std::string::npos) throw std::logic_error("response configuration: no RPDO1 in " + section);
-      c.insert(c.find('\n', rpdo) + 1, "# cnc-commission response: the target velocity for CSV\nRPDO2 = 0x60FF:0:s32\n");
+      const auto pdo = at == std::string::npos ? at : c.find(after, at);
+      const auto next = at == std::string::npos ? at : c.find("\n[", at);
+      if (pdo == std::string::npos || pdo > next)
+        throw std::logic_error("response configuration: no " + after.substr(0, after.size() - 3) + " in " + section);
+      c.insert(c.find('\n', pdo) + 1, "# cnc-commission response: the target velocity for CSV\n" + mapping);
+      if (ethercat) continue;
       const std::string key = "INTERFACE = " + s.interface;
       const auto i = c.find(key + "\n");
       if (s.interface.rfind("virtual:", 0) == 0 && s.interface.find("share") == std::string::npos && i != std::string::npos)

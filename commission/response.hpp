@@ -1,6 +1,7 @@
 // Step 7's loop response: a step and a swept sine (a stepped chirp) of the
 // drive's velocity loop, on drives that expose its gains (CiA 402 0x60F9,
-// read by SDO; a drive without it is skipped and the result says so). The
+// read by SDO on CANopen, CoE SDO on EtherCAT; a drive without it is
+// skipped and the result says so). The
 // drive is switched to CSV for each test (the drive layer's mode-request)
 // and its velocity command comes from a signal generator in the servo
 // thread (siggen), small in amplitude, time-limited, inside the known
@@ -21,11 +22,9 @@
 #include "commission/controller.hpp"
 #include "commission/state.hpp"
 
-namespace cnc::can {
-class Transport;
-}
-
 namespace cnc::commission {
+
+class DriveChannel;  // commission/restore.hpp: one drive by SDO or CoE SDO
 
 // One servo cycle of a response test.
 struct ResponseSample {
@@ -67,16 +66,27 @@ FrequencyPoint analyse_sine(const std::vector<ResponseSample>& samples, double f
 // the highest frequency with `above` set.
 double bandwidth_hz(std::vector<FrequencyPoint>& points, bool& above);
 
-// --- the drive's gains, by SDO ---
+// --- the drive's gains, by SDO (CANopen) or CoE SDO (EtherCAT) ---
 
-// 0x60F9:1/2 and 0x60FB:1 of CANopen node `node` over `bus`. nullopt with
-// `why` (the object, the abort) when the drive has no 0x60F9 or does not
-// answer.
-std::optional<LoopGains> read_loop_gains(can::Transport& bus, int node, std::string& why,
-                                         int64_t timeout_ns = 1'000'000'000);
+// 0x60F9:1/2 and 0x60FB:1 of the drive behind `drive`, called `who` in
+// messages ("node 3", "EtherCAT slave 1"). nullopt with `why` (the object,
+// the abort) when the drive has no 0x60F9 or does not answer.
+std::optional<LoopGains> read_loop_gains(DriveChannel& drive, const std::string& who, std::string& why);
 // Writes 0x60F9:1 (the velocity loop's gain); throws std::runtime_error
-// naming the object and the abort.
-void write_velocity_gain(can::Transport& bus, int node, uint32_t gain, int64_t timeout_ns = 1'000'000'000);
+// naming the drive, the object and the abort.
+void write_velocity_gain(DriveChannel& drive, const std::string& who, uint32_t gain);
+// The gains of axis `a`'s drive for the response step: `velocity_gain`
+// written first when given, then read (back). nullopt with `why`: the
+// drive is skipped. Each bus has its moment: an EtherCAT axis before the
+// response controller starts (this program's own master takes the segment
+// in PREOP, as the backup does; the controller's master owns it once it
+// runs), a CANopen axis while it runs (over response_sdo_interface: a
+// virtual bus exists only then). Throws std::runtime_error when the bus
+// cannot be opened or the write is refused.
+std::optional<LoopGains> response_gains(const State& s, const Axis& a, std::optional<uint32_t> velocity_gain,
+                                        std::string& why);
+// Whether response_gains is called before the response controller starts.
+inline bool response_gains_before_controller(const Axis& a) { return a.slave != 0; }
 
 // --- on a controller ---
 
@@ -105,11 +115,16 @@ AxisResponse run_response(const Controller& c, const Axis& a, const ResponseOpti
 
 // The response configuration for axis `letter`: tuning_configuration's
 // files (its following-error limits wide enough for the excursion) with
-// the target velocity 0x60FF mapped (RPDO2) on the axis' node, a signal
-// generator in the servo thread on the drive's vel-cmd (siggen "response",
-// mux2 "response-mux": sel 0 sine, 1 square), and a virtual bus shared
-// (",share") so that this program reaches the drive by SDO. CANopen only:
-// throws std::invalid_argument for an EtherCAT axis.
+// the target velocity 0x60FF mapped on the axis' drive (CANopen: RPDO2 of
+// its node; EtherCAT: an RXPDO of its slave, kResponseEthercatRxPdo), a
+// signal generator in the servo thread on the drive's vel-cmd (siggen
+// "response", mux2 "response-mux": sel 0 sine, 1 square), and on CANopen
+// a virtual bus shared (",share") so that this program reaches the drive
+// by SDO while cncd runs.
+// The EtherCAT slave's RxPDO in the response configuration: the ESI's
+// default (controlword, target position, touch-probe function) and the
+// target velocity.
+inline constexpr const char* kResponseEthercatRxPdo = "0x6040:0:u16 0x607A:0:s32 0x60B8:0:u16 0x60FF:0:s32";
 std::vector<GeneratedFile> response_configuration(const State& s, char letter, const std::filesystem::path& dir,
                                                   const std::string& name);
 // The CAN interface this program opens to reach the drives of the response

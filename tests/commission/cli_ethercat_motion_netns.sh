@@ -9,8 +9,9 @@
 # dial with what the simulated table moved), the test again (confirmed),
 # the switch search over the drives' digital inputs (0x60FD in the
 # written TXPDO), the soft limits, the controller's homing repeated, the
-# tuning (torque read from 0x6077), the write and the check program to its
-# end. Every step's controller runs on the real kernel link; the machine
+# tuning (torque read from 0x6077), the velocity loop's response (0x60FF
+# mapped in the RXPDO, the gains over CoE: a higher gain gives a higher
+# bandwidth), the write and the check program to its end. Every step's controller runs on the real kernel link; the machine
 # is off after each. Needs root (ip netns) and AF_PACKET.
 #
 #   cli_ethercat_motion_netns.sh BIN_DIR ECAT_SIM SOURCE_DIR
@@ -131,6 +132,39 @@ state "abs(s['axes'][0]['homing']['spread']) < 0.01" | grep -qx True || fail "ho
 cc axis X tune --max-velocity 40 --max-acceleration 800 --steps 2 --bring-up "$work/m" || fail "tune X"
 expect "recommended (margin 20 %): MAX_VELOCITY = "
 "$bin/cnc" status >/dev/null 2>&1 && fail "a controller is still running after the tune"
+# Step 7's loop response over CoE: the gains read (and --velocity-gain
+# written) by this program's own master in PREOP before each response
+# controller starts, 0x60FF mapped in X's RXPDO. A step at the drive's
+# own gain, a swept sine at a tenth and at a quarter of it (velocity loops
+# of about 20 and 50 Hz: the quarter's bandwidth must be the higher), and
+# the drive's gain written back for the check below.
+cc axis X response --step --amplitude 4 --bring-up "$work/m" || fail "response X step"
+expect "the machine is off again"
+expect "step: rise "
+grep -q "^RXPDO = 0x6040:0:u16 0x607A:0:s32 0x60B8:0:u16 0x60FF:0:s32" "$work/m/commission-response.ini" ||
+  fail "the response configuration does not map 0x60FF in the RXPDO"
+kv="$(sed -n 's/^axis X: velocity gain 0x60F9:01 = \([0-9]*\) .*/\1/p' "$work/out")"
+[ -n "$kv" ] && [ "$kv" -gt 40 ] || fail "no velocity gain read over CoE"
+bandwidth() {  # the printed -3 dB bandwidth, Hz; "above" when none fell below it
+  grep -q "^bandwidth (-3 dB): above" "$work/out" && { echo above; return; }
+  sed -n 's/^bandwidth (-3 dB): \([0-9.]*\) Hz.*/\1/p' "$work/out"
+}
+cc axis X response --chirp --amplitude 4 --velocity-gain $((kv / 10)) --bring-up "$work/m" || fail "response X chirp, gain $((kv / 10))"
+expect "wrote $((kv / 10)) to 0x60F9:01"
+expect "velocity gain 0x60F9:01 = $((kv / 10)) "
+low="$(bandwidth)"
+cc axis X response --chirp --amplitude 4 --velocity-gain $((kv / 4)) --bring-up "$work/m" || fail "response X chirp, gain $((kv / 4))"
+expect "velocity gain 0x60F9:01 = $((kv / 4)) "
+high="$(bandwidth)"
+echo "bandwidth at gain $((kv / 10)): $low Hz; at gain $((kv / 4)): $high Hz"
+[ -n "$low" ] && [ "$low" != above ] || fail "the low gain's bandwidth is not inside the sweep ($low)"
+[ "$high" = above ] || python3 -c "import sys; sys.exit(0 if $high > 1.3 * $low else 1)" ||
+  fail "a higher velocity gain did not give a higher bandwidth ($low Hz, then $high Hz)"
+cc axis X response --step --amplitude 4 --velocity-gain "$kv" --bring-up "$work/m" || fail "response X, gain written back"
+expect "velocity gain 0x60F9:01 = $kv "
+state "[a for a in s['axes'] if a['letter'] == 'X'][0]['response']['gains']['velocity_gain'] == $kv" | grep -qx True ||
+  fail "the response is not kept in the state"
+"$bin/cnc" status >/dev/null 2>&1 && fail "a controller is still running after the response"
 # Step 9: written and checked on the link.
 cc write --dir "$work/m" --name mill --yes || fail "write"
 expect "wrote "

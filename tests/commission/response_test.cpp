@@ -8,6 +8,7 @@
 #include <functional>
 
 #include "commission/response.hpp"
+#include "commission/restore.hpp"
 #include "commission/state.hpp"
 #include "tests/commission/sim_bus_scan.hpp"
 #include "tests/support/testing.hpp"
@@ -171,9 +172,47 @@ TEST(ResponseConfiguration, MapsTheTargetVelocityAndWiresTheSignalGeneratorToThe
   EXPECT_NE(response_sdo_interface(s).find(".can-resp"), std::string::npos);
   s.interface = "socketcan:can0";
   EXPECT_EQ(response_sdo_interface(s), "socketcan:can0");
-  s.axes[1].node = 0;
-  s.axes[1].slave = 2;
-  EXPECT_THROW(response_configuration(s, 'Y', dir.path(), "r"), std::invalid_argument);
+}
+
+// On EtherCAT the target velocity joins the ESI's default RxPDO of the
+// axis' slave (the writer gives it none: the ESI's default is in use).
+TEST(ResponseConfiguration, MapsTheTargetVelocityInTheRxPdoOfTheAxisEthercatSlave) {
+  testing::TempDir dir;
+  State s;
+  s.ethercat_interface = "raw:ecm";
+  Axis x;
+  x.letter = 'X';
+  x.joint = 0;
+  x.slave = 1;
+  x.scaling.encoder_counts = 131072;
+  x.scaling.screw_lead = 5;
+  x.min_limit = 0;
+  x.max_limit = 100;
+  x.limits_source = "entered";
+  Axis y = x;
+  y.letter = 'Y';
+  y.joint = 1;
+  y.slave = 2;
+  s.axes = {x, y};
+  const auto files = response_configuration(s, 'X', dir.path(), "r");
+  std::string ini, hal;
+  for (const auto& f : files) {
+    if (f.path.extension() == ".ini") ini = f.content;
+    if (f.path.extension() == ".hal") hal = f.content;
+  }
+  const auto slave1 = ini.find("[ETHERCAT_SLAVE_1]"), slave2 = ini.find("[ETHERCAT_SLAVE_2]");
+  ASSERT_NE(slave1, std::string::npos);
+  ASSERT_NE(slave2, std::string::npos);
+  const std::string line = "\nRXPDO = 0x6040:0:u16 0x607A:0:s32 0x60B8:0:u16 0x60FF:0:s32\n";
+  const auto rx = ini.find(line);
+  ASSERT_NE(rx, std::string::npos) << ini;
+  EXPECT_GT(rx, slave1);
+  EXPECT_LT(rx, slave2) << "in the axis' slave's section";
+  EXPECT_EQ(ini.find(line, rx + 1), std::string::npos) << "only on the axis' slave";
+  EXPECT_EQ(ini.find("RPDO2"), std::string::npos);
+  EXPECT_NE(ini.find("INTERFACE = raw:ecm\n"), std::string::npos);
+  EXPECT_NE(hal.find("net response-vel response-mux.out => cia402.0.drive.00.vel-cmd"), std::string::npos);
+  EXPECT_TRUE(response_gains_before_controller(*s.axis('X')));
 }
 
 // The gains by SDO on a simulated drive: read, written and read back; a
@@ -186,21 +225,22 @@ TEST(ResponseGains, AreReadAndWrittenBySdoAndADriveWithoutThemIsSkipped) {
   other.od().set_before_read({0x60F9, 1}, [](const canopen::OdEntry&) { return 0x06020000u; });
   d.start();
   std::string why;
-  const auto g = read_loop_gains(*d.client, 1, why);
+  const auto one = canopen_channel(*d.client, 1, 1'000'000'000), two = canopen_channel(*d.client, 2, 1'000'000'000);
+  const auto g = read_loop_gains(*one, "node 1", why);
   ASSERT_TRUE(g) << why;
   EXPECT_GT(g->velocity_gain, 0u);
   EXPECT_EQ(g->velocity_integral, 60);
   ASSERT_TRUE(g->position_gain);
   EXPECT_EQ(*g->position_gain, 15000u);
-  write_velocity_gain(*d.client, 1, 777);
-  EXPECT_EQ(read_loop_gains(*d.client, 1, why)->velocity_gain, 777u);
+  write_velocity_gain(*one, "node 1", 777);
+  EXPECT_EQ(read_loop_gains(*one, "node 1", why)->velocity_gain, 777u);
   try {
-    write_velocity_gain(*d.client, 1, 0);
+    write_velocity_gain(*one, "node 1", 0);
     FAIL() << "a zero gain was taken";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("0x60F9:01"), std::string::npos) << e.what();
   }
-  EXPECT_FALSE(read_loop_gains(*d.client, 2, why));
+  EXPECT_FALSE(read_loop_gains(*two, "node 2", why));
   EXPECT_NE(why.find("node 2 has no readable velocity control parameter set 0x60F9"), std::string::npos) << why;
   EXPECT_NE(why.find("06020000"), std::string::npos) << why;
 }
