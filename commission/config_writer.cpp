@@ -206,7 +206,12 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
   }
   ini << "[EMCIO]\nEMCIO = io\nTOOL_TABLE = tool.tbl\nTOOL_PREPARE_TIMEOUT = 10\nTOOL_CHANGE_TIMEOUT = 30\n\n";
   if (ethercat) {
-    ini << "[ETHERCAT]\nINTERFACE = " << s.ethercat_interface << "\nSLAVE = " << nodes << "\n\n";
+    // Cycles without valid process data ridden through, as PDO_MISS_LIMIT
+    // on CANopen and STALE_LIMIT below: a host without a realtime kernel
+    // stalls for several ms now and then; the drives' own sync-manager
+    // watchdog (100 ms) still stops them if the master is gone.
+    ini << "[ETHERCAT]\nINTERFACE = " << s.ethercat_interface << "\nSLAVE = " << nodes
+        << "\n# Cycles without valid process data ridden through (3 on a realtime kernel).\nMISS_LIMIT = 50\n\n";
     for (std::size_t i = 0; i < joints.size(); ++i) {
       const Axis* a = &joints[i].axis;
       const ScannedSlave* sl = nullptr;
