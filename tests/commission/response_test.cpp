@@ -137,14 +137,15 @@ TEST(ResponseState, IsKeptInTheStateFile) {
   EXPECT_EQ(load_state(dir / "s.json").axes[0].response->skipped, "node 1 has no velocity control parameter set 0x60F9");
 }
 
-TEST(ResponseConfiguration, MapsTheTargetVelocityAndWiresTheSignalGeneratorToTheAxisDrive) {
-  testing::TempDir dir;
+// X and Y scaled and inside known limits, on CAN nodes 1 and 2 or on
+// EtherCAT slaves 1 and 2.
+State two_axes(bool ethercat) {
   State s;
-  s.interface = "virtual:resp";
+  if (ethercat) s.ethercat_interface = "raw:ecm";
+  else s.interface = "virtual:resp";
   Axis x;
   x.letter = 'X';
   x.joint = 0;
-  x.node = 1;
   x.scaling.encoder_counts = 131072;
   x.scaling.screw_lead = 5;
   x.min_limit = 0;
@@ -153,14 +154,26 @@ TEST(ResponseConfiguration, MapsTheTargetVelocityAndWiresTheSignalGeneratorToThe
   Axis y = x;
   y.letter = 'Y';
   y.joint = 1;
-  y.node = 2;
+  (ethercat ? x.slave : x.node) = 1;
+  (ethercat ? y.slave : y.node) = 2;
   s.axes = {x, y};
-  const auto files = response_configuration(s, 'Y', dir.path(), "r");
+  return s;
+}
+
+// The response configuration's INI and HAL text for `letter`.
+std::pair<std::string, std::string> response_files(const State& s, char letter, const std::filesystem::path& dir) {
   std::string ini, hal;
-  for (const auto& f : files) {
+  for (const auto& f : response_configuration(s, letter, dir, "r")) {
     if (f.path.extension() == ".ini") ini = f.content;
     if (f.path.extension() == ".hal") hal = f.content;
   }
+  return {ini, hal};
+}
+
+TEST(ResponseConfiguration, MapsTheTargetVelocityAndWiresTheSignalGeneratorToTheAxisDrive) {
+  testing::TempDir dir;
+  State s = two_axes(false);
+  const auto [ini, hal] = response_files(s, 'Y', dir.path());
   const auto node2 = ini.find("[CANOPEN_NODE_2]");
   ASSERT_NE(node2, std::string::npos);
   EXPECT_NE(ini.find("RPDO2 = 0x60FF:0:s32", node2), std::string::npos);
@@ -178,28 +191,8 @@ TEST(ResponseConfiguration, MapsTheTargetVelocityAndWiresTheSignalGeneratorToThe
 // axis' slave (the writer gives it none: the ESI's default is in use).
 TEST(ResponseConfiguration, MapsTheTargetVelocityInTheRxPdoOfTheAxisEthercatSlave) {
   testing::TempDir dir;
-  State s;
-  s.ethercat_interface = "raw:ecm";
-  Axis x;
-  x.letter = 'X';
-  x.joint = 0;
-  x.slave = 1;
-  x.scaling.encoder_counts = 131072;
-  x.scaling.screw_lead = 5;
-  x.min_limit = 0;
-  x.max_limit = 100;
-  x.limits_source = "entered";
-  Axis y = x;
-  y.letter = 'Y';
-  y.joint = 1;
-  y.slave = 2;
-  s.axes = {x, y};
-  const auto files = response_configuration(s, 'X', dir.path(), "r");
-  std::string ini, hal;
-  for (const auto& f : files) {
-    if (f.path.extension() == ".ini") ini = f.content;
-    if (f.path.extension() == ".hal") hal = f.content;
-  }
+  State s = two_axes(true);
+  const auto [ini, hal] = response_files(s, 'X', dir.path());
   const auto slave1 = ini.find("[ETHERCAT_SLAVE_1]"), slave2 = ini.find("[ETHERCAT_SLAVE_2]");
   ASSERT_NE(slave1, std::string::npos);
   ASSERT_NE(slave2, std::string::npos);

@@ -19,19 +19,7 @@ using test::line_to;
 using test::pose;
 using test::profile;
 
-// A spiral polyline of `n` moves of 0.2 mm (G64 P0.01): curved pieces.
-Program spiral(int n) {
-  Program prog;
-  const SegmentParams p = feed_params(100, 0.01);
-  double theta = 0;
-  for (int i = 0; i < n; ++i) {
-    const double r = 5 + 0.5 / (2 * std::numbers::pi) * theta;
-    theta += 0.2 / r;
-    prog.moves.push_back(line_to(r * std::cos(theta), r * std::sin(theta), 0, p));
-  }
-  prog.start = pose(5, 0, 0);
-  return prog;
-}
+Program spiral(int n) { return test::spiral_polyline(n); }
 
 struct Totals {
   uint64_t ingested = 0, limits = 0;

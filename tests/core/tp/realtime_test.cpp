@@ -24,20 +24,7 @@ RunResult run(const PlannerConfig& cfg, const Program& prog, RunOptions opt = {}
   return test::run_inline(cfg, prog, opt);
 }
 
-// A spiral polyline of `n` moves of 0.2 mm (G64 P0.01): curved pieces,
-// whose envelope spans cost the most.
-Program spiral(int n) {
-  Program prog;
-  const SegmentParams p = feed_params(100, 0.01);
-  double theta = 0;
-  for (int i = 0; i < n; ++i) {
-    const double r = 5 + 0.5 / (2 * std::numbers::pi) * theta;
-    theta += 0.2 / r;
-    prog.moves.push_back(line_to(r * std::cos(theta), r * std::sin(theta), 0, p));
-  }
-  prog.start = pose(5, 0, 0);
-  return prog;
-}
+Program spiral(int n) { return test::spiral_polyline(n); }
 
 // The servo thread's share of planning is bounded per cycle whatever the
 // program: a deep queue of short curved moves arriving at once (a spiral

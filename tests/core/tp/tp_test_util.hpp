@@ -75,6 +75,22 @@ inline ProgramMove line_to(double x, double y, double z, const SegmentParams& p)
   return m;
 }
 
+// A spiral polyline of `n` moves of 0.2 mm (G64 P0.01) from (5, 0, 0),
+// its radius growing 0.5 mm a turn: curved pieces, whose envelope spans
+// cost the servo thread the most.
+inline Program spiral_polyline(int n) {
+  Program prog;
+  const SegmentParams p = feed_params(100, 0.01);
+  double theta = 0;
+  for (int i = 0; i < n; ++i) {
+    const double r = 5 + 0.5 / (2 * std::numbers::pi) * theta;
+    theta += 0.2 / r;
+    prog.moves.push_back(line_to(r * std::cos(theta), r * std::sin(theta), 0, p));
+  }
+  prog.start = pose(5, 0, 0);
+  return prog;
+}
+
 // A random program: lines of log-uniform length (some collinear, some
 // nearly, some reversing), arcs and helices in the three planes, several
 // tolerances and termination modes, feeds and rapids, a few dwells.
