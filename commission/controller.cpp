@@ -64,6 +64,14 @@ double Controller::motor_position(int joint) const {
   return j.at("joints").at(joint).at("motor_pos_fb").get<double>();
 }
 
+double Controller::servo_period_s() const {
+  const auto j = nlohmann::json::parse(cnc({"status", "--json"}));
+  for (const auto& t : j.value("threads", nlohmann::json::array()))
+    if (t.value("name", std::string()) == "servo-thread" && t.value("period_ns", 0.0) > 0)
+      return t["period_ns"].get<double>() * 1e-9;
+  return 1e-3;
+}
+
 bool Controller::estop_chain_ok() const {
   const auto j = nlohmann::json::parse(cnc({"status", "--json"}));
   return j.at("io").value("estop_chain_ok", false);

@@ -28,6 +28,8 @@ class Controller {
   // A joint's motor position feedback (machine units) from the status.
   double motor_position(int joint) const;
   bool estop_chain_ok() const;
+  // The servo thread's period (s) from the status; 1 ms if it shows none.
+  double servo_period_s() const;
 
  private:
   std::string run(const std::filesystem::path& program, const std::vector<std::string>& args) const;

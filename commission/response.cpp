@@ -373,14 +373,6 @@ Now now_of(const Controller& c, int joint) {
   return n;
 }
 
-double period_of(const Controller& c) {
-  const auto j = nlohmann::json::parse(c.cnc({"status", "--json"}));
-  for (const auto& t : j.value("threads", nlohmann::json::array()))
-    if (t.value("name", std::string()) == "servo-thread" && t.value("period_ns", 0.0) > 0)
-      return t["period_ns"].get<double>() * 1e-9;
-  return 1e-3;
-}
-
 class Session {
  public:
   Session(const Controller& c, const Axis& a, const ResponseOptions& o, double start, double period)
@@ -500,7 +492,7 @@ AxisResponse run_response(const Controller& c, const Axis& a, const ResponseOpti
     throw std::runtime_error(axis_name(a) + ": the E-stop chain is open: close it before the response test");
   AxisResponse result;
   try {
-    const double period = period_of(c);
+    const double period = c.servo_period_s();
     const double f_max = o.max_frequency_hz > 0 ? std::min(o.max_frequency_hz, 0.2 / period) : 0.2 / period;
     if (!(f_max > o.min_frequency_hz)) throw std::invalid_argument("response: the highest frequency is below the lowest");
     const double start = now_of(c, a.joint).pos;

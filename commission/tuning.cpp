@@ -242,14 +242,6 @@ JointNow joint_now(const Controller& c, int joint) {
   return n;
 }
 
-double servo_period_s(const Controller& c) {
-  const auto j = nlohmann::json::parse(c.cnc({"status", "--json"}));
-  for (const auto& t : j.value("threads", nlohmann::json::array()))
-    if (t.value("name", std::string()) == "servo-thread" && t.value("period_ns", 0.0) > 0)
-      return t["period_ns"].get<double>() * 1e-9;
-  return 1e-3;
-}
-
 std::string axis_name(const Axis& a) { return std::string("axis ") + a.letter; }
 
 // Jogs by `distance` and waits until the command stands at the target.
@@ -319,7 +311,7 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
   try {
     c.cnc({"on"});
     c.cnc({"mode", "manual"});
-    const double period = servo_period_s(c);
+    const double period = c.servo_period_s();
     JointNow now = joint_now(c, a.joint);
     if (now.pos < travel.min || now.pos > travel.max)
       throw std::runtime_error(axis_name(a) + " stands at " + fmt("%.3f", now.pos) + " mm, outside its travel " +
