@@ -783,9 +783,11 @@ int cmd_tune(State& s, Args& a, char letter) {
   if (!torque_given)  // the drive's own limit (0x6072) as the scan read it
     if (const auto pct = drive_max_torque_pct(s, *ax)) o.rule.torque_limit_pct = *pct;
   if (!bring_up.empty())
-    own = bring_up_controller(tuning_configuration(s, letter, o), bin, bring_up, "commission-tune", bring_up / "cncd.log", true);
-  AxisTuning t = run_tuning(Controller(bin), *ax, o);
-  if (ax->gantry) t = worse_tuning(t, run_tuning(Controller(bin), gantry_view(*ax), o));  // each side, the worse
+    // A gantry pair homes together and is tuned as one axis; other axes
+    // are tuned in joint mode, unhomed.
+    own = bring_up_controller(tuning_configuration(s, letter, o), bin, bring_up, "commission-tune", bring_up / "cncd.log",
+                              !ax->gantry);
+  const AxisTuning t = run_tuning(Controller(bin), *ax, o);
   if (own && own->stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
   std::cout << "axis " << letter << ": the machine is off again\n"
             << "velocity: " << t.velocity_limit << "\nacceleration: " << t.acceleration_limit << "\n"

@@ -295,29 +295,6 @@ const DirectionTest& apply_direction_test(State& s, char letter, double commande
   return *stored;
 }
 
-AxisTuning worse_tuning(const AxisTuning& first, const AxisTuning& second) {
-  AxisTuning w = first;
-  for (TuningTest x : second.tests) {
-    x.series = "second drive " + x.series;
-    w.tests.push_back(x);
-  }
-  const auto pick = [](double x, double y, const std::string& bx, const std::string& by, bool lower,
-                       std::string* which) {
-    const bool take_y = lower ? y < x : y > x;
-    if (which) *which = take_y ? "the gantry's second drive: " + by : bx;
-    return take_y ? y : x;
-  };
-  w.max_velocity = pick(first.max_velocity, second.max_velocity, first.velocity_limit, second.velocity_limit, true,
-                        &w.velocity_limit);
-  w.max_acceleration = pick(first.max_acceleration, second.max_acceleration, first.acceleration_limit,
-                            second.acceleration_limit, true, &w.acceleration_limit);
-  w.max_jerk = std::min(first.max_jerk, second.max_jerk);
-  w.ferror = std::max(first.ferror, second.ferror);
-  w.min_ferror = std::max(first.min_ferror, second.min_ferror);
-  w.margin_pct = std::max(first.margin_pct, second.margin_pct);
-  return w;
-}
-
 std::optional<double> drive_max_torque_pct(const State& s, const Axis& a) {
   std::optional<uint16_t> t;
   if (a.slave) {

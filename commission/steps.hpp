@@ -74,12 +74,6 @@ double direction_test_travel_limit(const Axis& a) noexcept;
 const DirectionTest& apply_direction_test(State& s, char letter, double commanded_mm, double feedback_mm,
                                           double dial_mm, bool has_dial, bool gantry_second = false);
 
-// A gantry pair's tuning: each joint is tuned on its own; the pair runs
-// at the worse of the two (the lower velocity, acceleration and jerk, the
-// larger following-error limits), the tests of both kept, `second`'s
-// findings named so.
-AxisTuning worse_tuning(const AxisTuning& first, const AxisTuning& second);
-
 // The drive's torque limit as the scan read it (0x6072, per thousand of
 // rated torque) in percent of rated torque; none when the scan did not
 // read it.

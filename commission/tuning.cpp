@@ -97,32 +97,39 @@ std::vector<std::string> tuning_scope_pins(int joint, int drive) {
           std::string(d) + "torque", j + "vel-cmd", std::string(d) + "statusword"};
 }
 
-std::vector<TuningSample> parse_scope_csv(const std::string& text) {
+std::vector<std::vector<TuningSample>> parse_scope_csv_sides(const std::string& text, int sides) {
   std::istringstream in(text);
   std::string line;
   if (!std::getline(in, line)) throw std::runtime_error("scope csv: empty");
   const auto names = split(std::string(trim(line)), ',');
-  if (names.size() != 8 || names[0] != "time_s")
-    throw std::runtime_error("scope csv: unexpected header \"" + line + "\" (time_s and the 7 tuning pins)");
-  std::vector<TuningSample> out;
+  const std::size_t want = 1 + kTuningPinsPerJoint * static_cast<std::size_t>(sides);
+  if (names.size() != want || names[0] != "time_s")
+    throw std::runtime_error("scope csv: unexpected header \"" + line + "\" (time_s and the " +
+                             std::to_string(want - 1) + " tuning pins)");
+  std::vector<std::vector<TuningSample>> out(static_cast<std::size_t>(sides));
   int n = 1;
   while (std::getline(in, line)) {
     ++n;
     if (trim(line).empty()) continue;
     const auto v = numbers_of(std::string(trim(line)), "scope csv", n, names);
-    TuningSample s;
-    s.time_s = v[0];
-    s.command_mm = v[1];
-    s.feedback_mm = v[2];
-    s.ferror_mm = v[3];
-    s.velocity_mm_s = v[4];
-    s.torque_pct = v[5];
-    s.vel_cmd_mm_s = v[6];
-    s.limit = ((static_cast<uint32_t>(v[7]) >> 11) & 1u) != 0;
-    out.push_back(s);
+    for (int k = 0; k < sides; ++k) {
+      const double* p = v.data() + 1 + kTuningPinsPerJoint * k;
+      TuningSample s;
+      s.time_s = v[0];
+      s.command_mm = p[0];
+      s.feedback_mm = p[1];
+      s.ferror_mm = p[2];
+      s.velocity_mm_s = p[3];
+      s.torque_pct = p[4];
+      s.vel_cmd_mm_s = p[5];
+      s.limit = ((static_cast<uint32_t>(p[6]) >> 11) & 1u) != 0;
+      out[static_cast<std::size_t>(k)].push_back(s);
+    }
   }
   return out;
 }
+
+std::vector<TuningSample> parse_scope_csv(const std::string& text) { return parse_scope_csv_sides(text, 1).front(); }
 
 // ---- analysis ----
 
@@ -170,6 +177,24 @@ void analyse_test(TuningTest& t, const std::vector<TuningSample>& samples, const
                 " ms of lag against " + fmt("%.2f", reference_ferror_per_velocity * 1000) +
                 " ms in the first test (peak " + fmt("%.3f", t.max_ferror) + " mm)";
   }
+}
+
+TuningTest worse_side(const TuningTest& first, const TuningTest& second) {
+  TuningTest w = first;
+  w.max_ferror = std::max(first.max_ferror, second.max_ferror);
+  w.max_torque = std::max(first.max_torque, second.max_torque);
+  w.ferror_per_velocity = std::max(first.ferror_per_velocity, second.ferror_per_velocity);
+  w.standstill_ferror = std::max(first.standstill_ferror, second.standstill_ferror);
+  w.limit_cycles = std::max(first.limit_cycles, second.limit_cycles);
+  w.reached_velocity = std::min(first.reached_velocity, second.reached_velocity);
+  w.reached_acceleration = std::min(first.reached_acceleration, second.reached_acceleration);
+  w.fault = first.fault || second.fault;
+  w.saturated = first.saturated || second.saturated;
+  if (!first.saturated && second.saturated) {
+    w.finding = "the gantry's second drive: " + second.finding;
+    w.csv = second.csv;
+  }
+  return w;
 }
 
 AxisTuning recommend_tuning(const std::vector<TuningTest>& tests, double margin_pct, double counts_per_mm) {
@@ -244,18 +269,67 @@ JointNow joint_now(const Controller& c, int joint) {
 
 std::string axis_name(const Axis& a) { return std::string("axis ") + a.letter; }
 
+// What the tests move: one joint in free mode (jogged by its number), or
+// a homed gantry pair in teleop mode (jogged by the axis letter, both
+// sides together, each side's pins recorded).
+struct Moved {
+  const Axis* axis = nullptr;
+  std::vector<int> joints;  // the first is the one whose position is followed
+  bool pair = false;
+  std::string jog;          // `cnc jog` target: the joint number or the axis letter
+  int axis_index = -1;      // a pair: the axis' index in XYZABCUVW (its limits are set too)
+};
+
+Moved moved_of(const Axis& a) {
+  Moved m;
+  m.axis = &a;
+  m.joints = {a.joint};
+  m.jog = std::to_string(a.joint);
+  if (a.gantry) {
+    m.pair = true;
+    m.joints.push_back(a.gantry->joint);
+    m.jog = std::string(1, static_cast<char>(std::tolower(a.letter)));
+    m.axis_index = static_cast<int>(std::string("XYZABCUVW").find(a.letter));
+  }
+  return m;
+}
+
+// The run-time limits in force before the tests (restored after them).
+struct Limits {
+  double v = 0, a = 0, j = 0;
+};
+struct LimitsBefore {
+  std::vector<Limits> joints;
+  Limits axis;
+};
+
+LimitsBefore limits_now(const Controller& c, const Moved& m) {
+  const auto j = nlohmann::json::parse(c.cnc({"status", "--json"}));
+  LimitsBefore b;
+  for (int k : m.joints) {
+    const auto& js = j.at("joints").at(k);
+    b.joints.push_back({js.value("max_velocity", 0.0), js.value("max_acceleration", 0.0), js.value("max_jerk", 0.0)});
+  }
+  if (m.pair)
+    for (const auto& ax : j.at("axes"))
+      if (ax.value("axis", std::string()) == std::string(1, m.axis->letter))
+        b.axis = {ax.value("max_velocity", 0.0), ax.value("max_acceleration", 0.0), ax.value("max_jerk", 0.0)};
+  return b;
+}
+
 // Jogs by `distance` and waits until the command stands at the target.
 // Returns false when motion stopped (a fault, the machine off); throws on
 // abort and time-out.
-bool move(const Controller& c, const Axis& a, double velocity, double distance, double limit_s) {
-  const std::string joint = std::to_string(a.joint);
-  const double target = joint_now(c, a.joint).pos + distance;
+bool move(const Controller& c, const Moved& m, double velocity, double distance, double limit_s) {
+  const Axis& a = *m.axis;
+  const std::string& joint = m.jog;
+  const double target = joint_now(c, m.joints.front()).pos + distance;
   c.cnc({"jog", joint, fmt("%.6f", velocity), fmt("%.6f", distance)});
   const auto start = std::chrono::steady_clock::now();
   int still = 0;
   for (;;) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    const JointNow n = joint_now(c, a.joint);
+    const JointNow n = joint_now(c, m.joints.front());
     if (!n.enabled || !n.on || n.fault) return false;
     if (std::fabs(n.pos - target) < 1e-4 && std::fabs(n.vel) < 1e-6) {
       if (++still >= 2) return true;
@@ -280,6 +354,27 @@ void set_limits(const Controller& c, int joint, double v, double a, double j) {
   c.cnc({"set", "joint.max-jerk", n, fmt("%.6f", j)});
 }
 
+// The test's limits on every joint moved and, for a pair, on its axis
+// (teleop jogs obey the axis' limits).
+void set_limits(const Controller& c, const Moved& m, double v, double a, double j) {
+  for (int k : m.joints) set_limits(c, k, v, a, j);
+  if (!m.pair) return;
+  const std::string n = std::to_string(m.axis_index);
+  c.cnc({"set", "axis.max-velocity", n, fmt("%.6f", v)});
+  c.cnc({"set", "axis.max-acceleration", n, fmt("%.6f", a)});
+  c.cnc({"set", "axis.max-jerk", n, fmt("%.6f", j)});
+}
+
+void restore_limits(const Controller& c, const Moved& m, const LimitsBefore& b) {
+  for (std::size_t k = 0; k < m.joints.size(); ++k)
+    set_limits(c, m.joints[k], b.joints[k].v, b.joints[k].a, b.joints[k].j);
+  if (!m.pair) return;
+  const std::string n = std::to_string(m.axis_index);
+  c.cnc({"set", "axis.max-velocity", n, fmt("%.6f", b.axis.v)});
+  c.cnc({"set", "axis.max-acceleration", n, fmt("%.6f", b.axis.a)});
+  c.cnc({"set", "axis.max-jerk", n, fmt("%.6f", b.axis.j)});
+}
+
 }  // namespace
 
 AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) {
@@ -301,17 +396,34 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
   auto report = [&](const std::string& s) { if (o.report) o.report(s); };
   std::filesystem::create_directories(o.record_dir);
 
+  const Moved m = moved_of(a);
+  if (m.pair && !(a.homing && a.gantry->homing))
+    throw std::invalid_argument(axis_name(a) + " is a gantry pair: its two sides move together only once homed: run the "
+                                "homing step first (cnc-commission axis " + std::string(1, a.letter) +
+                                " homing), then tune the pair");
   clear_abort();
   c.cnc({"estop-reset"});
   if (!c.estop_chain_ok())
     throw std::runtime_error(axis_name(a) + ": the E-stop chain is open: close it before the tuning tests");
-  const JointNow before = joint_now(c, a.joint);
+  const LimitsBefore limits_before = limits_now(c, m);
   std::vector<TuningTest> tests;
   AxisTuning result;
   try {
     c.cnc({"on"});
     c.cnc({"mode", "manual"});
     const double period = c.servo_period_s();
+    if (m.pair) {
+      // Both sides home together (one negative HOME_SEQUENCE), then move
+      // together as the axis.
+      progress("homing the gantry pair (joints " + std::to_string(m.joints[0]) + " and " + std::to_string(m.joints[1]) +
+               " together) before the tests");
+      c.cnc({"--timeout", "150", "home", std::to_string(a.joint)});
+      const auto st = nlohmann::json::parse(c.cnc({"status", "--json"}));
+      for (int k : m.joints)
+        if (!st.at("joints").at(k).value("homed", false))
+          throw std::runtime_error(axis_name(a) + ": joint " + std::to_string(k) +
+                                   " of the gantry pair is not homed after homing the pair: check its homing keys");
+    }
     JointNow now = joint_now(c, a.joint);
     if (now.pos < travel.min || now.pos > travel.max)
       throw std::runtime_error(axis_name(a) + " stands at " + fmt("%.3f", now.pos) + " mm, outside its travel " +
@@ -319,9 +431,14 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
                                "): jog it inside first");
     // The ceilings must be allowed by the running configuration (runtime
     // limits may only be lowered below the INI's).
+    // The jerk: the test's acceleration over four servo periods, never
+    // above what the running configuration allows.
+    double jerk_cap = 1e300;
+    for (const Limits& l : limits_before.joints)
+      if (l.j > 0) jerk_cap = std::min(jerk_cap, l.j);
+    if (m.pair && limits_before.axis.j > 0) jerk_cap = std::min(jerk_cap, limits_before.axis.j);
     try {
-      set_limits(c, a.joint, o.max_velocity, o.max_acceleration,
-                 std::min(o.max_acceleration / (4 * period), before.max_jerk > 0 ? before.max_jerk : 1e300));
+      set_limits(c, m, o.max_velocity, o.max_acceleration, std::min(o.max_acceleration / (4 * period), jerk_cap));
     } catch (const std::exception& e) {
       throw std::runtime_error(axis_name(a) + ": the running configuration does not allow the ceilings (" +
                                std::string(e.what()) +
@@ -335,21 +452,19 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
     const int total = 2 * o.steps + 10;  // at most: both series, their refinements and repeats
     int index = 0;
     const double window = hi - lo;
-    // The jerk: the test's acceleration over four servo periods, never
-    // above what the running configuration allows.
-    const double jerk_cap = before.max_jerk > 0 ? before.max_jerk : 1e300;
+    std::vector<double> side_reference;  // each side's first clean test's ferror per velocity
     auto run_one = [&](const std::string& series, double v, double acc) -> const TuningTest* {
       // From where the joint stands towards the farther end of the window
       // (first into the window when it stands between it and a limit, or
       // where a fault left it: at the first test's speed and acceleration).
-      double p0 = joint_now(c, a.joint).pos;
+      double p0 = joint_now(c, m.joints.front()).pos;
       if (p0 < lo - 1e-3 || p0 > hi + 1e-3) {
         const double edge = p0 < lo ? lo : hi;
         const double v_in = std::min(v, o.max_velocity / 16), a_in = std::min(acc, o.max_acceleration / 4);
-        set_limits(c, a.joint, v_in, a_in, std::min(a_in / (4 * period), jerk_cap));
-        if (!move(c, a, v_in, edge - p0, 2 * std::fabs(edge - p0) / v_in + 5))
+        set_limits(c, m, v_in, a_in, std::min(a_in / (4 * period), jerk_cap));
+        if (!move(c, m, v_in, edge - p0, 2 * std::fabs(edge - p0) / v_in + 5))
           throw std::runtime_error(axis_name(a) + ": motion stopped on the way into the test travel");
-        p0 = joint_now(c, a.joint).pos;
+        p0 = joint_now(c, m.joints.front()).pos;
       }
       const double sign = hi - p0 >= p0 - lo ? 1.0 : -1.0;
       const double room = std::max(0.0, sign > 0 ? hi - p0 : p0 - lo);
@@ -372,20 +487,20 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
       t.jerk = j;
       progress(std::to_string(index) + "/" + std::to_string(total) + " " + series + " test: " + fmt("%.0f", v) +
                " mm/s, " + fmt("%.0f", acc) + " mm/s2 over " + fmt("%.1f", dist) + " mm");
-      set_limits(c, a.joint, v, acc, j);
+      set_limits(c, m, v, acc, j);
       const double t_move = std::fabs(dist) / v + v / acc + acc / j + 0.3;
       // At most the buffer the written configuration loads (loadrt scope samples=60000).
       const auto samples = std::min(60000L, static_cast<long>(std::ceil((2 * t_move * 1.2 + 0.5) / period)));
-      const auto pins = tuning_scope_pins(a.joint, a.joint);
       std::string list;
-      for (const auto& p : pins) list += (list.empty() ? "" : ",") + p;
+      for (int k : m.joints)
+        for (const auto& p : tuning_scope_pins(k, k)) list += (list.empty() ? "" : ",") + p;
       c.halcmd({"scope", "stop"});
       c.halcmd({"scope", "setup", list, "samples=" + std::to_string(samples), "pre=0", "mode=single"});
       c.halcmd({"scope", "arm"});
-      bool ok = move(c, a, v, dist, 2 * t_move + 3);
+      bool ok = move(c, m, v, dist, 2 * t_move + 3);
       if (ok) {
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
-        ok = move(c, a, v, -dist, 2 * t_move + 3);
+        ok = move(c, m, v, -dist, 2 * t_move + 3);
       }
       // The scope runs on to its end (a fault is recorded too).
       const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(samples * period * 3 + 5);
@@ -394,12 +509,16 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
         if (abort_requested()) throw std::runtime_error(axis_name(a) + ": the tuning test was aborted");
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
       }
-      const auto record = parse_scope_csv(c.halcmd({"scope", "csv"}));
-      char name[96];
-      std::snprintf(name, sizeof name, "%c-%02d-%s-v%.0f-a%.0f.csv", static_cast<char>(std::tolower(a.letter)), index,
-                    series.c_str(), v, acc);
-      t.csv = (o.record_dir / name).string();
-      write_file_atomically(t.csv, tuning_csv(record));
+      const auto records = parse_scope_csv_sides(c.halcmd({"scope", "csv"}), static_cast<int>(m.joints.size()));
+      std::vector<std::string> files;
+      for (std::size_t k = 0; k < records.size(); ++k) {
+        char name[112];
+        std::snprintf(name, sizeof name, "%c-%02d-%s-v%.0f-a%.0f%s.csv", static_cast<char>(std::tolower(a.letter)), index,
+                      series.c_str(), v, acc, k == 0 ? "" : "-second-drive");
+        files.push_back((o.record_dir / name).string());
+        write_file_atomically(files.back(), tuning_csv(records[k]));
+      }
+      t.csv = files.front();
       if (!ok) {
         t.fault = true;
         t.finding = "the drive faulted or motion stopped during the test (a following-error trip or an amplifier fault)";
@@ -416,20 +535,27 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
         }
         t.finding += "; " + reset;
         if (reset.rfind("reset failed", 0) == 0) {
-          analyse_test(t, record, o.rule, 0);
+          analyse_test(t, records.front(), o.rule, 0);
           tests.push_back(t);
           throw std::runtime_error(axis_name(a) + ": " + t.finding + ": check the drive (its display, the error code in `cnc messages`)");
         }
       }
-      double reference = 0;
-      for (const TuningTest& x : tests)
-        if (!x.saturated && !x.fault) {
-          reference = x.ferror_per_velocity;
-          break;
-        }
-      analyse_test(t, record, o.rule, reference);
+      // Each side against its own first clean test; a pair's test is the
+      // worse of its two sides.
+      std::vector<TuningTest> sides;
+      for (std::size_t k = 0; k < records.size(); ++k) {
+        TuningTest x = t;
+        x.csv = files[k];
+        analyse_test(x, records[k], o.rule, k < side_reference.size() ? side_reference[k] : 0);
+        sides.push_back(x);
+      }
+      t = sides.size() == 2 ? worse_side(sides[0], sides[1]) : sides.front();
+      if (!t.saturated && !t.fault && side_reference.empty())
+        for (const TuningTest& x : sides) side_reference.push_back(x.ferror_per_velocity);
+      std::string peaks = fmt("%.4f", sides[0].max_ferror);
+      if (sides.size() == 2) peaks += " / " + fmt("%.4f", sides[1].max_ferror) + " (each side)";
       report("test " + std::to_string(index) + " (" + series + "): " + fmt("%.0f", v) + " mm/s, " + fmt("%.0f", acc) +
-             " mm/s2: peak following error " + fmt("%.4f", t.max_ferror) + " mm, torque " + fmt("%.0f", t.max_torque) +
+             " mm/s2: peak following error " + peaks + " mm, torque " + fmt("%.0f", t.max_torque) +
              " %, " + (t.saturated ? "SATURATED: " + t.finding : std::string("clean")) + " (" + t.csv + ")");
       tests.push_back(t);
       return &tests.back();
@@ -504,7 +630,7 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
     // Whatever stopped the tests: the machine off, the joint's limits back.
     std::string off = switch_off_after_failure(c);
     try {
-      set_limits(c, a.joint, before.max_velocity, before.max_acceleration, before.max_jerk);
+      restore_limits(c, m, limits_before);
     } catch (const std::exception&) {
       off += " (the joint's run-time limits were not restored: restart the controller)";
     }
@@ -516,7 +642,7 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
   }
   c.cnc({"off"});
   try {
-    set_limits(c, a.joint, before.max_velocity, before.max_acceleration, before.max_jerk);
+    restore_limits(c, m, limits_before);
   } catch (const std::exception& e) {
     report(std::string("warning: the joint's limits were not restored: ") + e.what());
   }

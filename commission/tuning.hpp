@@ -46,6 +46,10 @@ std::vector<TuningSample> parse_tuning_csv(const std::string& text, const std::s
 // The scope's CSV of one capture (time_s and the pins in the order of
 // tuning_scope_pins) as samples.
 std::vector<TuningSample> parse_scope_csv(const std::string& text);
+// The same for a capture of `sides` joints' pins one after the other (a
+// gantry pair: both sides in one capture): the samples of each joint.
+std::vector<std::vector<TuningSample>> parse_scope_csv_sides(const std::string& text, int sides);
+inline constexpr int kTuningPinsPerJoint = 7;
 // The pins a test records for joint `joint` driven by CiA 402 drive
 // `drive` of group 0: motor-pos-cmd, motor-pos-fb, f-error, vel-fb,
 // torque, vel-cmd, statusword.
@@ -65,6 +69,12 @@ struct SaturationRule {
 // `reference_ferror_per_velocity` is the first clean test's (0: none yet).
 void analyse_test(TuningTest& t, const std::vector<TuningSample>& samples, const SaturationRule& rule,
                   double reference_ferror_per_velocity);
+
+// A gantry pair's test, both sides recorded at once: the worse of the two
+// analyses (peaks and lags the larger, reached velocity and acceleration
+// the smaller, saturated when either side is; the finding and the record
+// of the side that saturated, the first side's when both or neither did).
+TuningTest worse_side(const TuningTest& first, const TuningTest& second);
 
 // The recommendation from the tests (their measured figures): MAX_VELOCITY,
 // MAX_ACCELERATION and MAX_JERK = (1 - margin) x the highest clean test's
@@ -89,7 +99,10 @@ struct TuneOptions {
 
 // The tests on joint `a.joint` (drive index = joint) of the controller:
 // switches the machine on, runs the series, switches it off whatever
-// happens. A fault during a test is reset (machine off and on once) and
+// happens. A gantry pair (a.gantry) is tuned as one axis: homed first
+// (both sides together; step 6 must have run), then jogged by its letter
+// in teleop mode with both sides recorded in each test (worse_side); it
+// is never moved one side at a time. A fault during a test is reset (machine off and on once) and
 // reported; the series stops there. Throws std::runtime_error (machine
 // off, nothing recorded in the state) on an abort, a time limit, a joint
 // outside its soft limits, a configuration whose joint limits are below

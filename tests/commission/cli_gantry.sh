@@ -9,9 +9,10 @@
 # Bad assignments are refused with nothing saved; the configuration is
 # written (trivkins with Y twice, kinstype=BOTH, both Y joints with one
 # negative HOME_SEQUENCE) and `cnc-commission check` runs on it. Then steps
-# 4-6 on both sides: direction and scaling per drive (two rounds, the dial
+# 4-7 on both sides: direction and scaling per drive (two rounds, the dial
 # readings from the simulator's table positions), the switches of each
-# side, homing with the squaring read from the two table positions; written
+# side, homing with the squaring read from the two table positions, the
+# tuning of the pair (homed together, both sides recorded); written
 # again, homed by cncd: the two sides stand square, and Y moved 4 mm by MDI
 # moves both tables 4 mm.
 set -eu
@@ -140,7 +141,23 @@ print(f"squaring {sq:.4f} mm; HOME_OFFSET {h1:.4f} and {h2:.4f} ({h2 - h1:+.4f})
 assert abs(h2 - h1 - 0.3) < 0.05 and abs(sq - 0.6) < 0.05, (sq, h1, h2)
 PY
 
-cc write --dir "$work/m" --name gantry --yes > "$work/out" || fail "write after steps 4-6: $(cat "$work/out")"
+# Step 7 on the pair: homed together, then jogged as Y with both sides
+# recorded in every test (never one side at a time).
+cc axis Y tune --max-velocity 60 --max-acceleration 1200 --steps 3 --bring-up "$work/m" > "$work/out" \
+  || fail "tune: $(cat "$work/out")"
+grep -q "homing the gantry pair (joints 1 and 2 together)" "$work/out" || fail "the pair was not homed before tuning: $(cat "$work/out")"
+grep -q "mm/s2: peak following error [0-9.]* / [0-9.]* (each side) mm" "$work/out" || fail "a test did not record both sides: $(cat "$work/out")"
+grep "recommended" "$work/out" || fail "no recommendation: $(cat "$work/out")"
+ls "$work"/tuning-y/*-second-drive.csv >/dev/null || fail "no record of the second side"
+python3 - "$work/state.json" <<'PY' || fail "the pair's tuning was not kept"
+import json, sys
+y = [a for a in json.load(open(sys.argv[1]))["axes"] if a["letter"] == "Y"][0]
+t = y["tuning"]
+print(f"Y tuned as a pair: MAX_VELOCITY {t['max_velocity']:.1f}, MAX_ACCELERATION {t['max_acceleration']:.0f}, {len(t['tests'])} tests")
+assert 0 < t["max_velocity"] <= 60 and 0 < t["max_acceleration"] <= 1200, t
+PY
+
+cc write --dir "$work/m" --name gantry --yes > "$work/out" || fail "write after steps 4-7: $(cat "$work/out")"
 [ "$(grep -c '^HOME_SEQUENCE = -1$' "$ini")" = 2 ] || fail "the pair does not home together: $(grep HOME_SEQUENCE "$ini")"
 grep -A12 "^\[CIA402_DRIVE_2\]" "$ini" | grep -qx "REVERSE = NO" || fail "the second drive's REVERSE: $(grep -A12 '^\[CIA402_DRIVE_2\]' "$ini")"
 cc bring-up --dir "$work/m" --name gantry | grep -q "cncd runs on" || fail "bring-up"

@@ -168,31 +168,6 @@ TEST(CommissionSteps, GantryFindingsOfEachSideSurviveTheStateFile) {
   EXPECT_DOUBLE_EQ(v.homing->home_offset, 12.75);
 }
 
-TEST(CommissionSteps, GantryTuningIsTheWorseOfTheTwoSides) {
-  AxisTuning a, b;
-  a.max_velocity = 200;
-  a.max_acceleration = 3000;
-  a.max_jerk = 1e6;
-  a.ferror = 0.5;
-  a.min_ferror = 0.1;
-  a.velocity_limit = "torque at 250 mm/s";
-  a.acceleration_limit = "torque at 3750 mm/s2";
-  a.tests.resize(3);
-  b = a;
-  b.max_velocity = 150;
-  b.ferror = 0.8;
-  b.velocity_limit = "torque at 190 mm/s";
-  b.tests.resize(2);
-  const AxisTuning w = worse_tuning(a, b);
-  EXPECT_DOUBLE_EQ(w.max_velocity, 150);
-  EXPECT_DOUBLE_EQ(w.max_acceleration, 3000);
-  EXPECT_DOUBLE_EQ(w.ferror, 0.8);
-  EXPECT_DOUBLE_EQ(w.min_ferror, 0.1);
-  EXPECT_EQ(w.velocity_limit, "the gantry's second drive: torque at 190 mm/s");
-  EXPECT_EQ(w.acceleration_limit, "torque at 3750 mm/s2");
-  EXPECT_EQ(w.tests.size(), 5u);
-}
-
 TEST(CommissionSteps, TheDrivesTorqueLimitComesFromTheScan) {
   State s = scanned();
   const Axis& x = assign_axis(s, 'X', 0, 1);

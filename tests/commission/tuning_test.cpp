@@ -97,6 +97,50 @@ TEST(TuningScopeCsv, TakesThePinsInOrderAndBitElevenOfTheStatuswordAsTheLimit) {
   EXPECT_DOUBLE_EQ(r[1].torque_pct, 20);
 }
 
+TEST(TuningScopeCsv, AGantryCaptureHoldsBothSidesPinsOneAfterTheOther) {
+  std::string text = "time_s";
+  for (int j : {1, 2})
+    for (const auto& p : tuning_scope_pins(j, j)) text += "," + p;
+  text += "\n0.000000,1,0.9,0.1,50,20,51,4663,1,0.8,0.2,49,35,51,6711\n";
+  const auto r = parse_scope_csv_sides(text, 2);
+  ASSERT_EQ(r.size(), 2u);
+  ASSERT_EQ(r[1].size(), 1u);
+  EXPECT_DOUBLE_EQ(r[0][0].ferror_mm, 0.1);
+  EXPECT_DOUBLE_EQ(r[1][0].ferror_mm, 0.2);
+  EXPECT_DOUBLE_EQ(r[1][0].torque_pct, 35);
+  EXPECT_FALSE(r[0][0].limit);
+  EXPECT_TRUE(r[1][0].limit);
+  // One side's capture read as two, or two as one: the header says so.
+  EXPECT_THROW(parse_scope_csv(text), std::runtime_error);
+}
+
+TEST(TuningAnalysis, AGantryTestIsTheWorseOfItsTwoSides) {
+  TuningTest a, b;
+  a.series = b.series = "velocity";
+  a.velocity = b.velocity = 100;
+  a.max_ferror = 0.05, b.max_ferror = 0.08;
+  a.max_torque = 120, b.max_torque = 90;
+  a.ferror_per_velocity = 0.001, b.ferror_per_velocity = 0.0012;
+  a.reached_velocity = 100, b.reached_velocity = 99.5;
+  a.csv = "y-01.csv", b.csv = "y-01-second-drive.csv";
+  TuningTest w = worse_side(a, b);
+  EXPECT_FALSE(w.saturated);
+  EXPECT_DOUBLE_EQ(w.max_ferror, 0.08);
+  EXPECT_DOUBLE_EQ(w.max_torque, 120);
+  EXPECT_DOUBLE_EQ(w.ferror_per_velocity, 0.0012);
+  EXPECT_DOUBLE_EQ(w.reached_velocity, 99.5);
+  EXPECT_EQ(w.csv, "y-01.csv");
+  b.saturated = true;
+  b.finding = "torque 280 % reached 90 % of the drive's limit";
+  w = worse_side(a, b);
+  EXPECT_TRUE(w.saturated);
+  EXPECT_EQ(w.finding, "the gantry's second drive: torque 280 % reached 90 % of the drive's limit");
+  EXPECT_EQ(w.csv, "y-01-second-drive.csv");
+  // The recommendation of a pair comes from its merged tests: the first
+  // side clean alone would allow 100 mm/s, the pair does not.
+  EXPECT_THROW(recommend_tuning({w}, 20, 1000), std::invalid_argument);
+}
+
 TEST(TuningAnalysis, AProportionalLagWithTorqueInReachIsClean) {
   const TuningTest slow = analysed("velocity", 50, 1000, synthetic(50, 1000, 0.002, 0.02));
   EXPECT_FALSE(slow.saturated) << slow.finding;
