@@ -413,16 +413,26 @@ AxisTuning run_tuning(const Controller& c, const Axis& a, const TuneOptions& o) 
     c.cnc({"mode", "manual"});
     const double period = c.servo_period_s();
     if (m.pair) {
-      // Both sides home together (one negative HOME_SEQUENCE), then move
-      // together as the axis.
-      progress("homing the gantry pair (joints " + std::to_string(m.joints[0]) + " and " + std::to_string(m.joints[1]) +
-               " together) before the tests");
-      c.cnc({"--timeout", "150", "home", std::to_string(a.joint)});
-      const auto st = nlohmann::json::parse(c.cnc({"status", "--json"}));
-      for (int k : m.joints)
-        if (!st.at("joints").at(k).value("homed", false))
-          throw std::runtime_error(axis_name(a) + ": joint " + std::to_string(k) +
-                                   " of the gantry pair is not homed after homing the pair: check its homing keys");
+      // The pair moves as its axis only on a homed machine (teleop): home
+      // all joints, as the configuration says (the pair's sides together,
+      // on their own switches; a joint without a search homes where it
+      // stands).
+      progress("homing the machine (the gantry pair's joints " + std::to_string(m.joints[0]) + " and " +
+               std::to_string(m.joints[1]) + " together) before the tests");
+      c.cnc({"--timeout", "150", "home", "all"});
+      const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(150);
+      for (;;) {
+        const auto st = nlohmann::json::parse(c.cnc({"status", "--json"}));
+        bool homed = true;
+        for (const auto& js : st.at("joints")) homed = homed && js.value("homed", false) && js.value("inpos", false);
+        if (homed) break;
+        if (!st.at("motion").value("enabled", false))
+          throw std::runtime_error(axis_name(a) + ": motion stopped while homing the machine for the gantry's tuning");
+        if (abort_requested()) throw std::runtime_error(axis_name(a) + ": the tuning was aborted while homing");
+        if (std::chrono::steady_clock::now() > until)
+          throw std::runtime_error(axis_name(a) + ": the machine was not homed within 150 s: check the homing keys");
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      }
     }
     JointNow now = joint_now(c, a.joint);
     if (now.pos < travel.min || now.pos > travel.max)

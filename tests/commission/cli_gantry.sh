@@ -145,7 +145,7 @@ PY
 # recorded in every test (never one side at a time).
 cc axis Y tune --max-velocity 60 --max-acceleration 1200 --steps 3 --bring-up "$work/m" > "$work/out" \
   || fail "tune: $(cat "$work/out")"
-grep -q "homing the gantry pair (joints 1 and 2 together)" "$work/out" || fail "the pair was not homed before tuning: $(cat "$work/out")"
+grep -q "homing the machine (the gantry pair's joints 1 and 2 together)" "$work/out" || fail "the pair was not homed before tuning: $(cat "$work/out")"
 grep -q "mm/s2: peak following error [0-9.]* / [0-9.]* (each side) mm" "$work/out" || fail "a test did not record both sides: $(cat "$work/out")"
 grep "recommended" "$work/out" || fail "no recommendation: $(cat "$work/out")"
 ls "$work"/tuning-y/*-second-drive.csv >/dev/null || fail "no record of the second side"
