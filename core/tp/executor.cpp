@@ -123,10 +123,12 @@ struct Executor::Tree {
 };
 
 // A stretch of a piece with constant input limits, as the splitting makes
-// it (on the planner's side, handed over through split_ring_).
+// it (on the planner's side, handed over through split_ring_). No member
+// initialisers: the splitting's scratch arrays of them (160 a piece) are
+// not zeroed on every call.
 struct Executor::SplitSpan {
-  double a = 0, b = 0;
-  double vc = 0, feed = kInf, rapid = kInf;
+  double a, b;
+  double vc, feed, rapid;
 };
 
 // Where a piece's split spans lie in split_ring_ ([first, first + count);
@@ -574,9 +576,20 @@ double Executor::ceiling(const Span& sp) const noexcept {
 
 namespace {
 
-// A piece's limit table under `lim`. Ceilings of curved pieces are rounded
-// down to 1 % steps: neighbours with nearly equal ceilings then share
-// spans (fewer for the envelope).
+// A piece's velocity ceiling under `lim` (0 for a stop). Ceilings of
+// curved pieces are rounded down to 1 % steps: neighbours with nearly
+// equal ceilings then share spans (fewer for the envelope).
+template <class L>
+double piece_ceiling(const Piece& p, const L& lim) noexcept {
+  if (p.stop != StopKind::None) return 0;
+  double v = std::min(p.v_hard, lim.v_bound);
+  bool curved = p.bounds.lin2 > 0 || p.bounds.lin3 > 0;
+  for (int i = 0; i < kNumAxes && !curved; ++i) curved = p.bounds.c2[static_cast<std::size_t>(i)] > 0;
+  if (curved && v > 1e-9) v = std::exp(std::floor(std::log(v) / kCeilingStep) * kCeilingStep);
+  return v;
+}
+
+// A piece's limit table under `lim`.
 template <class L, class T>
 void piece_limits(const Piece& p, const Curve* arc, const L& lim, T& out) noexcept {
   out.gen = lim.gen;
@@ -585,10 +598,7 @@ void piece_limits(const Piece& p, const Curve* arc, const L& lim, T& out) noexce
     for (int c = 0; c < kChannels; ++c) out.vals[c] = kInf;
     return;
   }
-  double v = std::min(p.v_hard, lim.v_bound);
-  bool curved = p.bounds.lin2 > 0 || p.bounds.lin3 > 0;
-  for (int i = 0; i < kNumAxes && !curved; ++i) curved = p.bounds.c2[static_cast<std::size_t>(i)] > 0;
-  if (curved && v > 1e-9) v = std::exp(std::floor(std::log(v) / kCeilingStep) * kCeilingStep);
+  const double v = piece_ceiling(p, lim);
   out.v = v;
   const auto& r = lim.rows;
   for (int i = 0; i < kGrid; ++i) {
@@ -613,6 +623,14 @@ const Curve* Executor::bare_helix(const Piece& p) const noexcept {
 void Executor::set_prepare_config(const PlannerConfig& config, uint64_t config_gen) noexcept {
   make_limits(config, *prep_lim_);
   prep_lim_->gen = config_gen;
+  // The pieces prepared before and not released may still be split (and
+  // are neighbours of pieces still to be split): their ceilings under
+  // these limits, so that spans marked with this configuration are made
+  // from it alone, as the servo side would make them.
+  for (uint64_t k = std::max(store_.pieces.released(), prep_next_ > pmask_ ? prep_next_ - pmask_ : 0); k < prep_next_;
+       ++k) {
+    prep_pdata_[k & pmask_].v = piece_ceiling(piece(k), *prep_lim_);
+  }
 }
 
 void Executor::prepare_published() noexcept {
