@@ -58,6 +58,7 @@ struct Executor::Limits {
   Rows rows;
   std::array<double, kGrid> grid{};
   double tf = 0, v_bound = 0, a_top = 0;
+  double T = 0;  // servo period
   int n = 1;  // samples averaged
   uint64_t gen = 0;
 };
@@ -121,7 +122,24 @@ struct Executor::Tree {
   }
 };
 
-// A stretch of a piece with constant input limits.
+// A stretch of a piece with constant input limits, as the splitting makes
+// it (on the planner's side, handed over through split_ring_). No member
+// initialisers: the splitting's scratch arrays of them (160 a piece) are
+// not zeroed on every call.
+struct Executor::SplitSpan {
+  double a, b;
+  double vc, feed, rapid;
+};
+
+// Where a piece's split spans lie in split_ring_ ([first, first + count);
+// none for a stop), and for which configuration they were made.
+struct Executor::PieceSplit {
+  uint64_t first = 0;
+  int count = 0;
+  uint64_t gen = UINT64_MAX;
+};
+
+// A stretch of a piece with constant input limits, with its envelope.
 struct Executor::Span {
   double a = 0, b = 0;  // on the path parameter; a == b for a stop
   uint64_t piece = 0;
@@ -151,6 +169,8 @@ Executor::Executor(const PlannerConfig& config, PathStore& store)
   while (c < store.pieces.capacity()) c *= 2;
   pdata_ = std::make_unique<PieceData[]>(c);
   plim_ = std::make_unique<PieceLimits[]>(c);
+  prep_pdata_ = std::make_unique<PieceData[]>(c);
+  psplit_ = std::make_unique<PieceSplit[]>(c);
   pmask_ = c - 1;
   tree_ = std::make_unique<Tree>();
   tree_->n = c;
@@ -161,6 +181,8 @@ Executor::Executor(const PlannerConfig& config, PathStore& store)
   while (sc < c * 2) sc *= 2;
   spans_ = std::make_unique<Span[]>(sc);
   smask_ = sc - 1;
+  split_ring_ = std::make_unique<SplitSpan[]>(sc);
+  rmask_ = sc - 1;
   hx_ = std::make_unique<double[]>(kRing);
   hv_ = std::make_unique<double[]>(kRing);
   ha_ = std::make_unique<double[]>(kRing);
@@ -211,6 +233,7 @@ void make_limits(const PlannerConfig& config, L& lim) noexcept {
     ++r.n;
   }
   const double T = config.cycle_time_s;
+  lim.T = T;
   lim.n = std::clamp(static_cast<int>(std::ceil(tf / T - 1e-9)), 1, kMaxFilter);
   lim.tf = lim.n * T;
   // Generous bounds: no piece is faster (pieces are capped to it), no input
@@ -553,9 +576,20 @@ double Executor::ceiling(const Span& sp) const noexcept {
 
 namespace {
 
-// A piece's limit table under `lim`. Ceilings of curved pieces are rounded
-// down to 1 % steps: neighbours with nearly equal ceilings then share
-// spans (fewer for the envelope).
+// A piece's velocity ceiling under `lim` (0 for a stop). Ceilings of
+// curved pieces are rounded down to 1 % steps: neighbours with nearly
+// equal ceilings then share spans (fewer for the envelope).
+template <class L>
+double piece_ceiling(const Piece& p, const L& lim) noexcept {
+  if (p.stop != StopKind::None) return 0;
+  double v = std::min(p.v_hard, lim.v_bound);
+  bool curved = p.bounds.lin2 > 0 || p.bounds.lin3 > 0;
+  for (int i = 0; i < kNumAxes && !curved; ++i) curved = p.bounds.c2[static_cast<std::size_t>(i)] > 0;
+  if (curved && v > 1e-9) v = std::exp(std::floor(std::log(v) / kCeilingStep) * kCeilingStep);
+  return v;
+}
+
+// A piece's limit table under `lim`.
 template <class L, class T>
 void piece_limits(const Piece& p, const Curve* arc, const L& lim, T& out) noexcept {
   out.gen = lim.gen;
@@ -564,10 +598,7 @@ void piece_limits(const Piece& p, const Curve* arc, const L& lim, T& out) noexce
     for (int c = 0; c < kChannels; ++c) out.vals[c] = kInf;
     return;
   }
-  double v = std::min(p.v_hard, lim.v_bound);
-  bool curved = p.bounds.lin2 > 0 || p.bounds.lin3 > 0;
-  for (int i = 0; i < kNumAxes && !curved; ++i) curved = p.bounds.c2[static_cast<std::size_t>(i)] > 0;
-  if (curved && v > 1e-9) v = std::exp(std::floor(std::log(v) / kCeilingStep) * kCeilingStep);
+  const double v = piece_ceiling(p, lim);
   out.v = v;
   const auto& r = lim.rows;
   for (int i = 0; i < kGrid; ++i) {
@@ -592,6 +623,14 @@ const Curve* Executor::bare_helix(const Piece& p) const noexcept {
 void Executor::set_prepare_config(const PlannerConfig& config, uint64_t config_gen) noexcept {
   make_limits(config, *prep_lim_);
   prep_lim_->gen = config_gen;
+  // The pieces prepared before and not released may still be split (and
+  // are neighbours of pieces still to be split): their ceilings under
+  // these limits, so that spans marked with this configuration are made
+  // from it alone, as the servo side would make them.
+  for (uint64_t k = std::max(store_.pieces.released(), prep_next_ > pmask_ ? prep_next_ - pmask_ : 0); k < prep_next_;
+       ++k) {
+    prep_pdata_[k & pmask_].v = piece_ceiling(piece(k), *prep_lim_);
+  }
 }
 
 void Executor::prepare_published() noexcept {
@@ -599,12 +638,60 @@ void Executor::prepare_published() noexcept {
   // a piece is published only with room in the ring, so the servo side
   // has taken in and released the piece that used the slot before.
   const uint64_t pub = store_.pieces.published();
-  if (prep_next_ >= pub) return;
+  if (prep_next_ >= pub && prep_split_next_ >= pub) return;
   for (; prep_next_ < pub; ++prep_next_) {
     const Piece& p = piece(prep_next_);
-    piece_limits(p, bare_helix(p), *prep_lim_, plim_[prep_next_ & pmask_]);
+    PieceLimits& t = plim_[prep_next_ & pmask_];
+    piece_limits(p, bare_helix(p), *prep_lim_, t);
+    PieceData& d = prep_pdata_[prep_next_ & pmask_];
+    d.v = t.v;
+    d.s0 = p.s0;
+    d.end = p.s0 + p.length;
+    d.epoch = p.epoch;
+    d.stop = p.stop != StopKind::None;
+    prep_tail_s_ = d.end;
+    if (d.stop) prep_last_stop_ = prep_next_;
   }
+  // The spans before the tables: run_cycle reads split_ready_ after
+  // prepared_, so a piece it may split has been split here (its rule,
+  // finalize's, holds over the published pieces when it holds over those
+  // taken in).
+  split_published(pub);
   prepared_.store(pub, std::memory_order_release);
+}
+
+// The producer's share of finalize: a piece is split once every piece
+// that may spread data onto it is published (finalize's rule over the
+// published pieces), into spans in split_ring_. Pieces the servo side has
+// already taken in (split by itself meanwhile) are skipped; a full ring
+// waits (run_cycle then splits the pieces it needs itself).
+void Executor::split_published(uint64_t pub) noexcept {
+  const Limits& L = *prep_lim_;
+  const double spread = 0.5 * L.tf + 2 * L.T;
+  const double reach = L.v_bound * spread + 1e-9;
+  const double settle = 0.5 * L.a_top * (L.tf + 2 * L.T) * (L.tf + 2 * L.T);
+  const uint64_t taken = spans_taken_.load(std::memory_order_acquire);
+  prep_split_next_ = std::max(prep_split_next_, taken);
+  const uint64_t first_kept = store_.pieces.released();
+  for (; prep_split_next_ < pub; ++prep_split_next_) {
+    const uint64_t p = prep_split_next_;
+    const PieceData& d = prep_pdata_[p & pmask_];
+    const bool stop_ahead = prep_last_stop_ != UINT64_MAX && prep_last_stop_ >= p;
+    if (!stop_ahead && d.end + d.v * spread + settle > prep_tail_s_) break;
+    // Split spans of pieces [taken, p) may still be read.
+    const uint64_t oldest = taken < p ? psplit_[taken & pmask_].first : prep_rec_head_;
+    if (prep_rec_head_ + kSpansPerPiece - oldest > rmask_ + 1) break;
+    PieceSplit& ps = psplit_[p & pmask_];
+    ps.first = prep_rec_head_;
+    ps.gen = L.gen;
+    ps.count = 0;
+    if (!d.stop) {
+      SplitSpan sub[kSpansPerPiece];
+      ps.count = split_piece(p, prep_pdata_.get(), true, first_kept, pub, d.epoch, spread, reach, sub);
+      for (int i = 0; i < ps.count; ++i) split_ring_[prep_rec_head_++ & rmask_] = sub[i];
+    }
+  }
+  split_ready_.store(prep_split_next_, std::memory_order_release);
 }
 
 void Executor::ingest() noexcept {
@@ -684,9 +771,10 @@ void Executor::finalize() noexcept {
     if (!stop_ahead && p.s0 + p.length + horizon > tail_s_) break;
     if (stail_ - sfirst_ + kSpansPerPiece + 2 > smask_ + 1) break;
     make_spans(pfin_);
-    ++work_.split;
     ++pfin_;
   }
+  // The producer may reuse the split spans of pieces before pfin_.
+  spans_taken_.store(pfin_, std::memory_order_release);
   // About twice a stop from top speed (generous bounds: v_bound_ and
   // a_top_ are twice the machine's).
   const double near = v_bound_ * v_bound_ / std::max(a_top_, 1e-9) + v_bound_ * tf_;
@@ -731,9 +819,38 @@ void Executor::make_spans(uint64_t p) noexcept {
     spans_added_ = true;
     return;
   }
+  SplitSpan sub[kSpansPerPiece];
+  int ns = 0;
+  const PieceSplit& ps = psplit_[p & pmask_];
+  if (p < split_ready_.load(std::memory_order_acquire) && ps.gen == lim_->gen) {
+    // Split on the planner's side for these limits: a copy.
+    ns = ps.count;
+    for (int i = 0; i < ns; ++i) sub[i] = split_ring_[(ps.first + static_cast<uint64_t>(i)) & rmask_];
+    ++work_.taken;
+  } else {
+    // Only pieces with a lower ceiling within this piece's own spread can
+    // cap its velocity: one range minimum says whether to look.
+    const double spread = 0.5 * tf_ + 2 * T_;
+    const double vreach = pdata(p).v * spread;
+    const bool lower_v = range_min(p, pc.s0 - vreach, pc.s0 + pc.length + vreach, kChV) < pdata(p).v;
+    ns = split_piece(p, pdata_.get(), lower_v, store_.pieces.released(), ptail_, epoch_, spread, reach_, sub);
+    ++work_.split;
+  }
+  append_spans(p, sub, ns);
+}
+
+// A piece (not a stop) cut into at most kSpansPerPiece stretches of
+// constant caps, into `out`; their number. `pd` holds the compact data of
+// the pieces [first_kept, tail) (the servo side's or the producer's copy),
+// `scan` whether neighbours may cap this piece's velocity, `epoch` the
+// piece's. A function of the pieces and the configuration alone: the
+// planner's side and the servo thread make the same spans.
+int Executor::split_piece(uint64_t p, const PieceData* pd, bool scan_neighbours, uint64_t first_kept, uint64_t tail,
+                          uint32_t epoch, double spread, double reach, SplitSpan* out) const noexcept {
+  const Piece& pc = piece(p);
+  const PieceData& dp = pd[p & pmask_];
   const double lo = pc.s0;
   const double hi = pc.s0 + pc.length;
-  const double spread = 0.5 * tf_ + 2 * T_;
   // Ceilings: an output in piece q averages input samples within
   // v_q (T_f/2 + T) of it (the input moves no faster near q), so each piece
   // caps the input over that distance around it. Collect the caps that
@@ -746,7 +863,7 @@ void Executor::make_spans(uint64_t p) noexcept {
   // Caps over the whole piece add no cut and lower every part alike: one
   // minimum (a dense curved run has hundreds of them per piece, and each
   // part used to loop over them all).
-  double v_all = pdata(p).v;
+  double v_all = dp.v;
   double cuts[kMaxCuts + 2];
   int ncut = 0;
   cuts[ncut++] = lo;
@@ -757,7 +874,7 @@ void Executor::make_spans(uint64_t p) noexcept {
     const double from = q.s0 - r;
     const double to = q.end + r;
     if (to <= lo || from >= hi) return;
-    if (!(vq < pdata(p).v)) return;
+    if (!(vq < dp.v)) return;
     if (from <= lo && to >= hi) {
       v_all = std::min(v_all, vq);
       return;
@@ -766,21 +883,17 @@ void Executor::make_spans(uint64_t p) noexcept {
     if (from > lo && ncut < kMaxCuts) cuts[ncut++] = from;
     if (to < hi && ncut < kMaxCuts) cuts[ncut++] = to;
   };
-  // Only pieces with a lower ceiling within this piece's own spread can cap
-  // its velocity. Feeds and rapids (requests, not machine limits) apply to
-  // the input where they are: the output reaches a lower feed within T_f/2.
-  const double vreach = pdata(p).v * spread;
-  const bool lower_v = range_min(p, lo - vreach, hi + vreach, kChV) < pdata(p).v;
-  const double scan = lower_v ? vreach : -1;
-  const uint64_t first_kept = store_.pieces.released();
+  // Feeds and rapids (requests, not machine limits) apply to the input
+  // where they are: the output reaches a lower feed within T_f/2.
+  const double scan = scan_neighbours ? dp.v * spread : -1;
   for (uint64_t k = p; scan >= 0 && k > first_kept;) {
     --k;
-    const PieceData& q = pdata(k);
-    if (q.stop || q.epoch != epoch_ || lo - q.end > scan) break;
+    const PieceData& q = pd[k & pmask_];
+    if (q.stop || q.epoch != epoch || lo - q.end > scan) break;
     consider(q);
   }
-  for (uint64_t k = p + 1; scan >= 0 && k < ptail_; ++k) {
-    const PieceData& q = pdata(k);
+  for (uint64_t k = p + 1; scan >= 0 && k < tail; ++k) {
+    const PieceData& q = pd[k & pmask_];
     if (q.stop || q.s0 - hi > scan) break;
     consider(q);
   }
@@ -815,16 +928,13 @@ void Executor::make_spans(uint64_t p) noexcept {
   // The stretches with their caps only: an array of whole Spans (160 of
   // them, their envelope fields zeroed) cost about a microsecond per
   // piece, most of the splitting.
-  struct Sub {
-    double a, b, vc, feed, rapid;
-  };
-  Sub sub[kMaxCuts + 64];
+  SplitSpan sub[kMaxCuts + 64];
   int ns = 0;
   for (int i = 0; i < np; ++i) {
     double pts[64];
     int nq = 0;
     pts[nq++] = parts[i].a;
-    for (double d = 0.025; d < reach_ && 4 * d < hi - lo && nq < 60; d *= 1.4142135623730951) {
+    for (double d = 0.025; d < reach && 4 * d < hi - lo && nq < 60; d *= 1.4142135623730951) {
       if (lo + d > parts[i].a && lo + d < parts[i].b) pts[nq++] = lo + d;
       if (hi - d > parts[i].a && hi - d < parts[i].b) pts[nq++] = hi - d;
     }
@@ -853,9 +963,19 @@ void Executor::make_spans(uint64_t p) noexcept {
     --ns;
   }
   if (ns == 0) {
-    sub[0] = {lo, hi, pdata(p).v, pc.v_feed, pc.v_rapid};
+    sub[0] = {lo, hi, dp.v, pc.v_feed, pc.v_rapid};
     ns = 1;
   }
+  for (int i = 0; i < ns; ++i) out[i] = sub[i];
+  return ns;
+}
+
+// The spans of piece p (its split stretches) appended to the ring: the
+// servo side's part of the splitting, which depends on where the input is.
+void Executor::append_spans(uint64_t p, const SplitSpan* sub, int ns) noexcept {
+  const Piece& pc = piece(p);
+  const double lo = pc.s0;
+  const double hi = pc.s0 + pc.length;
   for (int i = 0; i < ns; ++i) {
     // Dense short pieces with nearly the same caps share a span (fewer
     // spans for the envelope to walk, and the span ring holds more path).
@@ -1442,6 +1562,7 @@ void Executor::reset(const Pose& pose) noexcept {
 void Executor::finish_abort() noexcept {
   out_ = pfin_ = ptail_;
   in_ = sfirst_ = stail_;
+  spans_taken_.store(pfin_, std::memory_order_release);
   store_.pieces.release_upto(ptail_);
   store_.segs.release_upto(store_.segs.published());
   store_.verts.release_upto(store_.verts.published());

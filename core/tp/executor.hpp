@@ -15,8 +15,9 @@
 // sample's acceleration is limited by what the path allows wherever the
 // outputs it influences can be (within half the distance the window spans),
 // and the velocity ceilings are spread ("eroded") over the same distance.
-// The executor splits the pieces into *spans* with constant input limits
-// for that (exact at the erosion boundaries).
+// The pieces are split into *spans* with constant input limits for that
+// (exact at the erosion boundaries); the planner's own side splits them
+// (prepare_published) and the servo thread takes the spans in.
 //
 // Never allocates after construction, never blocks, never throws.
 #pragma once
@@ -76,8 +77,9 @@ class Executor {
   int filter_length() const noexcept { return n_; }
 
   // The servo-thread work of the last run_cycle() in its unbounded parts
-  // (tests): pieces taken in, pieces split into spans and envelope spans
-  // computed. Each is at most its per-cycle bound below whatever the
+  // (tests): pieces taken in, pieces whose spans were taken in (`split`
+  // of them split by the servo thread itself, `taken` from the planner's
+  // side) and envelope spans computed. Each is at most its per-cycle bound below whatever the
   // program, except the envelope of a merged span grown in place (one per
   // split piece at most). `queries`: range minima over the pieces (the
   // unit of the envelope's and the input limits' cost), `envelope_queries`
@@ -89,6 +91,10 @@ class Executor {
     // after a change of limits while moving; prepare_published() does it).
     int limits = 0;
     int walks = 0;  // walks from the tail requested (new spans)
+    // Pieces whose spans the planner's side had split (copied); `split`
+    // counts those the servo thread split itself (only after a change of
+    // limits while moving, or when the hand-over ring was full).
+    int taken = 0;
   };
   const CycleWork& cycle_work() const noexcept { return work_; }
   static constexpr int kIngestPerCycle = 128;
@@ -120,11 +126,13 @@ class Executor {
   // Producer side: runs where the builder runs (the planner's own thread,
   // or inline after add_* and flush), never in the servo thread. Computes
   // the limit table of every newly published piece (its acceleration
-  // limit at each grid velocity, its rounded ceiling) and hands the tables
-  // over through a counter (release / acquire): run_cycle takes in only
-  // pieces whose table is ready, and copies it. A table computed for
-  // another configuration than the servo side runs with (limits changed
-  // while moving) is recomputed in run_cycle (CycleWork::limits).
+  // limit at each grid velocity, its rounded ceiling) and splits every
+  // piece into spans once the pieces that may spread data onto it are
+  // published, and hands both over through counters (release / acquire):
+  // run_cycle takes in only pieces whose table is ready, and copies it and
+  // the spans. What was made for another configuration than the servo side
+  // runs with (limits changed while moving) is made again in run_cycle
+  // (CycleWork::limits, CycleWork::split).
   void set_prepare_config(const PlannerConfig& config, uint64_t config_gen) noexcept;
   void prepare_published() noexcept;
 
@@ -136,6 +144,8 @@ class Executor {
  private:
   struct PieceData;
   struct Span;
+  struct SplitSpan;
+  struct PieceSplit;
   struct Rows;
   struct Limits;
   struct PieceLimits;
@@ -146,6 +156,10 @@ class Executor {
   void ingest() noexcept;
   void finalize() noexcept;
   void make_spans(uint64_t p) noexcept;
+  void append_spans(uint64_t p, const SplitSpan* sub, int ns) noexcept;
+  int split_piece(uint64_t p, const PieceData* pd, bool scan, uint64_t first_kept, uint64_t tail, uint32_t epoch,
+                  double spread, double reach, SplitSpan* out) const noexcept;
+  void split_published(uint64_t pub) noexcept;
   void envelope_request(bool full) noexcept;
   void envelope_work(int budget, int queries) noexcept;
   bool idle_ingested() const noexcept;
@@ -194,6 +208,22 @@ class Executor {
   std::unique_ptr<PieceLimits[]> plim_;  // per piece slot, like pdata_
   uint64_t prep_next_ = 0;             // producer only: next piece to prepare
   alignas(64) std::atomic<uint64_t> prepared_{0};  // pieces [.., prepared_) have tables
+  // Spans split on the producer side: per piece slot where its spans lie
+  // in the ring of split spans; producer-only copies of the pieces'
+  // compact data and of where the published path ends.
+  std::unique_ptr<PieceData[]> prep_pdata_;
+  std::unique_ptr<PieceSplit[]> psplit_;
+  std::unique_ptr<SplitSpan[]> split_ring_;
+  std::size_t rmask_ = 0;
+  uint64_t prep_split_next_ = 0;  // producer only: next piece to split
+  uint64_t prep_rec_head_ = 0;    // producer only: next slot of split_ring_
+  double prep_tail_s_ = 0;        // producer only: end of the published pieces
+  uint64_t prep_last_stop_ = UINT64_MAX;  // producer only: newest stop published
+  // Pieces [.., split_ready_) are split (stored before prepared_); the
+  // servo side has taken in the spans of pieces [.., spans_taken_) and no
+  // longer reads their split spans.
+  alignas(64) std::atomic<uint64_t> split_ready_{0};
+  alignas(64) std::atomic<uint64_t> spans_taken_{0};
   std::unique_ptr<Tree> tree_;
   std::unique_ptr<uint64_t[]> stops_;  // ring of stop pieces, in order
   uint64_t stop_head_ = 0, stop_tail_ = 0;

@@ -126,6 +126,8 @@ void LookaheadPlanner::thread_main() {
       }
     }
     if (!worked) {
+      // Pieces whose splitting waited for room in the ring of split spans.
+      exec_->prepare_published();
       timespec ts{0, nap_ns};
       nanosleep(&ts, nullptr);
     }

@@ -63,6 +63,94 @@ TEST(TpHandover, PieceLimitTablesAreNotComputedInTheServoCycle) {
   }
 }
 
+// The pieces' splitting into spans (the ceilings that spread onto each
+// piece from its neighbours, cuts at doubling distances from its ends, at
+// most 24 spans) ran in the servo thread, up to 64 pieces a cycle while a
+// dense program's look-ahead arrived. The planner's side splits them now
+// and the servo thread copies the spans (and joins short ones, which
+// depends on where the input is): none split in the servo cycle, in both
+// threading modes, and the motion is that of the servo-side splitting
+// (the same spans: TpHandover.SpansForOtherLimitsAreSplitInTheServoCycle).
+TEST(TpHandover, PiecesAreNotSplitIntoSpansInTheServoCycle) {
+  PlannerConfig cfg = profile("lc", 0.001);
+  cfg.lookahead_segments = 1000;
+  const Program prog = spiral(1500);
+  for (PlannerThreading th : {PlannerThreading::Inline, PlannerThreading::OwnThread}) {
+    SCOPED_TRACE(th == PlannerThreading::Inline ? "inline" : "own thread");
+    uint64_t split = 0, taken = 0;
+    int most_taken = 0;
+    auto planner = make_planner(cfg, th);
+    RunOptions opt;
+    opt.flush_at_end = true;
+    opt.moves_per_cycle = 1 << 20;
+    opt.before_cycle = [&](uint64_t, TrajectoryPlanner& p, CycleInputs&) {
+      if (th == PlannerThreading::OwnThread) std::this_thread::yield();
+      const Executor::CycleWork& w = dynamic_cast<LookaheadPlanner&>(p).executor().cycle_work();
+      split += static_cast<uint64_t>(w.split);
+      taken += static_cast<uint64_t>(w.taken);
+      most_taken = std::max(most_taken, w.taken);
+    };
+    const RunResult r = run_program(*planner, cfg, prog, opt);
+    expect_clean(r);
+    EXPECT_EQ(split, 0u);
+    EXPECT_GT(taken, 1500u);
+    EXPECT_LE(most_taken, Executor::kSplitPerCycle);
+  }
+}
+
+// Limits changed while the machine moves: the spans the planner's side
+// split for them do not match the servo side's limits (the spread of the
+// ceilings depends on the averaging window), so the servo thread splits
+// those pieces itself, and the motion holds every limit. With the same
+// limits given again, the servo thread's spans are the planner side's:
+// inline, the path position is the same in every cycle as without the
+// change.
+TEST(TpHandover, SpansForOtherLimitsAreSplitInTheServoCycle) {
+  PlannerConfig cfg = profile("lc", 0.001);
+  cfg.lookahead_segments = 200;
+  const Program prog = spiral(1500);
+  std::vector<double> plain_s;
+  {
+    RunOptions opt;
+    opt.flush_at_end = true;
+    opt.moves_per_cycle = 1 << 20;
+    opt.before_cycle = [&](uint64_t, TrajectoryPlanner& p, CycleInputs&) {
+      plain_s.push_back(dynamic_cast<LookaheadPlanner&>(p).executor().path_position());
+    };
+    expect_clean(test::run_inline(cfg, prog, opt));
+  }
+  for (PlannerThreading th : {PlannerThreading::Inline, PlannerThreading::OwnThread}) {
+    SCOPED_TRACE(th == PlannerThreading::Inline ? "inline" : "own thread");
+    uint64_t split = 0;
+    bool changed = false;
+    std::vector<double> s;
+    auto planner = make_planner(cfg, th);
+    RunOptions opt;
+    opt.flush_at_end = true;
+    opt.moves_per_cycle = 1 << 20;
+    opt.before_cycle = [&](uint64_t, TrajectoryPlanner& p, CycleInputs&) {
+      if (th == PlannerThreading::OwnThread) std::this_thread::yield();
+      const Executor& e = dynamic_cast<LookaheadPlanner&>(p).executor();
+      s.push_back(e.path_position());
+      split += static_cast<uint64_t>(e.cycle_work().split);
+      if (!changed && e.is_moving()) {
+        p.set_config(cfg);
+        changed = true;
+      }
+    };
+    const RunResult r = run_program(*planner, cfg, prog, opt);
+    expect_clean(r);
+    EXPECT_TRUE(changed);
+    EXPECT_GT(split, 100u);
+    if (th == PlannerThreading::Inline) {
+      ASSERT_EQ(s.size(), plain_s.size());
+      std::size_t differ = 0;
+      for (std::size_t i = 0; i < s.size(); ++i) differ += s[i] != plain_s[i];
+      EXPECT_EQ(differ, 0u);
+    }
+  }
+}
+
 // Limits handed over while the machine moves apply from the next idle
 // moment on the servo side (the averaging window cannot change under a
 // moving machine), while the builder's side has taken them at once: the
