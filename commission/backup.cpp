@@ -55,6 +55,77 @@ struct Channel {
   bool silent = false;
 };
 
+// A loop gain whose value came back in another size than guessed (the
+// sub-indices of 0x60F9/0x60FB are the manufacturer's) keeps the size the
+// drive gave it, so that the restore writes it back as it was read.
+BackupObject sized(BackupObject o, const std::vector<uint8_t>& data) {
+  if (o.addr.index != 0x60F9 && o.addr.index != 0x60FB) return o;
+  if (data.size() == co::data_type_size(o.type)) return o;
+  const bool sign = co::is_signed(o.type);
+  switch (data.size()) {
+    case 1: o.type = sign ? D::Integer8 : D::Unsigned8; break;
+    case 2: o.type = sign ? D::Integer16 : D::Unsigned16; break;
+    case 4: o.type = sign ? D::Integer32 : D::Unsigned32; break;
+    default: break;
+  }
+  return o;
+}
+
+constexpr uint32_t kAbortNoObject = 0x06020000;
+constexpr uint16_t kRpdoComm = 0x1400, kTpdoComm = 0x1800, kPdoOffsetToMapping = 0x200, kMaxPdos = 0x200;
+
+// "RPDO12": PDO number n + 1 of the communication index `comm`.
+std::string pdo_name(uint16_t comm) {
+  const bool tpdo = comm >= kTpdoComm;
+  return std::string(tpdo ? "TPDO" : "RPDO") + std::to_string(comm - (tpdo ? kTpdoComm : kRpdoComm) + 1);
+}
+
+// The communication parameters of the PDO at `comm` that its sub-index 0
+// (`highest`) says it has (CiA 301 7.5.2.35/37): COB-ID, transmission type,
+// a TPDO's inhibit time, the event timer (an RPDO's deadline), a TPDO's
+// SYNC start value; and the mapping's sub-index 0.
+std::vector<BackupObject> pdo_objects(uint16_t comm, uint8_t highest) {
+  const bool tpdo = comm >= kTpdoComm;
+  const std::string p = pdo_name(comm);
+  std::vector<BackupObject> v;
+  const auto add = [&](uint8_t sub, D type, const std::string& what) {
+    if (sub <= highest) v.push_back({{comm, sub}, type, p + " " + what});
+  };
+  add(1, D::Unsigned32, "COB-ID");
+  add(2, D::Unsigned8, "transmission type");
+  if (tpdo) add(3, D::Unsigned16, "inhibit time");
+  add(5, D::Unsigned16, "event timer");
+  if (tpdo) add(6, D::Unsigned8, "SYNC start value");
+  v.push_back({{static_cast<uint16_t>(comm + kPdoOffsetToMapping), 0}, D::Unsigned8, p + " mapped objects"});
+  return v;
+}
+
+bool is_pdo_mapping(uint16_t index) { return (index >= 0x1600 && index <= 0x17FF) || (index >= 0x1A00 && index <= 0x1BFF); }
+
+// The entries a mapping's sub-index 0 announced, for every mapping in `values`.
+std::vector<BackupObject> mapping_entries(const std::vector<BackedUpValue>& values) {
+  std::vector<BackupObject> more;
+  for (const BackedUpValue& v : values) {
+    const uint16_t idx = v.object.addr.index;
+    if (!is_pdo_mapping(idx) || v.object.addr.sub != 0 || v.data.empty()) continue;
+    const std::string pdo = v.object.name.substr(0, v.object.name.find(' '));
+    for (uint8_t k = 1; k <= std::min<uint8_t>(v.data[0], 64); ++k)
+      more.push_back({{idx, k}, D::Unsigned32, pdo + " mapping entry " + std::to_string(k), ""});
+  }
+  return more;
+}
+
+// Which PDOs a CANopen node has: those its EDS lists, else found by
+// reading each communication object's sub-index 0 in turn from 0x1400 and
+// 0x1800 until the node answers "object does not exist" (0x06020000), as
+// a node without EDS has them numbered without gaps.
+struct PdoSearch {
+  std::vector<uint16_t> eds;               // the EDS's communication objects (none: search)
+  std::map<uint16_t, uint8_t> found;       // communication index -> its sub-index 0
+  uint16_t next[2] = {0, 0};               // RPDO, TPDO: the number to read next
+  bool ended[2] = {false, false};
+};
+
 // Runs the bus until every client is idle.
 void run(can::Transport& bus, std::vector<Channel>& ch) {
   std::map<uint32_t, Channel*> by_cob;
@@ -179,16 +250,6 @@ const std::vector<BackupObject>& backup_objects() {
         {{0x1018, 3}, D::Unsigned32, "Revision number"},
         {{0x1018, 4}, D::Unsigned32, "Serial number"},
     };
-    for (uint16_t n = 0; n < 4; ++n) {
-      v.push_back({{static_cast<uint16_t>(0x1400 + n), 1}, D::Unsigned32, "RPDO" + std::to_string(n + 1) + " COB-ID"});
-      v.push_back({{static_cast<uint16_t>(0x1400 + n), 2}, D::Unsigned8, "RPDO" + std::to_string(n + 1) + " transmission type"});
-      v.push_back({{static_cast<uint16_t>(0x1600 + n), 0}, D::Unsigned8, "RPDO" + std::to_string(n + 1) + " mapped objects"});
-      v.push_back({{static_cast<uint16_t>(0x1800 + n), 1}, D::Unsigned32, "TPDO" + std::to_string(n + 1) + " COB-ID"});
-      v.push_back({{static_cast<uint16_t>(0x1800 + n), 2}, D::Unsigned8, "TPDO" + std::to_string(n + 1) + " transmission type"});
-      v.push_back({{static_cast<uint16_t>(0x1800 + n), 3}, D::Unsigned16, "TPDO" + std::to_string(n + 1) + " inhibit time"});
-      v.push_back({{static_cast<uint16_t>(0x1800 + n), 5}, D::Unsigned16, "TPDO" + std::to_string(n + 1) + " event timer"});
-      v.push_back({{static_cast<uint16_t>(0x1A00 + n), 0}, D::Unsigned8, "TPDO" + std::to_string(n + 1) + " mapped objects"});
-    }
     const std::vector<BackupObject> drive = {
         {{0x6007, 0}, D::Integer16, "Abort connection option code"},
         {{0x605A, 0}, D::Integer16, "Quick stop option code"},
@@ -221,6 +282,17 @@ const std::vector<BackupObject>& backup_objects() {
         {{0x60C2, 1}, D::Unsigned8, "Interpolation time period value"},
         {{0x60C2, 2}, D::Integer8, "Interpolation time index"},
         {{0x6502, 0}, D::Unsigned32, "Supported drive modes"},
+        // The loops' parameter sets (CiA 402 records with manufacturer-
+        // specific sub-indices; these as the simulated drive and step 7's
+        // response have them; the EDS's entries replace them, and a value
+        // of another size keeps its size, see loop_gain_objects).
+        {{0x60F9, 1}, D::Unsigned32, "Velocity loop gain"},
+        {{0x60F9, 2}, D::Unsigned16, "Velocity loop integration time"},
+        {{0x60FB, 1}, D::Unsigned32, "Position loop gain"},
+        {{0x60FB, 2}, D::Unsigned16, "Position loop integration time"},
+        {{0x60FB, 3}, D::Unsigned16, "Position loop differentiation time"},
+        {{0x60FB, 4}, D::Unsigned16, "Position loop velocity feed-forward"},
+        {{0x60FB, 5}, D::Unsigned16, "Position loop acceleration feed-forward"},
     };
     v.insert(v.end(), drive.begin(), drive.end());
     return v;
@@ -235,6 +307,7 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
   std::vector<Channel> ch;
   std::vector<NodeBackup> nodes;
   std::vector<std::vector<BackupObject>> lists;
+  std::vector<PdoSearch> searches;
   for (const MachineJoint& mj : machine_joints(s)) {  // a gantry pair: both its drives
     const Axis& a = mj.axis;
     if (a.slave != 0) continue;  // an EtherCAT drive: backup_ethercat_drives
@@ -247,6 +320,7 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
     b.node = a.node;
     b.axis = a.letter;
     std::vector<BackupObject> list = backup_objects();
+    PdoSearch search;
     if (const ScannedNode* n = s.node(a.node); n && !n->eds.empty() && !s.eds_dir.empty()) {
       b.eds = n->eds;
       const std::filesystem::path eds = std::filesystem::path(s.eds_dir) / n->eds;
@@ -255,6 +329,20 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
         for (const co::EdsEntry& e : d.entries)
           if (e.addr.index >= 0x2000 && e.addr.index <= 0x5FFF && co::is_readable(e.access))
             list.push_back({e.addr, e.type, e.name, access_name(e.access)});
+        for (const co::EdsEntry& e : d.entries) {
+          const uint16_t i = e.addr.index;
+          const bool comm = (i >= kRpdoComm && i < kRpdoComm + kMaxPdos) || (i >= kTpdoComm && i < kTpdoComm + kMaxPdos);
+          if (comm && e.addr.sub == 0) search.eds.push_back(i);
+        }
+        // The loop gains as the EDS describes them, in place of the guess.
+        for (uint16_t gains : {uint16_t{0x60F9}, uint16_t{0x60FB}}) {
+          if (std::none_of(d.entries.begin(), d.entries.end(), [gains](const co::EdsEntry& e) { return e.addr.index == gains; }))
+            continue;
+          std::erase_if(list, [gains](const BackupObject& o) { return o.addr.index == gains; });
+          for (const co::EdsEntry& e : d.entries)
+            if (e.addr.index == gains && e.addr.sub != 0 && co::is_readable(e.access))
+              list.push_back({e.addr, e.type, e.name, access_name(e.access)});
+        }
       } catch (const std::exception& e) {
         r.problems.push_back("node " + std::to_string(a.node) + " (axis " + std::string(1, a.letter) +
                              "): its EDS cannot be read: " + e.what());
@@ -265,6 +353,7 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
     b.file = f;
     nodes.push_back(b);
     lists.push_back(list);
+    searches.push_back(search);
     Channel c;
     c.node = a.node;
     c.sdo = std::make_unique<co::SdoClient>(bus, static_cast<uint8_t>(a.node), so);
@@ -295,7 +384,7 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
     Channel* cp = &ch[i];
     cp->sdo->upload(obj.addr, [b, cp, obj](const co::SdoResult& res) {
       if (res.ok()) {
-        b->values.push_back({obj, res.data});
+        b->values.push_back({sized(obj, res.data), res.data});
       } else if (res.aborted_by_client && res.abort_code == kAbortTimeout) {
         cp->silent = true;
       } else {
@@ -306,17 +395,51 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
   for (std::size_t i = 0; i < ch.size(); ++i)
     for (const BackupObject& obj : lists[i]) post(i, obj);
   run(bus, ch);
+  // The PDOs: each communication object's sub-index 0 (the EDS's at once,
+  // else one PDO number per round until the first that does not exist),
+  // then the parameters it announces and the mapping's sub-index 0, then
+  // (phase 3) the mapping entries.
+  auto probe = [&](std::size_t i, uint16_t comm, int kind) {
+    PdoSearch* ps = &searches[i];
+    NodeBackup* b = &nodes[i];
+    Channel* cp = &ch[i];
+    cp->sdo->upload({comm, 0}, [ps, b, cp, comm, kind](const co::SdoResult& res) {
+      if (res.ok() && !res.data.empty()) {
+        ps->found[comm] = res.data[0];
+        if (kind >= 0 && ++ps->next[kind] >= kMaxPdos) ps->ended[kind] = true;
+        return;
+      }
+      if (kind >= 0) ps->ended[kind] = true;
+      if (res.aborted_by_client && res.abort_code == kAbortTimeout) cp->silent = true;
+      else if (kind < 0 || res.abort_code != kAbortNoObject)  // the end of the search is no loss
+        b->missing.push_back(section({comm, 0}, false) + " " + pdo_name(comm) + " communication parameter: " +
+                             res.abort_text());
+    });
+  };
   for (std::size_t i = 0; i < ch.size(); ++i) {
-    std::vector<BackupObject> more;
-    for (const BackedUpValue& v : nodes[i].values) {
-      const uint16_t idx = v.object.addr.index;
-      const bool mapping = (idx >= 0x1600 && idx <= 0x1603) || (idx >= 0x1A00 && idx <= 0x1A03);
-      if (!mapping || v.object.addr.sub != 0 || v.data.empty()) continue;
-      for (uint8_t k = 1; k <= std::min<uint8_t>(v.data[0], 64); ++k)
-        more.push_back({{idx, k}, D::Unsigned32, v.object.name.substr(0, 5) + " mapping entry " + std::to_string(k)});
-    }
-    for (const BackupObject& obj : more) post(i, obj);
+    if (searches[i].eds.empty()) continue;
+    for (uint16_t comm : searches[i].eds) probe(i, comm, -1);
+    searches[i].ended[0] = searches[i].ended[1] = true;
   }
+  for (;;) {
+    bool any = false;
+    for (std::size_t i = 0; i < ch.size(); ++i) {
+      if (ch[i].silent) continue;
+      for (int kind : {0, 1}) {
+        if (searches[i].ended[kind]) continue;
+        probe(i, static_cast<uint16_t>((kind ? kTpdoComm : kRpdoComm) + searches[i].next[kind]), kind);
+        any = true;
+      }
+    }
+    run(bus, ch);
+    if (!any) break;
+  }
+  for (std::size_t i = 0; i < ch.size(); ++i)
+    for (const auto& [comm, highest] : searches[i].found)
+      for (const BackupObject& obj : pdo_objects(comm, highest)) post(i, obj);
+  run(bus, ch);
+  for (std::size_t i = 0; i < ch.size(); ++i)
+    for (const BackupObject& obj : mapping_entries(nodes[i].values)) post(i, obj);
   run(bus, ch);
   for (std::size_t i = 0; i < ch.size(); ++i) {
     if (ch[i].silent)
@@ -354,15 +477,28 @@ std::vector<BackupObject> ethercat_objects() {
   std::vector<BackupObject> v;
   for (const BackupObject& o : backup_objects()) {
     const uint16_t i = o.addr.index;
-    if (i == 0x1017 || (i >= 0x1400 && i <= 0x1403) || (i >= 0x1800 && i <= 0x1803)) continue;
+    if (i == 0x1017) continue;
     v.push_back(o);
   }
-  for (uint16_t sm : {uint16_t{0x1C12}, uint16_t{0x1C13}}) {
-    const std::string what = sm == 0x1C12 ? "RxPDO assign" : "TxPDO assign";
-    v.push_back({{sm, 0}, D::Unsigned8, what + ": number of PDOs", ""});
-    for (uint8_t k = 1; k <= 2; ++k) v.push_back({{sm, k}, D::Unsigned16, what + ": PDO " + std::to_string(k), ""});
-  }
+  for (uint16_t sm : {uint16_t{0x1C12}, uint16_t{0x1C13}})
+    v.push_back({{sm, 0}, D::Unsigned8, std::string(sm == 0x1C12 ? "RxPDO" : "TxPDO") + " assign: number of PDOs", ""});
   return v;
+}
+
+// The PDO mappings of an EtherCAT drive: those its SDO information lists
+// (`indices`), else found by reading each mapping's sub-index 0 from
+// 0x1600 and 0x1A00 on until "object does not exist" (0x06020000); a
+// mapping is read as its sub-index 0 ("RPDO1 mapped objects", 0x1600).
+template <class Read>
+void read_ethercat_mappings(const std::vector<uint16_t>& indices, bool listed, Read&& read) {
+  for (uint16_t base : {uint16_t{0x1600}, uint16_t{0x1A00}}) {
+    for (uint16_t n = 0; n < kMaxPdos; ++n) {
+      const uint16_t map = static_cast<uint16_t>(base + n);
+      if (listed && std::find(indices.begin(), indices.end(), map) == indices.end()) continue;
+      const BackupObject obj{{map, 0}, D::Unsigned8, pdo_name(static_cast<uint16_t>(map - kPdoOffsetToMapping)) + " mapped objects", ""};
+      if (!read(obj, !listed) && !listed) break;
+    }
+  }
 }
 
 bool is_timeout(const ethercat::SdoResult& r) { return !r.ok && r.abort_code == 0; }
@@ -404,6 +540,7 @@ BackupResult backup_ethercat_drives(ethercat::Master& m, const State& s) {
     // entry's type and access.
     std::string err;
     const std::vector<uint16_t> indices = m.sdo_info_list(b.slave, err);
+    const bool listed = err.empty() && std::any_of(indices.begin(), indices.end(), is_pdo_mapping);
     if (!err.empty()) {
       b.missing.push_back("SDO information: " + err + " (manufacturer objects 0x2000-0x5FFF not read)");
     }
@@ -421,24 +558,30 @@ BackupResult backup_ethercat_drives(ethercat::Master& m, const State& s) {
       }
     }
     bool silent = false;
-    auto read = [&](const BackupObject& obj) {
-      if (silent) return;
+    // Reads one object; false when the drive has not got it. With
+    // `searching`, "object does not exist" ends a search and is no loss.
+    auto read = [&](const BackupObject& obj, bool searching = false) {
+      if (silent) return false;
       const ethercat::SdoResult res = m.sdo_upload(b.slave, obj.addr.index, obj.addr.sub);
-      if (res.ok) b.values.push_back({obj, res.data});
+      if (res.ok) b.values.push_back({sized(obj, res.data), res.data});
       else if (is_timeout(res)) silent = true;
-      else b.missing.push_back(section(obj.addr, false) + " " + obj.name + ": " + res.error);
+      else if (!searching || res.abort_code != kAbortNoObject)
+        b.missing.push_back(section(obj.addr, false) + " " + obj.name + ": " + res.error);
+      return res.ok;
     };
     for (const BackupObject& obj : list) read(obj);
-    // The PDO mapping entries their sub-index 0 announced.
-    std::vector<BackupObject> more;
+    read_ethercat_mappings(indices, listed, read);
+    // The PDO mapping entries their sub-index 0 announced, and the PDOs
+    // each sync manager's assignment counts.
+    for (const BackupObject& obj : mapping_entries(b.values)) read(obj);
+    std::vector<BackupObject> assigned;
     for (const BackedUpValue& v : b.values) {
-      const uint16_t idx = v.object.addr.index;
-      const bool mapping = (idx >= 0x1600 && idx <= 0x1603) || (idx >= 0x1A00 && idx <= 0x1A03);
-      if (!mapping || v.object.addr.sub != 0 || v.data.empty()) continue;
-      for (uint8_t k = 1; k <= std::min<uint8_t>(v.data[0], 64); ++k)
-        more.push_back({{idx, k}, D::Unsigned32, v.object.name.substr(0, 5) + " mapping entry " + std::to_string(k), ""});
+      const uint16_t sm = v.object.addr.index;
+      if ((sm != 0x1C12 && sm != 0x1C13) || v.object.addr.sub != 0 || v.data.empty()) continue;
+      for (uint8_t k = 1; k <= v.data[0]; ++k)
+        assigned.push_back({{sm, k}, D::Unsigned16, std::string(sm == 0x1C12 ? "RxPDO" : "TxPDO") + " assign: PDO " + std::to_string(k), ""});
     }
-    for (const BackupObject& obj : more) read(obj);
+    for (const BackupObject& obj : assigned) read(obj);
     if (silent) {
       r.problems.push_back(who + " does not answer its mailbox on " + m.config().interface +
                            ": check its power and the cable; nothing was written");

@@ -5,17 +5,21 @@
 // 0x605A-0x605E, quick stop deceleration 0x6085, polarity 0x607E, software
 // limits 0x607D, factor group 0x608F/0x6091/0x6092, following-error window
 // 0x6065/0x6066, position window 0x6067/0x6068, homing 0x6098/0x6099/
-// 0x609A and home offset 0x607C, interpolation period 0x60C2, the PDO
-// communication parameters 0x1400-0x1403/0x1800-0x1803 and mappings
-// 0x1600-0x1603/0x1A00-0x1A03, and the readable objects of 0x2000-0x5FFF
-// that the drive's EDS lists). One DCF-like file per drive ([index] or
+// 0x609A and home offset 0x607C, interpolation period 0x60C2, the loops'
+// gains 0x60F9/0x60FB where the drive has them, every PDO the drive has:
+// communication parameters 0x1400-0x15FF/0x1800-0x19FF (those the EDS
+// lists, else found by reading them in turn until "object does not
+// exist") and mappings 0x1600-0x17FF/0x1A00-0x1BFF, and the readable
+// objects of 0x2000-0x5FFF that the drive's EDS lists). One DCF-like file per drive ([index] or
 // [indexsubN] sections with ParameterValue), written atomically. An object
 // the drive lacks is listed in the file's [Missing] section; a node that
 // does not answer is a problem naming it, and then nothing is written.
 // Works on any can::Transport, as the bus scan.
 // EtherCAT drives (axes with a slave position) are read the same way over
 // CoE SDO through the EtherCAT master in PREOP: the same CiA 402 list, the
-// identity 0x1018, the PDO assignment 0x1C12/0x1C13 and mappings, and the
+// identity 0x1018, the PDO assignment 0x1C12/0x1C13 (the PDOs its
+// sub-index 0 counts) and every mapping 0x1600-0x17FF/0x1A00-0x1BFF (those
+// the SDO information lists, else found in turn as above), and the
 // manufacturer objects 0x2000-0x5FFF the drive lists in its SDO
 // information (with each entry's access, kept as AccessType so that a
 // restore leaves read-only values alone). Same file format, "slave-NN-l.dcf".
@@ -46,8 +50,9 @@ struct BackupObject {
   std::string access;   // "rw" "ro" "wo" "const" as the EDS or SDO information says; "" not known
 };
 
-// The fixed list read from every drive (the PDO mapping entries are added
-// after their sub-index 0 is read, the EDS's manufacturer objects per drive).
+// The fixed list read from every drive (the PDOs are added as they are
+// found, the mapping entries after their sub-index 0 is read, the EDS's
+// manufacturer objects per drive).
 const std::vector<BackupObject>& backup_objects();
 
 struct BackedUpValue {

@@ -66,7 +66,7 @@ std::optional<co::ObjectAddress> object_section(const std::string& name) {
 
 class CanopenChannel final : public DriveChannel {
  public:
-  CanopenChannel(can::Transport& bus, int node, int64_t timeout_ns) : bus_(bus) {
+  CanopenChannel(can::Transport& bus, int node, int64_t timeout_ns) : bus_(bus), node_(static_cast<uint8_t>(node)) {
     co::SdoClientOptions o;
     o.timeout_ns = timeout_ns;
     sdo_ = std::make_unique<co::SdoClient>(bus, static_cast<uint8_t>(node), o);
@@ -81,6 +81,25 @@ class CanopenChannel final : public DriveChannel {
     Result r;
     sdo_->download(a, data, [&r](const co::SdoResult& s) { take(s, r); });
     run();
+    return r;
+  }
+  // NMT is not confirmed; the node handles the command before the SDO
+  // request behind it on the bus.
+  Result prepare_for_writes(std::string& done) override {
+    Result r;
+    const can::Frame f = can::Frame::make(co::cob::kNmt, {static_cast<uint8_t>(co::NmtCommand::EnterPreOperational), node_});
+    can::SendStatus st = bus_.send(f);
+    for (int i = 0; i < 100 && st == can::SendStatus::WouldBlock; ++i) {  // a full queue drains in a few ms
+      bus_.wait(1'000'000);
+      st = bus_.send(f);
+    }
+    r.ok = st == can::SendStatus::Ok;
+    if (!r.ok) {
+      r.error = "the NMT command Enter Pre-Operational could not be sent on " + bus_.name();
+      return r;
+    }
+    done = "NMT Enter Pre-Operational sent before writing: the node is left in PRE-OPERATIONAL (the controller's "
+           "master starts it; nothing else does)";
     return r;
   }
 
@@ -104,6 +123,7 @@ class CanopenChannel final : public DriveChannel {
     }
   }
   can::Transport& bus_;
+  uint8_t node_;
   std::unique_ptr<co::SdoClient> sdo_;
 };
 
@@ -481,6 +501,13 @@ RestoreResult restore_drives(const std::vector<BackupFile>& files,
     DriveChannel& c = *ch[i];
     const std::string who = d.file.label();
     bool wrote = false;
+    if (d.changes.empty() && d.pdo_changes.empty()) continue;  // left as it is, in its NMT state too
+    std::string prepared;
+    if (const DriveChannel::Result p = c.prepare_for_writes(prepared); !p.ok) {
+      r.problems.push_back(who + ": " + p.error + "; nothing was written to it");
+      continue;
+    }
+    if (!prepared.empty()) d.notes.push_back(prepared);
     for (RestoreChange& k : d.changes) {
       const DriveChannel::Result w = c.download(k.entry.addr, k.entry.data);
       if (!w.ok && w.abort_code == kAbortReadOnly) {
@@ -532,7 +559,50 @@ RestoreResult restore_drives(const std::vector<BackupFile>& files,
   return r;
 }
 
+std::string other_master_traffic(can::Transport& bus, int64_t window_ns) {
+  can::Frame f;
+  while (bus.receive(f)) {
+  }
+  std::map<uint32_t, int> seen;  // identifier -> frames
+  const int64_t end = bus.now_ns() + window_ns;
+  for (int64_t now = bus.now_ns(); now < end; now = bus.now_ns()) {
+    while (bus.receive(f)) {
+      if (f.is_error() || f.is_extended()) continue;
+      const uint32_t id = f.id, node = id & 0x7F, fn = id & 0x780;
+      const bool nmt = id == co::cob::kNmt, sync = id == co::cob::kSync;
+      const bool rpdo = node != 0 && (fn == 0x200 || fn == 0x300 || fn == 0x400 || fn == 0x500);
+      const bool sdo_request = node != 0 && fn == co::cob::kSdoRxBase;
+      if (nmt || sync || rpdo || sdo_request) ++seen[id];
+    }
+    bus.wait(std::min<int64_t>(end - now, 10'000'000));
+  }
+  std::string o;
+  for (const auto& [id, n] : seen) {
+    char b[64];
+    if (id == co::cob::kNmt) std::snprintf(b, sizeof b, "NMT (0x000)");
+    else if (id == co::cob::kSync) std::snprintf(b, sizeof b, "SYNC (0x080)");
+    else if ((id & 0x780) == co::cob::kSdoRxBase) std::snprintf(b, sizeof b, "SDO request to node %u (0x%03X)", id & 0x7F, id);
+    else std::snprintf(b, sizeof b, "RPDO 0x%03X", id);
+    o += (o.empty() ? "" : ", ") + std::string(b) + " x" + std::to_string(n);
+  }
+  return o;
+}
+
 RestoreResult restore_drives(const std::vector<BackupFile>& files, const RestoreBuses& buses, bool dry_run) {
+  // Another master on the bus (another instance, another host) would go on
+  // with the old values, and its SDO traffic would meet ours.
+  const bool on_can = std::any_of(files.begin(), files.end(), [](const BackupFile& f) { return f.slave == 0; });
+  if (!dry_run && on_can && buses.can && buses.listen_ns > 0) {
+    if (const std::string seen = other_master_traffic(*buses.can, buses.listen_ns); !seen.empty()) {
+      RestoreResult r;
+      char ms[32];
+      std::snprintf(ms, sizeof ms, "%.0f ms", buses.listen_ns / 1e6);
+      r.problems.push_back("another CANopen master is active on " + buses.can->name() + ": " + seen + " within " + ms +
+                           ": restore does not change drive parameters under it; stop it (another controller, "
+                           "instance or host) first; nothing was written");
+      return r;
+    }
+  }
   return restore_drives(
       files,
       [&](const BackupFile& f, std::string& why) -> std::unique_ptr<DriveChannel> {

@@ -5,7 +5,9 @@
 // the backup's, else the restore refuses naming the drive; every
 // parameter of the backup is read from the drive, and the ones that differ
 // are the changes. Only when every drive passed this are the changes
-// downloaded (SDO, or CoE SDO over the EtherCAT master), each read back
+// downloaded (SDO, or CoE SDO over the EtherCAT master; a CANopen node with
+// changes is first sent NMT Enter Pre-Operational and left there; before
+// any of it the CAN bus is listened to for another master), each read back
 // and compared; a CANopen or CoE drive with "store parameters" (0x1010:1)
 // is then asked to store them ("save"). Restored are the parameters of
 // 0x2000-0x9FFF (manufacturer and profile objects) that are not read-only
@@ -90,6 +92,17 @@ class DriveChannel {
   virtual ~DriveChannel() = default;
   virtual Result upload(canopen::ObjectAddress a) = 0;
   virtual Result download(canopen::ObjectAddress a, const std::vector<uint8_t>& data) = 0;
+  // Before the first write: brings the drive into the state its
+  // configuration is written in. CANopen: NMT Enter Pre-Operational (CiA
+  // 301: PDO mappings change there; many drives refuse them in
+  // Operational), and the node stays there; EtherCAT: nothing (the master
+  // holds the slaves in PREOP). `done` says what was done ("" nothing).
+  virtual Result prepare_for_writes(std::string& done) {
+    done.clear();
+    Result r;
+    r.ok = true;
+    return r;
+  }
 };
 // A CANopen node over `bus` (SDO client; `timeout_ns` per transfer).
 std::unique_ptr<DriveChannel> canopen_channel(can::Transport& bus, int node, int64_t timeout_ns);
@@ -135,7 +148,19 @@ struct RestoreBuses {
   can::Transport* can = nullptr;
   ethercat::Master* ethercat = nullptr;
   int64_t sdo_timeout_ns = 500'000'000;
+  // Before writing to CANopen drives, the CAN bus is listened to this long
+  // for another master (other_master_traffic); 0: not.
+  int64_t listen_ns = 300'000'000;
 };
+
+// What only a CANopen master sends, seen on `bus` within `window_ns`
+// (after what was queued before is dropped): NMT commands (0x000), SYNC
+// (0x080), RPDOs of the predefined connection set (0x201-0x57F less the
+// TPDOs' identifiers) and SDO requests (0x601-0x67F). "" when none, else
+// for people: "SYNC (0x080) x60, RPDO 0x201 x60". A master that sends none
+// of these within the window (idle, or its nodes all Pre-operational
+// without SDO traffic) is not seen. Non-realtime.
+std::string other_master_traffic(can::Transport& bus, int64_t window_ns);
 
 // The restore as described above; with `dry_run` only the checks and the
 // list of changes (nothing written).

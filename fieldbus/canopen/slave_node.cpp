@@ -98,6 +98,7 @@ void SlaveNode::send(const can::Frame& f) noexcept {
 uint32_t SlaveNode::check_mapping(const OdEntry& e, const uint8_t* d, std::size_t n, bool tpdo) const noexcept {
   const unsigned number = e.addr.index - (tpdo ? 0x1A00u : 0x1600u) + 1;
   const uint16_t comm = tpdo ? tpdo_comm_index(number) : rpdo_comm_index(number);
+  if (options_.pdo_mapping_needs_preop && state_ != NmtState::PreOperational) return abort_code::kDeviceState;
   if (!(od_.get<uint32_t>({comm, 1}) & cob::kPdoInvalid)) return abort_code::kUnsupportedAccess;  // PDO in use
   if (e.addr.sub == 0) {
     if (n != 1) return abort_code::kLengthMismatch;

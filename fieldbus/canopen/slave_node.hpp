@@ -44,6 +44,10 @@ struct SlaveOptions {
   // Time from a SYNC's reception until the synchronous TPDOs sampled at
   // it are queued (a device's processing time; 0: at once).
   int64_t sync_response_ns = 0;
+  // PDO mappings (0x1600-0x17FF, 0x1A00-0x1BFF) take SDO writes only in
+  // Pre-operational, as many drives do (CiA 301 leaves it to the device):
+  // abort 0x08000022 in any other state.
+  bool pdo_mapping_needs_preop = false;
 };
 
 class SlaveNode {

@@ -14,6 +14,7 @@ CanopenDrive::CanopenDrive(const SimNodeConfig& config, can::Transport& transpor
   o.sync_response_ns = config_.sync_response_ns;
   o.rpdo_count = 8;
   o.tpdo_count = 8;
+  o.pdo_mapping_needs_preop = config_.pdo_mapping_needs_preop;
   canopen::SlaveNode::add_communication_objects(od_, o);
   node_ = std::make_unique<canopen::SlaveNode>(od_, transport, o);
   node_->on_sync = [this](uint8_t, int64_t now) { model_.on_sync(now); };

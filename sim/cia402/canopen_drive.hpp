@@ -27,6 +27,9 @@ struct SimNodeConfig {
   // node_id then only names it.
   bool lss = true;
   bool lss_unconfigured = false;
+  // As many real drives: PDO mappings are written in Pre-operational only
+  // (SDO abort 0x08000022 in Operational or Stopped).
+  bool pdo_mapping_needs_preop = true;
   DriveSimConfig drive;
 };
 

@@ -41,7 +41,7 @@ CoeDrive::Comm::Comm(canopen::ObjectDictionary& od, const CoeDriveConfig& c) {
   od.add({0x1018, 3}, DataType::Unsigned32, Access::Const, c.revision, false, "Revision");
   od.add({0x1018, 4}, DataType::Unsigned32, Access::Const, c.serial, false, "Serial number");
   const auto rx = default_rx_mapping(), tx = default_tx_mapping();
-  for (uint16_t p = 0; p < 4; ++p) {
+  for (uint16_t p = 0; p < std::min<uint16_t>(c.pdo_mappings, 32); ++p) {
     for (const bool out : {true, false}) {
       const uint16_t index = static_cast<uint16_t>((out ? 0x1600 : 0x1A00) + p);
       const auto& def = out ? rx : tx;
@@ -88,7 +88,7 @@ CoeDrive::CoeDrive(const CoeDriveConfig& config, int64_t now_ns)
   auto mapping_check = [this](const canopen::OdEntry& e, const uint8_t* d, std::size_t n) {
     return check_mapping_write(e, d, n);
   };
-  for (uint16_t p = 0; p < 4; ++p) {
+  for (uint16_t p = 0; p < std::min<uint16_t>(cfg_.pdo_mappings, 32); ++p) {
     od_.set_write_check(static_cast<uint16_t>(0x1600 + p), mapping_check);
     od_.set_write_check(static_cast<uint16_t>(0x1A00 + p), mapping_check);
   }
@@ -160,7 +160,7 @@ uint32_t CoeDrive::check_mapping_write(const canopen::OdEntry& e, const uint8_t*
     if (e.addr.sub == 0) return d[0] > 2 ? ab::kValueRange : 0;
     const uint16_t base = index == 0x1C12 ? 0x1600 : 0x1A00;
     const uint16_t v = n >= 2 ? get16(d) : 0;
-    return v == 0 || (v >= base && v < base + 4) ? 0 : ab::kValueRange;
+    return v == 0 || (v >= base && v < base + std::min<uint16_t>(cfg_.pdo_mappings, 32)) ? 0 : ab::kValueRange;
   }
   if (e.addr.sub == 0) return d[0] > 8 ? ab::kValueRange : 0;
   const auto m = canopen::PdoMapEntry::decode(n >= 4 ? get32(d) : 0);

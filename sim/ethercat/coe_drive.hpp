@@ -25,6 +25,7 @@ struct CoeDriveConfig {
   double drift_ppm = 0;
   int64_t clock_at_power_on_ns = 0;
   uint8_t sm2_control = 0x64;  // SII SyncManager category, outputs (0x24: a description without the watchdog bit)
+  uint8_t pdo_mappings = 4;    // RxPDO mappings 0x1600-, TxPDO mappings 0x1A00- (each; at most 32)
 };
 
 class CoeDrive final : public SlaveApplication {

@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <thread>
@@ -87,6 +88,12 @@ TEST(CommissionRestore, CanopenBackupThenAChangedParameterIsWrittenBackAndReadsB
   auto y = canopen_channel(*b.client, 2, kTimeout);
   ASSERT_TRUE(x->download({0x6065, 0}, u32(window + 777)).ok);
   ASSERT_TRUE(y->download({0x607C, 0}, u32(static_cast<uint32_t>(-500))).ok);
+  // And node 2's loop gains (step 7 writes the velocity loop's).
+  const BackupEntry* kv = files[1].find(0x60F9, 1);
+  const BackupEntry* kp = files[1].find(0x60FB, 1);
+  ASSERT_TRUE(kv && kp) << "the loop gains are not backed up";
+  ASSERT_TRUE(y->download({0x60F9, 1}, u32(as_u32(kv->data) * 2)).ok);
+  ASSERT_TRUE(y->download({0x60FB, 1}, u32(as_u32(kp->data) + 100)).ok);
 
   RestoreBuses buses;
   buses.can = b.client.get();
@@ -108,6 +115,8 @@ TEST(CommissionRestore, CanopenBackupThenAChangedParameterIsWrittenBackAndReadsB
             std::string::npos) << describe(r);
   EXPECT_EQ(as_u32(x->upload({0x6065, 0}).data), window);
   EXPECT_EQ(y->upload({0x607C, 0}).data, u32(0));
+  EXPECT_EQ(y->upload({0x60F9, 1}).data, kv->data);
+  EXPECT_EQ(y->upload({0x60FB, 1}).data, kp->data);
   // Read back: every restorable parameter as in the backup.
   const RestoreResult again = restore_drives(files, buses, true);
   ASSERT_TRUE(again.ok());
@@ -173,6 +182,165 @@ TEST(CommissionRestore, CanopenChangedPdoMappingIsRestoredInTheCia301Order) {
   const RestoreResult again = restore_drives(files, buses, true);
   ASSERT_TRUE(again.ok());
   EXPECT_TRUE(again.drives[0].pdo_changes.empty()) << describe(again);
+}
+
+// The simulated drive has 8 RPDOs and 8 TPDOs: each is backed up (found
+// by reading 0x1400.../0x1800... until "object does not exist", which is
+// not a missing object), and a changed TPDO6 mapping is restored.
+TEST(CommissionRestore, CanopenPdosBeyondTheFourthAreBackedUpAndRestored) {
+  CanBus b;
+  auto& drive = b.add(1);
+  drive.od().set<uint32_t>({0x1A05, 1}, 0x60410010);
+  drive.od().set<uint32_t>({0x1A05, 2}, 0x60640020);
+  drive.od().set<uint8_t>({0x1A05, 0}, 2);
+  b.start();
+  State s = canopen_state({{'X', 1}});
+  testing::TempDir dir;
+  const auto files = canopen_backup(*b.client, s, dir / "backup");
+  ASSERT_EQ(files.size(), 1u);
+  for (const auto& [index, sub] : std::vector<std::pair<uint16_t, uint8_t>>{
+           {0x1400, 1}, {0x1407, 1}, {0x1407, 2}, {0x1607, 0}, {0x1805, 1}, {0x1805, 5}, {0x1807, 1}, {0x1A05, 0},
+           {0x1A05, 1}, {0x1A05, 2}, {0x1A07, 0}})
+    EXPECT_TRUE(files[0].find(index, sub)) << std::hex << index << ":" << int(sub) << " not backed up";
+  EXPECT_FALSE(files[0].find(0x1408, 1));
+  ASSERT_TRUE(files[0].find(0x1A05, 2));
+  const std::string text = read_file(files[0].path);
+  EXPECT_NE(text.find("[1A05sub1]\nParameterName=TPDO6 mapping entry 1\n"), std::string::npos) << text;
+  EXPECT_EQ(text.find("1408"), std::string::npos) << "the end of the search is not a missing object\n" << text;
+  EXPECT_EQ(text.find("1808"), std::string::npos) << text;
+
+  auto x = canopen_channel(*b.client, 1, kTimeout);
+  const std::vector<uint8_t> cob = x->upload({0x1805, 1}).data;
+  ASSERT_EQ(cob.size(), 4u);
+  ASSERT_TRUE(x->download({0x1805, 1}, u32(as_u32(cob) | 0x80000000u)).ok);
+  ASSERT_TRUE(x->download({0x1A05, 0}, {0}).ok);
+  ASSERT_TRUE(x->download({0x1A05, 1}, u32(0x60640020)).ok);
+  ASSERT_TRUE(x->download({0x1A05, 0}, {1}).ok);
+  ASSERT_TRUE(x->download({0x1805, 1}, cob).ok);
+
+  RestoreBuses buses;
+  buses.can = b.client.get();
+  buses.sdo_timeout_ns = kTimeout;
+  const RestoreResult r = restore_drives(files, buses, false);
+  ASSERT_TRUE(r.ok()) << describe(r);
+  EXPECT_NE(describe(r).find("pdo write 0x1A05:00 = 0x00 (mapping off)"), std::string::npos) << describe(r);
+  for (uint8_t k = 0; k <= 2; ++k)
+    EXPECT_EQ(x->upload({0x1A05, k}).data, files[0].find(0x1A05, k)->data) << "0x1A05:" << int(k);
+  const RestoreResult again = restore_drives(files, buses, true);
+  ASSERT_TRUE(again.ok());
+  EXPECT_TRUE(again.drives[0].pdo_changes.empty()) << describe(again);
+}
+
+// The NMT state byte of node `node`'s next heartbeat on `port` (-1: none
+// within 2 s); boot-up messages (0) are skipped.
+int next_heartbeat(can::Transport& port, uint8_t node) {
+  can::Frame f;
+  while (port.receive(f)) {
+  }
+  const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+  while (std::chrono::steady_clock::now() < end) {
+    while (port.receive(f))
+      if (f.id == 0x700u + node && f.len == 1 && f.data[0] != 0) return f.data[0];
+    port.wait(10'000'000);
+  }
+  return -1;
+}
+
+// A node some master left OPERATIONAL: the simulated drive (as many real
+// ones) refuses PDO mapping writes there (SDO abort 0x08000022); the
+// restore puts it into PRE-OPERATIONAL first and leaves it there.
+TEST(CommissionRestore, AnOperationalNodeIsPutIntoPreOperationalBeforeItsPdoMappingIsRestoredAndLeftThere) {
+  CanBus b;
+  auto& drive = b.add(1);
+  drive.od().set<uint32_t>({0x1A00, 1}, 0x60410010);
+  drive.od().set<uint32_t>({0x1A00, 2}, 0x60640020);
+  drive.od().set<uint8_t>({0x1A00, 0}, 2);
+  drive.od().set<uint32_t>({0x1800, 1}, 0x181);
+  auto observer = b.bus->open_port("observer");
+  b.start();
+  State s = canopen_state({{'X', 1}});
+  testing::TempDir dir;
+  const auto files = canopen_backup(*b.client, s, dir / "backup");
+  ASSERT_EQ(files.size(), 1u);
+  const BackupEntry* cob = files[0].find(0x1800, 1);
+  ASSERT_TRUE(cob);
+
+  // Changed in PRE-OPERATIONAL (one entry), then the node started, with a
+  // heartbeat to tell its state.
+  auto x = canopen_channel(*b.client, 1, kTimeout);
+  ASSERT_TRUE(x->download({0x1800, 1}, u32(as_u32(cob->data) | 0x80000000u)).ok);
+  ASSERT_TRUE(x->download({0x1A00, 0}, {0}).ok);
+  ASSERT_TRUE(x->download({0x1A00, 1}, u32(0x60640020)).ok);
+  ASSERT_TRUE(x->download({0x1A00, 0}, {1}).ok);
+  ASSERT_TRUE(x->download({0x1800, 1}, cob->data).ok);
+  ASSERT_TRUE(x->download({0x1017, 0}, {20, 0}).ok);
+  ASSERT_EQ(b.client->send(can::Frame::make(0x000, {0x01, 1})), can::SendStatus::Ok);  // NMT start node 1
+  ASSERT_EQ(next_heartbeat(*observer, 1), 0x05) << "node 1 is OPERATIONAL";
+  ASSERT_TRUE(x->download({0x1800, 1}, u32(as_u32(cob->data) | 0x80000000u)).ok);
+  const DriveChannel::Result refused = x->download({0x1A00, 0}, {0});
+  EXPECT_EQ(refused.abort_code, 0x08000022u) << "the drive takes a mapping in OPERATIONAL: " << refused.error;
+
+  RestoreBuses buses;
+  buses.can = b.client.get();
+  buses.sdo_timeout_ns = kTimeout;
+  const RestoreResult dry = restore_drives(files, buses, true);
+  ASSERT_TRUE(dry.ok()) << describe(dry);
+  EXPECT_EQ(next_heartbeat(*observer, 1), 0x05) << "a dry run changed the NMT state";
+
+  const RestoreResult r = restore_drives(files, buses, false);
+  ASSERT_TRUE(r.ok()) << describe(r);
+  for (uint8_t k = 0; k <= 2; ++k)
+    EXPECT_EQ(x->upload({0x1A00, k}).data, files[0].find(0x1A00, k)->data) << "0x1A00:" << int(k);
+  EXPECT_EQ(x->upload({0x1800, 1}).data, cob->data);
+  EXPECT_EQ(next_heartbeat(*observer, 1), 0x7F) << "node 1 is left PRE-OPERATIONAL";
+  EXPECT_NE(describe(r).find("node 1 (axis X, node-01-x.dcf)"), std::string::npos);
+  EXPECT_NE(describe(r).find("NMT Enter Pre-Operational sent before writing: the node is left in PRE-OPERATIONAL"),
+            std::string::npos) << describe(r);
+}
+
+// Another master on the bus (here a SYNC every 5 ms and an RPDO to node 1
+// from a port of its own, as another instance or host would send them):
+// the restore refuses naming what it saw, and writes nothing; the dry run
+// (which writes nothing) does not listen.
+TEST(CommissionRestore, AnotherMasterOnTheCanBusIsRefusedNamingWhatWasSeen) {
+  CanBus b;
+  b.add(1);
+  b.start();
+  State s = canopen_state({{'X', 1}});
+  testing::TempDir dir;
+  const auto files = canopen_backup(*b.client, s, dir / "backup");
+  auto x = canopen_channel(*b.client, 1, kTimeout);
+  const uint32_t window = as_u32(files[0].find(0x6065, 0)->data);
+  ASSERT_TRUE(x->download({0x6065, 0}, u32(window + 777)).ok);
+
+  auto other = b.bus->open_port("other-master");
+  std::atomic<bool> stop{false};
+  std::thread master([&] {
+    while (!stop.load()) {
+      other->send(can::Frame::make(0x080, {}));
+      other->send(can::Frame::make(0x201, {0x06, 0x00}));
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  });
+  RestoreBuses buses;
+  buses.can = b.client.get();
+  buses.sdo_timeout_ns = kTimeout;
+  const RestoreResult dry = restore_drives(files, buses, true);
+  const RestoreResult r = restore_drives(files, buses, false);
+  stop = true;
+  master.join();
+  EXPECT_TRUE(dry.ok()) << describe(dry);
+  ASSERT_EQ(r.problems.size(), 1u) << describe(r);
+  EXPECT_NE(r.problems[0].find("another CANopen master is active on " + b.client->name() + ": SYNC (0x080) x"),
+            std::string::npos) << r.problems[0];
+  EXPECT_NE(r.problems[0].find("RPDO 0x201 x"), std::string::npos) << r.problems[0];
+  EXPECT_NE(r.problems[0].find("within 300 ms"), std::string::npos) << r.problems[0];
+  EXPECT_NE(r.problems[0].find("nothing was written"), std::string::npos) << r.problems[0];
+  EXPECT_EQ(as_u32(x->upload({0x6065, 0}).data), window + 777);
+  // Once it is gone the restore goes ahead.
+  const RestoreResult after = restore_drives(files, buses, false);
+  ASSERT_TRUE(after.ok()) << describe(after);
+  EXPECT_EQ(as_u32(x->upload({0x6065, 0}).data), window);
 }
 
 TEST(CommissionRestore, AnotherDriveInTheBackedUpPlaceIsRefusedNamingItAndNothingIsWritten) {
@@ -278,8 +446,8 @@ TEST(CommissionRestore, BadBackupFilesAreErrorsNamingFileAndLine) {
 struct EcatSegment {
   std::shared_ptr<ethercat::sim::Segment> segment = std::make_shared<ethercat::sim::Segment>();
   std::string name = testing::unique_name("restore");
-  explicit EcatSegment(unsigned drives) {
-    segment->add_drives(drives);
+  explicit EcatSegment(unsigned drives, const ethercat::sim::CoeDriveConfig& config = {}) {
+    segment->add_drives(drives, config);
     ethercat::sim::register_sim_link_kind();
     ethercat::sim::register_segment(name, segment);
   }
@@ -336,12 +504,15 @@ TEST(CommissionRestore, EthercatChangedParameterIsWrittenBackOverCoeAndReadsBack
   m.to_preop();
   ASSERT_TRUE(m.sdo_download(2, 0x6065, 0, u32(4321)).ok);
   ASSERT_TRUE(m.sdo_download(2, 0x607C, 0, u32(static_cast<uint32_t>(-500))).ok);
+  const BackupEntry* kv = files[1].find(0x60F9, 1);
+  ASSERT_TRUE(kv) << "the velocity loop's gain is not backed up";
+  ASSERT_TRUE(m.sdo_download(2, 0x60F9, 1, u32(as_u32(kv->data) + 1)).ok);
   RestoreBuses buses;
   buses.ethercat = &m;
   const RestoreResult dry = restore_drives(files, buses, true);
   ASSERT_TRUE(dry.ok()) << describe(dry);
   EXPECT_TRUE(dry.drives[0].changes.empty()) << describe(dry);
-  ASSERT_EQ(dry.drives[1].changes.size(), 2u) << describe(dry);
+  ASSERT_EQ(dry.drives[1].changes.size(), 3u) << describe(dry);
   EXPECT_NE(describe(dry).find("would write 0x607C:00 Home offset: -500 -> 0"), std::string::npos) << describe(dry);
   EXPECT_EQ(as_u32(m.sdo_upload(2, 0x6065, 0).data), 4321u);
 
@@ -349,6 +520,7 @@ TEST(CommissionRestore, EthercatChangedParameterIsWrittenBackOverCoeAndReadsBack
   ASSERT_TRUE(r.ok()) << describe(r);
   EXPECT_EQ(m.sdo_upload(2, 0x6065, 0).data, files[1].find(0x6065, 0)->data);
   EXPECT_EQ(m.sdo_upload(2, 0x607C, 0).data, u32(0));
+  EXPECT_EQ(m.sdo_upload(2, 0x60F9, 1).data, kv->data);
   EXPECT_NE(describe(r).find("not stored: the drive has no \"store parameters\""), std::string::npos) << describe(r);
   const RestoreResult again = restore_drives(files, buses, true);
   for (const auto& d : again.drives) EXPECT_TRUE(d.changes.empty()) << describe(again);
@@ -406,6 +578,55 @@ TEST(CommissionRestore, EthercatChangedPdoMappingAndAssignmentAreRestored) {
     EXPECT_EQ(m.sdo_upload(1, index, sub).data, files[0].find(index, sub)->data) << std::hex << index << ":" << int(sub);
   const RestoreResult again = restore_drives(files, buses, true);
   EXPECT_TRUE(again.drives[0].pdo_changes.empty()) << describe(again);
+}
+
+// A drive with six TxPDO mappings, the sixth assigned as the second PDO
+// of 0x1C13: backed up and restored over CoE.
+TEST(CommissionRestore, EthercatMappingsBeyondTheFourthAreBackedUpAndRestored) {
+  ethercat::sim::CoeDriveConfig six;
+  six.pdo_mappings = 6;
+  EcatSegment seg(1, six);
+  {
+    ethercat::MasterConfig cfg;
+    cfg.interface = seg.interface();
+    ethercat::Master m(cfg, nullptr);
+    m.to_preop();
+    ASSERT_TRUE(m.sdo_download(1, 0x1C13, 0, {0}).ok);
+    ASSERT_TRUE(m.sdo_download(1, 0x1A05, 1, u32(0x60770010)).ok);
+    ASSERT_TRUE(m.sdo_download(1, 0x1A05, 0, {1}).ok);
+    ASSERT_TRUE(m.sdo_download(1, 0x1C13, 2, {0x05, 0x1A}).ok);
+    ASSERT_TRUE(m.sdo_download(1, 0x1C13, 0, {2}).ok);
+    m.release();
+  }
+  State s = ethercat_state(seg.interface(), {{'X', 1}});
+  BackupResult br = backup_ethercat_drives(seg.interface(), s);
+  ASSERT_TRUE(br.ok()) << br.problems[0];
+  testing::TempDir dir;
+  write_backup(s, br, dir / "b");
+  const auto files = load_backup_dir(dir / "b");
+  for (const auto& [index, sub] : std::vector<std::pair<uint16_t, uint8_t>>{
+           {0x1600, 1}, {0x1605, 0}, {0x1A04, 0}, {0x1A05, 0}, {0x1A05, 1}, {0x1C13, 1}, {0x1C13, 2}})
+    EXPECT_TRUE(files[0].find(index, sub)) << std::hex << index << ":" << int(sub) << " not backed up";
+  EXPECT_FALSE(files[0].find(0x1A06, 0));
+  ASSERT_TRUE(files[0].find(0x1A05, 1) && files[0].find(0x1C13, 2));
+
+  ethercat::MasterConfig cfg;
+  cfg.interface = seg.interface();
+  ethercat::Master m(cfg, nullptr);
+  m.to_preop();
+  ASSERT_TRUE(m.sdo_download(1, 0x1C13, 0, {0}).ok);
+  ASSERT_TRUE(m.sdo_download(1, 0x1A05, 0, {0}).ok);
+  ASSERT_TRUE(m.sdo_download(1, 0x1A05, 1, u32(0x603F0010)).ok);
+  ASSERT_TRUE(m.sdo_download(1, 0x1A05, 0, {1}).ok);
+  ASSERT_TRUE(m.sdo_download(1, 0x1C13, 2, {0x04, 0x1A}).ok);
+  ASSERT_TRUE(m.sdo_download(1, 0x1C13, 0, {2}).ok);
+  RestoreBuses buses;
+  buses.ethercat = &m;
+  const RestoreResult r = restore_drives(files, buses, false);
+  ASSERT_TRUE(r.ok()) << describe(r);
+  for (const auto& [index, sub] : std::vector<std::pair<uint16_t, uint8_t>>{{0x1A05, 0}, {0x1A05, 1}, {0x1C13, 0}, {0x1C13, 2}})
+    EXPECT_EQ(m.sdo_upload(1, index, sub).data, files[0].find(index, sub)->data) << std::hex << index << ":" << int(sub);
+  m.release();
 }
 
 TEST(CommissionRestore, AnEthercatAxisOnASlaveTheSegmentLacksIsABackupProblem) {
