@@ -55,15 +55,18 @@ void add_correction(const Vertex& vx, double x, bool after, const Curve& in, con
                     AxisVec* d1, AxisVec* d2, AxisVec* d3) noexcept;
 
 // The derivatives add_correction adds for a corner without a curved
-// neighbour (vx.curved false), without the position: the same values.
-inline void add_kink_derivatives(const Vertex& vx, double x, bool after, AxisVec& d1, AxisVec& d2,
-                                 AxisVec& d3) noexcept {
+// neighbour (vx.curved false), without the position: the same values, on
+// the `n_axes` axes listed in `axes` (those where vx.dt is not zero at
+// least; the others get nothing).
+inline void add_kink_derivatives(const Vertex& vx, double x, bool after, const uint8_t* axes, int n_axes,
+                                 AxisVec& d1, AxisVec& d2, AxisVec& d3) noexcept {
   const double d = vx.half;
   const double u = std::clamp((x + d) / (2 * d), 0.0, 1.0);
   const double g = kernel::cdf(u) - (after ? 1.0 : 0.0);
   const double g1 = kernel::pdf(u) / (2 * d);
   const double g2 = kernel::pdf1(u) / (4 * d * d);
-  for (std::size_t k = 0; k < d1.size(); ++k) {
+  for (int i = 0; i < n_axes; ++i) {
+    const std::size_t k = axes[i];
     const double t = vx.dt[k];
     if (t == 0) continue;
     d1[k] += g * t;

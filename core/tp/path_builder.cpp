@@ -77,20 +77,25 @@ double ceiling_of(const PieceBounds& b, const PlannerConfig& cfg) noexcept {
   return std::isfinite(v) ? v : 1e12;
 }
 
-struct PathBuilder::Held {
-  SegmentRecord rec;
-  SegmentParams params;
-  uint32_t inputs = 1;
+// The fields the corner loops scan (junction, widths, the corner's size
+// and position) come first, in the first cache line of the record: those
+// loops walk up to 4 span records per corner, and the records are large
+// (the curve and the parameters follow).
+struct alignas(64) PathBuilder::Held {
   Junction junction = Junction::Unknown;
-  double dwell = 0;         // with Junction::Stop: dwell at the stop
-  uint32_t dwell_inputs = 0;
-  bool spindle_wait = false;  // with Junction::Stop: also wait there for the spindles to be at speed
-  Vertex vx;                // with Junction::Window
+  bool final = false;       // vx.half is final
+  uint16_t dt_axes = 0;     // with Junction::Window: the axes where vx.dt is not zero (bit i: axis i)
+  double tent = -1;         // tentative half width: an upper bound of the final one
   double dt_norm = 0;       // |tangent jump| at the corner
   double m2 = 0;            // curved neighbours: bound of their second derivatives
   double merge_err = 0;     // distance of the merged-away points from this chord
-  double tent = -1;         // tentative half width: an upper bound of the final one
-  bool final = false;       // vx.half is final
+  Vertex vx;                // with Junction::Window
+  SegmentRecord rec;
+  SegmentParams params;
+  uint32_t inputs = 1;
+  double dwell = 0;         // with Junction::Stop: dwell at the stop
+  uint32_t dwell_inputs = 0;
+  bool spindle_wait = false;  // with Junction::Stop: also wait there for the spindles to be at speed
 };
 
 // A corner near the one being sized or checked: its position (or offset),
@@ -142,8 +147,18 @@ PathBuilder::PathBuilder(const PlannerConfig& config, PathStore& store)
 
 PathBuilder::~PathBuilder() = default;
 
-PathBuilder::Held& PathBuilder::held(uint64_t seq) noexcept { return held_[seq & held_mask_]; }
-const PathBuilder::Held& PathBuilder::held(uint64_t seq) const noexcept { return held_[seq & held_mask_]; }
+// Inline: called a few hundred times per move from the inner loops.
+inline PathBuilder::Held& PathBuilder::held(uint64_t seq) noexcept { return held_[seq & held_mask_]; }
+inline const PathBuilder::Held& PathBuilder::held(uint64_t seq) const noexcept { return held_[seq & held_mask_]; }
+
+// What the smoothing may use on segment `seq`: its G64 P less the error of
+// its naive-CAM chord (infinite for G64 without P).
+inline double PathBuilder::tolerance_of(uint64_t seq) const noexcept {
+  const Held& h = held(seq);
+  const double t = h.params.tolerance;
+  if (!(t > 0)) return kInf;
+  return std::max(0.0, t - h.merge_err);
+}
 
 void PathBuilder::set_config(const PlannerConfig& config) noexcept {
   const int span = span_;
@@ -523,18 +538,13 @@ void PathBuilder::compute_junction(uint64_t j) noexcept {
   a.vx.seg_in = j;
   a.vx.epoch = epoch_;
   a.dt_norm = ndt;
+  a.dt_axes = 0;
+  for (std::size_t k = 0; k < dt.size(); ++k) {
+    if (dt[k] != 0) a.dt_axes = static_cast<uint16_t>(a.dt_axes | (1u << k));
+  }
   a.m2 = m2;
   a.tent = -1;
   a.final = false;
-}
-
-// What the smoothing may use on segment `seq`: its G64 P less the error of
-// its naive-CAM chord (infinite for G64 without P).
-double PathBuilder::tolerance_of(uint64_t seq) const noexcept {
-  const Held& h = held(seq);
-  const double t = h.params.tolerance;
-  if (!(t > 0)) return kInf;
-  return std::max(0.0, t - h.merge_err);
 }
 
 // The vertex n after j, or the first stop before it: windows never cross a
@@ -546,9 +556,21 @@ uint64_t PathBuilder::horizon(uint64_t j, uint64_t n) const noexcept {
   return j + n;
 }
 
-uint64_t PathBuilder::segment_at(double s, uint64_t near) const noexcept {
+// The segment holding path position s as seen from segment `near`: the
+// last one up to `near` that starts at or before s, or else the first one
+// after it whose end reaches s. `from` is the answer for a smaller s (or
+// `near`): answers grow with s, so the walk goes on from there.
+uint64_t PathBuilder::segment_at(double s, uint64_t near, uint64_t from) const noexcept {
   uint64_t k = near;
-  while (k > first_seq_ && held(k).rec.s0 > s) --k;
+  if (from == near) {
+    while (k > first_seq_ && held(k).rec.s0 > s) --k;
+  } else if (held(near).rec.s0 > s) {
+    k = from;
+    while (k + 1 < near && held(k + 1).rec.s0 <= s) ++k;
+    return k;
+  } else {
+    k = std::max(from, near);
+  }
   while (k + 1 < next_seq_ && held(k).rec.s0 + held(k).rec.curve.length < s) ++k;
   return k;
 }
@@ -576,7 +598,7 @@ double PathBuilder::deviation_bound(double s, uint64_t lo, uint64_t hi, double* 
 
 // The corners whose windows at half width d_max may reach vertex j (j
 // itself first, then the later ones, then the earlier ones): their offsets
-// from j into near_ (s), returns how many. dense_deviation() sums over them.
+// from j into near_ (s), returns how many. dense_fits() sums over them.
 int PathBuilder::dense_neighbours(uint64_t j, double d_max) const noexcept {
   const Held& h = held(j);
   Near* near = near_.get();
@@ -606,17 +628,24 @@ int PathBuilder::dense_neighbours(uint64_t j, double d_max) const noexcept {
   return n;
 }
 
-// Deviation at vertex j if every corner near it had half width d <= d_max
-// (the first estimate of how wide a window a dense run of corners allows),
-// over the n corners dense_neighbours(j, d_max) found (the others are
-// farther than d: they add nothing).
-double PathBuilder::dense_deviation(int n, double d) const noexcept {
+// Whether the deviation at vertex j stays within `budget` if every corner
+// near it had half width d <= d_max (the first estimate of how wide a
+// window a dense run of corners allows), over the n corners
+// dense_neighbours(j, d_max) found (the others are farther than d: they add
+// nothing). The terms are never negative, so the sum stops as soon as it
+// exceeds the budget: the answer is the full sum's (issue 20: about half of
+// the bisection's terms).
+bool PathBuilder::dense_fits(int n, double d, double budget) noexcept {
   const Near* near = near_.get();
   double sum = correction_norm_at(near[0].dt_norm, near[0].m2, d, 0);
-  for (int i = 1; i < n; ++i) {
-    if (near[i].s < d) sum += correction_norm_at(near[i].dt_norm, near[i].m2, d, near[i].s);
+  ++size_terms_;
+  for (int i = 1; i < n && !(sum > budget); ++i) {
+    if (near[i].s < d) {
+      sum += correction_norm_at(near[i].dt_norm, near[i].m2, d, near[i].s);
+      ++size_terms_;
+    }
   }
-  return sum;
+  return !(sum > budget);
 }
 
 // First, tentative width of corner j's window: as wide as the room around
@@ -659,11 +688,11 @@ void PathBuilder::tentative_half(uint64_t j) noexcept {
     const double budget = kTolShare * tol;
     d = std::min(d, solve_half(kernel::kDeviationPerHalfWidth * h.dt_norm, 0.25 * h.m2, budget));
     const int n = d > 0 ? dense_neighbours(j, d) : 0;
-    if (d > 0 && dense_deviation(n, d) > budget) {
+    if (d > 0 && !dense_fits(n, d, budget)) {
       double lo = 0, hi = d;
       for (int it = 0; it < 14; ++it) {
         const double mid = 0.5 * (lo + hi);
-        (dense_deviation(n, mid) <= budget ? lo : hi) = mid;
+        (dense_fits(n, mid, budget) ? lo : hi) = mid;
       }
       d = lo;
     }
@@ -744,12 +773,14 @@ void PathBuilder::final_half(uint64_t j) noexcept {
     double worst = 1;
     double s_worst = s_j;
     int first = 0;  // windows before it end before the sample (samples go forward)
+    uint64_t seg_k = j;  // the segment of the last sample looked up in this pass
     for (int i = 0; i <= n; ++i) {
       const double x = a + step * i;
-      // The tolerance of the segment holding x (segment_at(x, j)): the
+      // The tolerance of the segment holding x (segment_at(x, j, ...)): the
       // previous sample's while x lies strictly inside that segment.
       if (!(x > seg_lo && x < seg_hi)) {
-        const uint64_t k = segment_at(x, j);
+        seg_k = segment_at(x, j, seg_k);
+        const uint64_t k = seg_k;
         seg_lo = held(k).rec.s0;
         seg_hi = seg_lo + held(k).rec.curve.length;
         seg_tol = tolerance_of(k);
@@ -916,6 +947,19 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
     if (np >= 2) pts[np - 1] = len;
   }
   const int pieces = len > 0 ? np - 1 : 0;
+  // The windows that may reach the move (a margin far above rounding), so
+  // that each piece looks only at them.
+  uint64_t reach[2 * 32 + 2];
+  int nreach = 0;
+  {
+    const double margin = 1e-9 * (1 + std::fabs(h.rec.s0) + len);
+    for (uint64_t i = vlo; i < vhi; ++i) {
+      const Held& o = held(i);
+      if (o.junction != Junction::Window || !(o.vx.half > 0)) continue;
+      if (o.vx.s + o.vx.half < h.rec.s0 - margin || o.vx.s - o.vx.half > h.rec.s0 + len + margin) continue;
+      reach[nreach++] = i;
+    }
+  }
   for (int p = 0; p < pieces; ++p) {
     const double a = pts[p];
     const double b = pts[p + 1];
@@ -935,9 +979,9 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
     bool any = false;
     bool curved = curve.is_curved();
     double d_min = kInf;
-    for (uint64_t i = vlo; i < vhi; ++i) {
+    for (int r = 0; r < nreach; ++r) {
+      const uint64_t i = reach[r];
       const Held& o = held(i);
-      if (o.junction != Junction::Window || !(o.vx.half > 0)) continue;
       if (gb <= o.vx.s - o.vx.half || ga >= o.vx.s + o.vx.half) continue;
       if (!any) tlo = i;
       thi = i + 1;
@@ -994,10 +1038,27 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
         win_seq[nwin] = k;
         win[nwin++] = &o;
       }
+      // Between lines (nothing curved) only the axes that move or turn
+      // get derivatives; the others stay zero, and the base line adds its
+      // constant direction without an evaluation.
+      unsigned moving = 0;
+      for (int w = 0; w < nwin; ++w) moving |= win[w]->dt_axes;
+      uint8_t axes[kNumAxes];
+      int n_axes = 0;
+      for (int k = 0; k < kNumAxes; ++k) {
+        const bool active = curved || curve.rate[static_cast<std::size_t>(k)] != 0 || (moving & (1u << k));
+        if (active) axes[n_axes++] = static_cast<uint8_t>(k);
+      }
       for (int i = 0; i <= n; ++i) {
         const double x = a + step * i;
         AxisVec pos, d1, d2, d3;
-        curve.eval(x, pos, &d1, &d2, &d3);
+        if (curved) {
+          curve.eval(x, pos, &d1, &d2, &d3);
+        } else {
+          d1 = curve.rate;
+          d2 = AxisVec{};
+          d3 = AxisVec{};
+        }
         for (int w = 0; w < nwin; ++w) {
           const Vertex& vx = win[w]->vx;
           const uint64_t k = win_seq[w];
@@ -1007,9 +1068,10 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
             add_correction(vx, dx, m > k, held(k).rec.curve, held(k + 1).rec.curve, pos, &d1, &d2, &d3);
             continue;
           }
-          add_kink_derivatives(vx, dx, m > k, d1, d2, d3);
+          add_kink_derivatives(vx, dx, m > k, axes, n_axes, d1, d2, d3);
         }
-        for (std::size_t k = 0; k < d1.size(); ++k) {
+        for (int j = 0; j < n_axes; ++j) {
+          const std::size_t k = axes[j];
           m1[k] = std::max(m1[k], std::fabs(d1[k]));
           m2[k] = std::max(m2[k], std::fabs(d2[k]));
           m3[k] = std::max(m3[k], std::fabs(d3[k]));

@@ -57,5 +57,18 @@ TEST(TpBuilderWork, FinalCheckSumsOnlyTheWindowsThatReachTheSample) {
   EXPECT_LT(per_move, 440);
 }
 
+// The tentative width of a corner is bisected (14 steps) on the deviation
+// its neighbours would add at the same width. The sum of a step stops as
+// soon as it exceeds the budget (its terms are never negative, so the
+// answer is the full sum's): measured 137.8 terms per move
+// before, 105.6 now.
+TEST(TpBuilderWork, WidthBisectionStopsSummingOnceOverTheBudget) {
+  SpiralBuild b(1500);
+  ASSERT_FALSE(b.builder.has_held());
+  const double per_move = static_cast<double>(b.builder.size_terms()) / b.moves;
+  EXPECT_GT(per_move, 20);  // the bisections ran
+  EXPECT_LT(per_move, 125);
+}
+
 }  // namespace
 }  // namespace cnc::tp
