@@ -11,6 +11,7 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 
@@ -42,6 +43,7 @@ struct Vertex {
   double half = 0;      // half width of the smoothing window (0: none)
   AxisVec dt{};         // tangent of the outgoing curve minus the incoming
   bool curved = false;  // a neighbour is curved: the second-order term applies
+  uint16_t axes = 0;    // bit k set: dt[k] is not zero (the only axes the kink term moves)
   uint64_t seg_in = 0;  // the segment ending here; seg_in + 1 starts here
   uint32_t epoch = 0;
 };
@@ -55,20 +57,17 @@ void add_correction(const Vertex& vx, double x, bool after, const Curve& in, con
                     AxisVec* d1, AxisVec* d2, AxisVec* d3) noexcept;
 
 // The derivatives add_correction adds for a corner without a curved
-// neighbour (vx.curved false), without the position: the same values, on
-// the `n_axes` axes listed in `axes` (those where vx.dt is not zero at
-// least; the others get nothing).
-inline void add_kink_derivatives(const Vertex& vx, double x, bool after, const uint8_t* axes, int n_axes,
-                                 AxisVec& d1, AxisVec& d2, AxisVec& d3) noexcept {
+// neighbour (vx.curved false), without the position: the same values.
+inline void add_kink_derivatives(const Vertex& vx, double x, bool after, AxisVec& d1, AxisVec& d2,
+                                 AxisVec& d3) noexcept {
   const double d = vx.half;
   const double u = std::clamp((x + d) / (2 * d), 0.0, 1.0);
   const double g = kernel::cdf(u) - (after ? 1.0 : 0.0);
   const double g1 = kernel::pdf(u) / (2 * d);
   const double g2 = kernel::pdf1(u) / (4 * d * d);
-  for (int i = 0; i < n_axes; ++i) {
-    const std::size_t k = axes[i];
+  for (unsigned m = vx.axes; m != 0; m &= m - 1) {
+    const auto k = static_cast<std::size_t>(std::countr_zero(m));
     const double t = vx.dt[k];
-    if (t == 0) continue;
     d1[k] += g * t;
     d2[k] += g1 * t;
     d3[k] += g2 * t;

@@ -84,7 +84,6 @@ double ceiling_of(const PieceBounds& b, const PlannerConfig& cfg) noexcept {
 struct alignas(64) PathBuilder::Held {
   Junction junction = Junction::Unknown;
   bool final = false;       // vx.half is final
-  uint16_t dt_axes = 0;     // with Junction::Window: the axes where vx.dt is not zero (bit i: axis i)
   double tent = -1;         // tentative half width: an upper bound of the final one
   double dt_norm = 0;       // |tangent jump| at the corner
   double m2 = 0;            // curved neighbours: bound of their second derivatives
@@ -534,14 +533,13 @@ void PathBuilder::compute_junction(uint64_t j) noexcept {
   a.vx = Vertex{};
   a.vx.s = b.rec.s0;
   a.vx.dt = dt;
+  for (std::size_t k = 0; k < dt.size(); ++k) {
+    if (dt[k] != 0) a.vx.axes = static_cast<uint16_t>(a.vx.axes | (1u << k));
+  }
   a.vx.curved = curved;
   a.vx.seg_in = j;
   a.vx.epoch = epoch_;
   a.dt_norm = ndt;
-  a.dt_axes = 0;
-  for (std::size_t k = 0; k < dt.size(); ++k) {
-    if (dt[k] != 0) a.dt_axes = static_cast<uint16_t>(a.dt_axes | (1u << k));
-  }
   a.m2 = m2;
   a.tent = -1;
   a.final = false;
@@ -756,6 +754,7 @@ void PathBuilder::final_half(uint64_t j) noexcept {
     // The windows that reach [a, b] (the others add nothing to any point
     // of it), and one bound of the second derivative over [a, b]: their sum.
     double sec = 0;
+    double d_max = 0;
     int nw = 0;
     for (uint64_t k = lo; k < hi; ++k) {
       const Held& o = held(k);
@@ -766,13 +765,19 @@ void PathBuilder::final_half(uint64_t j) noexcept {
       correction_norm_at(o.dt_norm, o.m2, dk, dk, &sk);
       sec += sk;
       near[nw++] = {o.vx.s, dk, o.dt_norm, o.m2};
+      d_max = std::max(d_max, dk);
     }
+    // The windows come in the order of their corners; those from `end` on
+    // start after the sample (further than the widest half width ahead of
+    // it, with room for rounding): they add 0 there.
+    const double ahead = d_max * (1 + 1e-9);
     const int n = std::clamp(static_cast<int>(std::ceil((b - a) / (d / 8))), 1, 64);
     const double step = (b - a) / n;
     const double margin = step * step / 8 * sec;
     double worst = 1;
     double s_worst = s_j;
     int first = 0;  // windows before it end before the sample (samples go forward)
+    int end = 0;
     uint64_t seg_k = j;  // the segment of the last sample looked up in this pass
     for (int i = 0; i <= n; ++i) {
       const double x = a + step * i;
@@ -788,11 +793,12 @@ void PathBuilder::final_half(uint64_t j) noexcept {
       const double tol = seg_tol;
       if (!(tol < kInf)) continue;
       while (first < nw && x - near[first].s >= near[first].d) ++first;  // adds 0 from here on
-      check_terms_ += static_cast<uint64_t>(nw - first);
+      while (end < nw && near[end].s - x < ahead) ++end;
+      check_terms_ += static_cast<uint64_t>(std::max(0, end - first));
       double dev = margin;
       {
         double sum = 0;
-        for (int w = first; w < nw; ++w) {
+        for (int w = first; w < end; ++w) {
           sum += correction_norm_at(near[w].dt_norm, near[w].m2, near[w].d, x - near[w].s);
         }
         dev += sum;
@@ -1042,7 +1048,7 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
       // get derivatives; the others stay zero, and the base line adds its
       // constant direction without an evaluation.
       unsigned moving = 0;
-      for (int w = 0; w < nwin; ++w) moving |= win[w]->dt_axes;
+      for (int w = 0; w < nwin; ++w) moving |= win[w]->vx.axes;
       uint8_t axes[kNumAxes];
       int n_axes = 0;
       for (int k = 0; k < kNumAxes; ++k) {
@@ -1068,7 +1074,7 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
             add_correction(vx, dx, m > k, held(k).rec.curve, held(k + 1).rec.curve, pos, &d1, &d2, &d3);
             continue;
           }
-          add_kink_derivatives(vx, dx, m > k, axes, n_axes, d1, d2, d3);
+          add_kink_derivatives(vx, dx, m > k, d1, d2, d3);
         }
         for (int j = 0; j < n_axes; ++j) {
           const std::size_t k = axes[j];
