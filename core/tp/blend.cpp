@@ -1,6 +1,7 @@
 #include "core/tp/blend.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 namespace cnc::tp {
@@ -50,9 +51,9 @@ void add_correction(const Vertex& vx, double x, bool after, const Curve& in, con
   const double g1 = kernel::pdf(u) / (2 * d);
   const double g2 = kernel::pdf1(u) / (4 * d * d);
   const double g3 = kernel::pdf2(u) / (8 * d * d * d);
-  for (std::size_t k = 0; k < p.size(); ++k) {
+  for (unsigned m = vx.axes; m != 0; m &= m - 1) {
+    const auto k = static_cast<std::size_t>(std::countr_zero(m));
     const double t = vx.dt[k];
-    if (t == 0) continue;
     p[k] += e * t;
     if (d1) (*d1)[k] += g * t;
     if (d2) (*d2)[k] += g1 * t;
@@ -87,9 +88,9 @@ void add_correction_bounds(const Vertex& vx, double x0, double x1, const Curve& 
   const double g1 = max_pdf(u0, u1) / (2 * d);
   const double g2 = max_abs_pdf1(u0, u1) / (4 * d * d);
   const double g4 = b4 ? max_abs_pdf2(u0, u1) / (8 * d * d * d) : 0.0;
-  for (std::size_t k = 0; k < b2.size(); ++k) {
+  for (unsigned m = vx.axes; m != 0; m &= m - 1) {  // the others add nothing (the factors are finite)
+    const auto k = static_cast<std::size_t>(std::countr_zero(m));
     const double t = std::fabs(vx.dt[k]);
-    if (t == 0) continue;  // adds nothing (the factors are finite)
     b1[k] += t * g0;
     b2[k] += t * g1;
     b3[k] += t * g2;

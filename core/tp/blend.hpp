@@ -11,6 +11,7 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 
@@ -42,6 +43,7 @@ struct Vertex {
   double half = 0;      // half width of the smoothing window (0: none)
   AxisVec dt{};         // tangent of the outgoing curve minus the incoming
   bool curved = false;  // a neighbour is curved: the second-order term applies
+  uint16_t axes = 0;    // bit k set: dt[k] is not zero (the only axes the kink term moves)
   uint64_t seg_in = 0;  // the segment ending here; seg_in + 1 starts here
   uint32_t epoch = 0;
 };
@@ -63,9 +65,9 @@ inline void add_kink_derivatives(const Vertex& vx, double x, bool after, AxisVec
   const double g = kernel::cdf(u) - (after ? 1.0 : 0.0);
   const double g1 = kernel::pdf(u) / (2 * d);
   const double g2 = kernel::pdf1(u) / (4 * d * d);
-  for (std::size_t k = 0; k < d1.size(); ++k) {
+  for (unsigned m = vx.axes; m != 0; m &= m - 1) {
+    const auto k = static_cast<std::size_t>(std::countr_zero(m));
     const double t = vx.dt[k];
-    if (t == 0) continue;
     d1[k] += g * t;
     d2[k] += g1 * t;
     d3[k] += g2 * t;

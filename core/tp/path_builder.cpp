@@ -77,20 +77,24 @@ double ceiling_of(const PieceBounds& b, const PlannerConfig& cfg) noexcept {
   return std::isfinite(v) ? v : 1e12;
 }
 
-struct PathBuilder::Held {
-  SegmentRecord rec;
-  SegmentParams params;
-  uint32_t inputs = 1;
+// The fields the corner loops scan (junction, widths, the corner's size
+// and position) come first, in the first cache line of the record: those
+// loops walk up to 4 span records per corner, and the records are large
+// (the curve and the parameters follow).
+struct alignas(64) PathBuilder::Held {
   Junction junction = Junction::Unknown;
-  double dwell = 0;         // with Junction::Stop: dwell at the stop
-  uint32_t dwell_inputs = 0;
-  bool spindle_wait = false;  // with Junction::Stop: also wait there for the spindles to be at speed
-  Vertex vx;                // with Junction::Window
+  bool final = false;       // vx.half is final
+  double tent = -1;         // tentative half width: an upper bound of the final one
   double dt_norm = 0;       // |tangent jump| at the corner
   double m2 = 0;            // curved neighbours: bound of their second derivatives
   double merge_err = 0;     // distance of the merged-away points from this chord
-  double tent = -1;         // tentative half width: an upper bound of the final one
-  bool final = false;       // vx.half is final
+  Vertex vx;                // with Junction::Window
+  SegmentRecord rec;
+  SegmentParams params;
+  uint32_t inputs = 1;
+  double dwell = 0;         // with Junction::Stop: dwell at the stop
+  uint32_t dwell_inputs = 0;
+  bool spindle_wait = false;  // with Junction::Stop: also wait there for the spindles to be at speed
 };
 
 // A corner near the one being sized or checked: its position (or offset),
@@ -142,8 +146,18 @@ PathBuilder::PathBuilder(const PlannerConfig& config, PathStore& store)
 
 PathBuilder::~PathBuilder() = default;
 
-PathBuilder::Held& PathBuilder::held(uint64_t seq) noexcept { return held_[seq & held_mask_]; }
-const PathBuilder::Held& PathBuilder::held(uint64_t seq) const noexcept { return held_[seq & held_mask_]; }
+// Inline: called a few hundred times per move from the inner loops.
+inline PathBuilder::Held& PathBuilder::held(uint64_t seq) noexcept { return held_[seq & held_mask_]; }
+inline const PathBuilder::Held& PathBuilder::held(uint64_t seq) const noexcept { return held_[seq & held_mask_]; }
+
+// What the smoothing may use on segment `seq`: its G64 P less the error of
+// its naive-CAM chord (infinite for G64 without P).
+inline double PathBuilder::tolerance_of(uint64_t seq) const noexcept {
+  const Held& h = held(seq);
+  const double t = h.params.tolerance;
+  if (!(t > 0)) return kInf;
+  return std::max(0.0, t - h.merge_err);
+}
 
 void PathBuilder::set_config(const PlannerConfig& config) noexcept {
   const int span = span_;
@@ -519,6 +533,9 @@ void PathBuilder::compute_junction(uint64_t j) noexcept {
   a.vx = Vertex{};
   a.vx.s = b.rec.s0;
   a.vx.dt = dt;
+  for (std::size_t k = 0; k < dt.size(); ++k) {
+    if (dt[k] != 0) a.vx.axes = static_cast<uint16_t>(a.vx.axes | (1u << k));
+  }
   a.vx.curved = curved;
   a.vx.seg_in = j;
   a.vx.epoch = epoch_;
@@ -526,15 +543,6 @@ void PathBuilder::compute_junction(uint64_t j) noexcept {
   a.m2 = m2;
   a.tent = -1;
   a.final = false;
-}
-
-// What the smoothing may use on segment `seq`: its G64 P less the error of
-// its naive-CAM chord (infinite for G64 without P).
-double PathBuilder::tolerance_of(uint64_t seq) const noexcept {
-  const Held& h = held(seq);
-  const double t = h.params.tolerance;
-  if (!(t > 0)) return kInf;
-  return std::max(0.0, t - h.merge_err);
 }
 
 // The vertex n after j, or the first stop before it: windows never cross a
@@ -546,9 +554,21 @@ uint64_t PathBuilder::horizon(uint64_t j, uint64_t n) const noexcept {
   return j + n;
 }
 
-uint64_t PathBuilder::segment_at(double s, uint64_t near) const noexcept {
+// The segment holding path position s as seen from segment `near`: the
+// last one up to `near` that starts at or before s, or else the first one
+// after it whose end reaches s. `from` is the answer for a smaller s (or
+// `near`): answers grow with s, so the walk goes on from there.
+uint64_t PathBuilder::segment_at(double s, uint64_t near, uint64_t from) const noexcept {
   uint64_t k = near;
-  while (k > first_seq_ && held(k).rec.s0 > s) --k;
+  if (from == near) {
+    while (k > first_seq_ && held(k).rec.s0 > s) --k;
+  } else if (held(near).rec.s0 > s) {
+    k = from;
+    while (k + 1 < near && held(k + 1).rec.s0 <= s) ++k;
+    return k;
+  } else {
+    k = std::max(from, near);
+  }
   while (k + 1 < next_seq_ && held(k).rec.s0 + held(k).rec.curve.length < s) ++k;
   return k;
 }
@@ -576,7 +596,7 @@ double PathBuilder::deviation_bound(double s, uint64_t lo, uint64_t hi, double* 
 
 // The corners whose windows at half width d_max may reach vertex j (j
 // itself first, then the later ones, then the earlier ones): their offsets
-// from j into near_ (s), returns how many. dense_deviation() sums over them.
+// from j into near_ (s), returns how many. dense_fits() sums over them.
 int PathBuilder::dense_neighbours(uint64_t j, double d_max) const noexcept {
   const Held& h = held(j);
   Near* near = near_.get();
@@ -606,17 +626,24 @@ int PathBuilder::dense_neighbours(uint64_t j, double d_max) const noexcept {
   return n;
 }
 
-// Deviation at vertex j if every corner near it had half width d <= d_max
-// (the first estimate of how wide a window a dense run of corners allows),
-// over the n corners dense_neighbours(j, d_max) found (the others are
-// farther than d: they add nothing).
-double PathBuilder::dense_deviation(int n, double d) const noexcept {
+// Whether the deviation at vertex j stays within `budget` if every corner
+// near it had half width d <= d_max (the first estimate of how wide a
+// window a dense run of corners allows), over the n corners
+// dense_neighbours(j, d_max) found (the others are farther than d: they add
+// nothing). The terms are never negative, so the sum stops as soon as it
+// exceeds the budget: the answer is the full sum's (issue 20: about half of
+// the bisection's terms).
+bool PathBuilder::dense_fits(int n, double d, double budget) noexcept {
   const Near* near = near_.get();
   double sum = correction_norm_at(near[0].dt_norm, near[0].m2, d, 0);
-  for (int i = 1; i < n; ++i) {
-    if (near[i].s < d) sum += correction_norm_at(near[i].dt_norm, near[i].m2, d, near[i].s);
+  ++size_terms_;
+  for (int i = 1; i < n && !(sum > budget); ++i) {
+    if (near[i].s < d) {
+      sum += correction_norm_at(near[i].dt_norm, near[i].m2, d, near[i].s);
+      ++size_terms_;
+    }
   }
-  return sum;
+  return !(sum > budget);
 }
 
 // First, tentative width of corner j's window: as wide as the room around
@@ -659,11 +686,11 @@ void PathBuilder::tentative_half(uint64_t j) noexcept {
     const double budget = kTolShare * tol;
     d = std::min(d, solve_half(kernel::kDeviationPerHalfWidth * h.dt_norm, 0.25 * h.m2, budget));
     const int n = d > 0 ? dense_neighbours(j, d) : 0;
-    if (d > 0 && dense_deviation(n, d) > budget) {
+    if (d > 0 && !dense_fits(n, d, budget)) {
       double lo = 0, hi = d;
       for (int it = 0; it < 14; ++it) {
         const double mid = 0.5 * (lo + hi);
-        (dense_deviation(n, mid) <= budget ? lo : hi) = mid;
+        (dense_fits(n, mid, budget) ? lo : hi) = mid;
       }
       d = lo;
     }
@@ -727,6 +754,7 @@ void PathBuilder::final_half(uint64_t j) noexcept {
     // The windows that reach [a, b] (the others add nothing to any point
     // of it), and one bound of the second derivative over [a, b]: their sum.
     double sec = 0;
+    double d_max = 0;
     int nw = 0;
     for (uint64_t k = lo; k < hi; ++k) {
       const Held& o = held(k);
@@ -737,19 +765,27 @@ void PathBuilder::final_half(uint64_t j) noexcept {
       correction_norm_at(o.dt_norm, o.m2, dk, dk, &sk);
       sec += sk;
       near[nw++] = {o.vx.s, dk, o.dt_norm, o.m2};
+      d_max = std::max(d_max, dk);
     }
+    // The windows come in the order of their corners; those from `end` on
+    // start after the sample (further than the widest half width ahead of
+    // it, with room for rounding): they add 0 there.
+    const double ahead = d_max * (1 + 1e-9);
     const int n = std::clamp(static_cast<int>(std::ceil((b - a) / (d / 8))), 1, 64);
     const double step = (b - a) / n;
     const double margin = step * step / 8 * sec;
     double worst = 1;
     double s_worst = s_j;
     int first = 0;  // windows before it end before the sample (samples go forward)
+    int end = 0;
+    uint64_t seg_k = j;  // the segment of the last sample looked up in this pass
     for (int i = 0; i <= n; ++i) {
       const double x = a + step * i;
-      // The tolerance of the segment holding x (segment_at(x, j)): the
+      // The tolerance of the segment holding x (segment_at(x, j, ...)): the
       // previous sample's while x lies strictly inside that segment.
       if (!(x > seg_lo && x < seg_hi)) {
-        const uint64_t k = segment_at(x, j);
+        seg_k = segment_at(x, j, seg_k);
+        const uint64_t k = seg_k;
         seg_lo = held(k).rec.s0;
         seg_hi = seg_lo + held(k).rec.curve.length;
         seg_tol = tolerance_of(k);
@@ -757,11 +793,12 @@ void PathBuilder::final_half(uint64_t j) noexcept {
       const double tol = seg_tol;
       if (!(tol < kInf)) continue;
       while (first < nw && x - near[first].s >= near[first].d) ++first;  // adds 0 from here on
-      check_terms_ += static_cast<uint64_t>(nw - first);
+      while (end < nw && near[end].s - x < ahead) ++end;
+      check_terms_ += static_cast<uint64_t>(std::max(0, end - first));
       double dev = margin;
       {
         double sum = 0;
-        for (int w = first; w < nw; ++w) {
+        for (int w = first; w < end; ++w) {
           sum += correction_norm_at(near[w].dt_norm, near[w].m2, near[w].d, x - near[w].s);
         }
         dev += sum;
@@ -916,6 +953,19 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
     if (np >= 2) pts[np - 1] = len;
   }
   const int pieces = len > 0 ? np - 1 : 0;
+  // The windows that may reach the move (a margin far above rounding), so
+  // that each piece looks only at them.
+  uint64_t reach[2 * 32 + 2];
+  int nreach = 0;
+  {
+    const double margin = 1e-9 * (1 + std::fabs(h.rec.s0) + len);
+    for (uint64_t i = vlo; i < vhi; ++i) {
+      const Held& o = held(i);
+      if (o.junction != Junction::Window || !(o.vx.half > 0)) continue;
+      if (o.vx.s + o.vx.half < h.rec.s0 - margin || o.vx.s - o.vx.half > h.rec.s0 + len + margin) continue;
+      reach[nreach++] = i;
+    }
+  }
   for (int p = 0; p < pieces; ++p) {
     const double a = pts[p];
     const double b = pts[p + 1];
@@ -935,9 +985,9 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
     bool any = false;
     bool curved = curve.is_curved();
     double d_min = kInf;
-    for (uint64_t i = vlo; i < vhi; ++i) {
+    for (int r = 0; r < nreach; ++r) {
+      const uint64_t i = reach[r];
       const Held& o = held(i);
-      if (o.junction != Junction::Window || !(o.vx.half > 0)) continue;
       if (gb <= o.vx.s - o.vx.half || ga >= o.vx.s + o.vx.half) continue;
       if (!any) tlo = i;
       thi = i + 1;
@@ -994,10 +1044,27 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
         win_seq[nwin] = k;
         win[nwin++] = &o;
       }
+      // Between lines (nothing curved) only the axes that move or turn
+      // get derivatives; the others stay zero, and the base line adds its
+      // constant direction without an evaluation.
+      unsigned moving = 0;
+      for (int w = 0; w < nwin; ++w) moving |= win[w]->vx.axes;
+      uint8_t axes[kNumAxes];
+      int n_axes = 0;
+      for (int k = 0; k < kNumAxes; ++k) {
+        const bool active = curved || curve.rate[static_cast<std::size_t>(k)] != 0 || (moving & (1u << k));
+        if (active) axes[n_axes++] = static_cast<uint8_t>(k);
+      }
       for (int i = 0; i <= n; ++i) {
         const double x = a + step * i;
         AxisVec pos, d1, d2, d3;
-        curve.eval(x, pos, &d1, &d2, &d3);
+        if (curved) {
+          curve.eval(x, pos, &d1, &d2, &d3);
+        } else {
+          d1 = curve.rate;
+          d2 = AxisVec{};
+          d3 = AxisVec{};
+        }
         for (int w = 0; w < nwin; ++w) {
           const Vertex& vx = win[w]->vx;
           const uint64_t k = win_seq[w];
@@ -1009,7 +1076,8 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
           }
           add_kink_derivatives(vx, dx, m > k, d1, d2, d3);
         }
-        for (std::size_t k = 0; k < d1.size(); ++k) {
+        for (int j = 0; j < n_axes; ++j) {
+          const std::size_t k = axes[j];
           m1[k] = std::max(m1[k], std::fabs(d1[k]));
           m2[k] = std::max(m2[k], std::fabs(d2[k]));
           m3[k] = std::max(m3[k], std::fabs(d3[k]));

@@ -55,6 +55,8 @@ class PathBuilder {
   // Work of the final window checks: (sample, window) terms evaluated, a
   // sample's deviation being the sum over the windows that may reach it.
   uint64_t check_terms() const noexcept { return check_terms_; }
+  // Work of the tentative widths: corner terms summed by their bisection.
+  uint64_t size_terms() const noexcept { return size_terms_; }
 
  private:
   struct Held;
@@ -77,8 +79,8 @@ class PathBuilder {
   void final_half(uint64_t j) noexcept;
   double deviation_bound(double s, uint64_t lo, uint64_t hi, double* second) const noexcept;
   int dense_neighbours(uint64_t j, double d_max) const noexcept;
-  double dense_deviation(int n, double d) const noexcept;
-  uint64_t segment_at(double s, uint64_t near) const noexcept;
+  bool dense_fits(int n, double d, double budget) noexcept;
+  uint64_t segment_at(double s, uint64_t near, uint64_t from) const noexcept;
   bool emit_vertices_upto(uint64_t j) noexcept;
   bool emit_pieces(uint64_t m) noexcept;
   void compute_junction(uint64_t j) noexcept;
@@ -105,6 +107,7 @@ class PathBuilder {
   uint32_t epoch_ = 0;
   uint64_t built_ = 0;
   uint64_t check_terms_ = 0;
+  uint64_t size_terms_ = 0;
   int span_ = 8;
 };
 
