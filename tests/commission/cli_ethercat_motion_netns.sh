@@ -37,6 +37,7 @@ trap cleanup EXIT INT TERM
 fail() {
   echo "FAIL: $*"
   [ -f "$work/m/cncd.log" ] && { echo "--- cncd log"; tail -20 "$work/m/cncd.log"; }
+  [ -f "$work/m/check-cncd.log" ] && { echo "--- the check's cncd log"; tail -40 "$work/m/check-cncd.log"; }
   [ -f "$work/sim.log" ] && { echo "--- ecat-sim log"; tail -5 "$work/sim.log"; }
   exit 1
 }
@@ -175,7 +176,10 @@ expect "wrote "
 grep -q "^\[ETHERCAT\]" "$work/m/mill.ini" || fail "no [ETHERCAT] section in mill.ini"
 # The check program's length follows the tuning: X's feed is a quarter of
 # its recommended MAX_VELOCITY, which a loaded host's stalls (torque spikes
-# that repeat) can leave at 8 mm/s: 2 mm/s, about 125 s of program.
+# that repeat) can leave at 8 mm/s: 2 mm/s, about 121 s of moves. A time
+# limit shorter than the moves is refused before cncd starts.
+cc check --timeout 10 && fail "check: a time limit shorter than the program was taken"
+expect "the check program's moves take "
 cc check --timeout 300 || fail "check"
 expect "check passed"
 state "s['check']['passed']" | grep -qx True || fail "the check is not kept in the state"
