@@ -47,18 +47,22 @@ double check_feed(const Axis& a) noexcept {
   return std::min(0.25 * v, kCheckMaxFeed);
 }
 
-std::string check_program(const State& s) {
+namespace {
+
+// One axis' part of the check program: from where homing leaves it to a
+// little inside each soft limit and back, at its check feed.
+struct CheckLeg {
+  const Axis* axis;
+  double lo, hi, home, feed;
+};
+
+// The check program's legs, the axes in joint order.
+std::vector<CheckLeg> check_legs(const State& s) {
   std::vector<const Axis*> axes;
   for (const Axis& a : s.axes) axes.push_back(&a);
   if (axes.empty()) throw std::invalid_argument("check program: no axis: assign a drive to an axis first");
   std::sort(axes.begin(), axes.end(), [](const Axis* a, const Axis* b) { return a->joint < b->joint; });
-  std::ostringstream g, end;
-  for (const Axis* a : axes) end << " " << a->letter << num(written_home(*a));
-  g << "(cnc-commission check program for " << s.machine << ", written with the configuration:)\n"
-    << "(each axis alone to a little inside its soft limits and back to where)\n"
-    << "(homing leaves it, at a quarter of its speed, at most " << num(kCheckMaxFeed) << " mm/s.)\n"
-    << kEndTag << end.str() << ")\n"
-    << "G21 G90 G94 G17 G40 G49 G80\n";
+  std::vector<CheckLeg> legs;
   for (const Axis* a : axes) {
     // The soft limits as written, never onto a limit switch found.
     const Travel t = clear_of_switches(*a, {a->min_limit, a->max_limit, "the soft limits"});
@@ -69,10 +73,37 @@ std::string check_program(const State& s) {
                                   num(a->min_limit) + ".." + num(a->max_limit) + " mm leave no travel");
     const double feed = check_feed(*a);
     if (!(feed > 0)) throw std::invalid_argument(std::string("check program: axis ") + a->letter + ": no velocity");
-    g << "(axis " << a->letter << ": " << num(lo) << " .. " << num(hi) << " mm, back to " << num(home) << ")\n"
-      << "G53 G1 " << a->letter << num(lo) << " F" << num(feed * 60) << "\n"
-      << "G53 G1 " << a->letter << num(hi) << "\n"
-      << "G53 G1 " << a->letter << num(home) << "\n";
+    legs.push_back({a, lo, hi, home, feed});
+  }
+  return legs;
+}
+
+}  // namespace
+
+double check_program_seconds(const State& s) {
+  double t = 0;
+  for (const CheckLeg& l : check_legs(s))
+    t += (std::fabs(l.home - l.lo) + (l.hi - l.lo) + std::fabs(l.hi - l.home)) / l.feed;
+  return t;
+}
+
+double check_default_timeout_s(double program_s) noexcept { return std::max(600.0, 2 * program_s + 60); }
+
+std::string check_program(const State& s) {
+  const std::vector<CheckLeg> legs = check_legs(s);
+  std::ostringstream g, end;
+  for (const CheckLeg& l : legs) end << " " << l.axis->letter << num(l.home);
+  g << "(cnc-commission check program for " << s.machine << ", written with the configuration:)\n"
+    << "(each axis alone to a little inside its soft limits and back to where)\n"
+    << "(homing leaves it, at a quarter of its speed, at most " << num(kCheckMaxFeed) << " mm/s.)\n"
+    << kEndTag << end.str() << ")\n"
+    << "G21 G90 G94 G17 G40 G49 G80\n";
+  for (const CheckLeg& l : legs) {
+    const char letter = l.axis->letter;
+    g << "(axis " << letter << ": " << num(l.lo) << " .. " << num(l.hi) << " mm, back to " << num(l.home) << ")\n"
+      << "G53 G1 " << letter << num(l.lo) << " F" << num(l.feed * 60) << "\n"
+      << "G53 G1 " << letter << num(l.hi) << "\n"
+      << "G53 G1 " << letter << num(l.home) << "\n";
   }
   g << "M2\n";
   return g.str();

@@ -34,6 +34,13 @@ double check_feed(const Axis& a) noexcept;
 // switches found (clear_of_switches). Throws std::invalid_argument when the state has no axis
 // or an axis whose soft limits leave no travel, naming it.
 std::string check_program(const State& s);
+// How long the check program's moves take at their feeds (s; the
+// accelerations not counted), the least time limit it can end within.
+// Throws as check_program.
+double check_program_seconds(const State& s);
+// The time limit of the written check program when none is given: twice
+// its length and a minute, at least 600 s.
+double check_default_timeout_s(double program_s) noexcept;
 
 // The end position a program declares in a comment
 // "(cnc-commission end X0 Y0 Z-5)": axis letter and position (mm);

@@ -91,7 +91,8 @@ const char* kHelp =
     "              [--record DIR] [--bin DIR] --bring-up DIR\n"
     "      step and swept-sine response of the drive's velocity loop (CSV, small\n"
     "      amplitude) where the drive has 0x60F9: rise, overshoot, settling, gain and\n"
-    "      phase, -3 dB bandwidth; --velocity-gain writes 0x60F9:1 first (both: default)\n"
+    "      phase, -3 dB bandwidth; --velocity-gain writes 0x60F9:1 for the tests (both:\n"
+    "      default); the drive's gain and mode are put back afterwards\n"
     "  axis L dial MM [MM2]\n"
     "      the dial indicator's reading of the last test: flips REVERSE, corrects scale\n"
     "      (MM2: a gantry's second side, each side on its own)\n"
@@ -150,7 +151,9 @@ const char* kHelp =
     "      start cncd on the configuration write wrote last, E-stop reset, on, home,\n"
     "      run FILE (default: check.ngc beside its INI: every axis to a little inside\n"
     "      its soft limits and back, at reduced feed) to its end, check the end\n"
-    "      position, stop cncd; the result is kept in the state\n"
+    "      position, stop cncd; the result is kept in the state. --timeout: at most S s\n"
+    "      for the program (default: twice the check program's moves at their feeds and\n"
+    "      a minute, at least 600 s; less than its moves take is refused)\n"
     "  wizard [--dir DIR] [--instance NAME]\n"
     "      the Qt wizard over these steps and the same state file\n"
     "      (cnc-commission-wizard)\n"
@@ -164,7 +167,9 @@ std::unique_ptr<ControllerProcess> bring_up_controller(const State& s, const std
                                                        const std::filesystem::path& dir, const std::string& name,
                                                        const std::filesystem::path& log, bool gantry_joints_apart = false) {
   std::filesystem::create_directories(dir);
-  write_config(generate_config(s, dir, name, gantry_joints_apart));
+  WriterOptions o;
+  o.gantry_joints_apart = gantry_joints_apart;
+  write_config(generate_config(s, dir, name, o));
   std::string out;
   if (check_config(bin / "cncd", dir / (name + ".ini"), out) != 0)
     throw std::runtime_error("the configuration written to " + dir.string() + " does not pass cncd --check --strict:\n" + out);
@@ -837,30 +842,58 @@ int cmd_response(State& s, Args& a, char letter) {
   if (check_config(bin / "cncd", bring_up / "commission-response.ini", out) != 0)
     throw std::runtime_error("the configuration written to " + bring_up.string() + " does not pass cncd --check --strict:\n" + out);
   // The gains (--velocity-gain written first): EtherCAT before cncd
-  // starts, CANopen while it runs (response_gains).
+  // starts, CANopen while it runs (response_gains). What the response
+  // changed in the drive goes back whatever happens (done, an error,
+  // Ctrl-C): EtherCAT once cncd stopped, CANopen while it still runs.
   AxisResponse r;
+  DriveFound found;
+  const bool before = response_gains_before_controller(*ax);
   auto gains = [&] {
-    const auto g = response_gains(s, *ax, gain, r.skipped);
+    const auto g = response_gains(s, *ax, gain, r.skipped, found);
     if (g) {
       r.gains = *g;
-      if (gain) std::cout << "axis " << letter << ": wrote " << *gain << " to 0x60F9:01\n";
+      if (found.velocity_gain) std::cout << "axis " << letter << ": wrote " << *gain << " to 0x60F9:01\n";
     }
   };
-  if (response_gains_before_controller(*ax)) gains();
-  ControllerProcess own(bin, bring_up / "commission-response.ini", bring_up / "cncd.log");
-  if (!response_gains_before_controller(*ax)) gains();
-  if (!r.skipped.empty()) {
-    std::cout << "axis " << letter << ": no loop response measured: " << r.skipped << "\n";
-  } else {
-    std::cout << "axis " << letter << ": velocity gain 0x60F9:01 = " << r.gains.velocity_gain
-              << " (0.1 mN m s/rad on the simulated drive), integration time 0x60F9:02 = " << r.gains.velocity_integral;
-    if (r.gains.position_gain) std::cout << ", position gain 0x60FB:01 = " << *r.gains.position_gain;
-    std::cout << "\n";
-    const AxisResponse m = run_response(Controller(bin), *ax, o);
-    r.step = m.step;
-    r.chirp = m.chirp;
+  auto put_back = [&]() -> std::string {  // "" when done, else why not
+    try {
+      restore_drive(s, *ax, found);
+    } catch (const std::exception& e) {
+      return std::string("; ") + e.what() + ": the drive keeps what the response left";
+    }
+    if (found.velocity_gain)
+      std::cout << "axis " << letter << ": put back the velocity gain " << *found.velocity_gain << " (0x60F9:01)\n";
+    return {};
+  };
+  std::string not_put_back;
+  try {
+    if (before) gains();
+    ControllerProcess own(bin, bring_up / "commission-response.ini", bring_up / "cncd.log");
+    try {
+      if (!before) gains();
+      if (!r.skipped.empty()) {
+        std::cout << "axis " << letter << ": no loop response measured: " << r.skipped << "\n";
+      } else {
+        std::cout << "axis " << letter << ": velocity gain 0x60F9:01 = " << r.gains.velocity_gain
+                  << " (0.1 mN m s/rad on the simulated drive), integration time 0x60F9:02 = " << r.gains.velocity_integral;
+        if (r.gains.position_gain) std::cout << ", position gain 0x60FB:01 = " << *r.gains.position_gain;
+        std::cout << "\n";
+        const AxisResponse m = run_response(Controller(bin), *ax, o);
+        r.step = m.step;
+        r.chirp = m.chirp;
+      }
+    } catch (const std::exception&) {
+      if (!before) not_put_back = put_back();
+      throw;
+    }
+    if (!before) not_put_back = put_back();
+    if (own.stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
+  } catch (const std::exception& e) {
+    if (before) not_put_back = put_back();
+    throw std::runtime_error(e.what() + not_put_back);
   }
-  if (own.stop() != 0) std::cout << "warning: cncd did not end cleanly (" << (bring_up / "cncd.log").string() << ")\n";
+  if (before) not_put_back = put_back();
+  if (!not_put_back.empty()) throw std::runtime_error("axis " + std::string(1, letter) + ": measured" + not_put_back);
   std::cout << "axis " << letter << ": the machine is off again\n";
   ax->response = r;
   s.log.push_back("axis " + std::string(1, letter) + (r.skipped.empty() ? " loop response measured" : " loop response skipped"));
@@ -1105,7 +1138,7 @@ int cmd_write(State& s, Args& a) {
 // state, passed or not; an abort keeps nothing.
 int cmd_check(State& s, Args& a) {
   std::filesystem::path program, bin = self_dir();
-  double timeout = 600;
+  std::optional<double> timeout;
   while (a.more()) {
     const std::string k = a.next("option");
     if (k == "--program") program = a.next("file");
@@ -1113,7 +1146,29 @@ int cmd_check(State& s, Args& a) {
     else if (k == "--bin") bin = a.next("folder");
     else usage("check: unknown option " + k);
   }
-  if (!(timeout > 0)) usage("check: --timeout must be > 0");
+  if (timeout && !(*timeout > 0)) usage("check: --timeout must be > 0");
+  // The written check program's length follows the axes' feeds (a quarter
+  // of each MAX_VELOCITY as tuned): a time limit it cannot end within is
+  // refused before anything starts.
+  if (program.empty()) {
+    double needs = 0;
+    try {
+      needs = check_program_seconds(s);
+    } catch (const std::invalid_argument&) {
+      // The state no longer makes a check program: the written one runs, unmeasured.
+    }
+    if (timeout && *timeout < needs) {
+      char b[200];
+      std::snprintf(b, sizeof b,
+                    "check: --timeout %g s: the check program's moves take %.0f s at its feeds (a quarter of each "
+                    "axis' MAX_VELOCITY): give at least %.0f s, or none (%.0f s)",
+                    *timeout, needs, std::ceil(needs * 1.2), check_default_timeout_s(needs));
+      usage(b);
+    }
+    if (!timeout) timeout = check_default_timeout_s(needs);
+  } else if (!timeout) {
+    timeout = 600;
+  }
   if (s.config_ini.empty())
     throw std::invalid_argument("check: no configuration written yet: run cnc-commission write --dir DIR --yes first");
   const std::filesystem::path ini = s.config_ini;
@@ -1133,7 +1188,7 @@ int cmd_check(State& s, Args& a) {
     progress(1, 7, "starting cncd on " + ini.string());
     ControllerProcess cncd(bin, ini, log);
     try {
-      r.message = run_check(Controller(bin), program, timeout,
+      r.message = run_check(Controller(bin), program, *timeout,
                             [&](int i, int, const std::string& t) { progress(i + 1, 7, t); });
       r.passed = true;
     } catch (const std::exception& e) {

@@ -60,8 +60,27 @@ long servo_period_ns(std::size_t drives) noexcept {
   return static_cast<long>(1'000'000 * std::max<std::size_t>(1, (drives + 1) / 2));
 }
 
+// Step 7's loop response on axis `a` (WriterOptions::response_axis): a
+// signal generator on its drive's velocity command.
+static std::string response_hal(const Axis& a) {
+  char d[64];
+  std::snprintf(d, sizeof d, "cia402.0.drive.%02d.", a.joint);
+  return "\n# cnc-commission axis " + std::string(1, a.letter) +
+         " response: a signal generator on the drive's velocity command\n"
+         "# (used in CSV only; sel 0 sine, 1 square).\n"
+         "loadrt siggen names=response\nloadrt mux2 names=response-mux\n"
+         "addf response.update servo-thread\naddf response-mux servo-thread\n"
+         "setp response.amplitude 0\nsetp response.reset 1\n"
+         "net response-sine response.sine => response-mux.in0\n"
+         "net response-square response.square => response-mux.in1\n"
+         "net response-vel response-mux.out => " + std::string(d) + "vel-cmd\n";
+}
+
+static constexpr const char* kResponseComment = "# cnc-commission response: the target velocity for CSV\n";
+
 std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem::path& dir, const std::string& name,
-                                           bool gantry_joints_apart) {
+                                           const WriterOptions& options) {
+  const bool gantry_joints_apart = options.gantry_joints_apart;
   // The axes (one [AXIS_L] each) and the joints (one [JOINT_n], drive and
   // node each): a gantry pair is one axis on two joints (steps.hpp,
   // machine_joints).
@@ -95,6 +114,9 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
   if (!ethercat && s.interface.empty()) throw std::invalid_argument("no CAN interface in the state: run the bus scan first");
   if (ethercat && s.ethercat_interface.empty())
     throw std::invalid_argument("no EtherCAT interface in the state: run scan-ethercat first");
+  const Axis* response = options.response_axis ? s.axis(options.response_axis) : nullptr;
+  if (options.response_axis && !response)
+    throw std::invalid_argument(std::string("axis ") + options.response_axis + " has no drive yet: no loop response on it");
   const std::string bus = ethercat ? "ethercat.0" : "canopen.0";
   // Names of the joints' drives, nets and nodes: "y", and "y2" for a
   // gantry's second drive.
@@ -228,11 +250,15 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
       // the CANopen nodes' TPDOs carry them: torque (tuning), the digital
       // inputs (limit and home switches), the mode shown and the error code.
       ini << "TXPDO = 0x6041:0:u16 0x6064:0:s32 0x606C:0:s32 0x6077:0:s16 0x60FD:0:u32 0x6061:0:s8 0x603F:0:u16\n";
+      if (response && a->slave == response->slave) ini << kResponseComment << "RXPDO = " << kResponseEthercatRxPdo << "\n";
       if (!a->enabled) ini << "# Disabled for commissioning: it may be missing.\n";
       ini << "\n";
     }
   } else {
-  ini << "[CANOPEN]\nINTERFACE = " << s.interface << "\nBITRATE = " << s.bitrate << "\nNODE = " << nodes
+  // The response reaches its drive by SDO through the shared socket of a
+  // virtual bus while cncd runs (response_sdo_interface).
+  const bool share = response && s.interface.rfind("virtual:", 0) == 0 && s.interface.find("share") == std::string::npos;
+  ini << "[CANOPEN]\nINTERFACE = " << s.interface << (share ? ",share" : "") << "\nBITRATE = " << s.bitrate << "\nNODE = " << nodes
       << "\nMASTER_HEARTBEAT_MS = 100\nPDO_MISS_LIMIT = 50\n\n";
   for (std::size_t i = 0; i < joints.size(); ++i) {
     const Axis* a = &joints[i].axis;
@@ -242,7 +268,9 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
       ini << "# " << (std::filesystem::path(s.eds_dir) / n->eds).string() << " describes this drive\n";
     if (!a->enabled) ini << "# Disabled for commissioning: it may be missing.\nMANDATORY = NO\n";
     ini << "HEARTBEAT_MS = 100\nHEARTBEAT_TIMEOUT_MS = 3000\nMASTER_HEARTBEAT_TIMEOUT_MS = 2000\n"
-           "RPDO1 = 0x6040:0:u16 0x607A:0:s32\nTPDO1 = 0x6041:0:u16 0x6064:0:s32 0x6077:0:s16\n"
+           "RPDO1 = 0x6040:0:u16 0x607A:0:s32\n";
+    if (response && a->node == response->node) ini << kResponseComment << "RPDO2 = " << kResponseCanopenRpdo << "\n";
+    ini << "TPDO1 = 0x6041:0:u16 0x6064:0:s32 0x6077:0:s16\n"
            "TPDO2 = 0x6061:0:s8 0x60FD:0:u32 0x603F:0:u16\nTPDO2_TRANSMISSION = 255\n"
            "TPDO2_INHIBIT_100US = 20\nTPDO2_EVENT_MS = 100\n\n";
   }
@@ -310,6 +338,7 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
          "# Tool changes: acknowledged at once (a manual change).\n"
          "net tool-prepare-loop iocontrol.0.tool-prepare => iocontrol.0.tool-prepared\n"
          "net tool-change-loop iocontrol.0.tool-change => iocontrol.0.tool-changed\n";
+  if (response) hal << response_hal(*response);
 
   std::vector<GeneratedFile> out;
   out.push_back({dir / (name + ".ini"), ini.str()});

@@ -22,17 +22,40 @@ struct GeneratedFile {
   std::string content;
 };
 
+// What generate_config writes besides the machine's configuration: the
+// additions of the commissioning steps' own configurations. The default is
+// the machine's configuration as `write` writes it.
+struct WriterOptions {
+  // Commissioning a gantry's drives one joint at a time (steps 4, 5 and 7
+  // jog each joint of the pair before it is homed): the pair's joints get
+  // HOME_SEQUENCE 0 instead of their synchronised group, whose joints
+  // motion does not jog unhomed.
+  bool gantry_joints_apart = false;
+  // Step 7's loop response on this axis (0: none; commission/response.hpp):
+  // the target velocity 0x60FF mapped on the axis' drive (CANopen: RPDO2 of
+  // its node; EtherCAT: kResponseEthercatRxPdo as its slave's RxPDO), a
+  // signal generator in the servo thread on the drive's vel-cmd (siggen
+  // "response", mux2 "response-mux": sel 0 sine, 1 square), and a virtual
+  // CAN bus shared (",share") so that cnc-commission reaches the drive by
+  // SDO while cncd runs.
+  char response_axis = 0;
+};
+
+// The EtherCAT slave's RxPDO for the loop response: the ESI's default
+// (controlword, target position, touch-probe function), which the machine's
+// configuration leaves in use, and the target velocity.
+inline constexpr const char* kResponseEthercatRxPdo = "0x6040:0:u16 0x607A:0:s32 0x60B8:0:u16 0x60FF:0:s32";
+// The CANopen node's RPDO for the loop response: the target velocity.
+inline constexpr const char* kResponseCanopenRpdo = "0x60FF:0:s32";
+
 // The files for configuration name `name` in folder `dir`: <name>.ini,
 // <name>.hal, the check program check.ngc (commission/check.hpp) and, when
 // there is none yet, tool.tbl. Throws
 // std::invalid_argument when the state cannot make a configuration (no
-// axis, an axis without scaling), naming what is missing.
-// `gantry_joints_apart`: a configuration for commissioning a gantry's
-// drives one joint at a time (steps 4, 5 and 7 jog each joint of the pair
-// before it is homed): the pair's joints get HOME_SEQUENCE 0 instead of
-// their synchronised group, whose joints motion does not jog unhomed.
+// axis, an axis without scaling, a response axis without a drive), naming
+// what is missing.
 std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem::path& dir, const std::string& name,
-                                           bool gantry_joints_apart = false);
+                                           const WriterOptions& options = {});
 
 // The servo period the written configuration runs at: 1 ms per two axis
 // drives on the one bus (their PDOs at 1 Mbit/s stay inside the bus-load

@@ -256,40 +256,93 @@ void write_velocity_gain(DriveChannel& drive, const std::string& who, uint32_t g
 namespace {
 
 std::optional<LoopGains> gains_of(DriveChannel& drive, const std::string& who, std::optional<uint32_t> velocity_gain,
-                                  std::string& why) {
+                                  std::string& why, DriveFound& found) {
   if (velocity_gain) {
     // A drive without a readable 0x60F9 is skipped, not written to.
-    if (!read_loop_gains(drive, who, why)) return std::nullopt;
-    write_velocity_gain(drive, who, *velocity_gain);
+    const auto before = read_loop_gains(drive, who, why);
+    if (!before) return std::nullopt;
+    if (before->velocity_gain != *velocity_gain) {
+      found.velocity_gain = before->velocity_gain;  // noted before the write: a refused write is put back too
+      write_velocity_gain(drive, who, *velocity_gain);
+    }
   }
   return read_loop_gains(drive, who, why);
 }
 
-}  // namespace
+std::string who_of(const Axis& a) {
+  return a.slave != 0 ? "EtherCAT slave " + std::to_string(a.slave) : "node " + std::to_string(a.node);
+}
 
-std::optional<LoopGains> response_gains(const State& s, const Axis& a, std::optional<uint32_t> velocity_gain,
-                                        std::string& why) {
-  if (a.slave == 0) {
-    auto bus = can::open_transport(response_sdo_interface(s));
-    const auto drive = canopen_channel(*bus, a.node, 1'000'000'000);
-    return gains_of(*drive, "node " + std::to_string(a.node), velocity_gain, why);
-  }
+// `work` on axis `a`'s EtherCAT slave through this program's own master,
+// the slaves in PREOP, back to INIT afterwards (the next master brings them
+// up from there).
+template <class Work>
+void on_ethercat_slave(const State& s, const Axis& a, Work&& work) {
   if (s.ethercat_interface.empty())
     throw std::runtime_error(axis_name(a) + ": no EtherCAT segment in the state (scan-ethercat first)");
   ethercat::MasterConfig cfg;
   cfg.interface = s.ethercat_interface;
   ethercat::Master m(cfg, nullptr);
-  std::optional<LoopGains> g;
   try {
     m.to_preop();
-    g = gains_of(*ethercat_channel(m, static_cast<unsigned>(a.slave)), "EtherCAT slave " + std::to_string(a.slave),
-                 velocity_gain, why);
+    work(*ethercat_channel(m, static_cast<unsigned>(a.slave)));
   } catch (const std::exception& e) {
     m.release();
     throw std::runtime_error(s.ethercat_interface + ": " + e.what());
   }
   m.release();
+}
+
+}  // namespace
+
+std::optional<LoopGains> response_gains(const State& s, const Axis& a, std::optional<uint32_t> velocity_gain,
+                                        std::string& why, DriveFound& found) {
+  if (a.slave == 0) {
+    auto bus = can::open_transport(response_sdo_interface(s));
+    const auto drive = canopen_channel(*bus, a.node, 1'000'000'000);
+    return gains_of(*drive, who_of(a), velocity_gain, why, found);
+  }
+  std::optional<LoopGains> g;
+  on_ethercat_slave(s, a, [&](DriveChannel& drive) {
+    // The response controller's drive layer writes its modes to 0x6060 (by
+    // CoE: the ESI's RxPDO does not map it); the next controller finds
+    // the mode this one found.
+    const auto mode = drive.upload({0x6060, 0});
+    if (mode.ok && !mode.data.empty()) found.mode = static_cast<int8_t>(mode.data[0]);
+    g = gains_of(drive, who_of(a), velocity_gain, why, found);
+  });
   return g;
+}
+
+void restore_drive(DriveChannel& drive, const std::string& who, const DriveFound& found) {
+  auto put_back = [&](canopen::ObjectAddress o, std::vector<uint8_t> value, const std::string& what) {
+    char obj[16];
+    std::snprintf(obj, sizeof obj, "0x%04X:%02X", o.index, o.sub);
+    const auto w = drive.download(o, value);
+    if (!w.ok) throw std::runtime_error(who + ": putting back " + what + " to " + obj + " failed: " + w.error);
+    auto r = drive.upload(o);
+    if (r.ok) r.data.resize(value.size(), 0);
+    if (!r.ok || r.data != value)
+      throw std::runtime_error(who + ": " + what + " written back to " + obj + " does not read back (" +
+                               (r.ok ? "another value" : r.error) + ")");
+  };
+  if (found.velocity_gain) {
+    std::vector<uint8_t> d(4);
+    for (int i = 0; i < 4; ++i) d[i] = static_cast<uint8_t>(*found.velocity_gain >> (8 * i));
+    put_back({0x60F9, 1}, d, "the velocity gain " + std::to_string(*found.velocity_gain));
+  }
+  if (found.mode) put_back({0x6060, 0}, {static_cast<uint8_t>(*found.mode)}, "the mode of operation " + std::to_string(*found.mode));
+}
+
+void restore_drive(const State& s, const Axis& a, const DriveFound& found) {
+  if (!found.changed()) return;
+  if (a.slave == 0) {
+    auto bus = can::open_transport(response_sdo_interface(s));
+    const auto drive = canopen_channel(*bus, a.node, 1'000'000'000);
+    restore_drive(*drive, who_of(a), {found.velocity_gain, std::nullopt});
+    return;
+  }
+  on_ethercat_slave(s, a, [&](DriveChannel& drive) { restore_drive(drive, who_of(a), found); });
 }
 
 // ---- the configuration ----
@@ -306,42 +359,9 @@ std::vector<GeneratedFile> response_configuration(const State& s, char letter, c
   // error is the excursion, which run_response keeps under 1 mm.
   r.axis(letter)->tuning->min_ferror = 3;
   r.axis(letter)->tuning->ferror = std::max(r.axis(letter)->tuning->ferror, 4.0);
-  auto files = generate_config(r, dir, name);
-  const bool ethercat = a->slave != 0;
-  const std::string section = ethercat ? "[ETHERCAT_SLAVE_" + std::to_string(a->slave) + "]"
-                                       : "[CANOPEN_NODE_" + std::to_string(a->node) + "]";
-  // After the PDO the writer gives every drive: the target velocity for CSV.
-  const std::string after = ethercat ? "TXPDO = " : "RPDO1 = ";
-  const std::string mapping = ethercat ? std::string("RXPDO = ") + kResponseEthercatRxPdo + "\n" : "RPDO2 = 0x60FF:0:s32\n";
-  for (GeneratedFile& f : files) {
-    std::string& c = f.content;
-    if (f.path.extension() == ".ini") {
-      const auto at = c.find(section);
-      const auto pdo = at == std::string::npos ? at : c.find(after, at);
-      const auto next = at == std::string::npos ? at : c.find("\n[", at);
-      if (pdo == std::string::npos || pdo > next)
-        throw std::logic_error("response configuration: no " + after.substr(0, after.size() - 3) + " in " + section);
-      c.insert(c.find('\n', pdo) + 1, "# cnc-commission response: the target velocity for CSV\n" + mapping);
-      if (ethercat) continue;
-      const std::string key = "INTERFACE = " + s.interface;
-      const auto i = c.find(key + "\n");
-      if (s.interface.rfind("virtual:", 0) == 0 && s.interface.find("share") == std::string::npos && i != std::string::npos)
-        c.insert(i + key.size(), ",share");
-    } else if (f.path.extension() == ".hal") {
-      char d[64];
-      std::snprintf(d, sizeof d, "cia402.0.drive.%02d.", a->joint);
-      c += "\n# cnc-commission axis " + std::string(1, letter) +
-           " response: a signal generator on the drive's velocity command\n"
-           "# (used in CSV only; sel 0 sine, 1 square).\n"
-           "loadrt siggen names=response\nloadrt mux2 names=response-mux\n"
-           "addf response.update servo-thread\naddf response-mux servo-thread\n"
-           "setp response.amplitude 0\nsetp response.reset 1\n"
-           "net response-sine response.sine => response-mux.in0\n"
-           "net response-square response.square => response-mux.in1\n"
-           "net response-vel response-mux.out => " + std::string(d) + "vel-cmd\n";
-    }
-  }
-  return files;
+  WriterOptions w;
+  w.response_axis = letter;
+  return generate_config(r, dir, name, w);
 }
 
 std::string response_sdo_interface(const State& s) {
@@ -379,23 +399,44 @@ class Session {
       : c_(c), a_(a), o_(o), start_(start), period_(period) {
     std::snprintf(drive_, sizeof drive_, "cia402.0.drive.%02d.", a.joint);
   }
-  // On, CSV, the generator quiet.
+  // On, CSV, the generator quiet. The drive's mode request and mode as
+  // found are noted for end().
   void begin() {
     setp("response.amplitude", "0");
     setp("response.reset", "1");
+    if (!found_) {
+      request_before_ = static_cast<int>(c_.getp(std::string(drive_) + "mode-request"));
+      mode_before_ = static_cast<int>(c_.getp(std::string(drive_) + "mode-display"));
+      found_ = true;
+    }
     c_.cnc({"on"});
     c_.cnc({"mode", "manual"});
     setp(std::string(drive_) + "mode-request", "9");
     wait_mode(9);
   }
-  // The generator quiet, off, back to CSP (motion takes the feedback as
-  // its command while off).
+  // The generator quiet, off (motion takes the feedback as its command),
+  // and the drive back in the mode it was found in, before the next test
+  // or the controller's end.
   void end() {
     setp("response.amplitude", "0");
     setp("response.reset", "1");
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     c_.cnc({"off"});
-    setp(std::string(drive_) + "mode-request", "8");
+    setp(std::string(drive_) + "mode-request", std::to_string(request_before_));
+    if (mode_before_ > 0) wait_mode(mode_before_);  // 0: the drive had not shown its mode yet
+  }
+  // After a failure (the machine already off): the mode as found, as far
+  // as the controller still answers. Never throws; "" or why not.
+  std::string end_after_failure() noexcept {
+    try {
+      setp("response.amplitude", "0");
+      if (!found_) return {};  // not begun: the mode untouched
+      setp(std::string(drive_) + "mode-request", std::to_string(request_before_));
+      if (mode_before_ > 0) wait_mode(mode_before_, false);
+    } catch (const std::exception& e) {
+      return std::string("; the drive's mode was not put back: ") + e.what();
+    }
+    return {};
   }
   // The generator at `frequency`, `amplitude` (its sign against the
   // excursion so far), square or sine; records `seconds` after `settle_s`.
@@ -428,14 +469,17 @@ class Session {
 
  private:
   void setp(const std::string& pin, const std::string& v) const { c_.halcmd({"setp", pin, v}); }
-  void wait_mode(int mode) {
+  // `abortable` false: after a failure or an abort, the mode is still
+  // put back.
+  void wait_mode(int mode, bool abortable = true) {
     const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(3);
     while (static_cast<int>(c_.getp(std::string(drive_) + "mode-display")) != mode) {
       if (std::chrono::steady_clock::now() > until)
         throw std::runtime_error(axis_name(a_) + ": the drive did not switch to mode " + std::to_string(mode) +
                                  " within 3 s (mode-display " +
                                  fmt("%.0f", c_.getp(std::string(drive_) + "mode-display")) + ")");
-      sleep_checked(0.02);
+      if (abortable) sleep_checked(0.02);
+      else std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
   }
   void sleep_checked(double s) {
@@ -463,6 +507,8 @@ class Session {
   const ResponseOptions& o_;
   double start_, period_;
   char drive_[40];
+  bool found_ = false;
+  int request_before_ = 0, mode_before_ = 8;  // the drive layer's mode-request, the drive's mode
 };
 
 }  // namespace
@@ -491,6 +537,7 @@ AxisResponse run_response(const Controller& c, const Axis& a, const ResponseOpti
   if (!c.estop_chain_ok())
     throw std::runtime_error(axis_name(a) + ": the E-stop chain is open: close it before the response test");
   AxisResponse result;
+  std::optional<Session> session;
   try {
     const double period = c.servo_period_s();
     const double f_max = o.max_frequency_hz > 0 ? std::min(o.max_frequency_hz, 0.2 / period) : 0.2 / period;
@@ -500,16 +547,16 @@ AxisResponse run_response(const Controller& c, const Axis& a, const ResponseOpti
       throw std::runtime_error(axis_name(a) + " stands at " + fmt("%.3f", start) + " mm, closer than " +
                                fmt("%g", 2 * o.max_excursion_mm) + " mm to the end of its travel " + fmt("%g", travel.min) +
                                ".." + fmt("%g", travel.max) + " mm (" + travel.source + "): jog it inside first");
-    Session session(c, a, o, start, period);
+    session.emplace(c, a, o, start, period);
     const char l = static_cast<char>(std::tolower(a.letter));
     const int total = (o.step ? 1 : 0) + (o.chirp ? o.frequencies : 0);
     int index = 0;
     if (o.step) {
       progress(std::to_string(++index) + "/" + std::to_string(total) + " step: +-" + fmt("%g", o.amplitude_mm_s) +
                " mm/s every " + fmt("%g", o.step_period_s / 2) + " s");
-      session.begin();
-      const auto record = session.record(true, 1.0 / o.step_period_s, 0, o.step_period_s * (o.step_edges + 1) / 2);
-      session.end();
+      session->begin();
+      const auto record = session->record(true, 1.0 / o.step_period_s, 0, o.step_period_s * (o.step_edges + 1) / 2);
+      session->end();
       StepResponse step = analyse_step(record);
       step.csv = (o.record_dir / (std::string(1, l) + "-response-step.csv")).string();
       write_file_atomically(step.csv, std::string(kResponseCsvHeader) + "\n" + response_csv(record, 0));
@@ -525,19 +572,19 @@ AxisResponse run_response(const Controller& c, const Axis& a, const ResponseOpti
       chirp.amplitude_mm_s = o.amplitude_mm_s;
       chirp.csv = (o.record_dir / (std::string(1, l) + "-response-chirp.csv")).string();
       std::string csv = std::string(kResponseCsvHeader) + "\n";
-      session.begin();
+      session->begin();
       for (int k = 0; k < o.frequencies; ++k) {
         const double f = o.min_frequency_hz * std::pow(f_max / o.min_frequency_hz, static_cast<double>(k) / (o.frequencies - 1));
         progress(std::to_string(++index) + "/" + std::to_string(total) + " sine: " + fmt("%.1f", f) + " Hz, +-" +
                  fmt("%g", o.amplitude_mm_s) + " mm/s");
         // Settle three cycles (at least 0.1 s), record at least four
         // cycles and 0.3 s.
-        const auto record = session.record(false, f, std::max(0.1, 3 / f), std::max(0.3, 4 / f) + 2 * period);
+        const auto record = session->record(false, f, std::max(0.1, 3 / f), std::max(0.3, 4 / f) + 2 * period);
         FrequencyPoint p = analyse_sine(record, f);
         chirp.points.push_back(p);
         csv += response_csv(record, f);
       }
-      session.end();
+      session->end();
       write_file_atomically(chirp.csv, csv);
       chirp.bandwidth_hz = bandwidth_hz(chirp.points, chirp.bandwidth_above);
       for (const FrequencyPoint& p : chirp.points)
@@ -549,13 +596,7 @@ AxisResponse run_response(const Controller& c, const Axis& a, const ResponseOpti
     }
   } catch (const std::exception& e) {
     std::string off = switch_off_after_failure(c);
-    try {
-      c.halcmd({"setp", "response.amplitude", "0"});
-      char d[64];
-      std::snprintf(d, sizeof d, "cia402.0.drive.%02d.mode-request", a.joint);
-      c.halcmd({"setp", d, "8"});
-    } catch (const std::exception&) {
-    }
+    if (session) off += session->end_after_failure();
     std::string why = e.what();
     if (abort_requested() && why.find("aborted") == std::string::npos)
       why = axis_name(a) + ": the response test was aborted (" + why + ")";

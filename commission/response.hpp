@@ -75,16 +75,36 @@ std::optional<LoopGains> read_loop_gains(DriveChannel& drive, const std::string&
 // Writes 0x60F9:1 (the velocity loop's gain); throws std::runtime_error
 // naming the drive, the object and the abort.
 void write_velocity_gain(DriveChannel& drive, const std::string& who, uint32_t gain);
+// What the response found in the axis' drive before it changed anything,
+// to be put back afterwards (restore_drive): the velocity gain before
+// --velocity-gain was written, and on EtherCAT the mode of operation 0x6060
+// that the response controller's drive layer overwrites (on CANopen that
+// controller puts its own mode back before it stops: run_response).
+struct DriveFound {
+  std::optional<uint32_t> velocity_gain;  // 0x60F9:1
+  std::optional<int8_t> mode;             // 0x6060
+  bool changed() const noexcept { return velocity_gain || mode; }
+};
+
 // The gains of axis `a`'s drive for the response step: `velocity_gain`
-// written first when given, then read (back). nullopt with `why`: the
+// written first when given, then read (back); what the write and the
+// response controller change is noted in `found`. nullopt with `why`: the
 // drive is skipped. Each bus has its moment: an EtherCAT axis before the
 // response controller starts (this program's own master takes the segment
 // in PREOP, as the backup does; the controller's master owns it once it
 // runs), a CANopen axis while it runs (over response_sdo_interface: a
 // virtual bus exists only then). Throws std::runtime_error when the bus
-// cannot be opened or the write is refused.
+// cannot be opened or the write is refused (`found` then says what to put
+// back).
 std::optional<LoopGains> response_gains(const State& s, const Axis& a, std::optional<uint32_t> velocity_gain,
-                                        std::string& why);
+                                        std::string& why, DriveFound& found);
+// Puts back what `found` holds, each value read back: on EtherCAT after the
+// response controller stopped (this program's master in PREOP), on CANopen
+// while it runs (by SDO). Throws std::runtime_error naming the drive, the
+// object and the value that could not be put back.
+void restore_drive(const State& s, const Axis& a, const DriveFound& found);
+// The same over one drive's channel (`who` in messages).
+void restore_drive(DriveChannel& drive, const std::string& who, const DriveFound& found);
 // Whether response_gains is called before the response controller starts.
 inline bool response_gains_before_controller(const Axis& a) { return a.slave != 0; }
 
@@ -114,17 +134,10 @@ inline constexpr double kMaxResponseAmplitude = 20;  // mm/s
 AxisResponse run_response(const Controller& c, const Axis& a, const ResponseOptions& o);
 
 // The response configuration for axis `letter`: tuning_configuration's
-// files (its following-error limits wide enough for the excursion) with
-// the target velocity 0x60FF mapped on the axis' drive (CANopen: RPDO2 of
-// its node; EtherCAT: an RXPDO of its slave, kResponseEthercatRxPdo), a
-// signal generator in the servo thread on the drive's vel-cmd (siggen
-// "response", mux2 "response-mux": sel 0 sine, 1 square), and on CANopen
-// a virtual bus shared (",share") so that this program reaches the drive
-// by SDO while cncd runs.
-// The EtherCAT slave's RxPDO in the response configuration: the ESI's
-// default (controlword, target position, touch-probe function) and the
-// target velocity.
-inline constexpr const char* kResponseEthercatRxPdo = "0x6040:0:u16 0x607A:0:s32 0x60B8:0:u16 0x60FF:0:s32";
+// state (its following-error limits wide enough for the excursion) written
+// with the writer's response option (WriterOptions::response_axis: 0x60FF
+// mapped on the axis' drive, the signal generator on its vel-cmd, a
+// virtual CAN bus shared).
 std::vector<GeneratedFile> response_configuration(const State& s, char letter, const std::filesystem::path& dir,
                                                   const std::string& name);
 // The CAN interface this program opens to reach the drives of the response

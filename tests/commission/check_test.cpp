@@ -87,6 +87,23 @@ TEST(CommissionCheck, TheFeedFollowsTheTunedVelocity) {
   EXPECT_EQ(motion_lines(check_program(s)).at(0), "G53 G1 X-15 F600");
 }
 
+// The program's length at its feeds, which bounds the check's time limit:
+// a tuning that lowers an axis' velocity lengthens it.
+TEST(CommissionCheck, TheProgramsLengthIsItsMovesAtTheirFeeds) {
+  State s = two_axes();
+  // X: 0 -> -15 -> 195 -> 0, 420 mm at 7.5 mm/s; Z: 20 -> -55.75 -> 20.75
+  // -> 20, 153 mm at 20 mm/s.
+  EXPECT_NEAR(check_program_seconds(s), 420 / 7.5 + 153 / 20.0, 1e-9);
+  AxisTuning t;
+  t.max_velocity = 8;  // a tuning that stopped low: 2 mm/s
+  t.max_acceleration = 500;
+  s.axis('X')->tuning = t;
+  EXPECT_NEAR(check_program_seconds(s), 420 / 2.0 + 153 / 20.0, 1e-9);
+  EXPECT_DOUBLE_EQ(check_default_timeout_s(check_program_seconds(s)), 600);  // at least 600 s
+  s.axis('X')->tuning->max_velocity = 2;  // 0.5 mm/s: 840 s of X
+  EXPECT_NEAR(check_default_timeout_s(check_program_seconds(s)), 2 * (840 + 7.65) + 60, 1e-6);
+}
+
 TEST(CommissionCheck, AnAxisWithoutTravelIsRefusedNamingIt) {
   State s = two_axes();
   s.axis('Z')->min_limit = 0;

@@ -108,6 +108,8 @@ TEST_F(ResponseE2e, AHigherVelocityGainWrittenTo60F9GivesAFasterStepAndAHigherBa
   EXPECT_LT(high.step->rise_time_s * 1.3, low.step->rise_time_s);
 }
 
+// ... and puts back the velocity gain it found (a gain written with
+// --velocity-gain is the response's, not the drive's).
 TEST_F(ResponseE2e, CtrlCDuringTheSweepStopsWithTheMachineOffAndLeavesTheStateAlone) {
   write_machine();
   const std::string before = e2e::read_text(state_);
@@ -115,13 +117,15 @@ TEST_F(ResponseE2e, CtrlCDuringTheSweepStopsWithTheMachineOffAndLeavesTheStateAl
   // SIGINT once the sweep runs (the third test), as Ctrl-C does.
   const auto r = testing::run_shell(
       "'" + (bin_ / "cnc-commission").string() + "' --state '" + state_.string() + "' axis X response --bring-up '" +
-      m_.string() + "' > '" + out.string() + "' 2>&1 & pid=$!; for i in $(seq 600); do grep -q '^progress: 3/' '" +
+      m_.string() + "' --velocity-gain 777 > '" + out.string() + "' 2>&1 & pid=$!; for i in $(seq 600); do grep -q '^progress: 3/' '" +
       out.string() + "' && break; sleep 0.1; done; kill -INT $pid; wait $pid; echo \"status $?\"");
   const std::string text = e2e::read_text(out);
   std::printf("%s%s", text.c_str(), r.text.c_str());
   EXPECT_NE(r.text.find("status 1"), std::string::npos) << r.text;
   EXPECT_NE(text.find("aborted"), std::string::npos) << text;
   EXPECT_NE(text.find("the machine is off again, the drives disabled"), std::string::npos) << text;
+  EXPECT_NE(text.find("wrote 777 to 0x60F9:01"), std::string::npos) << text;
+  EXPECT_NE(text.find("put back the velocity gain "), std::string::npos) << text;
   EXPECT_EQ(e2e::read_text(state_), before) << "an aborted response changed the state";
 }
 

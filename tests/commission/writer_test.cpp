@@ -204,6 +204,57 @@ std::string section(const std::string& ini, const std::string& name) {
   return ini.substr(at, end == std::string::npos ? std::string::npos : end - at);
 }
 
+// Step 7's loop response is a writer option: on the response axis' drive
+// only, the target velocity mapped (CANopen RPDO2, EtherCAT the RxPDO with
+// 0x60FF), a virtual CAN bus shared, and the signal generator on the
+// drive's vel-cmd; without the option none of it; an axis without a drive
+// is refused.
+TEST(CommissionWriter, TheResponseOptionMapsTheTargetVelocityAndAGeneratorOnTheAxisDriveOnly) {
+  testing::TempDir dir;
+  const State can = machine();
+  const auto plain = generate_config(can, dir.path(), "m");
+  const auto resp = generate_config(can, dir.path(), "m", {.response_axis = 'Z'});
+  const std::string& ini = resp[0].content;
+  EXPECT_EQ(section(ini, "CANOPEN_NODE_1").find("RPDO2"), std::string::npos) << ini;
+  EXPECT_NE(section(ini, "CANOPEN_NODE_2").find("RPDO1 = 0x6040:0:u16 0x607A:0:s32\n"
+                                                "# cnc-commission response: the target velocity for CSV\n"
+                                                "RPDO2 = 0x60FF:0:s32\nTPDO1 = "),
+            std::string::npos)
+      << ini;
+  EXPECT_NE(section(ini, "CANOPEN").find("INTERFACE = virtual:w,share\n"), std::string::npos) << ini;
+  const std::string& hal = resp[1].content;
+  EXPECT_NE(hal.find("loadrt siggen names=response\nloadrt mux2 names=response-mux\n"), std::string::npos) << hal;
+  EXPECT_NE(hal.find("net response-vel response-mux.out => cia402.0.drive.01.vel-cmd\n"), std::string::npos) << hal;
+  for (const std::string& text : {plain[0].content, plain[1].content}) {
+    EXPECT_EQ(text.find("RPDO2"), std::string::npos) << text;
+    EXPECT_EQ(text.find(",share"), std::string::npos) << text;
+    EXPECT_EQ(text.find("response"), std::string::npos) << text;
+  }
+  // Everything else is the machine's configuration as written.
+  std::string stripped = ini;
+  for (const std::string cut : {"# cnc-commission response: the target velocity for CSV\nRPDO2 = 0x60FF:0:s32\n", ",share"})
+    stripped.erase(stripped.find(cut), cut.size());
+  EXPECT_EQ(stripped, plain[0].content);
+  EXPECT_EQ(hal.substr(0, plain[1].content.size()), plain[1].content);
+
+  const State ecat = ethercat_machine();
+  const std::string eini = generate_config(ecat, dir.path(), "m", {.response_axis = 'X'})[0].content;
+  EXPECT_NE(section(eini, "ETHERCAT_SLAVE_2").find("\nRXPDO = " + std::string(kResponseEthercatRxPdo) + "\n"),
+            std::string::npos)
+      << eini;
+  EXPECT_EQ(section(eini, "ETHERCAT_SLAVE_1").find("RXPDO"), std::string::npos) << eini;
+  EXPECT_EQ(generate_config(ecat, dir.path(), "m")[0].content.find("RXPDO"), std::string::npos);
+  EXPECT_NE(generate_config(ecat, dir.path(), "m", {.response_axis = 'X'})[1].content.find(
+                "response-mux.out => cia402.0.drive.00.vel-cmd"),
+            std::string::npos);
+  try {
+    generate_config(ecat, dir.path(), "m", {.response_axis = 'Z'});
+    FAIL() << "a response on an axis without a drive was written";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("axis Z has no drive yet"), std::string::npos) << e.what();
+  }
+}
+
 // A gantry pair as LinuxCNC writes it: the letter twice in trivkins'
 // coordinates with kinstype=BOTH, two joints with the axis' limits homed
 // together (the same negative HOME_SEQUENCE), a drive and node each, the
@@ -279,7 +330,7 @@ TEST(CommissionWriter, WritesEachGantryDrivesOwnScaleDirectionAndHomeOffset) {
   EXPECT_NE(section(ini, "CIA402_DRIVE_2").find("SCREW_LEAD = 4\nREVERSE = NO\n"), std::string::npos) << ini;
   EXPECT_NE(section(ini, "JOINT_1").find("HOME_OFFSET = -1.5\nHOME = 3.5\nHOME_SEQUENCE = -1\n"), std::string::npos) << ini;
   EXPECT_NE(section(ini, "JOINT_2").find("HOME_OFFSET = -1.2\nHOME = 3.5\nHOME_SEQUENCE = -1\n"), std::string::npos) << ini;
-  const std::string apart = generate_config(s, dir.path(), "g", true)[0].content;
+  const std::string apart = generate_config(s, dir.path(), "g", {.gantry_joints_apart = true})[0].content;
   EXPECT_NE(section(apart, "JOINT_2").find("HOME_SEQUENCE = 0\n"), std::string::npos) << apart;
   EXPECT_NE(apart.find("the pair's joints are not homed together"), std::string::npos) << apart;
 }
