@@ -220,7 +220,12 @@ AxisTuning recommend_tuning(const std::vector<TuningTest>& tests, double margin_
   r.max_acceleration = f * a_ok;
   r.max_jerk = f * j_ok;
   const double floor = std::max(0.01, counts_per_mm > 0 ? 10.0 / counts_per_mm : 0.0);
-  r.min_ferror = std::max(floor, 2.0 * standstill);
+  // Motion's limit is max(MIN_FERROR, FERROR x |v| / MAX_VELOCITY) with v
+  // the commanded velocity now, while the following error lags the
+  // command by the loop's lag: while braking it still holds the velocity
+  // of one lag earlier, up to A x lag faster, so MIN_FERROR also covers
+  // A x lag of velocity at that lag (twice, as the rest).
+  r.min_ferror = std::max(floor, 2.0 * (standstill + lag * lag * 1.1 * r.max_acceleration));
   r.ferror = std::max(r.min_ferror, 2.0 * lag * 1.05 * r.max_velocity);
   // What bounded each series: its lowest saturated test, else its ceiling.
   for (const bool velocity : {true, false}) {

@@ -78,8 +78,10 @@ TuningTest worse_side(const TuningTest& first, const TuningTest& second);
 
 // The recommendation from the tests (their measured figures): MAX_VELOCITY,
 // MAX_ACCELERATION and MAX_JERK = (1 - margin) x the highest clean test's
-// reached value; MIN_FERROR = 2 x the largest standstill following error
-// of the clean tests, FERROR = 2 x the largest ferror per velocity x the
+// reached value; MIN_FERROR = 2 x (the largest standstill following error
+// of the clean tests + lag^2 x the joint's MAX_ACCELERATION: the error a
+// braking axis carries over the velocity-scaled limit, lag = the largest
+// ferror per velocity), FERROR = 2 x the largest ferror per velocity x the
 // joint's MAX_VELOCITY (written 5 % above the axis'), neither below 10
 // encoder counts (`counts_per_mm`) nor 0.01 mm. Throws
 // std::invalid_argument when no test is clean. `velocity_ceiling` and

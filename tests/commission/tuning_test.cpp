@@ -202,9 +202,11 @@ TEST(TuningRecommendation, IsTheHighestCleanTestLessTheMargin) {
   EXPECT_NE(r.velocity_limit.find("saturation at 400 mm/s"), std::string::npos) << r.velocity_limit;
   EXPECT_NE(r.acceleration_limit.find("torque"), std::string::npos) << r.acceleration_limit;
   // FERROR: twice the lag (2 ms) at the joint's MAX_VELOCITY (1.05 x 160);
-  // MIN_FERROR: twice the low-speed error.
+  // MIN_FERROR: twice the low-speed error and what braking at the joint's
+  // MAX_ACCELERATION (1.1 x 2000) adds within one lag.
   EXPECT_NEAR(r.ferror, 2 * 0.002 * 1.05 * r.max_velocity, 0.02);
   EXPECT_GE(r.min_ferror, 0.01);
+  EXPECT_GE(r.min_ferror, 2 * 0.002 * 0.002 * 1.1 * r.max_acceleration);
   EXPECT_LE(r.min_ferror, r.ferror);
   EXPECT_EQ(r.tests.size(), tests.size());
 }
