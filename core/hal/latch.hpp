@@ -16,6 +16,10 @@ class ComponentRegistry;
 // after it; add it last to the servo thread so it sees the cycle's values).
 // Pins of each instance N:
 //   N.in (bit, IN), N.position (float, IN);
+//   N.input-lead-cycles (s32, IN, 0): 1 when `in` reaches the HAL a cycle
+//     ahead of `position` (a CANopen drive's inputs in an event-driven
+//     TPDO, its position in a synchronous one): the edge is then placed
+//     between the position of the cycle that saw it and the next one's;
 //   N.rise-position, N.fall-position (float, OUT): where the last rising /
 //     falling edge of `in` happened;
 //   N.rise-count, N.fall-count (s32, OUT): edges of each kind since loaded;

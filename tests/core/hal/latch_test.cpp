@@ -96,6 +96,20 @@ TEST(Latch, AnInputTrueAtTheFirstCycleIsNotAnEdge) {
   EXPECT_EQ(b.count("sw.fall-count"), 1) << "no edge while the input holds";
 }
 
+TEST(Latch, AnInputAheadOfThePositionByACycleIsPlacedAfterTheCycleThatSawIt) {
+  Bench b;
+  b.hal.set_value("sw.input-lead-cycles", "1");
+  // Each cycle's input is the one of the next cycle's position (a switch
+  // at 10 seen at 9.75 moving 0.25 a cycle): it leads by a cycle.
+  b.lo = 9.75;
+  b.move(0.0, 12.0, 0.25);
+  EXPECT_EQ(b.count("sw.rise-count"), 1);
+  EXPECT_DOUBLE_EQ(b.num("sw.rise-position"), 9.875) << "between the positions 9.75 (it was seen) and 10 (the next)";
+  b.hal.set_value("sw.input-lead-cycles", "0");
+  b.move(12.0, 0.0, 0.25);
+  EXPECT_DOUBLE_EQ(b.num("sw.fall-position"), 9.625) << "without the lead: between the cycle before (9.75) and the one that saw it (9.5)";
+}
+
 TEST(Latch, ServoCycleDoesNotAllocate) {
   if (!cnc::testing::AllocationCounter::available()) GTEST_SKIP() << "allocation counter off in sanitizer builds";
   Bench b;
