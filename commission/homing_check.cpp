@@ -116,7 +116,7 @@ AxisHoming plan_homing(const Axis& a, const std::string& method) {
   const double edge = home_switch_reference(s, h.search_velocity);
   h.home = std::clamp(edge - dir * 5.0, a.min_limit, a.max_limit);
   h.measured = dm == 0 ? "motor position of the latched home switch edge (mm)"
-                       : "home switch edge in the frame the drive set (mm), crossed again slowly until two polls are within 10 um";
+                       : "home switch edge in the frame the drive set (mm), latched in the servo thread crossing it at 1 mm/s";
   return h;
 }
 
@@ -177,6 +177,11 @@ std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, d
     throw std::runtime_error(std::string("axis ") + a.letter + ": the E-stop chain is open: close it before homing");
   try {
     machine_on(c);
+    // Drive methods: the home switch's edge where the servo thread latched
+    // it (1 um a cycle at 1 mm/s); without the latch, crossed again slowly.
+    std::string why;
+    const bool latched = drive && attach_switch_latches(c, a, why);
+    if (drive && !latched && progress) std::fprintf(progress, "axis %c: no servo-thread latch (%s)\n", a.letter, why.c_str());
     for (int k = 0; k < repeat; ++k) {
       if (progress) {
         std::fprintf(progress, "progress: %d/%d axis %c: homing run %d (%s)\n", k + 1, repeat, a.letter, k + 1, h.method.c_str());
@@ -199,11 +204,14 @@ std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, d
       } else {
         // Towards the switch at 1 mm/s until the home input changes.
         const double reach = std::fabs(home - h.home_offset) + 3.0;
+        const SwitchLatchReading before = latched ? read_switch_latches(c) : SwitchLatchReading{};
         const auto s = jog_and_sample(c, a, dir * reach, 1.0, &SwitchSample::home);
         if (!first_change(s, &SwitchSample::home, ref))
           throw std::runtime_error(std::string("axis ") + a.letter + ": the home switch did not change within " + mm(reach) +
                                    " mm of HOME after run " + std::to_string(k + 1) + ": is the drive's reference far from it?");
-        ref = cross_edge(c, a, &SwitchSample::home, "home switch", ref, dir, std::max(1.0, std::fabs(h.search_velocity)), 0.25, 0.01);
+        const bool found = latched && latched_change(s, &SwitchSample::home, latch_difference(before, read_switch_latches(c)).home, ref);
+        if (!found)
+          ref = cross_edge(c, a, &SwitchSample::home, "home switch", ref, dir, std::max(1.0, std::fabs(h.search_velocity)), 0.25, 0.01);
       }
       refs.push_back(ref);
       if (progress) std::fprintf(progress, "axis %c: run %d: reference %s mm\n", a.letter, k + 1, mm(ref).c_str());

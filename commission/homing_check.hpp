@@ -69,9 +69,11 @@ double spread(const std::vector<double>& v) noexcept;
 //     after homing): exact, the position frame of the motor does not move;
 //   drive:N: the drive sets its own position at the reference, so the
 //     reference is measured against the switch: the joint position (in the
-//     frame the drive just set) where the method's switch changes while
-//     the axis moves away at 1 mm/s (resolution about 1 mm/s x the poll
-//     interval, some 0.03 mm).
+//     frame the drive just set) where the home switch changes while the
+//     axis moves towards it at 1 mm/s, as the servo-thread latch saw it
+//     (attach_switch_latches: 1 mm/s x a servo cycle, 1 um at 1 ms); where
+//     the latch is missing, the edge crossed again slowly (cross_edge,
+//     until two polls are within 0.01 mm).
 std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, double away_mm, std::FILE* progress);
 
 }  // namespace cnc::commission

@@ -1,6 +1,7 @@
 #include "commission/switches.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -155,7 +156,10 @@ Poll poll(const Controller& c, const Axis& a, const std::string& prefix) {
     std::istringstream w(line);
     std::vector<std::string> t;
     for (std::string x; w >> x;) t.push_back(x);
+    // The pin's name is the first word of the line starting with the
+    // prefix (a signal after the arrow may be named after the pin).
     for (std::size_t i = 1; i < t.size(); ++i) {
+      if (t[i].rfind(prefix, 0) != 0) continue;
       if (t[i] == prefix + "neg-lim-sw") p.s.neg = truth(t[i - 1]), ++found;
       else if (t[i] == prefix + "pos-lim-sw") p.s.pos = truth(t[i - 1]), ++found;
       else if (t[i] == prefix + "home-sw") p.s.home = truth(t[i - 1]), ++found;
@@ -166,6 +170,7 @@ Poll poll(const Controller& c, const Axis& a, const std::string& prefix) {
           // Not a number: the status' position (some ms older) serves.
         }
       }
+      break;
     }
   }
   if (found != 3) throw std::runtime_error(std::string("axis ") + a.letter + ": the controller has no pins " + prefix +
@@ -240,7 +245,129 @@ std::vector<SwitchSample> leg(const Controller& c, const Axis& a, const std::str
 
 void on_again(const Controller& c) { machine_on(c, false); }
 
+const char* const kLatchNames[] = {"commission-latch-neg", "commission-latch-pos", "commission-latch-home"};
+const char* const kLatchInputs[] = {"neg-lim-sw", "pos-lim-sw", "home-sw"};
+
+struct ShownPin {
+  std::string name, value, signal;  // signal "" when not linked
+};
+
+// The pins of `halcmd show pin PREFIX`.
+std::vector<ShownPin> shown_pins(const Controller& c, const std::string& prefix) {
+  std::vector<ShownPin> out;
+  std::istringstream in(c.halcmd({"show", "pin", prefix}));
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream w(line);
+    std::vector<std::string> t;
+    for (std::string x; w >> x;) t.push_back(x);
+    for (std::size_t i = 1; i < t.size(); ++i)
+      if (t[i].rfind(prefix, 0) == 0) {
+        out.push_back({t[i], t[i - 1], i + 3 == t.size() ? t[i + 2] : ""});  // name [arrow signal]
+        break;
+      }
+  }
+  return out;
+}
+
+// Links `pin` (an output) to the latch input `latch_pin` through the
+// signal the output is on, or a new one named `signal`.
+void link_to_latch(const Controller& c, const std::string& pin, const std::string& latch_pin, const std::string& signal) {
+  std::string sig = signal;
+  for (const ShownPin& p : shown_pins(c, pin))
+    if (p.name == pin && !p.signal.empty()) sig = p.signal;
+  c.halcmd({"unlinkp", latch_pin});
+  c.halcmd({"net", sig, pin, latch_pin});
+}
+
 }  // namespace
+
+bool latched_change(const std::vector<SwitchSample>& samples, bool SwitchSample::*input, const LatchedEdges& latch,
+                    double& edge) {
+  constexpr double kMargin = 0.05;  // mm: the polls' own skew between position and inputs
+  // The change of the polls that `edge` stands for: the one around it.
+  std::size_t at = 0;
+  double best = 0;
+  for (std::size_t i = 1; i < samples.size(); ++i) {
+    if (samples[i].*input == samples[i - 1].*input) continue;
+    const double lo = std::min(samples[i - 1].position, samples[i].position) - kMargin;
+    const double hi = std::max(samples[i - 1].position, samples[i].position) + kMargin;
+    if (edge < lo || edge > hi) continue;
+    const double d = std::fabs(0.5 * (samples[i - 1].position + samples[i].position) - edge);
+    if (at == 0 || d < best) at = i, best = d;
+  }
+  if (at == 0) return false;
+  const bool rising = samples[at].*input;
+  if ((rising ? latch.rises : latch.falls) != 1) return false;
+  const double p = rising ? latch.rise_position : latch.fall_position;
+  const double lo = std::min(samples[at - 1].position, samples[at].position) - kMargin;
+  const double hi = std::max(samples[at - 1].position, samples[at].position) + kMargin;
+  if (!(p >= lo && p <= hi)) return false;
+  edge = p;
+  return true;
+}
+
+bool attach_switch_latches(const Controller& c, const Axis& a, std::string& why) {
+  try {
+    if (shown_pins(c, std::string(kLatchNames[0]) + ".").empty()) {
+      std::string names;
+      for (const char* n : kLatchNames) names += (names.empty() ? "" : ",") + std::string(n);
+      c.halcmd({"loadrt", "latch", "names=" + names});
+      for (const char* n : kLatchNames) c.halcmd({"addf", n, "servo-thread"});
+    }
+    // Linked anew each time: the last search may have been another axis.
+    const std::string j = std::to_string(a.joint);
+    const std::string drive = drive_pin_prefix(a), pos = "joint." + j + ".pos-fb";
+    for (int i = 0; i < 3; ++i) {
+      const std::string l = kLatchNames[i];
+      link_to_latch(c, drive + kLatchInputs[i], l + ".in", "commission-j" + j + "-" + kLatchInputs[i]);
+      link_to_latch(c, pos, l + ".position", "commission-j" + j + "-pos-fb");
+      // A CANopen drive's inputs come in an event-driven TPDO (as the
+      // writer maps 0x60FD), ahead of its SYNC-sampled position by up to a
+      // cycle; on EtherCAT both are of one frame.
+      c.halcmd({"setp", l + ".input-lead-cycles", a.slave > 0 ? "0" : "1"});
+    }
+    // Relinking may count an edge: some cycles pass before a reading.
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    return true;
+  } catch (const std::exception& e) {
+    why = e.what();
+    while (!why.empty() && std::isspace(static_cast<unsigned char>(why.back()))) why.pop_back();
+    return false;
+  }
+}
+
+SwitchLatchReading read_switch_latches(const Controller& c) {
+  SwitchLatchReading r;
+  LatchedEdges* edges[] = {&r.neg, &r.pos, &r.home};
+  int found = 0;
+  for (const ShownPin& shown : shown_pins(c, "commission-latch-")) {
+    const std::string& name = shown.name;
+    const std::string& value = shown.value;
+    for (int i = 0; i < 3; ++i) {
+      const std::string l = std::string(kLatchNames[i]) + ".";
+      if (name.rfind(l, 0) != 0) continue;
+      const std::string k = name.substr(l.size());
+      LatchedEdges& e = *edges[i];
+      if (k == "rise-count") e.rises = std::stoi(value), ++found;
+      else if (k == "fall-count") e.falls = std::stoi(value), ++found;
+      else if (k == "rise-position") e.rise_position = std::stod(value), ++found;
+      else if (k == "fall-position") e.fall_position = std::stod(value), ++found;
+    }
+  }
+  if (found != 12) throw std::runtime_error("the switch latches (commission-latch-*) are not all in the controller's HAL");
+  return r;
+}
+
+SwitchLatchReading latch_difference(const SwitchLatchReading& before, const SwitchLatchReading& after) noexcept {
+  auto d = [](const LatchedEdges& b, const LatchedEdges& a) {
+    LatchedEdges e = a;  // s32 counters that may wrap
+    e.rises = static_cast<int32_t>(static_cast<uint32_t>(a.rises) - static_cast<uint32_t>(b.rises));
+    e.falls = static_cast<int32_t>(static_cast<uint32_t>(a.falls) - static_cast<uint32_t>(b.falls));
+    return e;
+  };
+  return {d(before.neg, after.neg), d(before.pos, after.pos), d(before.home, after.home)};
+}
 
 void machine_on(const Controller& c, bool override_limits) {
   c.cnc({"estop-reset"});
@@ -326,28 +453,51 @@ AxisSwitches find_switches(const Controller& c, const Axis& a, double search_mm,
       if (!poll(c, a, prefix).enabled)
         throw std::runtime_error(std::string("axis ") + a.letter + ": the controller stopped the axis on its way back to the start");
     };
+    // Each leg between two readings of the servo-thread latches: where
+    // each input changed, to a servo cycle of travel, however far apart
+    // the polls are.
+    std::string why;
+    const bool latched = attach_switch_latches(c, a, why);
+    if (!latched && progress) {
+      std::fprintf(progress, "axis %c: no servo-thread latch (%s): each edge will be crossed again slowly\n", a.letter,
+                   why.c_str());
+    }
+    SwitchLatchReading on_neg, on_pos;
+    auto latched_leg = [&](double dist, bool SwitchSample::*stop_on, SwitchLatchReading& seen) {
+      const SwitchLatchReading before = latched ? read_switch_latches(c) : SwitchLatchReading{};
+      auto s = leg(c, a, prefix, dist, vel, stop_on);
+      if (latched) seen = latch_difference(before, read_switch_latches(c));
+      return s;
+    };
     say(1, std::string("axis ") + a.letter + ": towards minus, up to " + mm(search) + " mm at " + mm(vel) + " mm/s");
-    neg = leg(c, a, prefix, -search, vel, &SwitchSample::neg);
+    neg = latched_leg(-search, &SwitchSample::neg, on_neg);
     say(2, std::string("axis ") + a.letter + ": back to the start");
     back();
     say(3, std::string("axis ") + a.letter + ": towards plus, up to " + mm(search) + " mm at " + mm(vel) + " mm/s");
-    pos = leg(c, a, prefix, search, vel, &SwitchSample::pos);
-    // Each edge found crossed again slowly (the polls of the search may be
-    // far apart on a loaded host), in the direction the search crossed it.
+    pos = latched_leg(search, &SwitchSample::pos, on_pos);
     r = analyse_switch_search(a.letter, neg, pos, search, vel, prefix);
+    // An edge the latch did not give unambiguously (none loaded, a bounce:
+    // more than one edge of the kind in the leg) is crossed again slowly,
+    // in the direction the search crossed it.
     const double fast = std::min(3 * vel, std::max(vel, a.max_velocity)), slow = std::min(1.0, vel / 4);
-    say(4, std::string("axis ") + a.letter + ": each edge again at " + mm(slow) + " mm/s");
-    if (r.neg_limit.seen)
-      r.neg_limit.position = cross_edge(c, a, &SwitchSample::neg, "negative limit switch", r.neg_limit.position, -1, fast, slow);
-    if (r.pos_limit.seen)
-      r.pos_limit.position = cross_edge(c, a, &SwitchSample::pos, "positive limit switch", r.pos_limit.position, 1, fast, slow);
-    if (r.home.seen) {
-      const double d_lo = r.home.position < r.start ? -1 : 1;
-      r.home.position = cross_edge(c, a, &SwitchSample::home, "home switch", r.home.position, d_lo, fast, slow);
-      if (r.home.has_high) {
-        const double d_hi = r.home.position_high < r.start ? -1 : 1;
-        r.home.position_high = cross_edge(c, a, &SwitchSample::home, "home switch", r.home.position_high, d_hi, fast, slow);
+    const auto settle = [&](double& position, bool SwitchSample::*input, const LatchedEdges& in_neg,
+                            const LatchedEdges& in_pos, const char* name) {
+      if (latched && (latched_change(neg, input, in_neg, position) || latched_change(pos, input, in_pos, position))) return;
+      if (progress) {
+        std::fprintf(progress, "axis %c: the %s's edge at %s mm again at %s mm/s (%s)\n", a.letter, name, mm(position).c_str(),
+                     mm(slow).c_str(), latched ? "the latch saw no single edge there" : "no latch");
+        std::fflush(progress);
       }
+      position = cross_edge(c, a, input, name, position, position < r.start ? -1 : 1, fast, slow);
+    };
+    say(4, std::string("axis ") + a.letter + ": the edges " + (latched ? "as the servo thread latched them" : "again slowly"));
+    if (r.neg_limit.seen)
+      settle(r.neg_limit.position, &SwitchSample::neg, on_neg.neg, on_pos.neg, "negative limit switch");
+    if (r.pos_limit.seen)
+      settle(r.pos_limit.position, &SwitchSample::pos, on_neg.pos, on_pos.pos, "positive limit switch");
+    if (r.home.seen) {
+      settle(r.home.position, &SwitchSample::home, on_neg.home, on_pos.home, "home switch");
+      if (r.home.has_high) settle(r.home.position_high, &SwitchSample::home, on_neg.home, on_pos.home, "home switch");
     }
     say(5, std::string("axis ") + a.letter + ": back to the start");
     back();

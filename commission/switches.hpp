@@ -1,7 +1,8 @@
 // Step 5 of commissioning: the limit and home switches of an axis. A slow,
 // time-limited jog towards each end of the axis (free mode) watches the
 // drive's switch inputs (0x60FD through the cia402 pins neg-lim-sw,
-// pos-lim-sw, home-sw) at every poll; the analysis turns the samples into
+// pos-lim-sw, home-sw) at every poll, while a latch in the servo thread
+// records where each input changed; the analysis turns the samples into
 // where each switch changed and its active level, and the soft limits
 // follow from the limit switches. The analysis functions are pure (unit
 // tested); find_switches() moves the machine. Non-realtime.
@@ -52,8 +53,10 @@ std::string drive_pin_prefix(const Axis& a);
 // The motion of step 5 on a running controller: machine on, free mode,
 // jog at `velocity` (at most kMaxSwitchVelocity) towards minus by up to
 // `search_mm`, polling position and inputs; stop at the negative limit
-// switch; back to the start; the same towards plus; then each edge found
-// is crossed again slowly (cross_edge, in the direction the search crossed
+// switch; back to the start; the same towards plus; each edge is where the
+// servo-thread latch saw it (attach_switch_latches, latched_change), or,
+// where the latch is missing or saw more than one edge of the kind, it is
+// crossed again slowly (cross_edge, in the direction the search crossed
 // it); back to the start; machine off. A limit
 // switch stops the jog at once (a following-error stop of the controller
 // when the drive halts at its switch is expected and handled: the machine
@@ -73,6 +76,40 @@ std::vector<SwitchSample> jog_and_sample(const Controller& c, const Axis& a, dou
 // Machine on (E-stop reset first) in manual mode; `override_limits`: jog
 // off an active limit switch allowed for the next jog.
 void machine_on(const Controller& c, bool override_limits = false);
+
+// The edges of one input that the servo-thread latch (core/hal/latch.hpp)
+// saw during one leg of a search: how many of each kind, and where the
+// last of each kind was.
+struct LatchedEdges {
+  int rises = 0, falls = 0;
+  double rise_position = 0, fall_position = 0;
+};
+struct SwitchLatchReading {
+  LatchedEdges neg, pos, home;
+};
+
+// Where the latch places the change of `input` that the polls of one leg
+// (`samples`) place at `edge`: the latched edge of the kind the polls saw
+// (rising when the input went TRUE), when the latch saw exactly one edge
+// of that kind in the leg and it lies between the two polls around the
+// change (give or take 0.05 mm). False otherwise: the caller crosses the
+// edge again slowly (cross_edge).
+bool latched_change(const std::vector<SwitchSample>& samples, bool SwitchSample::*input, const LatchedEdges& latch,
+                    double& edge);
+
+// The latches of the switch search on a running controller: three
+// instances of the HAL component `latch` (commission-latch-neg, -pos,
+// -home), loaded and added to `servo-thread` through halcmd the first time
+// (they stay for the controller's life), their inputs linked to the
+// drive's switch inputs of `a` and their position to joint.N.pos-fb (the
+// joint position the polls read). Returns false with `why` when the
+// controller cannot have them (no component `latch`, no servo-thread).
+bool attach_switch_latches(const Controller& c, const Axis& a, std::string& why);
+// The latches' counts and last positions now (one halcmd read).
+SwitchLatchReading read_switch_latches(const Controller& c);
+// What happened between two readings: the counts' differences, the later
+// reading's positions.
+SwitchLatchReading latch_difference(const SwitchLatchReading& before, const SwitchLatchReading& after) noexcept;
 
 // Crosses the edge of `input` (about at `edge`) again moving in `dir`:
 // to 1 mm before it at `fast`, then across at `slow`, stopping at the

@@ -5,6 +5,7 @@
 
 #include "core/hal/component.hpp"
 #include "core/hal/instances.hpp"
+#include "core/hal/latch.hpp"
 #include "core/util/strings.hpp"
 
 namespace cnc::hal {
@@ -235,6 +236,7 @@ void register_core_components(ComponentRegistry& r) {
                         "estop_latch [count=N|names=a,b]: latch a fault until reset (LinuxCNC's estop_latch)");
   add_instances<Siggen>(r, "siggen", "siggen", "siggen [num_chan=N|names=a,b]: sine, cosine, triangle, square, sawtooth",
                      "num_chan", ".update");
+  register_latch_component(r);
   register_panel_components(r);
 }
 

@@ -48,6 +48,22 @@ inline uint64_t machine_seed() {
   return seed;
 }
 
+// Where the motor (the joint position the controller reads) is when the
+// table reaches a switch edge at `edge_mm` (the simulator's switches are
+// at table positions) moving in `dir` (+1, -1): the table is the nut
+// (nominal + pitch error, sim/cia402/plant.hpp) less half the backlash on
+// the side the nut pushes it from.
+inline double motor_side_edge(const cia402::sim::RandomAxis& a, double edge_mm, double dir) {
+  const auto& p = a.pitch_error;
+  double pe = p.empty() ? 0.0 : edge_mm <= p.front().first ? p.front().second : p.back().second;
+  for (std::size_t i = 1; i < p.size(); ++i)
+    if (edge_mm > p[i - 1].first && edge_mm <= p[i].first) {
+      const double f = (edge_mm - p[i - 1].first) / (p[i].first - p[i - 1].first);
+      pe = p[i - 1].second + f * (p[i].second - p[i - 1].second);
+    }
+  return edge_mm + dir * a.backlash_mm / 2 - pe;
+}
+
 // The machine's simulator sections and HAL files in `dir`
 // (sim-machine.ini, sim-machine.hal, sim-machine-run.hal), and the state's
 // references to them, so that every configuration written includes them.

@@ -46,7 +46,7 @@ namespace {
 
 namespace csim = cnc::cia402::sim;
 
-constexpr double kSwitchTolerance = 0.1;     // mm (as the steps 5-6 test)
+constexpr double kSwitchTolerance = 0.1;     // mm: the soft limits from the switches
 constexpr double kHomingSpreadBound = 0.01;  // mm
 constexpr double kScalingTolerance = 0.005;  // relative
 
@@ -218,10 +218,24 @@ TEST_F(FullRun, AllNineStepsOnARandomMachineThroughTheCommandLineThenTheCheckAnd
     const Axis a = *state().axis(letters[j]);
     ASSERT_TRUE(a.switches) << L;
     const auto& t = m.axes[j];
-    EXPECT_NEAR(a.switches->neg_limit.position, t.neg_limit_mm, kSwitchTolerance) << L;
-    EXPECT_NEAR(a.switches->pos_limit.position, t.pos_limit_mm, kSwitchTolerance) << L;
-    EXPECT_NEAR(a.switches->home.position, t.home_min_mm, kSwitchTolerance) << L;
-    EXPECT_NEAR(a.switches->home.position_high, t.home_max_mm, kSwitchTolerance) << L;
+    // Latched in the servo thread: within two servo cycles of travel at
+    // the search speed (and an encoder count) of where the motor was when
+    // the table reached each switch, crossing it away from the start. (One
+    // cycle in theory; at the 2 ms period of three drives a positive limit
+    // was seen 19.8 um late at 10 mm/s on the loaded host, not understood:
+    // docs/commissioning.md.)
+    const double period_s = ini::IniFile::load(m_ / "commission.ini").get_double("EMCMOT", "SERVO_PERIOD", 1e6) * 1e-9;
+    const double tol = 2 * 10.0 * period_s + 1.0 / t.counts_per_mm();
+    const auto motor = [&](double edge) { return e2e::motor_side_edge(t, edge, edge < a.switches->start ? -1 : 1); };
+    EXPECT_NEAR(a.switches->neg_limit.position, motor(t.neg_limit_mm), tol) << L;
+    EXPECT_NEAR(a.switches->pos_limit.position, motor(t.pos_limit_mm), tol) << L;
+    EXPECT_NEAR(a.switches->home.position, motor(t.home_min_mm), tol) << L;
+    EXPECT_NEAR(a.switches->home.position_high, motor(t.home_max_mm), tol) << L;
+    std::printf("axis %s: switches found - motor side truth (um): %.1f %.1f %.1f %.1f (allowed %.1f)\n", L.c_str(),
+                1000 * (a.switches->neg_limit.position - motor(t.neg_limit_mm)),
+                1000 * (a.switches->pos_limit.position - motor(t.pos_limit_mm)),
+                1000 * (a.switches->home.position - motor(t.home_min_mm)),
+                1000 * (a.switches->home.position_high - motor(t.home_max_mm)), 1000 * tol);
     for (const SwitchFinding* f : {&a.switches->neg_limit, &a.switches->pos_limit, &a.switches->home})
       EXPECT_EQ(f->active_high, !t.switches_active_low) << L << " " << f->pin;
     EXPECT_EQ(a.limits_source, "switches") << L;

@@ -117,6 +117,64 @@ Axis axis_with_switches() {
   return a;
 }
 
+TEST(CommissionSwitches, TheLatchedEdgeReplacesThePollsHalfwayWhenItIsTheOnlyOneOfItsKind) {
+  // Polls 2 mm apart (a slow host at 10 mm/s); the latch saw the home
+  // switch's upper edge (rising going down, active high) at -10.004.
+  const auto [n, p] = search(false, 2.0);
+  const AxisSwitches r = analyse_switch_search('X', n, p, 150, 10, "cia402.0.drive.00.");
+  double upper = r.home.position_high;
+  EXPECT_NEAR(upper, -9.0, 1e-9) << "halfway between the polls at -8 and -10";
+  LatchedEdges home;
+  home.rises = 1;
+  home.rise_position = -10.004;
+  home.falls = 1;
+  home.fall_position = -14.996;
+  ASSERT_TRUE(latched_change(n, &SwitchSample::home, home, upper));
+  EXPECT_DOUBLE_EQ(upper, -10.004);
+  double lower = r.home.position;
+  ASSERT_TRUE(latched_change(n, &SwitchSample::home, home, lower));
+  EXPECT_DOUBLE_EQ(lower, -14.996) << "the lower edge falls going down";
+  // The other leg never crossed the home switch: nothing to take from it.
+  double other = r.home.position;
+  EXPECT_FALSE(latched_change(p, &SwitchSample::home, home, other));
+  EXPECT_EQ(other, r.home.position);
+}
+
+TEST(CommissionSwitches, ALatchThatSawTwoEdgesOfAKindOrOneOutsideThePollsIsNotUsed) {
+  const auto [n, p] = search(true, 2.0);  // active low: the limit falls when reached
+  const AxisSwitches r = analyse_switch_search('X', n, p, 150, 10, "cia402.0.drive.00.");
+  LatchedEdges neg;
+  neg.falls = 2;  // a bounce
+  neg.fall_position = -20.001;
+  double at = r.neg_limit.position;
+  EXPECT_FALSE(latched_change(n, &SwitchSample::neg, neg, at));
+  EXPECT_EQ(at, r.neg_limit.position);
+  neg.falls = 1;
+  neg.fall_position = -25.0;  // not between the polls around the change (-18 and -20)
+  EXPECT_FALSE(latched_change(n, &SwitchSample::neg, neg, at));
+  neg.fall_position = -20.001;
+  neg.rises = 1;  // a rise is another kind: it does not matter here
+  EXPECT_TRUE(latched_change(n, &SwitchSample::neg, neg, at));
+  EXPECT_DOUBLE_EQ(at, -20.001);
+  LatchedEdges none;
+  at = r.neg_limit.position;
+  EXPECT_FALSE(latched_change(n, &SwitchSample::neg, none, at)) << "no edge latched";
+}
+
+TEST(CommissionSwitches, LatchDifferencesCountAcrossTheCountersWrap) {
+  SwitchLatchReading before, after;
+  before.home.rises = 2147483647;
+  after.home.rises = -2147483647 - 1;
+  after.home.rise_position = 3.5;
+  before.neg.falls = 4;
+  after.neg.falls = 5;
+  const SwitchLatchReading d = latch_difference(before, after);
+  EXPECT_EQ(d.home.rises, 1);
+  EXPECT_EQ(d.home.rise_position, 3.5);
+  EXPECT_EQ(d.neg.falls, 1);
+  EXPECT_EQ(d.pos.rises, 0);
+}
+
 TEST(CommissionSwitches, SoftLimitsAreTheLimitSwitchesLessTheMargin) {
   Axis a = axis_with_switches();
   soft_limits_from_switches(a, 2);
