@@ -83,7 +83,7 @@ TuningTest worse_side(const TuningTest& first, const TuningTest& second);
 // braking axis carries over the velocity-scaled limit, lag = the largest
 // ferror per velocity), FERROR = 2 x the largest ferror per velocity x the
 // joint's MAX_VELOCITY (written 5 % above the axis'), neither below 10
-// encoder counts (`counts_per_mm`) nor 0.01 mm. Throws
+// encoder counts (`counts_per_mm`) nor 0.05 mm. Throws
 // std::invalid_argument when no test is clean. `velocity_ceiling` and
 // `acceleration_ceiling` name what bounded each when no test saturated.
 AxisTuning recommend_tuning(const std::vector<TuningTest>& tests, double margin_pct, double counts_per_mm);
