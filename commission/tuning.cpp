@@ -259,7 +259,6 @@ namespace {
 struct JointNow {
   double pos = 0, vel = 0;
   bool enabled = false, fault = false, on = false;
-  double max_velocity = 0, max_acceleration = 0, max_jerk = 0;
 };
 
 JointNow joint_now(const Controller& c, int joint) {
@@ -271,9 +270,6 @@ JointNow joint_now(const Controller& c, int joint) {
   n.fault = js.value("fault", false);
   n.enabled = j.at("motion").value("enabled", false);
   n.on = j.at("task").value("state", std::string()) == "ON";
-  n.max_velocity = js.value("max_velocity", 0.0);
-  n.max_acceleration = js.value("max_acceleration", 0.0);
-  n.max_jerk = js.value("max_jerk", 0.0);
   return n;
 }
 
@@ -366,23 +362,22 @@ void set_limits(const Controller& c, int joint, double v, double a, double j) {
 
 // The test's limits on every joint moved and, for a pair, on its axis
 // (teleop jogs obey the axis' limits).
+void set_axis_limits(const Controller& c, int axis, const Limits& l) {
+  const std::string n = std::to_string(axis);
+  c.cnc({"set", "axis.max-velocity", n, fmt("%.6f", l.v)});
+  c.cnc({"set", "axis.max-acceleration", n, fmt("%.6f", l.a)});
+  c.cnc({"set", "axis.max-jerk", n, fmt("%.6f", l.j)});
+}
+
 void set_limits(const Controller& c, const Moved& m, double v, double a, double j) {
   for (int k : m.joints) set_limits(c, k, v, a, j);
-  if (!m.pair) return;
-  const std::string n = std::to_string(m.axis_index);
-  c.cnc({"set", "axis.max-velocity", n, fmt("%.6f", v)});
-  c.cnc({"set", "axis.max-acceleration", n, fmt("%.6f", a)});
-  c.cnc({"set", "axis.max-jerk", n, fmt("%.6f", j)});
+  if (m.pair) set_axis_limits(c, m.axis_index, {v, a, j});
 }
 
 void restore_limits(const Controller& c, const Moved& m, const LimitsBefore& b) {
   for (std::size_t k = 0; k < m.joints.size(); ++k)
     set_limits(c, m.joints[k], b.joints[k].v, b.joints[k].a, b.joints[k].j);
-  if (!m.pair) return;
-  const std::string n = std::to_string(m.axis_index);
-  c.cnc({"set", "axis.max-velocity", n, fmt("%.6f", b.axis.v)});
-  c.cnc({"set", "axis.max-acceleration", n, fmt("%.6f", b.axis.a)});
-  c.cnc({"set", "axis.max-jerk", n, fmt("%.6f", b.axis.j)});
+  if (m.pair) set_axis_limits(c, m.axis_index, b.axis);
 }
 
 }  // namespace
