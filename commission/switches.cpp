@@ -138,6 +138,28 @@ struct Poll {
 
 bool truth(const std::string& v) { return v == "TRUE" || v == "1" || v == "true"; }
 
+struct ShownPin {
+  std::string name, value, signal;  // signal "" when not linked
+};
+
+// The pins of `halcmd show pin PREFIX`.
+std::vector<ShownPin> shown_pins(const Controller& c, const std::string& prefix) {
+  std::vector<ShownPin> out;
+  std::istringstream in(c.halcmd({"show", "pin", prefix}));
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream w(line);
+    std::vector<std::string> t;
+    for (std::string x; w >> x;) t.push_back(x);
+    for (std::size_t i = 1; i < t.size(); ++i)
+      if (t[i].rfind(prefix, 0) == 0) {
+        out.push_back({t[i], t[i - 1], i + 3 == t.size() ? t[i + 2] : ""});  // name [arrow signal]
+        break;
+      }
+  }
+  return out;
+}
+
 Poll poll(const Controller& c, const Axis& a, const std::string& prefix) {
   Poll p;
   const auto j = nlohmann::json::parse(c.cnc({"status", "--json"}));
@@ -149,28 +171,17 @@ Poll poll(const Controller& c, const Axis& a, const std::string& prefix) {
   p.s.position = jt.at("pos_fb").get<double>();
   p.pos_cmd = jt.at("pos_cmd").get<double>();
   p.enabled = j.at("motion").value("enabled", false);
-  std::istringstream in(c.halcmd({"show", "pin", prefix}));
-  std::string line;
   int found = 0;
-  while (std::getline(in, line)) {
-    std::istringstream w(line);
-    std::vector<std::string> t;
-    for (std::string x; w >> x;) t.push_back(x);
-    // The pin's name is the first word of the line starting with the
-    // prefix (a signal after the arrow may be named after the pin).
-    for (std::size_t i = 1; i < t.size(); ++i) {
-      if (t[i].rfind(prefix, 0) != 0) continue;
-      if (t[i] == prefix + "neg-lim-sw") p.s.neg = truth(t[i - 1]), ++found;
-      else if (t[i] == prefix + "pos-lim-sw") p.s.pos = truth(t[i - 1]), ++found;
-      else if (t[i] == prefix + "home-sw") p.s.home = truth(t[i - 1]), ++found;
-      else if (t[i] == prefix + "pos-fb") {
-        try {
-          p.s.position = std::stod(t[i - 1]) + joint_offset;
-        } catch (const std::exception&) {
-          // Not a number: the status' position (some ms older) serves.
-        }
+  for (const ShownPin& pin : shown_pins(c, prefix)) {
+    if (pin.name == prefix + "neg-lim-sw") p.s.neg = truth(pin.value), ++found;
+    else if (pin.name == prefix + "pos-lim-sw") p.s.pos = truth(pin.value), ++found;
+    else if (pin.name == prefix + "home-sw") p.s.home = truth(pin.value), ++found;
+    else if (pin.name == prefix + "pos-fb") {
+      try {
+        p.s.position = std::stod(pin.value) + joint_offset;
+      } catch (const std::exception&) {
+        // Not a number: the status' position (some ms older) serves.
       }
-      break;
     }
   }
   if (found != 3) throw std::runtime_error(std::string("axis ") + a.letter + ": the controller has no pins " + prefix +
@@ -247,28 +258,6 @@ void on_again(const Controller& c) { machine_on(c, false); }
 
 const char* const kLatchNames[] = {"commission-latch-neg", "commission-latch-pos", "commission-latch-home"};
 const char* const kLatchInputs[] = {"neg-lim-sw", "pos-lim-sw", "home-sw"};
-
-struct ShownPin {
-  std::string name, value, signal;  // signal "" when not linked
-};
-
-// The pins of `halcmd show pin PREFIX`.
-std::vector<ShownPin> shown_pins(const Controller& c, const std::string& prefix) {
-  std::vector<ShownPin> out;
-  std::istringstream in(c.halcmd({"show", "pin", prefix}));
-  std::string line;
-  while (std::getline(in, line)) {
-    std::istringstream w(line);
-    std::vector<std::string> t;
-    for (std::string x; w >> x;) t.push_back(x);
-    for (std::size_t i = 1; i < t.size(); ++i)
-      if (t[i].rfind(prefix, 0) == 0) {
-        out.push_back({t[i], t[i - 1], i + 3 == t.size() ? t[i + 2] : ""});  // name [arrow signal]
-        break;
-      }
-  }
-  return out;
-}
 
 // Links `pin` (an output) to the latch input `latch_pin` through the
 // signal the output is on, or a new one named `signal`.
