@@ -13,6 +13,8 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <stdexcept>
 #include <system_error>
@@ -218,6 +220,29 @@ SendStatus SocketCanTransport::send(const Frame& f) noexcept {
   }
 }
 
+int64_t SocketCanTransport::monotonic_from_realtime(int64_t real_ns) noexcept {
+  // A clock step (settime, a leap) moves the offset by far more than this;
+  // the error of one bracketed reading is half its bracket, microseconds.
+  constexpr int64_t kClockStepNs = 500'000;
+  int64_t best_offset = 0, best_width = INT64_MAX;
+  for (int i = 0; i < 3; ++i) {
+    const int64_t m1 = monotonic_ns();
+    const int64_t r = realtime_ns();
+    const int64_t m2 = monotonic_ns();
+    if (m2 - m1 < best_width) {
+      best_width = m2 - m1;
+      best_offset = r - (m1 + (m2 - m1) / 2);
+    }
+  }
+  const bool reliable = best_width < kClockStepNs;
+  if (!clock_offset_valid_ ||
+      (reliable && std::llabs(best_offset - clock_offset_ns_) > kClockStepNs)) {
+    clock_offset_ns_ = best_offset;
+    clock_offset_valid_ = true;
+  }
+  return real_ns - clock_offset_ns_;
+}
+
 bool SocketCanTransport::receive(Frame& out) noexcept {
   canfd_frame k{};
   iovec iov{&k, sizeof k};
@@ -248,7 +273,7 @@ bool SocketCanTransport::receive(Frame& out) noexcept {
       timespec ts;
       std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
       const int64_t real = static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-      out.timestamp_ns = real - (realtime_ns() - monotonic_ns());
+      out.timestamp_ns = monotonic_from_realtime(real);
     } else if (c->cmsg_type == SO_RXQ_OVFL) {
       uint32_t drops;
       std::memcpy(&drops, CMSG_DATA(c), sizeof drops);

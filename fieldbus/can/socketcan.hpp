@@ -65,6 +65,13 @@ class SocketCanTransport final : public Transport {
   BusStateTracker tracker_;
   std::atomic<BusState> state_{BusState::ErrorActive};
   uint32_t last_drop_count_ = 0;
+  // CLOCK_REALTIME - CLOCK_MONOTONIC, for turning the kernel's receive
+  // stamps into monotonic time. Kept while the clocks agree with it to within
+  // kClockStepNs, so that stamps of successive frames keep their order (a
+  // fresh offset per frame carries the jitter between its two clock reads).
+  int64_t clock_offset_ns_ = 0;
+  bool clock_offset_valid_ = false;
+  int64_t monotonic_from_realtime(int64_t real_ns) noexcept;
   TransportStats stats_;
 };
 
