@@ -224,20 +224,31 @@ int64_t SocketCanTransport::monotonic_from_realtime(int64_t real_ns) noexcept {
   // A clock step (settime, a leap) moves the offset by far more than this;
   // the error of one bracketed reading is half its bracket, microseconds.
   constexpr int64_t kClockStepNs = 500'000;
-  int64_t best_offset = 0, best_width = INT64_MAX;
-  for (int i = 0; i < 3; ++i) {
+  // One reading of the offset between two monotonic reads; its error is at
+  // most half the bracket's width.
+  const auto read_offset = [](int64_t& width) noexcept {
     const int64_t m1 = monotonic_ns();
     const int64_t r = realtime_ns();
     const int64_t m2 = monotonic_ns();
-    if (m2 - m1 < best_width) {
-      best_width = m2 - m1;
-      best_offset = r - (m1 + (m2 - m1) / 2);
+    width = m2 - m1;
+    return r - (m1 + width / 2);
+  };
+  int64_t width = 0;
+  int64_t offset = read_offset(width);
+  if (clock_offset_valid_ && std::llabs(offset - clock_offset_ns_) <= kClockStepNs) return real_ns - clock_offset_ns_;
+  // First frame, a clock step or a reading that was preempted: the best of
+  // a few readings decides.
+  for (int i = 0; i < 3; ++i) {
+    int64_t w = 0;
+    const int64_t o = read_offset(w);
+    if (w < width) {
+      width = w;
+      offset = o;
     }
   }
-  const bool reliable = best_width < kClockStepNs;
-  if (!clock_offset_valid_ ||
-      (reliable && std::llabs(best_offset - clock_offset_ns_) > kClockStepNs)) {
-    clock_offset_ns_ = best_offset;
+  const bool stepped = std::llabs(offset - clock_offset_ns_) > kClockStepNs;
+  if (!clock_offset_valid_ || (stepped && width < kClockStepNs)) {
+    clock_offset_ns_ = offset;
     clock_offset_valid_ = true;
   }
   return real_ns - clock_offset_ns_;
