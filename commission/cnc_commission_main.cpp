@@ -30,6 +30,7 @@
 #include "commission/config_writer.hpp"
 #include "commission/controller.hpp"
 #include "commission/lss_assign.hpp"
+#include "commission/hold_to_run.hpp"
 #include "commission/homing_check.hpp"
 #include "commission/switches.hpp"
 #include "commission/scan.hpp"
@@ -74,11 +75,14 @@ const char* kHelp =
     "      soft limits (the travel tune and comp-run may use until the switches are\n"
     "      found) and the axis' speed and acceleration\n"
     "  axis L direction-test [--distance MM] [--velocity MM/S] [--dial MM] [--dial2 MM]\n"
-    "                        [--bin DIR] [--bring-up DIR]\n"
+    "                        [--hold] [--bin DIR] [--bring-up DIR]\n"
     "      jog the axis on the running controller (at most 2 mm until a dial reading\n"
     "      checked the scaling, then 20 mm; at most 5 mm/s; time-limited, switched off\n"
     "      afterwards) and compare the drive's feedback; a gantry pair: both joints\n"
     "      jogged together, --dial2 the second side's reading;\n"
+    "      --hold: hold-to-run, the jog starts when a key is pressed and stops when\n"
+    "      it is let go (the key's auto-repeat stops: 1 s after the first press,\n"
+    "      0.25 s after a repeat), as Ctrl-C stops it;\n"
     "      --bring-up writes the configuration of the state to DIR and runs the\n"
     "      test on a controller of its own, shut down afterwards\n"
     "  axis L tune [--max-velocity MM/S] [--max-acceleration MM/S2] [--margin PCT]\n"
@@ -998,6 +1002,7 @@ int cmd_axis(State& s, Args& a) {
   } else if (step == "direction-test") {
     double distance = 5, velocity = 2, dial = 0, dial2 = 0;
     bool has_dial = false, has_dial2 = false;  // dial2: a gantry's second side
+    bool hold = false;
     std::filesystem::path bin = self_dir(), bring_up;
     while (a.more()) {
       const std::string k = a.next("option");
@@ -1009,7 +1014,8 @@ int cmd_axis(State& s, Args& a) {
       } else if (k == "--dial2") {
         dial2 = number(a.next("mm"), "--dial2");
         has_dial2 = true;
-      } else if (k == "--bin") bin = a.next("folder");
+      } else if (k == "--hold") hold = true;
+      else if (k == "--bin") bin = a.next("folder");
       else if (k == "--bring-up") bring_up = a.next("folder");
       else usage("direction-test: unknown option " + k);
     }
@@ -1018,7 +1024,13 @@ int cmd_axis(State& s, Args& a) {
     std::unique_ptr<ControllerProcess> own;
     if (has_dial2 && !ax->gantry) usage("direction-test: --dial2 is the second side of a gantry pair");
     if (!bring_up.empty()) own = bring_up_controller(s, bin, bring_up, "commission", bring_up / "cncd.log", true);
+    std::optional<HoldToRun> held;
+    if (hold) {
+      std::cout << "axis " << letter << ": hold a key (the space bar) to jog; let it go to stop" << std::endl;
+      held.emplace(STDIN_FILENO, kHoldFirstKeyNs);
+    }
     const JogResult r = direction_jog(Controller(bin), *ax, distance, velocity);
+    held.reset();
     if (r.limited)
       std::cout << "axis " << letter << ": jogged " << r.commanded_mm << " mm, not " << distance << ": "
                 << (ax->scaling.dial_checked ? "a direction test jogs at most " + std::to_string(static_cast<int>(kMaxTestTravel)) + " mm"

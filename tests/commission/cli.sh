@@ -81,6 +81,26 @@ assert not s['motion']['enabled'], 'motion still enabled'
 assert s['task']['state'] != 'ON', s['task']['state']
 " || fail "the machine is not off after the abort"
 [ "$("$bin/halcmd" getp cia402.0.drive.00.enabled)" = "FALSE" ] || fail "the drive is still enabled"
+# Hold-to-run (--hold) on a terminal: the key held for 1.5 s of an 8 s jog,
+# then let go: the jog stops as Ctrl-C stops it, nothing is saved.
+hold="$(dirname "$0")/hold_key.py"
+set +e
+python3 "$hold" 1.5 "$bin/cnc-commission" --state "$work/state.json" axis X direction-test --distance 20 --velocity 0.25 --hold >"$work/out" 2>&1
+rc=$?; set -e
+[ $rc -eq 1 ] || fail "hold-to-run let go: status $rc: $(cat "$work/out")"
+grep -q "the test move was aborted" "$work/out" || fail "hold-to-run let go: no abort message: $(cat "$work/out")"
+grep -q "the drives disabled" "$work/out" || fail "hold-to-run let go: not switched off: $(cat "$work/out")"
+[ "$before" = "$(cat "$work/state.json")" ] || fail "the let-go test changed the state"
+[ "$("$bin/halcmd" getp cia402.0.drive.00.enabled)" = "FALSE" ] || fail "the drive is still enabled after hold-to-run"
+# Held to the end: the jog runs its 2 mm and the test is saved.
+python3 "$hold" all "$bin/cnc-commission" --state "$work/state.json" axis X direction-test --distance 2 --velocity 5 --hold >"$work/out" 2>&1 \
+  || fail "hold-to-run held: $(cat "$work/out")"
+grep -q "commanded 2 mm" "$work/out" || fail "hold-to-run held: $(cat "$work/out")"
+# Not on a terminal: refused before anything moves.
+set +e
+cc axis X direction-test --distance 2 --velocity 5 --hold </dev/null >"$work/out" 2>&1
+rc=$?; set -e
+[ $rc -ne 0 ] && grep -q "needs a terminal" "$work/out" || fail "--hold without a terminal: status $rc: $(cat "$work/out")"
 t0="$("$bin/halcmd" getp $pin)"
 cc axis X direction-test --distance 10 --velocity 5 >/dev/null || fail "direction-test"
 sleep 0.2
