@@ -91,12 +91,14 @@ const char* kHelp =
     "      soft limits, recorded every servo cycle as CSV in DIR), stopped at the first\n"
     "      saturation; recommends MAX_VELOCITY, MAX_ACCELERATION, MAX_JERK, FERROR and\n"
     "      MIN_FERROR (the highest clean test less PCT, default 20 %) for write\n"
-    "  axis L response [--step] [--chirp] [--amplitude MM/S] [--velocity-gain N]\n"
-    "              [--record DIR] [--bin DIR] --bring-up DIR\n"
+    "  axis L response [--loop velocity|position] [--step] [--chirp] [--amplitude MM/S|MM]\n"
+    "              [--velocity-gain N] [--record DIR] [--bin DIR] --bring-up DIR\n"
     "      step and swept-sine response of the drive's velocity loop (CSV, small\n"
     "      amplitude) where the drive has 0x60F9: rise, overshoot, settling, gain and\n"
     "      phase, -3 dB bandwidth; --velocity-gain writes 0x60F9:1 for the tests (both:\n"
-    "      default); the drive's gain and mode are put back afterwards\n"
+    "      default); the drive's gain and mode are put back afterwards; --loop position:\n"
+    "      the position loop instead (CSP, a square or sine of +-MM added to the\n"
+    "      position command, default 0.02 mm, at most 0.2)\n"
     "  axis L dial MM [MM2]\n"
     "      the dial indicator's reading of the last test: flips REVERSE, corrects scale\n"
     "      (MM2: a gantry's second side, each side on its own)\n"
@@ -815,12 +817,18 @@ int cmd_response(State& s, Args& a, char letter) {
   ResponseOptions o;
   std::filesystem::path bin = self_dir(), bring_up;
   std::optional<uint32_t> gain;
+  std::optional<double> amplitude;  // mm/s on the velocity loop, mm on the position loop
   bool step = false, chirp = false;
   while (a.more()) {
     const std::string k = a.next("option");
     if (k == "--step") step = true;
     else if (k == "--chirp") chirp = true;
-    else if (k == "--amplitude") o.amplitude_mm_s = number(a.next("mm/s"), "--amplitude");
+    else if (k == "--loop") {
+      const std::string l = a.next("velocity|position");
+      if (l == "velocity") o.loop = Loop::Velocity;
+      else if (l == "position") o.loop = Loop::Position;
+      else usage("response: --loop velocity|position, not " + l);
+    } else if (k == "--amplitude") amplitude = number(a.next("mm/s or mm"), "--amplitude");
     else if (k == "--velocity-gain") gain = static_cast<uint32_t>(number(a.next("gain"), "--velocity-gain"));
     else if (k == "--record") o.record_dir = a.next("folder");
     else if (k == "--bin") bin = a.next("folder");
@@ -829,7 +837,11 @@ int cmd_response(State& s, Args& a, char letter) {
   }
   Axis* ax = s.axis(letter);
   if (!ax) usage(std::string("axis ") + letter + " has no drive yet");
+  if (o.loop == Loop::Velocity && amplitude) o.amplitude_mm_s = *amplitude;
+  if (o.loop == Loop::Position && amplitude) o.amplitude_mm = *amplitude;
   if (!(o.amplitude_mm_s > 0 && o.amplitude_mm_s <= kMaxResponseAmplitude)) usage("response: --amplitude MM/S: 0 to 20");
+  if (!(o.amplitude_mm > 0 && o.amplitude_mm <= kMaxPositionResponseAmplitude))
+    usage("response --loop position: --amplitude MM: 0 to 0.2");
   if (gain && *gain == 0) usage("response: --velocity-gain must be > 0");
   if (bring_up.empty()) usage("response: --bring-up DIR (the test runs on a response configuration of its own)");
   if (step || chirp) {  // one named: only it; neither: both
@@ -874,7 +886,10 @@ int cmd_response(State& s, Args& a, char letter) {
     if (before) gains();
     ControllerProcess own(bin, bring_up / "commission-response.ini", bring_up / "cncd.log");
     try {
-      if (!before) gains();
+      if (!before) {
+        wait_node_operational(Controller(bin), *ax);
+        gains();
+      }
       if (!r.skipped.empty()) {
         std::cout << "axis " << letter << ": no loop response measured: " << r.skipped << "\n";
       } else {
@@ -885,6 +900,8 @@ int cmd_response(State& s, Args& a, char letter) {
         const AxisResponse m = run_response(Controller(bin), *ax, o);
         r.step = m.step;
         r.chirp = m.chirp;
+        r.position_step = m.position_step;
+        r.position_chirp = m.position_chirp;
       }
     } catch (const std::exception&) {
       if (!before) not_put_back = put_back();
@@ -899,6 +916,19 @@ int cmd_response(State& s, Args& a, char letter) {
   if (before) not_put_back = put_back();
   if (!not_put_back.empty()) throw std::runtime_error("axis " + std::string(1, letter) + ": measured" + not_put_back);
   std::cout << "axis " << letter << ": the machine is off again\n";
+  // The other loop's figures stay when they were measured at the same
+  // gains (a response of the velocity loop and one of the position loop).
+  const auto& old = ax->response;
+  if (old && r.skipped.empty() && old->skipped.empty() && old->gains.velocity_gain == r.gains.velocity_gain &&
+      old->gains.velocity_integral == r.gains.velocity_integral && old->gains.position_gain == r.gains.position_gain) {
+    if (o.loop == Loop::Position) {
+      r.step = old->step;
+      r.chirp = old->chirp;
+    } else {
+      r.position_step = old->position_step;
+      r.position_chirp = old->position_chirp;
+    }
+  }
   ax->response = r;
   s.log.push_back("axis " + std::string(1, letter) + (r.skipped.empty() ? " loop response measured" : " loop response skipped"));
   return 0;

@@ -68,12 +68,30 @@ static std::string response_hal(const Axis& a) {
   return "\n# cnc-commission axis " + std::string(1, a.letter) +
          " response: a signal generator on the drive's velocity command\n"
          "# (used in CSV only; sel 0 sine, 1 square).\n"
-         "loadrt siggen names=response\nloadrt mux2 names=response-mux\n"
          "addf response.update servo-thread\naddf response-mux servo-thread\n"
          "setp response.amplitude 0\nsetp response.reset 1\n"
          "net response-sine response.sine => response-mux.in0\n"
          "net response-square response.square => response-mux.in1\n"
          "net response-vel response-mux.out => " + std::string(d) + "vel-cmd\n";
+}
+
+// The response's components (both generators: a component is loaded
+// once), and the position loop's generator: an offset added to the joint's
+// position command on its way to the drive (CSP; quiet, the command passes
+// unchanged), in the thread before the drives' write so the offset goes
+// out in the cycle it is made. (The velocity loop's functions come last in
+// the thread: response_hal.)
+static std::string response_position_hal() {
+  return "# cnc-commission response: signal generators on the drive's velocity command\n"
+         "# (below) and added to its position command (the position loop, in CSP;\n"
+         "# sel 0 sine, 1 square).\n"
+         "loadrt siggen names=response,response-pos\nloadrt mux2 names=response-mux,response-pos-mux\n"
+         "loadrt sum2 names=response-pos-sum\n"
+         "addf response-pos.update servo-thread\naddf response-pos-mux servo-thread\naddf response-pos-sum servo-thread\n"
+         "setp response-pos.amplitude 0\nsetp response-pos.reset 1\n"
+         "net response-pos-sine response-pos.sine => response-pos-mux.in0\n"
+         "net response-pos-square response-pos.square => response-pos-mux.in1\n"
+         "net response-pos-offset response-pos-mux.out => response-pos-sum.in1\n";
 }
 
 static constexpr const char* kResponseComment = "# cnc-commission response: the target velocity for CSV\n";
@@ -310,8 +328,9 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
   for (const auto& f : s.hal_before_bus) hal << "source " << f << "\n";
   hal << (ethercat ? "loadrt ethercat\n" : "loadrt canopen buses=CANOPEN\n") << "loadrt cia402 sections=CIA402\n\n"
       << "addf " << bus << ".read servo-thread\naddf cia402.0.read servo-thread\n"
-      << "addf motion-command-handler servo-thread\naddf motion-controller servo-thread\n"
-      << "addf cia402.0.write servo-thread\naddf " << bus << ".write servo-thread\n";
+      << "addf motion-command-handler servo-thread\naddf motion-controller servo-thread\n";
+  if (response) hal << response_position_hal();
+  hal << "addf cia402.0.write servo-thread\naddf " << bus << ".write servo-thread\n";
   for (const auto& f : s.hal_after_bus) hal << "source " << f << "\n";
   // The scope records the tuning tests (step 7) every servo cycle; last in
   // the thread so it sees the cycle's values.
@@ -322,8 +341,12 @@ std::vector<GeneratedFile> generate_config(const State& s, const std::filesystem
     std::snprintf(d, sizeof d, "cia402.0.drive.%02zu.", i);
     const std::string j = "joint." + std::to_string(a.joint) + ".";
     const std::string l = short_name(i);
-    hal << "net " << l << "-pos-cmd " << j << "motor-pos-cmd => " << d << "pos-cmd\n"
-        << "net " << l << "-pos-fb " << d << "pos-fb => " << j << "motor-pos-fb\n"
+    if (response && a.joint == response->joint)
+      hal << "net " << l << "-pos-cmd " << j << "motor-pos-cmd => response-pos-sum.in0\n"
+          << "net " << l << "-pos-cmd-response response-pos-sum.out => " << d << "pos-cmd\n";
+    else
+      hal << "net " << l << "-pos-cmd " << j << "motor-pos-cmd => " << d << "pos-cmd\n";
+    hal << "net " << l << "-pos-fb " << d << "pos-fb => " << j << "motor-pos-fb\n"
         << "net " << l << "-enable " << j << "amp-enable-out => " << d << "enable\n"
         << "net " << l << "-fault " << d << "amp-fault => " << j << "amp-fault-in\n"
         << "net " << l << "-ready " << d << "enabled => " << j << "amp-ready-in\n";

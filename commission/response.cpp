@@ -53,13 +53,20 @@ std::string response_csv(const std::vector<ResponseSample>& samples, double freq
   return out;
 }
 
-std::vector<ResponseSample> load_response_csv(const std::filesystem::path& file, std::vector<double>* frequency_hz) {
+const char* loop_name(Loop l) noexcept { return l == Loop::Position ? "position" : "velocity"; }
+
+std::vector<ResponseSample> load_response_csv(const std::filesystem::path& file, std::vector<double>* frequency_hz,
+                                              Loop* loop) {
   std::ifstream in(file);
   if (!in) throw std::runtime_error(file.string() + ": cannot be read");
   std::string line;
-  if (!std::getline(in, line) || std::string(trim(line)) != kResponseCsvHeader)
-    throw std::runtime_error(file.string() + ":1: expected the header " + kResponseCsvHeader);
-  const auto names = split(kResponseCsvHeader, ',');
+  if (!std::getline(in, line)) line.clear();
+  const std::string header(trim(line));
+  if (header != kResponseCsvHeader && header != kPositionResponseCsvHeader)
+    throw std::runtime_error(file.string() + ":1: expected the header " + kResponseCsvHeader + " (or, of the position loop, " +
+                             kPositionResponseCsvHeader + ")");
+  if (loop) *loop = header == kPositionResponseCsvHeader ? Loop::Position : Loop::Velocity;
+  const auto names = split(header, ',');
   std::vector<ResponseSample> out;
   int n = 1;
   while (std::getline(in, line)) {
@@ -83,9 +90,10 @@ std::vector<ResponseSample> load_response_csv(const std::filesystem::path& file,
   return out;
 }
 
-std::vector<std::string> response_scope_pins(int drive) {
+std::vector<std::string> response_scope_pins(int drive, Loop loop) {
   char d[40];
   std::snprintf(d, sizeof d, "cia402.0.drive.%02d.", drive);
+  if (loop == Loop::Position) return {std::string(d) + "pos-cmd", std::string(d) + "pos-fb", std::string(d) + "torque"};
   return {std::string(d) + "vel-cmd", std::string(d) + "vel-fb", std::string(d) + "torque"};
 }
 
@@ -314,6 +322,21 @@ std::optional<LoopGains> response_gains(const State& s, const Axis& a, std::opti
   return g;
 }
 
+void wait_node_operational(const Controller& c, const Axis& a, double timeout_s) {
+  char pin[48];
+  std::snprintf(pin, sizeof pin, "canopen.0.node.%02u.operational", static_cast<unsigned>(a.node));
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  for (;;) {
+    const std::string v(trim(c.halcmd({"getp", pin})));
+    if (v == "TRUE") return;
+    if (std::chrono::steady_clock::now() > until)
+      throw std::runtime_error(who_of(a) + ": not operational " + fmt("%g", timeout_s) + " s after the response controller started (" +
+                               pin + " " + v + "): check the node's boot in cncd.log");
+    if (abort_requested()) throw std::runtime_error(axis_name(a) + ": the response test was aborted");
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
 void restore_drive(DriveChannel& drive, const std::string& who, const DriveFound& found) {
   auto put_back = [&](canopen::ObjectAddress o, std::vector<uint8_t> value, const std::string& what) {
     char obj[16];
@@ -396,14 +419,19 @@ Now now_of(const Controller& c, int joint) {
 class Session {
  public:
   Session(const Controller& c, const Axis& a, const ResponseOptions& o, double start, double period)
-      : c_(c), a_(a), o_(o), start_(start), period_(period) {
+      : c_(c), a_(a), o_(o), start_(start), period_(period),
+        gen_(o.loop == Loop::Position ? "response-pos" : "response") {
     std::snprintf(drive_, sizeof drive_, "cia402.0.drive.%02d.", a.joint);
   }
-  // On, CSV, the generator quiet. The drive's mode request and mode as
-  // found are noted for end().
+  // On, the generator quiet; the velocity loop: CSV. The drive's mode
+  // request and mode as found are noted for end().
   void begin() {
-    setp("response.amplitude", "0");
-    setp("response.reset", "1");
+    quiet();
+    if (o_.loop == Loop::Position) {  // CSP as the controller runs it
+      c_.cnc({"on"});
+      c_.cnc({"mode", "manual"});
+      return;
+    }
     if (!found_) {
       request_before_ = static_cast<int>(c_.getp(std::string(drive_) + "mode-request"));
       mode_before_ = static_cast<int>(c_.getp(std::string(drive_) + "mode-display"));
@@ -418,10 +446,10 @@ class Session {
   // and the drive back in the mode it was found in, before the next test
   // or the controller's end.
   void end() {
-    setp("response.amplitude", "0");
-    setp("response.reset", "1");
+    quiet();
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     c_.cnc({"off"});
+    if (!found_) return;  // the position loop: the mode untouched
     setp(std::string(drive_) + "mode-request", std::to_string(request_before_));
     if (mode_before_ > 0) wait_mode(mode_before_);  // 0: the drive had not shown its mode yet
   }
@@ -429,8 +457,8 @@ class Session {
   // as the controller still answers. Never throws; "" or why not.
   std::string end_after_failure() noexcept {
     try {
-      setp("response.amplitude", "0");
-      if (!found_) return {};  // not begun: the mode untouched
+      setp(gen_ + ".amplitude", "0");
+      if (!found_) return {};  // not begun, or the position loop: the mode untouched
       setp(std::string(drive_) + "mode-request", std::to_string(request_before_));
       if (mode_before_ > 0) wait_mode(mode_before_, false);
     } catch (const std::exception& e) {
@@ -438,22 +466,26 @@ class Session {
     }
     return {};
   }
-  // The generator at `frequency`, `amplitude` (its sign against the
-  // excursion so far), square or sine; records `seconds` after `settle_s`.
+  // The generator at `frequency`, square or sine, its amplitude the
+  // options' (the velocity loop's sign against the excursion so far);
+  // records `seconds` after `settle_s`.
   std::vector<ResponseSample> record(bool square, double frequency, double settle_s, double seconds) {
     check();
-    const double here = now_of(c_, a_.joint).pos - start_;
-    const double amplitude = here > 0 ? -o_.amplitude_mm_s : o_.amplitude_mm_s;
-    setp("response-mux.sel", square ? "1" : "0");
-    setp("response.frequency", fmt("%.6f", frequency));
+    double amplitude = o_.amplitude_mm;
+    if (o_.loop == Loop::Velocity) {
+      const double here = now_of(c_, a_.joint).pos - start_;
+      amplitude = here > 0 ? -o_.amplitude_mm_s : o_.amplitude_mm_s;
+    }
+    setp(gen_ + "-mux.sel", square ? "1" : "0");
+    setp(gen_ + ".frequency", fmt("%.6f", frequency));
     const auto samples = std::min(60000L, static_cast<long>(std::ceil(seconds / period_)) + 1);
     std::string list;
-    for (const auto& p : response_scope_pins(a_.joint)) list += (list.empty() ? "" : ",") + p;
+    for (const auto& p : response_scope_pins(a_.joint, o_.loop)) list += (list.empty() ? "" : ",") + p;
     c_.halcmd({"scope", "stop"});
     c_.halcmd({"scope", "setup", list, "samples=" + std::to_string(samples), "pre=0", "mode=single"});
     if (square) c_.halcmd({"scope", "arm"});
-    setp("response.amplitude", fmt("%.6f", amplitude));
-    setp("response.reset", "0");
+    setp(gen_ + ".amplitude", fmt("%.6f", amplitude));
+    setp(gen_ + ".reset", "0");
     sleep_checked(settle_s);
     if (!square) c_.halcmd({"scope", "arm"});
     const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds * 3 + 5);
@@ -461,13 +493,16 @@ class Session {
       if (std::chrono::steady_clock::now() > until) throw std::runtime_error("the scope did not finish its capture");
       sleep_checked(0.05);
     }
-    setp("response.amplitude", "0");
-    setp("response.reset", "1");
+    quiet();
     check();
     return parse_response_scope_csv(c_.halcmd({"scope", "csv"}));
   }
 
  private:
+  void quiet() const {
+    setp(gen_ + ".amplitude", "0");
+    setp(gen_ + ".reset", "1");
+  }
   void setp(const std::string& pin, const std::string& v) const { c_.halcmd({"setp", pin, v}); }
   // `abortable` false: after a failure or an abort, the mode is still
   // put back.
@@ -506,6 +541,7 @@ class Session {
   const Axis& a_;
   const ResponseOptions& o_;
   double start_, period_;
+  std::string gen_;  // the signal generator: "response" or "response-pos"
   char drive_[40];
   bool found_ = false;
   int request_before_ = 0, mode_before_ = 8;  // the drive layer's mode-request, the drive's mode
@@ -514,17 +550,24 @@ class Session {
 }  // namespace
 
 AxisResponse run_response(const Controller& c, const Axis& a, const ResponseOptions& o) {
-  if (!(o.amplitude_mm_s > 0 && o.amplitude_mm_s <= kMaxResponseAmplitude))
+  const bool position = o.loop == Loop::Position;
+  if (!position && !(o.amplitude_mm_s > 0 && o.amplitude_mm_s <= kMaxResponseAmplitude))
     throw std::invalid_argument(axis_name(a) + ": --amplitude " + fmt("%g", o.amplitude_mm_s) + ": expected 0 to " +
                                 fmt("%g", kMaxResponseAmplitude) + " mm/s");
+  if (position && !(o.amplitude_mm > 0 && o.amplitude_mm <= kMaxPositionResponseAmplitude))
+    throw std::invalid_argument(axis_name(a) + ": --amplitude " + fmt("%g", o.amplitude_mm) + ": expected 0 to " +
+                                fmt("%g", kMaxPositionResponseAmplitude) + " mm on the position loop");
   if (!(o.step_period_s >= 0.02 && o.step_period_s <= 5)) throw std::invalid_argument("response: step period 0.02 to 5 s");
   if (o.step_edges < 1 || o.step_edges > 50) throw std::invalid_argument("response: 1 to 50 step edges");
   if (o.frequencies < 2 || o.frequencies > 40) throw std::invalid_argument("response: 2 to 40 frequencies");
   if (!(o.min_frequency_hz > 0)) throw std::invalid_argument("response: the lowest frequency must be > 0");
-  // The excursion of the tests: a square's half period, a sine's 2A/w.
-  const double excursion = std::max(o.amplitude_mm_s * o.step_period_s / 2, o.amplitude_mm_s / (M_PI * o.min_frequency_hz));
+  // The excursion of the tests: the velocity loop's a square's half
+  // period, a sine's 2A/w; the position loop's its amplitude.
+  const double excursion =
+      position ? o.amplitude_mm
+               : std::max(o.amplitude_mm_s * o.step_period_s / 2, o.amplitude_mm_s / (M_PI * o.min_frequency_hz));
   if (excursion > o.max_excursion_mm)
-    throw std::invalid_argument(axis_name(a) + ": amplitude " + fmt("%g", o.amplitude_mm_s) + " mm/s would move the axis " +
+    throw std::invalid_argument(axis_name(a) + ": amplitude " + (position ? fmt("%g", o.amplitude_mm) + " mm" : fmt("%g", o.amplitude_mm_s) + " mm/s") + " would move the axis " +
                                 fmt("%.2f", excursion) + " mm (at most " + fmt("%g", o.max_excursion_mm) +
                                 "): lower --amplitude or raise the lowest frequency");
   const Travel travel = known_travel(a);
@@ -548,35 +591,39 @@ AxisResponse run_response(const Controller& c, const Axis& a, const ResponseOpti
                                fmt("%g", 2 * o.max_excursion_mm) + " mm to the end of its travel " + fmt("%g", travel.min) +
                                ".." + fmt("%g", travel.max) + " mm (" + travel.source + "): jog it inside first");
     session.emplace(c, a, o, start, period);
-    const char l = static_cast<char>(std::tolower(a.letter));
+    const std::string l = std::string(1, static_cast<char>(std::tolower(a.letter))) + (position ? "-position" : "");
+    const double amplitude = position ? o.amplitude_mm : o.amplitude_mm_s;
+    const std::string unit = position ? " mm" : " mm/s";
+    const std::string prefix = position ? "position " : "";  // the velocity loop's lines as they always were
+    const std::string header = std::string(position ? kPositionResponseCsvHeader : kResponseCsvHeader) + "\n";
     const int total = (o.step ? 1 : 0) + (o.chirp ? o.frequencies : 0);
     int index = 0;
     if (o.step) {
-      progress(std::to_string(++index) + "/" + std::to_string(total) + " step: +-" + fmt("%g", o.amplitude_mm_s) +
-               " mm/s every " + fmt("%g", o.step_period_s / 2) + " s");
+      progress(std::to_string(++index) + "/" + std::to_string(total) + " " + prefix + "step: +-" +
+               fmt("%g", amplitude) + unit + " every " + fmt("%g", o.step_period_s / 2) + " s");
       session->begin();
       const auto record = session->record(true, 1.0 / o.step_period_s, 0, o.step_period_s * (o.step_edges + 1) / 2);
       session->end();
       StepResponse step = analyse_step(record);
-      step.csv = (o.record_dir / (std::string(1, l) + "-response-step.csv")).string();
-      write_file_atomically(step.csv, std::string(kResponseCsvHeader) + "\n" + response_csv(record, 0));
-      step.amplitude_mm_s = o.amplitude_mm_s;
-      report("step: rise " + fmt("%.1f", step.rise_time_s * 1000) + " ms, overshoot " + fmt("%.1f", step.overshoot_pct) +
+      step.csv = (o.record_dir / (l + "-response-step.csv")).string();
+      write_file_atomically(step.csv, header + response_csv(record, 0));
+      step.amplitude_mm_s = amplitude;
+      report(prefix + "step: rise " + fmt("%.1f", step.rise_time_s * 1000) + " ms, overshoot " + fmt("%.1f", step.overshoot_pct) +
              " %, settling " +
              (step.settling_time_s < 0 ? std::string("not within the step") : fmt("%.1f", step.settling_time_s * 1000) + " ms") +
              " (" + std::to_string(step.edges) + " edges, " + step.csv + ")");
-      result.step = step;
+      (position ? result.position_step : result.step) = step;
     }
     if (o.chirp) {
       ChirpResponse chirp;
-      chirp.amplitude_mm_s = o.amplitude_mm_s;
-      chirp.csv = (o.record_dir / (std::string(1, l) + "-response-chirp.csv")).string();
-      std::string csv = std::string(kResponseCsvHeader) + "\n";
+      chirp.amplitude_mm_s = amplitude;
+      chirp.csv = (o.record_dir / (l + "-response-chirp.csv")).string();
+      std::string csv = header;
       session->begin();
       for (int k = 0; k < o.frequencies; ++k) {
         const double f = o.min_frequency_hz * std::pow(f_max / o.min_frequency_hz, static_cast<double>(k) / (o.frequencies - 1));
-        progress(std::to_string(++index) + "/" + std::to_string(total) + " sine: " + fmt("%.1f", f) + " Hz, +-" +
-                 fmt("%g", o.amplitude_mm_s) + " mm/s");
+        progress(std::to_string(++index) + "/" + std::to_string(total) + " " + prefix + "sine: " +
+                 fmt("%.1f", f) + " Hz, +-" + fmt("%g", amplitude) + unit);
         // Settle three cycles (at least 0.1 s), record at least four
         // cycles and 0.3 s.
         const auto record = session->record(false, f, std::max(0.1, 3 / f), std::max(0.3, 4 / f) + 2 * period);
@@ -588,11 +635,11 @@ AxisResponse run_response(const Controller& c, const Axis& a, const ResponseOpti
       write_file_atomically(chirp.csv, csv);
       chirp.bandwidth_hz = bandwidth_hz(chirp.points, chirp.bandwidth_above);
       for (const FrequencyPoint& p : chirp.points)
-        report("sine " + fmt("%.2f", p.frequency_hz) + " Hz: gain " + fmt("%.2f", p.gain_db) + " dB, phase " +
+        report(prefix + "sine " + fmt("%.2f", p.frequency_hz) + " Hz: gain " + fmt("%.2f", p.gain_db) + " dB, phase " +
                fmt("%.1f", p.phase_deg) + " deg");
-      report(std::string("bandwidth (-3 dB): ") + (chirp.bandwidth_above ? "above " : "") +
+      report(prefix + "bandwidth (-3 dB): " + (chirp.bandwidth_above ? "above " : "") +
              fmt("%.1f", chirp.bandwidth_hz) + " Hz (" + chirp.csv + ")");
-      result.chirp = chirp;
+      (position ? result.position_chirp : result.chirp) = chirp;
     }
   } catch (const std::exception& e) {
     std::string off = switch_off_after_failure(c);

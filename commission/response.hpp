@@ -26,7 +26,15 @@ namespace cnc::commission {
 
 class DriveChannel;  // commission/restore.hpp: one drive by SDO or CoE SDO
 
-// One servo cycle of a response test.
+// The loop a response test excites: the velocity loop (the drive in CSV,
+// the generator's output its velocity command) or the position loop (the
+// drive stays in CSP, the generator's output added to its position
+// command).
+enum class Loop { Velocity, Position };
+const char* loop_name(Loop l) noexcept;  // "velocity", "position"
+
+// One servo cycle of a response test. On the position loop the command and
+// feedback are positions (mm): pos-cmd and pos-fb.
 struct ResponseSample {
   double time_s = 0;
   double vel_cmd_mm_s = 0;    // the drive's velocity command (cia402...vel-cmd)
@@ -35,16 +43,20 @@ struct ResponseSample {
 };
 
 inline constexpr const char* kResponseCsvHeader = "frequency_hz,time_s,vel_cmd_mm_s,velocity_mm_s,torque_pct";
+inline constexpr const char* kPositionResponseCsvHeader = "frequency_hz,time_s,pos_cmd_mm,position_mm,torque_pct";
 // `frequency_hz` 0 for the step's rows.
 std::string response_csv(const std::vector<ResponseSample>& samples, double frequency_hz);
-// A record written as kResponseCsvHeader + response_csv rows: the samples
-// and each one's frequency. Throws std::runtime_error naming the file,
-// line and column.
-std::vector<ResponseSample> load_response_csv(const std::filesystem::path& file, std::vector<double>* frequency_hz = nullptr);
+// A record written as kResponseCsvHeader (or kPositionResponseCsvHeader)
+// + response_csv rows: the samples and each one's frequency; `loop` says
+// which header it had. Throws std::runtime_error naming the file, line and
+// column.
+std::vector<ResponseSample> load_response_csv(const std::filesystem::path& file, std::vector<double>* frequency_hz = nullptr,
+                                              Loop* loop = nullptr);
 // The scope's CSV of response_scope_pins as samples.
 std::vector<ResponseSample> parse_response_scope_csv(const std::string& text);
-// vel-cmd, vel-fb, torque of CiA 402 drive `drive` of group 0.
-std::vector<std::string> response_scope_pins(int drive);
+// Of CiA 402 drive `drive` of group 0: vel-cmd, vel-fb, torque (velocity
+// loop) or pos-cmd, pos-fb, torque (position loop).
+std::vector<std::string> response_scope_pins(int drive, Loop loop = Loop::Velocity);
 
 // The step figures of a record whose command is a square wave: every edge
 // (a change of more than 3/4 of the command's span between two samples)
@@ -105,14 +117,21 @@ std::optional<LoopGains> response_gains(const State& s, const Axis& a, std::opti
 void restore_drive(const State& s, const Axis& a, const DriveFound& found);
 // The same over one drive's channel (`who` in messages).
 void restore_drive(DriveChannel& drive, const std::string& who, const DriveFound& found);
+// A CANopen axis: waits until the response controller's master has booted
+// the axis' node (canopen.0.node.NN.operational), so that the step's SDO
+// transfers do not meet the master's own configuration of the node on the
+// bus. Throws std::runtime_error naming the node after `timeout_s`.
+void wait_node_operational(const Controller& c, const Axis& a, double timeout_s = 20);
 // Whether response_gains is called before the response controller starts.
 inline bool response_gains_before_controller(const Axis& a) { return a.slave != 0; }
 
 // --- on a controller ---
 
 struct ResponseOptions {
+  Loop loop = Loop::Velocity;
   bool step = true, chirp = true;
-  double amplitude_mm_s = 2;        // at most kMaxResponseAmplitude
+  double amplitude_mm_s = 2;        // the velocity loop's, at most kMaxResponseAmplitude
+  double amplitude_mm = 0.02;       // the position loop's, at most kMaxPositionResponseAmplitude
   double step_period_s = 0.2;       // the square wave's period: each step holds half of it
   int step_edges = 6;
   double min_frequency_hz = 2;
@@ -123,12 +142,15 @@ struct ResponseOptions {
   std::function<void(const std::string&)> progress;
   std::function<void(const std::string&)> report;
 };
-inline constexpr double kMaxResponseAmplitude = 20;  // mm/s
+inline constexpr double kMaxResponseAmplitude = 20;           // mm/s
+inline constexpr double kMaxPositionResponseAmplitude = 0.2;   // mm
 
 // Runs the tests on joint `a.joint` (drive index = joint) of the
 // controller (the response configuration: siggen "response" wired to the
-// drive's vel-cmd). Switches the machine on and the drive to CSV for each
-// test, off and back to CSP after it. Throws std::runtime_error (machine
+// drive's vel-cmd, siggen "response-pos" added to its pos-cmd). Switches
+// the machine on for each test (the velocity loop: the drive to CSV), off
+// (and back to CSP) after it. The figures go to `step`/`chirp` (velocity)
+// or `position_step`/`position_chirp`. Throws std::runtime_error (machine
 // off) on an abort, a time limit, an open E-stop chain, a joint outside its
 // travel or wandering beyond max_excursion_mm.
 AxisResponse run_response(const Controller& c, const Axis& a, const ResponseOptions& o);

@@ -325,25 +325,54 @@ AxisTuning tuning_from(const json& j) {
   get(j, "acceleration_limit", t.acceleration_limit);
   return t;
 }
+json step_json(const StepResponse& s) {
+  return {{"amplitude_mm_s", s.amplitude_mm_s}, {"edges", s.edges},     {"rise_time_s", s.rise_time_s},
+          {"overshoot_pct", s.overshoot_pct},   {"settling_time_s", s.settling_time_s}, {"csv", s.csv}};
+}
+json chirp_json(const ChirpResponse& c) {
+  json points = json::array();
+  for (const FrequencyPoint& p : c.points)
+    points.push_back({{"frequency_hz", p.frequency_hz}, {"gain_db", p.gain_db}, {"phase_deg", p.phase_deg}});
+  return {{"amplitude_mm_s", c.amplitude_mm_s}, {"points", points},  {"bandwidth_hz", c.bandwidth_hz},
+          {"bandwidth_above", c.bandwidth_above}, {"csv", c.csv}};
+}
 json response_json(const AxisResponse& r) {
   json j = {{"skipped", r.skipped},
             {"gains", {{"velocity_gain", r.gains.velocity_gain}, {"velocity_integral", r.gains.velocity_integral}}}};
   put_opt(j["gains"], "position_gain", r.gains.position_gain);
-  if (r.step)
-    j["step"] = {{"amplitude_mm_s", r.step->amplitude_mm_s}, {"edges", r.step->edges},
-                 {"rise_time_s", r.step->rise_time_s}, {"overshoot_pct", r.step->overshoot_pct},
-                 {"settling_time_s", r.step->settling_time_s}, {"csv", r.step->csv}};
-  if (r.chirp) {
-    json points = json::array();
-    for (const FrequencyPoint& p : r.chirp->points)
-      points.push_back({{"frequency_hz", p.frequency_hz}, {"gain_db", p.gain_db}, {"phase_deg", p.phase_deg}});
-    j["chirp"] = {{"amplitude_mm_s", r.chirp->amplitude_mm_s}, {"points", points},
-                  {"bandwidth_hz", r.chirp->bandwidth_hz}, {"bandwidth_above", r.chirp->bandwidth_above},
-                  {"csv", r.chirp->csv}};
-  }
+  if (r.step) j["step"] = step_json(*r.step);
+  if (r.chirp) j["chirp"] = chirp_json(*r.chirp);
+  if (r.position_step) j["position_step"] = step_json(*r.position_step);
+  if (r.position_chirp) j["position_chirp"] = chirp_json(*r.position_chirp);
   return j;
 }
 
+StepResponse step_from(const json& w) {
+  StepResponse s;
+  get(w, "amplitude_mm_s", s.amplitude_mm_s);
+  get(w, "edges", s.edges);
+  get(w, "rise_time_s", s.rise_time_s);
+  get(w, "overshoot_pct", s.overshoot_pct);
+  get(w, "settling_time_s", s.settling_time_s);
+  get(w, "csv", s.csv);
+  return s;
+}
+ChirpResponse chirp_from(const json& w) {
+  ChirpResponse c;
+  get(w, "amplitude_mm_s", c.amplitude_mm_s);
+  if (w.contains("points"))
+    for (const json& x : w["points"]) {
+      FrequencyPoint p;
+      get(x, "frequency_hz", p.frequency_hz);
+      get(x, "gain_db", p.gain_db);
+      get(x, "phase_deg", p.phase_deg);
+      c.points.push_back(p);
+    }
+  get(w, "bandwidth_hz", c.bandwidth_hz);
+  get(w, "bandwidth_above", c.bandwidth_above);
+  get(w, "csv", c.csv);
+  return c;
+}
 AxisResponse response_from(const json& j) {
   AxisResponse r;
   get(j, "skipped", r.skipped);
@@ -352,34 +381,10 @@ AxisResponse response_from(const json& j) {
     get(j["gains"], "velocity_integral", r.gains.velocity_integral);
     get_opt(j["gains"], "position_gain", r.gains.position_gain);
   }
-  if (j.contains("step")) {
-    StepResponse s;
-    const json& w = j["step"];
-    get(w, "amplitude_mm_s", s.amplitude_mm_s);
-    get(w, "edges", s.edges);
-    get(w, "rise_time_s", s.rise_time_s);
-    get(w, "overshoot_pct", s.overshoot_pct);
-    get(w, "settling_time_s", s.settling_time_s);
-    get(w, "csv", s.csv);
-    r.step = s;
-  }
-  if (j.contains("chirp")) {
-    ChirpResponse c;
-    const json& w = j["chirp"];
-    get(w, "amplitude_mm_s", c.amplitude_mm_s);
-    if (w.contains("points"))
-      for (const json& x : w["points"]) {
-        FrequencyPoint p;
-        get(x, "frequency_hz", p.frequency_hz);
-        get(x, "gain_db", p.gain_db);
-        get(x, "phase_deg", p.phase_deg);
-        c.points.push_back(p);
-      }
-    get(w, "bandwidth_hz", c.bandwidth_hz);
-    get(w, "bandwidth_above", c.bandwidth_above);
-    get(w, "csv", c.csv);
-    r.chirp = c;
-  }
+  if (j.contains("step")) r.step = step_from(j["step"]);
+  if (j.contains("chirp")) r.chirp = chirp_from(j["chirp"]);
+  if (j.contains("position_step")) r.position_step = step_from(j["position_step"]);
+  if (j.contains("position_chirp")) r.position_chirp = chirp_from(j["position_chirp"]);
   return r;
 }
 // --- end of step 7 ---

@@ -207,8 +207,12 @@ struct ChirpResponse {
 struct AxisResponse {
   std::string skipped;              // why nothing was measured ("" measured)
   LoopGains gains;
-  std::optional<StepResponse> step;
+  std::optional<StepResponse> step;   // the velocity loop (amplitudes in mm/s)
   std::optional<ChirpResponse> chirp;
+  // The position loop (`response --loop position`): the same figures of
+  // the position feedback over the position command, amplitudes in mm.
+  std::optional<StepResponse> position_step;
+  std::optional<ChirpResponse> position_chirp;
 };
 // --- end of step 7 ---
 

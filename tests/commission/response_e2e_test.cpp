@@ -3,7 +3,7 @@
 // brings up itself (cncd, the CANopen master, the simulated drive), the
 // gains read and written by SDO over the shared virtual bus. A higher
 // velocity-loop gain written to 0x60F9:1 must show as a faster step and a
-// higher -3 dB bandwidth.
+// higher -3 dB bandwidth, on the velocity loop and on the position loop.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -62,8 +62,9 @@ class ResponseE2e : public ::testing::Test {
     e2e::include_machine_files(s);
     save_state(s, state_);
   }
-  AxisResponse measure(const std::string& gain) {
-    const auto r = cc("axis X response --bring-up '" + m_.string() + "' --record '" + (dir_ / "rec").string() + "' --amplitude 4" +
+  // `loop_args`: the velocity loop at 4 mm/s unless given.
+  AxisResponse measure(const std::string& gain, const std::string& loop_args = "--amplitude 4") {
+    const auto r = cc("axis X response --bring-up '" + m_.string() + "' --record '" + (dir_ / "rec").string() + "' " + loop_args +
                       (gain.empty() ? "" : " --velocity-gain " + gain));
     EXPECT_EQ(r.code, 0) << r.text << "\ncncd log:\n" << e2e::read_text(m_ / "cncd.log");
     const State s = load_state(state_);
@@ -106,6 +107,46 @@ TEST_F(ResponseE2e, AHigherVelocityGainWrittenTo60F9GivesAFasterStepAndAHigherBa
   EXPECT_FALSE(low.chirp->bandwidth_above) << "the low gain's bandwidth must lie inside the sweep";
   EXPECT_GT(high.chirp->bandwidth_hz, 1.3 * low.chirp->bandwidth_hz);
   EXPECT_LT(high.step->rise_time_s * 1.3, low.step->rise_time_s);
+}
+
+// The position loop (--loop position): the drive stays in CSP and a
+// square, then sines, of +-0.02 mm are added to its position command. The
+// simulated drive's position loop is proportional (0x60FB:1, in 0.01/s)
+// with full velocity feed-forward: the sines are followed by the
+// feed-forward, a step (a one-cycle ramp of the target) by the
+// proportional gain and a one-cycle pulse of feed-forward, so its 10-90 %
+// rise is at most about that of a first-order loop, 2.2 / Kp. A lower
+// velocity gain below it must show as a slower rise.
+// A response of the velocity loop at the same gains stays in the state
+// beside it; one at other gains is dropped.
+TEST_F(ResponseE2e, ThePositionLoopIsMeasuredInCspItsStepRisesAsItsGainSays) {
+  write_machine();
+  const AxisResponse v = measure("");
+  ASSERT_TRUE(v.skipped.empty() && v.step && v.chirp) << v.skipped;
+  const AxisResponse p = measure("", "--loop position");
+  ASSERT_TRUE(p.position_step && p.position_chirp);
+  EXPECT_EQ(p.position_step->amplitude_mm_s, 0.02) << "the position loop's amplitude, in mm";
+  EXPECT_EQ(e2e::read_text(p.position_chirp->csv).substr(0, e2e::read_text(p.position_chirp->csv).find('\n')),
+            kPositionResponseCsvHeader);
+  ASSERT_TRUE(p.step && p.chirp) << "the velocity loop's figures at the same gains stay";
+  EXPECT_EQ(p.step->csv, v.step->csv);
+  const uint32_t k = v.gains.velocity_gain;
+  const AxisResponse low = measure(std::to_string(k / 10), "--loop position");
+  const AxisResponse high = measure(std::to_string(k / 4), "--loop position");
+  ASSERT_TRUE(low.position_step && low.position_chirp && high.position_step && high.position_chirp);
+  EXPECT_FALSE(low.step) << "the velocity loop's figures were measured at other gains";
+  for (const auto* r : {&low, &high, &p})
+    std::printf("velocity gain %u, position loop: rise %.2f ms, overshoot %.1f %%, bandwidth %.1f Hz%s\n",
+                r->gains.velocity_gain, r->position_step->rise_time_s * 1e3, r->position_step->overshoot_pct,
+                r->position_chirp->bandwidth_hz, r->position_chirp->bandwidth_above ? " (above)" : "");
+  ASSERT_TRUE(p.gains.position_gain) << "the simulated drive has 0x60FB:1";
+  const double kp = *p.gains.position_gain * 0.01;  // 1/s
+  // The feed-forward's one-cycle pulse moves the axis part of the step at
+  // once (most of it with a fast velocity loop: rises of 1.5-14 ms were
+  // seen at Kp 150/s), so the rise is at most about 2.2 / Kp.
+  EXPECT_LT(p.position_step->rise_time_s, 1.25 * 2.2 / kp) << "Kp " << kp << "/s";
+  EXPECT_LT(high.position_step->rise_time_s, low.position_step->rise_time_s);
+  EXPECT_GT(p.position_chirp->points.size(), 5u);
 }
 
 // ... and puts back the velocity gain it found (a gain written with

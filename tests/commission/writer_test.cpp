@@ -223,7 +223,9 @@ TEST(CommissionWriter, TheResponseOptionMapsTheTargetVelocityAndAGeneratorOnTheA
       << ini;
   EXPECT_NE(section(ini, "CANOPEN").find("INTERFACE = virtual:w,share\n"), std::string::npos) << ini;
   const std::string& hal = resp[1].content;
-  EXPECT_NE(hal.find("loadrt siggen names=response\nloadrt mux2 names=response-mux\n"), std::string::npos) << hal;
+  EXPECT_NE(hal.find("loadrt siggen names=response,response-pos\nloadrt mux2 names=response-mux,response-pos-mux\n"),
+            std::string::npos)
+      << hal;
   EXPECT_NE(hal.find("net response-vel response-mux.out => cia402.0.drive.01.vel-cmd\n"), std::string::npos) << hal;
   for (const std::string& text : {plain[0].content, plain[1].content}) {
     EXPECT_EQ(text.find("RPDO2"), std::string::npos) << text;
@@ -235,7 +237,21 @@ TEST(CommissionWriter, TheResponseOptionMapsTheTargetVelocityAndAGeneratorOnTheA
   for (const std::string cut : {"# cnc-commission response: the target velocity for CSV\nRPDO2 = 0x60FF:0:s32\n", ",share"})
     stripped.erase(stripped.find(cut), cut.size());
   EXPECT_EQ(stripped, plain[0].content);
-  EXPECT_EQ(hal.substr(0, plain[1].content.size()), plain[1].content);
+  // The position loop's generator: added to Z's position command alone,
+  // its functions before the drives' write.
+  const std::string pos_through = "net z-pos-cmd joint.1.motor-pos-cmd => response-pos-sum.in0\n"
+                                  "net z-pos-cmd-response response-pos-sum.out => cia402.0.drive.01.pos-cmd\n";
+  EXPECT_NE(hal.find(pos_through), std::string::npos) << hal;
+  EXPECT_NE(hal.find("net x-pos-cmd joint.0.motor-pos-cmd => cia402.0.drive.00.pos-cmd\n"), std::string::npos) << hal;
+  EXPECT_LT(hal.find("addf response-pos-sum servo-thread\n"), hal.find("addf cia402.0.write servo-thread\n")) << hal;
+  std::string hal_stripped = hal;
+  const std::size_t b = hal.find("# cnc-commission response: signal generators on the drive's velocity command\n");
+  const std::string last = "net response-pos-offset response-pos-mux.out => response-pos-sum.in1\n";
+  ASSERT_NE(b, std::string::npos);
+  hal_stripped.erase(b, hal.find(last) + last.size() - b);
+  hal_stripped.replace(hal_stripped.find(pos_through), pos_through.size(),
+                       "net z-pos-cmd joint.1.motor-pos-cmd => cia402.0.drive.01.pos-cmd\n");
+  EXPECT_EQ(hal_stripped.substr(0, plain[1].content.size()), plain[1].content);
 
   const State ecat = ethercat_machine();
   const std::string eini = generate_config(ecat, dir.path(), "m", {.response_axis = 'X'})[0].content;
