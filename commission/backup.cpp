@@ -71,6 +71,44 @@ BackupObject sized(BackupObject o, const std::vector<uint8_t>& data) {
   return o;
 }
 
+// The sub-indices of the loops' parameter sets that the drive's sub-index
+// 0 (read as one of `values`) says it has, each named as step 7 and the
+// simulated drive use it where that is known (their meaning is the
+// manufacturer's: CiA 402 leaves it open), else by its number; read as
+// UNSIGNED32 or UNSIGNED16 first, then kept in the size the drive gives.
+std::vector<BackupObject> gain_entries(const std::vector<BackedUpValue>& values) {
+  struct Known {
+    co::ObjectAddress addr;
+    D type;
+    const char* name;
+  };
+  static const Known known[] = {
+      {{0x60F9, 1}, D::Unsigned32, "Velocity loop gain"},
+      {{0x60F9, 2}, D::Unsigned16, "Velocity loop integration time"},
+      {{0x60FB, 1}, D::Unsigned32, "Position loop gain"},
+      {{0x60FB, 2}, D::Unsigned16, "Position loop integration time"},
+      {{0x60FB, 3}, D::Unsigned16, "Position loop differentiation time"},
+      {{0x60FB, 4}, D::Unsigned16, "Position loop velocity feed-forward"},
+      {{0x60FB, 5}, D::Unsigned16, "Position loop acceleration feed-forward"},
+  };
+  std::vector<BackupObject> more;
+  for (const BackedUpValue& v : values) {
+    const uint16_t idx = v.object.addr.index;
+    if ((idx != 0x60F9 && idx != 0x60FB) || v.object.addr.sub != 0 || v.data.empty()) continue;
+    for (unsigned k = 1; k <= v.data[0]; ++k) {
+      BackupObject o{{idx, static_cast<uint8_t>(k)}, D::Unsigned32,
+                     std::string(idx == 0x60F9 ? "Velocity" : "Position") + " control parameter " + std::to_string(k), ""};
+      for (const Known& n : known)
+        if (n.addr == o.addr) {
+          o.type = n.type;
+          o.name = n.name;
+        }
+      more.push_back(o);
+    }
+  }
+  return more;
+}
+
 constexpr uint32_t kAbortNoObject = 0x06020000;
 constexpr uint16_t kRpdoComm = 0x1400, kTpdoComm = 0x1800, kPdoOffsetToMapping = 0x200, kMaxPdos = 0x200;
 
@@ -283,16 +321,11 @@ const std::vector<BackupObject>& backup_objects() {
         {{0x60C2, 2}, D::Integer8, "Interpolation time index"},
         {{0x6502, 0}, D::Unsigned32, "Supported drive modes"},
         // The loops' parameter sets (CiA 402 records with manufacturer-
-        // specific sub-indices; these as the simulated drive and step 7's
-        // response have them; the EDS's entries replace them, and a value
-        // of another size keeps its size, see loop_gain_objects).
-        {{0x60F9, 1}, D::Unsigned32, "Velocity loop gain"},
-        {{0x60F9, 2}, D::Unsigned16, "Velocity loop integration time"},
-        {{0x60FB, 1}, D::Unsigned32, "Position loop gain"},
-        {{0x60FB, 2}, D::Unsigned16, "Position loop integration time"},
-        {{0x60FB, 3}, D::Unsigned16, "Position loop differentiation time"},
-        {{0x60FB, 4}, D::Unsigned16, "Position loop velocity feed-forward"},
-        {{0x60FB, 5}, D::Unsigned16, "Position loop acceleration feed-forward"},
+        // specific sub-indices): their sub-index 0, the highest sub-index
+        // the drive has, then (gain_entries) each sub-index up to it; the
+        // EDS's entries replace them.
+        {{0x60F9, 0}, D::Unsigned8, "Velocity control parameter set: highest sub-index", "ro"},
+        {{0x60FB, 0}, D::Unsigned8, "Position control parameter set: highest sub-index", "ro"},
     };
     v.insert(v.end(), drive.begin(), drive.end());
     return v;
@@ -334,7 +367,8 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
           const bool comm = (i >= kRpdoComm && i < kRpdoComm + kMaxPdos) || (i >= kTpdoComm && i < kTpdoComm + kMaxPdos);
           if (comm && e.addr.sub == 0) search.eds.push_back(i);
         }
-        // The loop gains as the EDS describes them, in place of the guess.
+        // The loop gains as the EDS describes them (names, types, access), in
+        // place of the sub-indices read from the drive.
         for (uint16_t gains : {uint16_t{0x60F9}, uint16_t{0x60FB}}) {
           if (std::none_of(d.entries.begin(), d.entries.end(), [gains](const co::EdsEntry& e) { return e.addr.index == gains; }))
             continue;
@@ -438,8 +472,10 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
     for (const auto& [comm, highest] : searches[i].found)
       for (const BackupObject& obj : pdo_objects(comm, highest)) post(i, obj);
   run(bus, ch);
-  for (std::size_t i = 0; i < ch.size(); ++i)
+  for (std::size_t i = 0; i < ch.size(); ++i) {
     for (const BackupObject& obj : mapping_entries(nodes[i].values)) post(i, obj);
+    for (const BackupObject& obj : gain_entries(nodes[i].values)) post(i, obj);
+  }
   run(bus, ch);
   for (std::size_t i = 0; i < ch.size(); ++i) {
     if (ch[i].silent)
@@ -570,6 +606,7 @@ BackupResult backup_ethercat_drives(ethercat::Master& m, const State& s) {
       return res.ok;
     };
     for (const BackupObject& obj : list) read(obj);
+    for (const BackupObject& obj : gain_entries(b.values)) read(obj);
     read_ethercat_mappings(indices, listed, read);
     // The PDO mapping entries their sub-index 0 announced, and the PDOs
     // each sync manager's assignment counts.

@@ -6,7 +6,8 @@
 // limits 0x607D, factor group 0x608F/0x6091/0x6092, following-error window
 // 0x6065/0x6066, position window 0x6067/0x6068, homing 0x6098/0x6099/
 // 0x609A and home offset 0x607C, interpolation period 0x60C2, the loops'
-// gains 0x60F9/0x60FB where the drive has them, every PDO the drive has:
+// gains 0x60F9/0x60FB where the drive has them (the sub-indices its EDS
+// lists, else those its sub-index 0 counts), every PDO the drive has:
 // communication parameters 0x1400-0x15FF/0x1800-0x19FF (those the EDS
 // lists, else found by reading them in turn until "object does not
 // exist") and mappings 0x1600-0x17FF/0x1A00-0x1BFF, and the readable

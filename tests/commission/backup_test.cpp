@@ -188,5 +188,38 @@ TEST(CommissionBackup, ReadsBothDrivesOfAGantryPair) {
   EXPECT_EQ(files[1].filename(), "node-02-y.dcf");
 }
 
+// The loops' parameter sets 0x60F9/0x60FB have manufacturer-specific
+// sub-indices: without an EDS the backup reads each record's sub-index 0
+// and then every sub-index it counts, in the size the drive gives. Here
+// one drive has a sixth position-loop parameter (UNSIGNED8) and the other
+// a velocity set of one entry: each is backed up as the drive has it.
+TEST(CommissionBackup, TheLoopGainsSubIndicesAreThoseTheDrivesSubIndexZeroCounts) {
+  Bus b;
+  auto& x_drive = b.add(1);
+  x_drive.od().add({0x60FB, 6}, canopen::DataType::Unsigned8, canopen::Access::ReadWrite, 42, false, "vendor filter");
+  x_drive.od().set<uint8_t>({0x60FB, 0}, 6);
+  b.add(2).od().set<uint8_t>({0x60F9, 0}, 1);
+  b.start();
+  const State s = state_of({{'X', 1}, {'Y', 2}});
+  const BackupResult r = backup_drives(*b.client, s, options());
+  ASSERT_TRUE(r.ok()) << r.problems[0];
+  ASSERT_EQ(r.nodes.size(), 2u);
+  const NodeBackup& x = r.nodes[0];
+  const NodeBackup& y = r.nodes[1];
+  ASSERT_TRUE(value(x, 0x60FB, 0));
+  EXPECT_EQ(value(x, 0x60FB, 0)->object.access, "ro") << "a record's size is not restored";
+  const BackedUpValue* sixth = value(x, 0x60FB, 6);
+  ASSERT_TRUE(sixth) << "the sub-index beyond the five step 7 knows was not read";
+  EXPECT_EQ(sixth->data, (std::vector<uint8_t>{42}));
+  EXPECT_EQ(sixth->object.type, canopen::DataType::Unsigned8);
+  EXPECT_EQ(sixth->object.name, "Position control parameter 6");
+  ASSERT_TRUE(value(x, 0x60FB, 1));
+  EXPECT_EQ(value(x, 0x60FB, 1)->object.name, "Position loop gain");
+  ASSERT_TRUE(value(x, 0x60F9, 2));
+  ASSERT_TRUE(value(y, 0x60F9, 1));
+  EXPECT_FALSE(value(y, 0x60F9, 2)) << "node 2's velocity set counts one entry";
+  for (const std::string& m : y.missing) EXPECT_EQ(m.find("60F9sub2"), std::string::npos) << m;
+}
+
 }  // namespace
 }  // namespace cnc::commission
