@@ -799,6 +799,48 @@ TEST(CommissionRestore, EthercatChangedPdoMappingAndAssignmentAreRestored) {
   EXPECT_TRUE(again.drives[0].pdo_changes.empty()) << describe(again);
 }
 
+// Over CoE the same stop: a mapping entry the slave refuses after the
+// assignments were emptied leaves them empty, and the restore says so.
+TEST(CommissionRestore, EthercatAMappingEntryRefusedHalfWayStopsTheRestoreAndSaysTheAssignmentsAreEmpty) {
+  EcatSegment seg(1);
+  State s = ethercat_state(seg.interface(), {{'X', 1}});
+  BackupResult br = backup_ethercat_drives(seg.interface(), s);
+  ASSERT_TRUE(br.ok()) << br.problems[0];
+  testing::TempDir dir;
+  write_backup(s, br, dir / "b");
+  auto files = load_backup_dir(dir / "b");
+  ASSERT_TRUE(files[0].find(0x1A00, 4)) << "0x1A00 maps four objects or more in the simulated slave";
+  std::string text = read_file(files[0].path);
+  const auto sec = text.find("[1A00sub4]");
+  ASSERT_NE(sec, std::string::npos);
+  const auto val = text.find("ParameterValue=", sec);
+  text.replace(val, text.find('\n', val) - val, "ParameterValue=0x5FFE0020");
+  write_file_atomically(files[0].path, text);
+  files = load_backup_dir(dir / "b");
+
+  ethercat::MasterConfig cfg;
+  cfg.interface = seg.interface();
+  ethercat::Master m(cfg, nullptr);
+  m.to_preop();
+  RestoreBuses buses;
+  buses.ethercat = &m;
+  const RestoreResult r = restore_drives(files, buses, false);
+  const std::string out = describe(r);
+  ASSERT_EQ(r.problems.size(), 1u) << out;
+  EXPECT_NE(r.problems[0].find("EtherCAT slave 1 (axis X, slave-01-x.dcf): restoring the PDO configuration, writing "
+                               "0x1A00:04 (mapping entry) failed: aborted by the slave: 0x06020000"),
+            std::string::npos) << r.problems[0];
+  EXPECT_NE(r.problems[0].find("the restore stopped there"), std::string::npos) << r.problems[0];
+  const DriveRestore& d = r.drives[0];
+  const auto left = [&d](const std::string& line) { return std::find(d.left.begin(), d.left.end(), line) != d.left.end(); };
+  EXPECT_TRUE(left("0x1C12:00 = 0x00 (no PDO assigned)")) << out;
+  EXPECT_TRUE(left("0x1C13:00 = 0x00 (no PDO assigned)")) << out;
+  EXPECT_TRUE(left("0x1A00:00 = 0x00 (nothing mapped)")) << out;
+  EXPECT_EQ(m.sdo_upload(1, 0x1C13, 0).data, (std::vector<uint8_t>{0}));
+  EXPECT_EQ(m.sdo_upload(1, 0x1A00, 0).data, (std::vector<uint8_t>{0}));
+  EXPECT_EQ(out.find("stored in the drive"), std::string::npos) << out;
+}
+
 // A drive with six TxPDO mappings, the sixth assigned as the second PDO
 // of 0x1C13: backed up and restored over CoE.
 TEST(CommissionRestore, EthercatMappingsBeyondTheFourthAreBackedUpAndRestored) {
