@@ -221,5 +221,39 @@ TEST(CommissionBackup, TheLoopGainsSubIndicesAreThoseTheDrivesSubIndexZeroCounts
   for (const std::string& m : y.missing) EXPECT_EQ(m.find("60F9sub2"), std::string::npos) << m;
 }
 
+// Without an EDS the PDOs are searched for number by number: a drive
+// whose TPDOs are numbered with a gap (TPDO1-8, then TPDO11) has TPDO11
+// backed up too, as long as the gap is shorter than pdo_search_gap; with a
+// gap limit of 1 (stop at the first missing number) it is lost.
+TEST(CommissionBackup, PdosAfterAGapInTheirNumbersAreFoundWithoutAnEds) {
+  namespace co = canopen;
+  Bus b;
+  auto& drive = b.add(1);
+  auto& od = drive.od();
+  od.add({0x180A, 0}, co::DataType::Unsigned8, co::Access::Const, 2, false, "TPDO11 communication parameter");
+  od.add({0x180A, 1}, co::DataType::Unsigned32, co::Access::ReadWrite, 0x8000028A, false, "COB-ID");
+  od.add({0x180A, 2}, co::DataType::Unsigned8, co::Access::ReadWrite, 254, false, "Transmission type");
+  od.add({0x1A0A, 0}, co::DataType::Unsigned8, co::Access::ReadWrite, 1, false, "TPDO11 mapping");
+  od.add({0x1A0A, 1}, co::DataType::Unsigned32, co::Access::ReadWrite, 0x60410010, false, "Mapping entry 1");
+  b.start();
+  const State s = state_of({{'X', 1}});
+  BackupResult r = backup_drives(*b.client, s, options());
+  ASSERT_TRUE(r.ok()) << r.problems[0];
+  ASSERT_TRUE(value(r.nodes[0], 0x1807, 1)) << "TPDO8";
+  EXPECT_FALSE(value(r.nodes[0], 0x1808, 1));
+  ASSERT_TRUE(value(r.nodes[0], 0x180A, 1)) << "TPDO11, after the gap, was not found";
+  EXPECT_EQ(value(r.nodes[0], 0x180A, 1)->data, (std::vector<uint8_t>{0x8A, 0x02, 0x00, 0x80}));
+  ASSERT_TRUE(value(r.nodes[0], 0x1A0A, 1));
+  EXPECT_EQ(value(r.nodes[0], 0x1A0A, 1)->data, (std::vector<uint8_t>{0x10, 0x00, 0x41, 0x60}));
+  for (const std::string& m : r.nodes[0].missing) EXPECT_EQ(m.find("1808"), std::string::npos) << "a gap is no loss: " << m;
+
+  BackupOptions first_missing_ends = options();
+  first_missing_ends.pdo_search_gap = 1;
+  r = backup_drives(*b.client, s, first_missing_ends);
+  ASSERT_TRUE(r.ok()) << r.problems[0];
+  EXPECT_TRUE(value(r.nodes[0], 0x1807, 1));
+  EXPECT_FALSE(value(r.nodes[0], 0x180A, 1));
+}
+
 }  // namespace
 }  // namespace cnc::commission
