@@ -493,6 +493,20 @@ bool restore_pdos(DriveRestore& d, DriveChannel& c, RestoreResult& r, std::vecto
   return true;
 }
 
+// Store parameters (CiA 301 0x1010:1): bit 0 of its value says the drive
+// stores on command.
+void store(DriveRestore& d, DriveChannel& c, RestoreResult& r) {
+  const DriveChannel::Result cap = c.upload({0x1010, 1});
+  if (cap.ok && !cap.data.empty() && (cap.data[0] & 1)) {
+    const DriveChannel::Result st = c.download({0x1010, 1}, {'s', 'a', 'v', 'e'});
+    if (st.ok) d.notes.push_back("stored in the drive (0x1010:01 \"save\")");
+    else r.problems.push_back(d.file.label() + ": storing the parameters (0x1010:01 \"save\") failed: " + st.error);
+  } else {
+    d.notes.push_back("not stored: the drive has no \"store parameters\" (0x1010:01); the values hold until it is "
+                      "switched off unless it stores them its own way");
+  }
+}
+
 // What the backup lacks to rewrite the PDOs whose entries differ (found
 // before anything is written, not half-way through a PDO): a CANopen PDO's
 // COB-ID (to disable and enable it), a mapping entry its sub-index 0 counts.
@@ -733,19 +747,16 @@ RestoreResult restore_drives(const std::vector<BackupFile>& files,
     if (r.problems.size() != problems_before) {
       d.notes.push_back("not stored: a value did not read back as written (above); \"store parameters\" "
                         "(0x1010:01) was not sent");
-      continue;
-    }
-    // Store parameters (CiA 301 0x1010:1): bit 0 of its value says the
-    // drive stores on command.
-    const DriveChannel::Result cap = c.upload({0x1010, 1});
-    if (cap.ok && !cap.data.empty() && (cap.data[0] & 1)) {
-      const DriveChannel::Result st = c.download({0x1010, 1}, {'s', 'a', 'v', 'e'});
-      if (st.ok) d.notes.push_back("stored in the drive (0x1010:01 \"save\")");
-      else r.problems.push_back(who + ": storing the parameters (0x1010:01 \"save\") failed: " + st.error);
     } else {
-      d.notes.push_back("not stored: the drive has no \"store parameters\" (0x1010:01); the values hold until it is "
-                        "switched off unless it stores them its own way");
+      store(d, c, r);
     }
+    // The NMT state it is left in, as it reports it (a drive that reset
+    // after the writes or the store says so here).
+    std::string state;
+    if (const DriveChannel::Result st = c.report_state(state); !st.ok)
+      r.problems.push_back(who + ": after the writes " + st.error);
+    else if (!state.empty())
+      d.notes.push_back("after the writes it reports " + state);
   }
   return r;
 }

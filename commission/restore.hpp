@@ -9,7 +9,7 @@
 // changes is first sent NMT Enter Pre-Operational and left there; before
 // any of it the CAN bus is listened to for another master; the node must
 // then report PRE-OPERATIONAL by heartbeat or node guarding, else nothing is
-// written to it), each read back and compared; a CANopen or CoE drive with
+// written to it, and again after the writes), each read back and compared; a CANopen or CoE drive with
 // "store parameters" (0x1010:1) is then asked to store them ("save"). A
 // write refused half-way (any abort but read-only, or no answer) stops the
 // restore there: that drive is not stored, the state it is left in (NMT

@@ -298,6 +298,8 @@ TEST(CommissionRestore, AnOperationalNodeIsPutIntoPreOperationalBeforeItsPdoMapp
                              "(heartbeat 0x701)"),
             std::string::npos) << describe(r);
   EXPECT_NE(describe(r).find("it is left in PRE-OPERATIONAL"), std::string::npos) << describe(r);
+  EXPECT_NE(describe(r).find("after the writes it reports PRE-OPERATIONAL (heartbeat 0x701)"), std::string::npos)
+      << describe(r);
 }
 
 // NMT is unconfirmed on the wire: the restore waits for the node to say
@@ -383,6 +385,8 @@ TEST(CommissionRestore, WithoutHeartbeatNodeGuardingConfirmsPreOperationalAndANo
   ASSERT_TRUE(r.ok()) << describe(r);
   EXPECT_NE(describe(r).find("the node reported PRE-OPERATIONAL (node guarding answer 0x701)"), std::string::npos)
       << describe(r);
+  EXPECT_NE(describe(r).find("after the writes it reports PRE-OPERATIONAL (node guarding answer 0x701)"),
+            std::string::npos) << describe(r);
   EXPECT_EQ(as_u32(x->upload({0x6065, 0}).data), window);
 }
 
