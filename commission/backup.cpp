@@ -71,6 +71,44 @@ BackupObject sized(BackupObject o, const std::vector<uint8_t>& data) {
   return o;
 }
 
+// The sub-indices of the loops' parameter sets that the drive's sub-index
+// 0 (read as one of `values`) says it has, each named as step 7 and the
+// simulated drive use it where that is known (their meaning is the
+// manufacturer's: CiA 402 leaves it open), else by its number; read as
+// UNSIGNED32 or UNSIGNED16 first, then kept in the size the drive gives.
+std::vector<BackupObject> gain_entries(const std::vector<BackedUpValue>& values) {
+  struct Known {
+    co::ObjectAddress addr;
+    D type;
+    const char* name;
+  };
+  static const Known known[] = {
+      {{0x60F9, 1}, D::Unsigned32, "Velocity loop gain"},
+      {{0x60F9, 2}, D::Unsigned16, "Velocity loop integration time"},
+      {{0x60FB, 1}, D::Unsigned32, "Position loop gain"},
+      {{0x60FB, 2}, D::Unsigned16, "Position loop integration time"},
+      {{0x60FB, 3}, D::Unsigned16, "Position loop differentiation time"},
+      {{0x60FB, 4}, D::Unsigned16, "Position loop velocity feed-forward"},
+      {{0x60FB, 5}, D::Unsigned16, "Position loop acceleration feed-forward"},
+  };
+  std::vector<BackupObject> more;
+  for (const BackedUpValue& v : values) {
+    const uint16_t idx = v.object.addr.index;
+    if ((idx != 0x60F9 && idx != 0x60FB) || v.object.addr.sub != 0 || v.data.empty()) continue;
+    for (unsigned k = 1; k <= v.data[0]; ++k) {
+      BackupObject o{{idx, static_cast<uint8_t>(k)}, D::Unsigned32,
+                     std::string(idx == 0x60F9 ? "Velocity" : "Position") + " control parameter " + std::to_string(k), ""};
+      for (const Known& n : known)
+        if (n.addr == o.addr) {
+          o.type = n.type;
+          o.name = n.name;
+        }
+      more.push_back(o);
+    }
+  }
+  return more;
+}
+
 constexpr uint32_t kAbortNoObject = 0x06020000;
 constexpr uint16_t kRpdoComm = 0x1400, kTpdoComm = 0x1800, kPdoOffsetToMapping = 0x200, kMaxPdos = 0x200;
 
@@ -117,12 +155,14 @@ std::vector<BackupObject> mapping_entries(const std::vector<BackedUpValue>& valu
 
 // Which PDOs a CANopen node has: those its EDS lists, else found by
 // reading each communication object's sub-index 0 in turn from 0x1400 and
-// 0x1800 until the node answers "object does not exist" (0x06020000), as
-// a node without EDS has them numbered without gaps.
+// 0x1800 until the node has answered "object does not exist" (0x06020000)
+// for BackupOptions::pdo_search_gap numbers in a row (a drive may number
+// its PDOs with gaps: CiA 301 has no object that counts them).
 struct PdoSearch {
   std::vector<uint16_t> eds;               // the EDS's communication objects (none: search)
   std::map<uint16_t, uint8_t> found;       // communication index -> its sub-index 0
   uint16_t next[2] = {0, 0};               // RPDO, TPDO: the number to read next
+  uint16_t misses[2] = {0, 0};             // numbers that did not exist, in a row
   bool ended[2] = {false, false};
 };
 
@@ -283,16 +323,11 @@ const std::vector<BackupObject>& backup_objects() {
         {{0x60C2, 2}, D::Integer8, "Interpolation time index"},
         {{0x6502, 0}, D::Unsigned32, "Supported drive modes"},
         // The loops' parameter sets (CiA 402 records with manufacturer-
-        // specific sub-indices; these as the simulated drive and step 7's
-        // response have them; the EDS's entries replace them, and a value
-        // of another size keeps its size, see loop_gain_objects).
-        {{0x60F9, 1}, D::Unsigned32, "Velocity loop gain"},
-        {{0x60F9, 2}, D::Unsigned16, "Velocity loop integration time"},
-        {{0x60FB, 1}, D::Unsigned32, "Position loop gain"},
-        {{0x60FB, 2}, D::Unsigned16, "Position loop integration time"},
-        {{0x60FB, 3}, D::Unsigned16, "Position loop differentiation time"},
-        {{0x60FB, 4}, D::Unsigned16, "Position loop velocity feed-forward"},
-        {{0x60FB, 5}, D::Unsigned16, "Position loop acceleration feed-forward"},
+        // specific sub-indices): their sub-index 0, the highest sub-index
+        // the drive has, then (gain_entries) each sub-index up to it; the
+        // EDS's entries replace them.
+        {{0x60F9, 0}, D::Unsigned8, "Velocity control parameter set: highest sub-index", "ro"},
+        {{0x60FB, 0}, D::Unsigned8, "Position control parameter set: highest sub-index", "ro"},
     };
     v.insert(v.end(), drive.begin(), drive.end());
     return v;
@@ -334,7 +369,8 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
           const bool comm = (i >= kRpdoComm && i < kRpdoComm + kMaxPdos) || (i >= kTpdoComm && i < kTpdoComm + kMaxPdos);
           if (comm && e.addr.sub == 0) search.eds.push_back(i);
         }
-        // The loop gains as the EDS describes them, in place of the guess.
+        // The loop gains as the EDS describes them (names, types, access), in
+        // place of the sub-indices read from the drive.
         for (uint16_t gains : {uint16_t{0x60F9}, uint16_t{0x60FB}}) {
           if (std::none_of(d.entries.begin(), d.entries.end(), [gains](const co::EdsEntry& e) { return e.addr.index == gains; }))
             continue;
@@ -396,22 +432,27 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
     for (const BackupObject& obj : lists[i]) post(i, obj);
   run(bus, ch);
   // The PDOs: each communication object's sub-index 0 (the EDS's at once,
-  // else one PDO number per round until the first that does not exist),
+  // else one PDO number per round until pdo_search_gap in a row do not exist),
   // then the parameters it announces and the mapping's sub-index 0, then
   // (phase 3) the mapping entries.
   auto probe = [&](std::size_t i, uint16_t comm, int kind) {
     PdoSearch* ps = &searches[i];
     NodeBackup* b = &nodes[i];
     Channel* cp = &ch[i];
-    cp->sdo->upload({comm, 0}, [ps, b, cp, comm, kind](const co::SdoResult& res) {
+    const unsigned gap = std::max(1u, o.pdo_search_gap);
+    cp->sdo->upload({comm, 0}, [ps, b, cp, comm, kind, gap](const co::SdoResult& res) {
       if (res.ok() && !res.data.empty()) {
         ps->found[comm] = res.data[0];
+        if (kind >= 0) ps->misses[kind] = 0;
         if (kind >= 0 && ++ps->next[kind] >= kMaxPdos) ps->ended[kind] = true;
         return;
       }
-      if (kind >= 0) ps->ended[kind] = true;
+      if (kind >= 0) {
+        const bool absent = res.abort_code == kAbortNoObject && !res.aborted_by_client;
+        ps->ended[kind] = !absent || ++ps->misses[kind] >= gap || ++ps->next[kind] >= kMaxPdos;
+      }
       if (res.aborted_by_client && res.abort_code == kAbortTimeout) cp->silent = true;
-      else if (kind < 0 || res.abort_code != kAbortNoObject)  // the end of the search is no loss
+      else if (kind < 0 || res.abort_code != kAbortNoObject)  // a number the drive has not got is no loss
         b->missing.push_back(section({comm, 0}, false) + " " + pdo_name(comm) + " communication parameter: " +
                              res.abort_text());
     });
@@ -438,8 +479,10 @@ BackupResult backup_drives(can::Transport& bus, const State& s, const BackupOpti
     for (const auto& [comm, highest] : searches[i].found)
       for (const BackupObject& obj : pdo_objects(comm, highest)) post(i, obj);
   run(bus, ch);
-  for (std::size_t i = 0; i < ch.size(); ++i)
+  for (std::size_t i = 0; i < ch.size(); ++i) {
     for (const BackupObject& obj : mapping_entries(nodes[i].values)) post(i, obj);
+    for (const BackupObject& obj : gain_entries(nodes[i].values)) post(i, obj);
+  }
   run(bus, ch);
   for (std::size_t i = 0; i < ch.size(); ++i) {
     if (ch[i].silent)
@@ -487,16 +530,18 @@ std::vector<BackupObject> ethercat_objects() {
 
 // The PDO mappings of an EtherCAT drive: those its SDO information lists
 // (`indices`), else found by reading each mapping's sub-index 0 from
-// 0x1600 and 0x1A00 on until "object does not exist" (0x06020000); a
+// 0x1600 and 0x1A00 on until `gap` in a row do not exist; a
 // mapping is read as its sub-index 0 ("RPDO1 mapped objects", 0x1600).
 template <class Read>
-void read_ethercat_mappings(const std::vector<uint16_t>& indices, bool listed, Read&& read) {
+void read_ethercat_mappings(const std::vector<uint16_t>& indices, bool listed, unsigned gap, Read&& read) {
   for (uint16_t base : {uint16_t{0x1600}, uint16_t{0x1A00}}) {
+    unsigned misses = 0;
     for (uint16_t n = 0; n < kMaxPdos; ++n) {
       const uint16_t map = static_cast<uint16_t>(base + n);
       if (listed && std::find(indices.begin(), indices.end(), map) == indices.end()) continue;
       const BackupObject obj{{map, 0}, D::Unsigned8, pdo_name(static_cast<uint16_t>(map - kPdoOffsetToMapping)) + " mapped objects", ""};
-      if (!read(obj, !listed) && !listed) break;
+      if (read(obj, !listed)) misses = 0;
+      else if (!listed && ++misses >= std::max(1u, gap)) break;
     }
   }
 }
@@ -570,7 +615,8 @@ BackupResult backup_ethercat_drives(ethercat::Master& m, const State& s) {
       return res.ok;
     };
     for (const BackupObject& obj : list) read(obj);
-    read_ethercat_mappings(indices, listed, read);
+    for (const BackupObject& obj : gain_entries(b.values)) read(obj);
+    read_ethercat_mappings(indices, listed, BackupOptions{}.pdo_search_gap, read);
     // The PDO mapping entries their sub-index 0 announced, and the PDOs
     // each sync manager's assignment counts.
     for (const BackupObject& obj : mapping_entries(b.values)) read(obj);

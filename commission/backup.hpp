@@ -6,10 +6,11 @@
 // limits 0x607D, factor group 0x608F/0x6091/0x6092, following-error window
 // 0x6065/0x6066, position window 0x6067/0x6068, homing 0x6098/0x6099/
 // 0x609A and home offset 0x607C, interpolation period 0x60C2, the loops'
-// gains 0x60F9/0x60FB where the drive has them, every PDO the drive has:
+// gains 0x60F9/0x60FB where the drive has them (the sub-indices its EDS
+// lists, else those its sub-index 0 counts), every PDO the drive has:
 // communication parameters 0x1400-0x15FF/0x1800-0x19FF (those the EDS
-// lists, else found by reading them in turn until "object does not
-// exist") and mappings 0x1600-0x17FF/0x1A00-0x1BFF, and the readable
+// lists, else found by reading them in turn until 8 numbers in a row do
+// not exist) and mappings 0x1600-0x17FF/0x1A00-0x1BFF, and the readable
 // objects of 0x2000-0x5FFF that the drive's EDS lists). One DCF-like file per drive ([index] or
 // [indexsubN] sections with ParameterValue), written atomically. An object
 // the drive lacks is listed in the file's [Missing] section; a node that
@@ -79,6 +80,10 @@ struct BackupResult {
 
 struct BackupOptions {
   int64_t timeout_ns = 500'000'000;     // per SDO transfer
+  // Without an EDS (CANopen) or SDO information (EtherCAT) the PDOs are
+  // searched for number by number; this many numbers in a row that do not
+  // exist end the search (a gap as long loses the PDOs after it).
+  unsigned pdo_search_gap = 8;
 };
 
 // Reads the CANopen drives of the state's enabled axes over `bus`.

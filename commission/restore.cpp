@@ -64,9 +64,23 @@ std::optional<co::ObjectAddress> object_section(const std::string& name) {
   return a;
 }
 
+// "PRE-OPERATIONAL (0x7F)" for people; a boot-up message says it reset.
+std::string nmt_text(uint8_t b) {
+  char h[8];
+  std::snprintf(h, sizeof h, "0x%02X", b);
+  switch (b & 0x7F) {
+    case 0x00: return std::string("boot-up (") + h + "): it reset";
+    case 0x04: return std::string("STOPPED (") + h + ")";
+    case 0x05: return std::string("OPERATIONAL (") + h + ")";
+    case 0x7F: return std::string("PRE-OPERATIONAL (") + h + ")";
+    default: return std::string("the state byte ") + h + ", not a CiA 301 state";
+  }
+}
+
 class CanopenChannel final : public DriveChannel {
  public:
-  CanopenChannel(can::Transport& bus, int node, int64_t timeout_ns) : bus_(bus), node_(static_cast<uint8_t>(node)) {
+  CanopenChannel(can::Transport& bus, int node, int64_t timeout_ns, int64_t nmt_timeout_ns)
+      : bus_(bus), node_(static_cast<uint8_t>(node)), nmt_timeout_ns_(nmt_timeout_ns) {
     co::SdoClientOptions o;
     o.timeout_ns = timeout_ns;
     sdo_ = std::make_unique<co::SdoClient>(bus, static_cast<uint8_t>(node), o);
@@ -83,24 +97,33 @@ class CanopenChannel final : public DriveChannel {
     run();
     return r;
   }
-  // NMT is not confirmed; the node handles the command before the SDO
-  // request behind it on the bus.
+  // NMT is unconfirmed (CiA 301): the node's heartbeat or its answer to
+  // node guarding says whether it followed.
   Result prepare_for_writes(std::string& done) override {
     Result r;
-    const can::Frame f = can::Frame::make(co::cob::kNmt, {static_cast<uint8_t>(co::NmtCommand::EnterPreOperational), node_});
-    can::SendStatus st = bus_.send(f);
-    for (int i = 0; i < 100 && st == can::SendStatus::WouldBlock; ++i) {  // a full queue drains in a few ms
-      bus_.wait(1'000'000);
-      st = bus_.send(f);
-    }
-    r.ok = st == can::SendStatus::Ok;
-    if (!r.ok) {
+    const Result hb = upload({0x1017, 0});
+    heartbeat_ms_ = hb.ok && hb.data.size() >= 2 ? static_cast<int>(hb.data[0] | (hb.data[1] << 8)) : 0;
+    drain();
+    const int64_t sent_ns = bus_.now_ns();
+    if (!send(can::Frame::make(co::cob::kNmt, {static_cast<uint8_t>(co::NmtCommand::EnterPreOperational), node_}))) {
       r.error = "the NMT command Enter Pre-Operational could not be sent on " + bus_.name();
       return r;
     }
-    done = "NMT Enter Pre-Operational sent before writing: the node is left in PRE-OPERATIONAL (the controller's "
-           "master starts it; nothing else does)";
+    std::string seen;
+    r = expect_pre_operational(seen);
+    if (!r.ok) {
+      r.error = "NMT Enter Pre-Operational sent, but " + r.error;
+      return r;
+    }
+    char ms[32];
+    std::snprintf(ms, sizeof ms, "%.0f ms", (bus_.now_ns() - sent_ns) / 1e6);
+    done = "NMT Enter Pre-Operational sent before writing, and the node reported " + seen + " " + ms +
+           " later: it is left in PRE-OPERATIONAL (the controller's master starts it; nothing else does)";
     return r;
+  }
+  Result report_state(std::string& state) override {
+    drain();
+    return expect_pre_operational(state);
   }
 
  private:
@@ -110,6 +133,65 @@ class CanopenChannel final : public DriveChannel {
     r.abort_code = s.aborted_by_client ? 0 : s.abort_code;
     r.silent = s.aborted_by_client && s.abort_code == kAbortTimeout;
     if (!s.ok()) r.error = s.abort_text();
+  }
+  bool send(const can::Frame& f) {
+    can::SendStatus st = bus_.send(f);
+    for (int i = 0; i < 100 && st == can::SendStatus::WouldBlock; ++i) {  // a full queue drains in a few ms
+      bus_.wait(1'000'000);
+      st = bus_.send(f);
+    }
+    return st == can::SendStatus::Ok;
+  }
+  void drain() {
+    can::Frame f;
+    while (bus_.receive(f)) {
+    }
+  }
+  // Waits for the node to report PRE-OPERATIONAL: its heartbeat when it
+  // produces one (0x1017 > 0; CiA 301: node guarding is then not used),
+  // else node guarding, an RTR every 100 ms. A report of another state is
+  // remembered and the wait goes on (a heartbeat sent before the command
+  // took effect); at the time-out the last report is the error.
+  Result expect_pre_operational(std::string& seen) {
+    Result r;
+    const uint32_t ec = co::cob::heartbeat(node_);
+    const bool by_heartbeat = heartbeat_ms_ > 0;
+    const int64_t window = std::max<int64_t>(nmt_timeout_ns_, int64_t{3} * heartbeat_ms_ * 1'000'000);
+    const int64_t start = bus_.now_ns(), end = start + window;
+    int64_t next_rtr = start;
+    std::string last;
+    for (int64_t now = start; now < end; now = bus_.now_ns()) {
+      if (!by_heartbeat && now >= next_rtr) {
+        send(can::Frame::remote(ec, 1));
+        next_rtr = now + 100'000'000;
+      }
+      can::Frame f;
+      while (bus_.receive(f)) {
+        if (f.id != ec || f.is_error() || f.is_remote() || f.is_extended() || f.len != 1) continue;
+        const uint8_t state = by_heartbeat ? f.data[0] : static_cast<uint8_t>(f.data[0] & 0x7F);
+        char via[48];
+        std::snprintf(via, sizeof via, " (%s 0x%03X)", by_heartbeat ? "heartbeat" : "node guarding answer", ec);
+        if (state == 0x7F) {
+          seen = "PRE-OPERATIONAL" + std::string(via);
+          r.ok = true;
+          return r;
+        }
+        last = nmt_text(state) + via;
+      }
+      bus_.wait(std::min<int64_t>(end - now, 10'000'000));
+    }
+    char ms[32];
+    std::snprintf(ms, sizeof ms, "%.0f ms", window / 1e6);
+    char ec_text[8];
+    std::snprintf(ec_text, sizeof ec_text, "0x%03X", ec);
+    if (!last.empty())
+      r.error = "it reported " + last + ", not PRE-OPERATIONAL, within " + ms;
+    else if (by_heartbeat)
+      r.error = "no heartbeat (" + std::string(ec_text) + ", every " + std::to_string(heartbeat_ms_) + " ms by its 0x1017) within " + ms;
+    else
+      r.error = "no heartbeat (its 0x1017 is 0) and no answer to node guarding (RTR on " + std::string(ec_text) + ") within " + ms;
+    r.error += ": its NMT state is not confirmed";
+    return r;
   }
   void run() {
     while (!sdo_->idle()) {
@@ -124,6 +206,8 @@ class CanopenChannel final : public DriveChannel {
   }
   can::Transport& bus_;
   uint8_t node_;
+  int64_t nmt_timeout_ns_;
+  int heartbeat_ms_ = 0;
   std::unique_ptr<co::SdoClient> sdo_;
 };
 
@@ -151,8 +235,8 @@ class EthercatChannel final : public DriveChannel {
 
 }  // namespace
 
-std::unique_ptr<DriveChannel> canopen_channel(can::Transport& bus, int node, int64_t timeout_ns) {
-  return std::make_unique<CanopenChannel>(bus, node, timeout_ns);
+std::unique_ptr<DriveChannel> canopen_channel(can::Transport& bus, int node, int64_t timeout_ns, int64_t nmt_timeout_ns) {
+  return std::make_unique<CanopenChannel>(bus, node, timeout_ns, nmt_timeout_ns);
 }
 std::unique_ptr<DriveChannel> ethercat_channel(ethercat::Master& master, unsigned position) {
   return std::make_unique<EthercatChannel>(master, position);
@@ -314,7 +398,8 @@ namespace {
 // The PDO configuration of one drive written back in order (see
 // DriveRestore::pdo_changes); each write logged in d.pdo_steps. Returns
 // false with a problem in `r` at the first refused write.
-bool restore_pdos(DriveRestore& d, DriveChannel& c, RestoreResult& r) {
+bool restore_pdos(DriveRestore& d, DriveChannel& c, RestoreResult& r, std::vector<co::ObjectAddress>& written,
+                  bool& silent) {
   const BackupFile& f = d.file;
   const std::string who = f.label();
   const auto write = [&](co::ObjectAddress a, const std::vector<uint8_t>& data, const std::string& why) {
@@ -325,8 +410,15 @@ bool restore_pdos(DriveRestore& d, DriveChannel& c, RestoreResult& r) {
       std::snprintf(b, sizeof b, "%02X", data[i]);
       v += b;
     }
-    d.pdo_steps.push_back(addr_text(a) + " = 0x" + v + " (" + why + ")" + (w.ok ? "" : ": refused, " + w.error));
-    if (!w.ok) r.problems.push_back(who + ": restoring the PDO configuration, writing " + addr_text(a) + " (" + why + ") failed: " + w.error);
+    const std::string step = addr_text(a) + " = 0x" + v + " (" + why + ")";
+    d.pdo_steps.push_back(step + (w.ok ? "" : ": refused, " + w.error));
+    if (w.ok) {
+      if (std::find(written.begin(), written.end(), a) == written.end()) written.push_back(a);
+    } else {
+      d.stopped = "writing " + step + ": " + w.error;
+      silent = w.silent;
+      r.problems.push_back(who + ": restoring the PDO configuration, writing " + addr_text(a) + " (" + why + ") failed: " + w.error);
+    }
     return w.ok;
   };
   const auto differs = [&d](uint16_t index) {
@@ -341,8 +433,9 @@ bool restore_pdos(DriveRestore& d, DriveChannel& c, RestoreResult& r) {
     for (uint8_t k = 1; k <= count->data[0]; ++k) {
       const BackupEntry* e = f.find(map, k);
       if (!e) {
-        r.problems.push_back(who + ": the backup's " + addr_text({map, 0}) + " announces " + std::to_string(count->data[0]) +
-                             " entries but has no " + addr_text({map, k}));
+        d.stopped = "the backup's " + addr_text({map, 0}) + " announces " + std::to_string(count->data[0]) +
+                    " entries but has no " + addr_text({map, k});
+        r.problems.push_back(who + ": " + d.stopped);
         return false;
       }
       if (!write(e->addr, e->data, "mapping entry")) return false;
@@ -375,12 +468,15 @@ bool restore_pdos(DriveRestore& d, DriveChannel& c, RestoreResult& r) {
       if (!differs(comm) && !differs(map)) continue;
       const BackupEntry* cob = f.find(comm, 1);
       if (!cob || cob->data.size() < 4) {
-        r.problems.push_back(who + ": the backup has no COB-ID " + addr_text({comm, 1}) + " for " + addr_text({map, 0}) +
-                             ": the PDO cannot be disabled to restore it");
+        d.stopped = "the backup has no COB-ID " + addr_text({comm, 1}) + " for " + addr_text({map, 0}) +
+                    ": the PDO cannot be disabled to restore it";
+        r.problems.push_back(who + ": " + d.stopped);
         return false;
       }
       const DriveChannel::Result now = c.upload({comm, 1});
       if (!now.ok || now.data.size() < 4) {
+        d.stopped = "reading " + addr_text({comm, 1}) + " to disable the PDO: " + now.error;
+        silent = now.silent;
         r.problems.push_back(who + ": " + addr_text({comm, 1}) + " cannot be read: " + now.error);
         return false;
       }
@@ -395,6 +491,86 @@ bool restore_pdos(DriveRestore& d, DriveChannel& c, RestoreResult& r) {
     }
   }
   return true;
+}
+
+// Store parameters (CiA 301 0x1010:1): bit 0 of its value says the drive
+// stores on command.
+void store(DriveRestore& d, DriveChannel& c, RestoreResult& r) {
+  const DriveChannel::Result cap = c.upload({0x1010, 1});
+  if (cap.ok && !cap.data.empty() && (cap.data[0] & 1)) {
+    const DriveChannel::Result st = c.download({0x1010, 1}, {'s', 'a', 'v', 'e'});
+    if (st.ok) d.notes.push_back("stored in the drive (0x1010:01 \"save\")");
+    else r.problems.push_back(d.file.label() + ": storing the parameters (0x1010:01 \"save\") failed: " + st.error);
+  } else {
+    d.notes.push_back("not stored: the drive has no \"store parameters\" (0x1010:01); the values hold until it is "
+                      "switched off unless it stores them its own way");
+  }
+}
+
+// What the backup lacks to rewrite the PDOs whose entries differ (found
+// before anything is written, not half-way through a PDO): a CANopen PDO's
+// COB-ID (to disable and enable it), a mapping entry its sub-index 0 counts.
+std::vector<std::string> pdo_backup_gaps(const DriveRestore& d) {
+  std::vector<std::string> gaps;
+  const BackupFile& f = d.file;
+  std::vector<uint16_t> seen;
+  for (const RestoreChange& k : d.pdo_changes) {
+    const uint16_t i = k.entry.addr.index;
+    if (std::find(seen.begin(), seen.end(), i) != seen.end()) continue;
+    seen.push_back(i);
+    const bool comm = i >= 0x1400 && i <= 0x15FF ? true : i >= 0x1800 && i <= 0x19FF;
+    const bool map = (i >= 0x1600 && i <= 0x17FF) || (i >= 0x1A00 && i <= 0x1BFF);
+    if (!f.slave && (comm || map)) {
+      const uint16_t c = comm ? i : static_cast<uint16_t>(i - 0x200);
+      const BackupEntry* cob = f.find(c, 1);
+      if (!cob || cob->data.size() < 4)
+        gaps.push_back("the backup has no COB-ID " + addr_text({c, 1}) + " (line of " + addr_text(k.entry.addr) + ": " +
+                       std::to_string(k.entry.line) + "): the PDO cannot be disabled to restore it");
+    }
+    const uint16_t m = map ? i : comm ? static_cast<uint16_t>(i + 0x200) : 0;
+    const BackupEntry* count = m ? f.find(m, 0) : nullptr;
+    if (count && !count->data.empty())
+      for (uint8_t s = 1; s <= count->data[0]; ++s)
+        if (!f.find(m, s)) {
+          gaps.push_back("the backup's " + addr_text({m, 0}) + " (line " + std::to_string(count->line) + ") counts " +
+                         std::to_string(count->data[0]) + " entries but has no " + addr_text({m, s}));
+          break;
+        }
+  }
+  return gaps;
+}
+
+// The drive's state after the restore stopped on it, as read from it.
+std::vector<std::string> state_left(DriveChannel& c, const std::vector<co::ObjectAddress>& written, const BackupFile& f,
+                                    bool silent) {
+  std::vector<std::string> left;
+  if (silent) {
+    left.push_back("it stopped answering: its state is not known (the writes listed as done were confirmed by it)");
+    return left;
+  }
+  std::string state;
+  const DriveChannel::Result st = c.report_state(state);
+  if (!st.ok) left.push_back("NMT state: " + st.error);
+  else if (!state.empty()) left.push_back("NMT state: " + state);
+  for (const co::ObjectAddress& a : written) {
+    const DriveChannel::Result b = c.upload(a);
+    std::string v = "?";
+    if (b.ok) {
+      const BackupEntry* e = f.find(a.index, a.sub);
+      v = backup_value_text(e ? e->type : b.data.size() == 1 ? D::Unsigned8 : D::Unsigned32, b.data);
+    }
+    std::string what = addr_text(a) + " = " + (b.ok ? v : "? (" + b.error + ")");
+    const uint16_t i = a.index;
+    if (a.sub == 1 && ((i >= 0x1400 && i <= 0x15FF) || (i >= 0x1800 && i <= 0x19FF)) && b.ok && b.data.size() == 4)
+      what += (b.data[3] & 0x80) ? " (the PDO is disabled)" : " (the PDO is enabled)";
+    if (a.sub == 0 && ((i >= 0x1600 && i <= 0x17FF) || (i >= 0x1A00 && i <= 0x1BFF) || i == 0x1C12 || i == 0x1C13) &&
+        b.ok && b.data.size() == 1 && b.data[0] == 0)
+      what += i >= 0x1C12 ? " (no PDO assigned)" : " (nothing mapped)";
+    left.push_back(what);
+  }
+  left.push_back("not stored: \"store parameters\" (0x1010:01) was not sent; what was written holds until the drive is "
+                 "switched off, then its stored parameters come back");
+  return left;
 }
 
 }  // namespace
@@ -490,24 +666,35 @@ RestoreResult restore_drives(const std::vector<BackupFile>& files,
         (pdo ? d.pdo_changes : d.changes).push_back(k);
       }
     }
+    for (const std::string& gap : pdo_backup_gaps(d)) r.problems.push_back(who + ": " + gap + "; nothing was written");
     d.checked = true;
     add();
   }
   if (!r.ok() || dry_run) return r;
 
-  // Phase 2: the writes, each read back.
+  // Phase 2: the writes, each read back. A refused write (other than "read
+  // only") stops the restore: that drive is not stored, its state is read
+  // and said, the drives after it are not written.
+  bool stop = false;
   for (std::size_t i = 0; i < r.drives.size(); ++i) {
     DriveRestore& d = r.drives[i];
     DriveChannel& c = *ch[i];
     const std::string who = d.file.label();
-    bool wrote = false;
     if (d.changes.empty() && d.pdo_changes.empty()) continue;  // left as it is, in its NMT state too
+    if (stop) {
+      d.not_reached = true;
+      continue;
+    }
+    const std::size_t problems_before = r.problems.size();
     std::string prepared;
     if (const DriveChannel::Result p = c.prepare_for_writes(prepared); !p.ok) {
       r.problems.push_back(who + ": " + p.error + "; nothing was written to it");
+      stop = true;
       continue;
     }
     if (!prepared.empty()) d.notes.push_back(prepared);
+    std::vector<co::ObjectAddress> written;
+    bool silent = false;
     for (RestoreChange& k : d.changes) {
       const DriveChannel::Result w = c.download(k.entry.addr, k.entry.data);
       if (!w.ok && w.abort_code == kAbortReadOnly) {
@@ -515,12 +702,13 @@ RestoreResult restore_drives(const std::vector<BackupFile>& files,
         continue;
       }
       if (!w.ok) {
-        r.problems.push_back(who + ": writing " + addr_text(k.entry.addr) + " " + k.entry.name + " = " + k.entry.value +
-                             " failed: " + w.error);
-        if (w.silent) break;
-        continue;
+        d.stopped = "writing " + addr_text(k.entry.addr) + " " + k.entry.name + " = " + k.entry.value + ": " + w.error;
+        silent = w.silent;
+        r.problems.push_back(who + ": " + d.stopped);
+        break;
       }
-      k.written = wrote = true;
+      k.written = true;
+      written.push_back(k.entry.addr);
       const DriveChannel::Result b = c.upload(k.entry.addr);
       if (!b.ok) {
         r.problems.push_back(who + ": " + addr_text(k.entry.addr) + " cannot be read back after writing it: " + b.error);
@@ -531,9 +719,10 @@ RestoreResult restore_drives(const std::vector<BackupFile>& files,
         r.problems.push_back(who + ": " + addr_text(k.entry.addr) + " " + k.entry.name + " reads back as " + k.read_back +
                              " after writing " + k.entry.value);
     }
-    if (!d.pdo_changes.empty()) {
-      const bool done = restore_pdos(d, c, r);
+    if (d.stopped.empty() && !d.pdo_changes.empty()) {
+      const bool done = restore_pdos(d, c, r, written, silent);
       for (RestoreChange& k : d.pdo_changes) {
+        if (silent) break;
         const DriveChannel::Result b = c.upload(k.entry.addr);
         k.read_back = b.ok ? backup_value_text(k.entry.type, b.data) : "?";
         k.written = done && b.ok && k.read_back == backup_value_text(k.entry.type, k.entry.data);
@@ -541,20 +730,33 @@ RestoreResult restore_drives(const std::vector<BackupFile>& files,
           r.problems.push_back(who + ": " + addr_text(k.entry.addr) + " " + k.entry.name + " reads back as " + k.read_back +
                                " after restoring the PDO configuration, the backup's " + k.entry.value);
       }
-      wrote = true;
     }
-    if (!wrote) continue;
-    // Store parameters (CiA 301 0x1010:1): bit 0 of its value says the
-    // drive stores on command.
-    const DriveChannel::Result cap = c.upload({0x1010, 1});
-    if (cap.ok && !cap.data.empty() && (cap.data[0] & 1)) {
-      const DriveChannel::Result st = c.download({0x1010, 1}, {'s', 'a', 'v', 'e'});
-      if (st.ok) d.notes.push_back("stored in the drive (0x1010:01 \"save\")");
-      else r.problems.push_back(who + ": storing the parameters (0x1010:01 \"save\") failed: " + st.error);
+    if (!d.stopped.empty()) {
+      stop = true;
+      d.left = state_left(c, written, d.file, silent);
+      std::string after;
+      for (std::size_t j = i + 1; j < r.drives.size(); ++j)
+        if (!r.drives[j].changes.empty() || !r.drives[j].pdo_changes.empty())
+          after += (after.empty() ? "" : ", ") + r.drives[j].file.label();
+      r.problems.back() += "; the restore stopped there: " + std::to_string(written.size()) +
+                           " object(s) of this drive were written before it, it is not stored" +
+                           (after.empty() ? "" : "; not written at all: " + after) + " (what it is left as: its \"left as\" lines)";
+      continue;
+    }
+    if (written.empty() && d.pdo_changes.empty()) continue;
+    if (r.problems.size() != problems_before) {
+      d.notes.push_back("not stored: a value did not read back as written (above); \"store parameters\" "
+                        "(0x1010:01) was not sent");
     } else {
-      d.notes.push_back("not stored: the drive has no \"store parameters\" (0x1010:01); the values hold until it is "
-                        "switched off unless it stores them its own way");
+      store(d, c, r);
     }
+    // The NMT state it is left in, as it reports it (a drive that reset
+    // after the writes or the store says so here).
+    std::string state;
+    if (const DriveChannel::Result st = c.report_state(state); !st.ok)
+      r.problems.push_back(who + ": after the writes " + st.error);
+    else if (!state.empty())
+      d.notes.push_back("after the writes it reports " + state);
   }
   return r;
 }
@@ -617,7 +819,7 @@ RestoreResult restore_drives(const std::vector<BackupFile>& files, const Restore
           why = "a CANopen backup, and no CAN bus to reach it (scan first, or --interface)";
           return nullptr;
         }
-        return canopen_channel(*buses.can, f.node, buses.sdo_timeout_ns);
+        return canopen_channel(*buses.can, f.node, buses.sdo_timeout_ns, buses.nmt_timeout_ns);
       },
       dry_run);
 }
@@ -655,6 +857,11 @@ std::string describe(const RestoreResult& r) {
       for (const std::string& s : d.pdo_steps) o += "    pdo write " + s + "\n";
     }
     for (const std::string& n : d.notes) o += "  " + n + "\n";
+    if (!d.stopped.empty()) {
+      o += "  STOPPED at " + d.stopped + "\n  left as:\n";
+      for (const std::string& l : d.left) o += "    " + l + "\n";
+    }
+    if (d.not_reached) o += "  nothing written: the restore stopped at an earlier drive\n";
   }
   for (const std::string& p : r.problems) o += "problem: " + p + "\n";
   return o;

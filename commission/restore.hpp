@@ -7,9 +7,14 @@
 // are the changes. Only when every drive passed this are the changes
 // downloaded (SDO, or CoE SDO over the EtherCAT master; a CANopen node with
 // changes is first sent NMT Enter Pre-Operational and left there; before
-// any of it the CAN bus is listened to for another master), each read back
-// and compared; a CANopen or CoE drive with "store parameters" (0x1010:1)
-// is then asked to store them ("save"). Restored are the parameters of
+// any of it the CAN bus is listened to for another master; the node must
+// then report PRE-OPERATIONAL by heartbeat or node guarding, else nothing is
+// written to it, and again after the writes), each read back and compared; a CANopen or CoE drive with
+// "store parameters" (0x1010:1) is then asked to store them ("save"). A
+// write refused half-way (any abort but read-only, or no answer) stops the
+// restore there: that drive is not stored, the state it is left in (NMT
+// state, every object written so far) is read from it and said, and no
+// other drive is written after it. Restored are the parameters of
 // 0x2000-0x9FFF (manufacturer and profile objects) that are not read-only
 // (AccessType ro/const in the file), and the PDO configuration: CANopen's
 // communication parameters 0x1400-0x15FF / 0x1800-0x19FF and mappings
@@ -18,7 +23,7 @@
 // require (restore_pdos below). The other objects below 0x2000
 // (identity, names, heartbeat) are only kept in the backup for the
 // record. A drive that refuses a write as read-only (SDO abort 0x06010002)
-// keeps its value and says so. Bad input (a missing file, a line that does
+// keeps its value and says so (and the restore goes on). Bad input (a missing file, a line that does
 // not parse, a drive that does not answer or is another drive) is a
 // problem naming file and line or drive, and then nothing is written.
 // Non-realtime.
@@ -93,19 +98,37 @@ class DriveChannel {
   virtual Result upload(canopen::ObjectAddress a) = 0;
   virtual Result download(canopen::ObjectAddress a, const std::vector<uint8_t>& data) = 0;
   // Before the first write: brings the drive into the state its
-  // configuration is written in. CANopen: NMT Enter Pre-Operational (CiA
-  // 301: PDO mappings change there; many drives refuse them in
-  // Operational), and the node stays there; EtherCAT: nothing (the master
-  // holds the slaves in PREOP). `done` says what was done ("" nothing).
+  // configuration is written in, and confirms it. CANopen: NMT Enter
+  // Pre-Operational (CiA 301: PDO mappings change there; many drives refuse
+  // them in Operational), confirmed by the node's heartbeat (0x700+id, when
+  // its 0x1017 is not 0) or else its answer to node guarding (RTR on
+  // 0x700+id); a node that does not report PRE-OPERATIONAL within the
+  // channel's NMT time-out is refused (not ok, `error` says what it
+  // reported, or that it reported nothing), and nothing is written to it.
+  // The node stays there. EtherCAT: nothing (the master holds the slaves in
+  // PREOP). `done` says what was done and seen ("" nothing).
   virtual Result prepare_for_writes(std::string& done) {
     done.clear();
     Result r;
     r.ok = true;
     return r;
   }
+  // After the writes (all of them, or up to a refused one): the drive's
+  // communication state as the drive reports it now ("" not known by this
+  // channel). CANopen: "PRE-OPERATIONAL (heartbeat 0x701)", or not ok
+  // naming what it reported instead.
+  virtual Result report_state(std::string& state) {
+    state.clear();
+    Result r;
+    r.ok = true;
+    return r;
+  }
 };
-// A CANopen node over `bus` (SDO client; `timeout_ns` per transfer).
-std::unique_ptr<DriveChannel> canopen_channel(can::Transport& bus, int node, int64_t timeout_ns);
+// A CANopen node over `bus` (SDO client; `timeout_ns` per transfer;
+// `nmt_timeout_ns`: how long an NMT state change may take to be reported,
+// at least three heartbeat periods of the node).
+std::unique_ptr<DriveChannel> canopen_channel(can::Transport& bus, int node, int64_t timeout_ns,
+                                              int64_t nmt_timeout_ns = 500'000'000);
 // An EtherCAT slave over `master` (CoE SDO; the master in PREOP).
 std::unique_ptr<DriveChannel> ethercat_channel(ethercat::Master& master, unsigned position);
 
@@ -132,6 +155,15 @@ struct DriveRestore {
   int unchanged = 0;                   // restorable entries already equal
   std::vector<std::string> notes;      // serial number differs, stored or not
   bool checked = false;                // identity matched and its parameters were read
+  // A write the drive refused (or did not answer) stops the restore there:
+  // "writing 0x1A00:02 (mapping entry) = 0x10180120: 0x06040041 ...".
+  // Nothing more is written to any drive, and this one is not stored.
+  std::string stopped;
+  // After such a stop, the state the drive is left in, as read from it:
+  // its NMT state and every object written to it so far ("0x1800:01 =
+  // 0x80000181"), or why it is not known.
+  std::vector<std::string> left;
+  bool not_reached = false;            // an earlier drive's stop: nothing written to this one
 };
 
 struct RestoreResult {
@@ -151,6 +183,9 @@ struct RestoreBuses {
   // Before writing to CANopen drives, the CAN bus is listened to this long
   // for another master (other_master_traffic); 0: not.
   int64_t listen_ns = 300'000'000;
+  // A CANopen node's NMT state change is confirmed within this (or three
+  // of its heartbeat periods, when longer).
+  int64_t nmt_timeout_ns = 500'000'000;
 };
 
 // What only a CANopen master sends, seen on `bus` within `window_ns`

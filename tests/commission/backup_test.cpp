@@ -188,5 +188,72 @@ TEST(CommissionBackup, ReadsBothDrivesOfAGantryPair) {
   EXPECT_EQ(files[1].filename(), "node-02-y.dcf");
 }
 
+// The loops' parameter sets 0x60F9/0x60FB have manufacturer-specific
+// sub-indices: without an EDS the backup reads each record's sub-index 0
+// and then every sub-index it counts, in the size the drive gives. Here
+// one drive has a sixth position-loop parameter (UNSIGNED8) and the other
+// a velocity set of one entry: each is backed up as the drive has it.
+TEST(CommissionBackup, TheLoopGainsSubIndicesAreThoseTheDrivesSubIndexZeroCounts) {
+  Bus b;
+  auto& x_drive = b.add(1);
+  x_drive.od().add({0x60FB, 6}, canopen::DataType::Unsigned8, canopen::Access::ReadWrite, 42, false, "vendor filter");
+  x_drive.od().set<uint8_t>({0x60FB, 0}, 6);
+  b.add(2).od().set<uint8_t>({0x60F9, 0}, 1);
+  b.start();
+  const State s = state_of({{'X', 1}, {'Y', 2}});
+  const BackupResult r = backup_drives(*b.client, s, options());
+  ASSERT_TRUE(r.ok()) << r.problems[0];
+  ASSERT_EQ(r.nodes.size(), 2u);
+  const NodeBackup& x = r.nodes[0];
+  const NodeBackup& y = r.nodes[1];
+  ASSERT_TRUE(value(x, 0x60FB, 0));
+  EXPECT_EQ(value(x, 0x60FB, 0)->object.access, "ro") << "a record's size is not restored";
+  const BackedUpValue* sixth = value(x, 0x60FB, 6);
+  ASSERT_TRUE(sixth) << "the sub-index beyond the five step 7 knows was not read";
+  EXPECT_EQ(sixth->data, (std::vector<uint8_t>{42}));
+  EXPECT_EQ(sixth->object.type, canopen::DataType::Unsigned8);
+  EXPECT_EQ(sixth->object.name, "Position control parameter 6");
+  ASSERT_TRUE(value(x, 0x60FB, 1));
+  EXPECT_EQ(value(x, 0x60FB, 1)->object.name, "Position loop gain");
+  ASSERT_TRUE(value(x, 0x60F9, 2));
+  ASSERT_TRUE(value(y, 0x60F9, 1));
+  EXPECT_FALSE(value(y, 0x60F9, 2)) << "node 2's velocity set counts one entry";
+  for (const std::string& m : y.missing) EXPECT_EQ(m.find("60F9sub2"), std::string::npos) << m;
+}
+
+// Without an EDS the PDOs are searched for number by number: a drive
+// whose TPDOs are numbered with a gap (TPDO1-8, then TPDO11) has TPDO11
+// backed up too, as long as the gap is shorter than pdo_search_gap; with a
+// gap limit of 1 (stop at the first missing number) it is lost.
+TEST(CommissionBackup, PdosAfterAGapInTheirNumbersAreFoundWithoutAnEds) {
+  namespace co = canopen;
+  Bus b;
+  auto& drive = b.add(1);
+  auto& od = drive.od();
+  od.add({0x180A, 0}, co::DataType::Unsigned8, co::Access::Const, 2, false, "TPDO11 communication parameter");
+  od.add({0x180A, 1}, co::DataType::Unsigned32, co::Access::ReadWrite, 0x8000028A, false, "COB-ID");
+  od.add({0x180A, 2}, co::DataType::Unsigned8, co::Access::ReadWrite, 254, false, "Transmission type");
+  od.add({0x1A0A, 0}, co::DataType::Unsigned8, co::Access::ReadWrite, 1, false, "TPDO11 mapping");
+  od.add({0x1A0A, 1}, co::DataType::Unsigned32, co::Access::ReadWrite, 0x60410010, false, "Mapping entry 1");
+  b.start();
+  const State s = state_of({{'X', 1}});
+  BackupResult r = backup_drives(*b.client, s, options());
+  ASSERT_TRUE(r.ok()) << r.problems[0];
+  ASSERT_TRUE(value(r.nodes[0], 0x1807, 1)) << "TPDO8";
+  EXPECT_FALSE(value(r.nodes[0], 0x1808, 1));
+  ASSERT_TRUE(value(r.nodes[0], 0x180A, 1)) << "TPDO11, after the gap, was not found";
+  EXPECT_EQ(value(r.nodes[0], 0x180A, 1)->data, (std::vector<uint8_t>{0x8A, 0x02, 0x00, 0x80}));
+  ASSERT_TRUE(value(r.nodes[0], 0x1A0A, 1));
+  EXPECT_EQ(value(r.nodes[0], 0x1A0A, 1)->data, (std::vector<uint8_t>{0x10, 0x00, 0x41, 0x60}));
+  for (const std::string& m : r.nodes[0].missing) EXPECT_EQ(m.find("1808"), std::string::npos) << "a gap is no loss: " << m;
+
+  BackupOptions first_missing_ends = options();
+  first_missing_ends.pdo_search_gap = 1;
+  r = backup_drives(*b.client, s, first_missing_ends);
+  ASSERT_TRUE(r.ok()) << r.problems[0];
+  EXPECT_TRUE(value(r.nodes[0], 0x1807, 1));
+  EXPECT_FALSE(value(r.nodes[0], 0x180A, 1));
+}
+
 }  // namespace
 }  // namespace cnc::commission

@@ -294,8 +294,231 @@ TEST(CommissionRestore, AnOperationalNodeIsPutIntoPreOperationalBeforeItsPdoMapp
   EXPECT_EQ(x->upload({0x1800, 1}).data, cob->data);
   EXPECT_EQ(next_heartbeat(*observer, 1), 0x7F) << "node 1 is left PRE-OPERATIONAL";
   EXPECT_NE(describe(r).find("node 1 (axis X, node-01-x.dcf)"), std::string::npos);
-  EXPECT_NE(describe(r).find("NMT Enter Pre-Operational sent before writing: the node is left in PRE-OPERATIONAL"),
+  EXPECT_NE(describe(r).find("NMT Enter Pre-Operational sent before writing, and the node reported PRE-OPERATIONAL "
+                             "(heartbeat 0x701)"),
             std::string::npos) << describe(r);
+  EXPECT_NE(describe(r).find("it is left in PRE-OPERATIONAL"), std::string::npos) << describe(r);
+  EXPECT_NE(describe(r).find("after the writes it reports PRE-OPERATIONAL (heartbeat 0x701)"), std::string::npos)
+      << describe(r);
+}
+
+// NMT is unconfirmed on the wire: the restore waits for the node to say
+// it is PRE-OPERATIONAL. Here the command is lost (the virtual bus drops
+// it), node 1 goes on reporting OPERATIONAL in its heartbeat: it is named
+// with what it reported, nothing is written to it, nor to node 2 after it.
+TEST(CommissionRestore, ANodeThatDoesNotReportPreOperationalIsNamedWithWhatItReportedAndNothingIsWritten) {
+  CanBus b;
+  b.add(1);
+  b.add(2);
+  auto observer = b.bus->open_port("observer");
+  b.start();
+  State s = canopen_state({{'X', 1}, {'Y', 2}});
+  testing::TempDir dir;
+  const auto files = canopen_backup(*b.client, s, dir / "backup");
+  ASSERT_EQ(files.size(), 2u);
+  const uint32_t window = as_u32(files[0].find(0x6065, 0)->data);
+  auto x = canopen_channel(*b.client, 1, kTimeout);
+  auto y = canopen_channel(*b.client, 2, kTimeout);
+  ASSERT_TRUE(x->download({0x6065, 0}, u32(window + 777)).ok);
+  ASSERT_TRUE(y->download({0x6065, 0}, u32(window + 555)).ok);
+  ASSERT_TRUE(x->download({0x1017, 0}, {20, 0}).ok);
+  ASSERT_EQ(b.client->send(can::Frame::make(0x000, {0x01, 1})), can::SendStatus::Ok);  // NMT start node 1
+  ASSERT_EQ(next_heartbeat(*observer, 1), 0x05) << "node 1 is OPERATIONAL";
+
+  b.bus->drop_next(can::Filter::exact(0x000), 1);  // the restore's NMT Enter Pre-Operational is lost
+  RestoreBuses buses;
+  buses.can = b.client.get();
+  buses.sdo_timeout_ns = kTimeout;
+  buses.listen_ns = 0;  // (the heartbeat is not another master's traffic anyway)
+  const RestoreResult r = restore_drives(files, buses, false);
+  ASSERT_EQ(r.problems.size(), 1u) << describe(r);
+  EXPECT_NE(r.problems[0].find("node 1 (axis X, node-01-x.dcf): NMT Enter Pre-Operational sent, but it reported "
+                               "OPERATIONAL (0x05) (heartbeat 0x701), not PRE-OPERATIONAL, within 500 ms"),
+            std::string::npos) << r.problems[0];
+  EXPECT_NE(r.problems[0].find("nothing was written to it"), std::string::npos) << r.problems[0];
+  EXPECT_EQ(as_u32(x->upload({0x6065, 0}).data), window + 777);
+  EXPECT_EQ(as_u32(y->upload({0x6065, 0}).data), window + 555) << "node 2 was written after node 1's problem";
+  EXPECT_TRUE(r.drives[1].not_reached);
+  EXPECT_NE(describe(r).find("nothing written: the restore stopped at an earlier drive"), std::string::npos) << describe(r);
+  EXPECT_EQ(next_heartbeat(*observer, 1), 0x05) << "node 1 is still OPERATIONAL";
+
+  // With the command not lost, the restore goes ahead and node 1 says so.
+  const RestoreResult after = restore_drives(files, buses, false);
+  ASSERT_TRUE(after.ok()) << describe(after);
+  EXPECT_EQ(as_u32(x->upload({0x6065, 0}).data), window);
+  EXPECT_EQ(as_u32(y->upload({0x6065, 0}).data), window);
+  EXPECT_EQ(next_heartbeat(*observer, 1), 0x7F);
+}
+
+// A node without heartbeat (0x1017 = 0) is asked by node guarding (RTR on
+// 0x700+id); one that answers neither is named, and nothing is written.
+TEST(CommissionRestore, WithoutHeartbeatNodeGuardingConfirmsPreOperationalAndANodeThatAnswersNeitherIsRefused) {
+  CanBus b;
+  b.add(1);
+  b.start();
+  State s = canopen_state({{'X', 1}});
+  testing::TempDir dir;
+  const auto files = canopen_backup(*b.client, s, dir / "backup");
+  const uint32_t window = as_u32(files[0].find(0x6065, 0)->data);
+  auto x = canopen_channel(*b.client, 1, kTimeout);
+  ASSERT_EQ(x->upload({0x1017, 0}).data, (std::vector<uint8_t>{0, 0})) << "the simulated drive has no heartbeat";
+  ASSERT_EQ(b.client->send(can::Frame::make(0x000, {0x01, 1})), can::SendStatus::Ok);  // NMT start node 1
+  ASSERT_TRUE(x->download({0x6065, 0}, u32(window + 777)).ok);
+
+  RestoreBuses buses;
+  buses.can = b.client.get();
+  buses.sdo_timeout_ns = kTimeout;
+  buses.nmt_timeout_ns = 300'000'000;
+  // Its node guarding never gets through: an RTR every 100 ms, at most 3
+  // within the 300 ms (the filter takes the requests and the answers).
+  b.bus->drop_next(can::Filter::exact(0x701), 3);
+  const RestoreResult silent = restore_drives(files, buses, false);
+  ASSERT_EQ(silent.problems.size(), 1u) << describe(silent);
+  EXPECT_NE(silent.problems[0].find("node 1 (axis X, node-01-x.dcf): NMT Enter Pre-Operational sent, but no heartbeat "
+                                    "(its 0x1017 is 0) and no answer to node guarding (RTR on 0x701) within 300 ms"),
+            std::string::npos) << silent.problems[0];
+  EXPECT_EQ(as_u32(x->upload({0x6065, 0}).data), window + 777);
+
+  buses.nmt_timeout_ns = kTimeout;  // room for a request still dropped (a loaded host sent fewer than 3)
+  ASSERT_EQ(b.client->send(can::Frame::make(0x000, {0x01, 1})), can::SendStatus::Ok);  // OPERATIONAL again
+  const RestoreResult r = restore_drives(files, buses, false);
+  ASSERT_TRUE(r.ok()) << describe(r);
+  EXPECT_NE(describe(r).find("the node reported PRE-OPERATIONAL (node guarding answer 0x701)"), std::string::npos)
+      << describe(r);
+  EXPECT_NE(describe(r).find("after the writes it reports PRE-OPERATIONAL (node guarding answer 0x701)"),
+            std::string::npos) << describe(r);
+  EXPECT_EQ(as_u32(x->upload({0x6065, 0}).data), window);
+}
+
+// A backup whose mapping counts an entry it does not have is found out
+// before anything is written (not half-way through the PDO).
+TEST(CommissionRestore, ABackupMappingWithoutAnEntryItCountsIsAProblemBeforeAnythingIsWritten) {
+  CanBus b;
+  auto& drive = b.add(1);
+  drive.od().set<uint32_t>({0x1A00, 1}, 0x60410010);
+  drive.od().set<uint32_t>({0x1A00, 2}, 0x60640020);
+  drive.od().set<uint8_t>({0x1A00, 0}, 2);
+  drive.od().set<uint32_t>({0x1800, 1}, 0x181);
+  b.start();
+  State s = canopen_state({{'X', 1}});
+  testing::TempDir dir;
+  auto files = canopen_backup(*b.client, s, dir / "backup");
+  std::string text = read_file(files[0].path);
+  const auto sec = text.find("[1A00sub2]");
+  ASSERT_NE(sec, std::string::npos) << text;
+  text.erase(sec, text.find('[', sec + 1) - sec);
+  write_file_atomically(files[0].path, text);
+  files = load_backup_dir(dir / "backup");
+  auto x = canopen_channel(*b.client, 1, kTimeout);
+  ASSERT_TRUE(x->download({0x1800, 1}, u32(0x80000181)).ok);
+  ASSERT_TRUE(x->download({0x1A00, 0}, {0}).ok);
+  ASSERT_TRUE(x->download({0x1A00, 0}, {1}).ok);
+  ASSERT_TRUE(x->download({0x1800, 1}, u32(0x181)).ok);
+
+  RestoreBuses buses;
+  buses.can = b.client.get();
+  buses.sdo_timeout_ns = kTimeout;
+  const RestoreResult r = restore_drives(files, buses, false);
+  ASSERT_EQ(r.problems.size(), 1u) << describe(r);
+  EXPECT_NE(r.problems[0].find("node 1 (axis X, node-01-x.dcf): the backup's 0x1A00:00 (line "), std::string::npos)
+      << r.problems[0];
+  EXPECT_NE(r.problems[0].find(") counts 2 entries but has no 0x1A00:02; nothing was written"), std::string::npos)
+      << r.problems[0];
+  EXPECT_TRUE(r.drives[0].pdo_steps.empty()) << describe(r);
+  EXPECT_EQ(as_u32(x->upload({0x1800, 1}).data), 0x181u) << "the PDO was disabled";
+  EXPECT_EQ(x->upload({0x1A00, 0}).data, (std::vector<uint8_t>{1}));
+}
+
+// A channel that records the writes it passes on (the order the drive
+// sees them in).
+class RecordingChannel final : public DriveChannel {
+ public:
+  RecordingChannel(std::unique_ptr<DriveChannel> inner, std::vector<std::string>& log) : inner_(std::move(inner)), log_(log) {}
+  Result upload(canopen::ObjectAddress a) override { return inner_->upload(a); }
+  Result download(canopen::ObjectAddress a, const std::vector<uint8_t>& data) override {
+    char b[16];
+    std::snprintf(b, sizeof b, "%04X:%02X", a.index, a.sub);
+    log_.push_back(b);
+    return inner_->download(a, data);
+  }
+  Result prepare_for_writes(std::string& done) override {
+    log_.push_back("prepare");
+    return inner_->prepare_for_writes(done);
+  }
+  Result report_state(std::string& state) override { return inner_->report_state(state); }
+
+ private:
+  std::unique_ptr<DriveChannel> inner_;
+  std::vector<std::string>& log_;
+};
+
+// A mapping entry the drive refuses half-way through a PDO (the backup
+// maps an object this drive does not have): the restore stops there,
+// naming the object and the abort code; what was written before is
+// listed, the state the drive is left in is read from it and said (the
+// PDO disabled, nothing mapped, PRE-OPERATIONAL, not stored), and node 2,
+// which also differs from its backup, is not written.
+TEST(CommissionRestore, AWriteRefusedHalfWayStopsTheRestoreNamingObjectAndAbortAndSaysWhereTheDriveIsLeft) {
+  CanBus b;
+  auto& drive = b.add(1);
+  drive.od().set<uint32_t>({0x1A00, 1}, 0x60410010);
+  drive.od().set<uint32_t>({0x1A00, 2}, 0x60640020);
+  drive.od().set<uint8_t>({0x1A00, 0}, 2);
+  drive.od().set<uint32_t>({0x1800, 1}, 0x181);
+  b.add(2);
+  b.start();
+  State s = canopen_state({{'X', 1}, {'Y', 2}});
+  testing::TempDir dir;
+  auto files = canopen_backup(*b.client, s, dir / "backup");
+  ASSERT_EQ(files.size(), 2u);
+  // The backup's second TPDO1 entry is an object this drive lacks (a
+  // backup of other firmware).
+  std::string text = read_file(files[0].path);
+  const auto sec = text.find("[1A00sub2]");
+  ASSERT_NE(sec, std::string::npos) << text;
+  const auto val = text.find("ParameterValue=0x60640020", sec);
+  ASSERT_NE(val, std::string::npos) << text.substr(sec, 200);
+  text.replace(val, 25, "ParameterValue=0x5FFE0020");
+  write_file_atomically(files[0].path, text);
+  files = load_backup_dir(dir / "backup");
+  const uint32_t window = as_u32(files[0].find(0x6065, 0)->data);
+  auto x = canopen_channel(*b.client, 1, kTimeout);
+  auto y = canopen_channel(*b.client, 2, kTimeout);
+  ASSERT_TRUE(x->download({0x6065, 0}, u32(window + 777)).ok);
+  ASSERT_TRUE(y->download({0x6065, 0}, u32(window + 555)).ok);
+
+  std::vector<std::string> log1, log2;
+  const auto open = [&](const BackupFile& f, std::string&) -> std::unique_ptr<DriveChannel> {
+    return std::make_unique<RecordingChannel>(canopen_channel(*b.client, f.node, kTimeout), f.node == 1 ? log1 : log2);
+  };
+  const RestoreResult r = restore_drives(files, open, false);
+  const std::string text_r = describe(r);
+  ASSERT_EQ(r.problems.size(), 1u) << text_r;
+  const std::string& p = r.problems[0];
+  EXPECT_NE(p.find("node 1 (axis X, node-01-x.dcf): restoring the PDO configuration, writing 0x1A00:02 (mapping entry) "
+                   "failed: 0x06020000"),
+            std::string::npos) << p;
+  EXPECT_NE(p.find("the restore stopped there: 4 object(s) of this drive were written before it, it is not stored"),
+            std::string::npos) << p;
+  EXPECT_NE(p.find("not written at all: node 2 (axis Y, node-02-y.dcf)"), std::string::npos) << p;
+  // The writes node 1 saw, in order: the parameter, then TPDO1 disabled,
+  // its mapping emptied, the first entry, the refused one; nothing after.
+  EXPECT_EQ(log1, (std::vector<std::string>{"prepare", "6065:00", "1800:01", "1A00:00", "1A00:01", "1A00:02"}));
+  EXPECT_TRUE(log2.empty()) << "node 2 was written after node 1 stopped";
+  // Where node 1 is left, as the restore said and as the drive reads.
+  const DriveRestore& d = r.drives[0];
+  EXPECT_NE(d.stopped.find("writing 0x1A00:02 = 0x5FFE0020 (mapping entry): 0x06020000"), std::string::npos) << d.stopped;
+  const auto left = [&d](const std::string& line) { return std::find(d.left.begin(), d.left.end(), line) != d.left.end(); };
+  EXPECT_TRUE(left("NMT state: PRE-OPERATIONAL (node guarding answer 0x701)")) << text_r;
+  EXPECT_TRUE(left("0x1800:01 = 0x80000181 (the PDO is disabled)")) << text_r;
+  EXPECT_TRUE(left("0x1A00:00 = 0x00 (nothing mapped)")) << text_r;
+  EXPECT_TRUE(left("0x6065:00 = " + backup_value_text(canopen::DataType::Unsigned32, u32(window)))) << text_r;
+  EXPECT_NE(text_r.find("STOPPED at writing 0x1A00:02"), std::string::npos) << text_r;
+  EXPECT_NE(text_r.find("not stored: \"store parameters\" (0x1010:01) was not sent"), std::string::npos) << text_r;
+  EXPECT_EQ(as_u32(x->upload({0x1800, 1}).data), 0x80000181u);
+  EXPECT_EQ(x->upload({0x1A00, 0}).data, (std::vector<uint8_t>{0}));
+  EXPECT_EQ(as_u32(x->upload({0x6065, 0}).data), window);
+  EXPECT_EQ(as_u32(y->upload({0x6065, 0}).data), window + 555);
 }
 
 // Another master on the bus (here a SYNC every 5 ms and an RPDO to node 1
@@ -578,6 +801,48 @@ TEST(CommissionRestore, EthercatChangedPdoMappingAndAssignmentAreRestored) {
     EXPECT_EQ(m.sdo_upload(1, index, sub).data, files[0].find(index, sub)->data) << std::hex << index << ":" << int(sub);
   const RestoreResult again = restore_drives(files, buses, true);
   EXPECT_TRUE(again.drives[0].pdo_changes.empty()) << describe(again);
+}
+
+// Over CoE the same stop: a mapping entry the slave refuses after the
+// assignments were emptied leaves them empty, and the restore says so.
+TEST(CommissionRestore, EthercatAMappingEntryRefusedHalfWayStopsTheRestoreAndSaysTheAssignmentsAreEmpty) {
+  EcatSegment seg(1);
+  State s = ethercat_state(seg.interface(), {{'X', 1}});
+  BackupResult br = backup_ethercat_drives(seg.interface(), s);
+  ASSERT_TRUE(br.ok()) << br.problems[0];
+  testing::TempDir dir;
+  write_backup(s, br, dir / "b");
+  auto files = load_backup_dir(dir / "b");
+  ASSERT_TRUE(files[0].find(0x1A00, 4)) << "0x1A00 maps four objects or more in the simulated slave";
+  std::string text = read_file(files[0].path);
+  const auto sec = text.find("[1A00sub4]");
+  ASSERT_NE(sec, std::string::npos);
+  const auto val = text.find("ParameterValue=", sec);
+  text.replace(val, text.find('\n', val) - val, "ParameterValue=0x5FFE0020");
+  write_file_atomically(files[0].path, text);
+  files = load_backup_dir(dir / "b");
+
+  ethercat::MasterConfig cfg;
+  cfg.interface = seg.interface();
+  ethercat::Master m(cfg, nullptr);
+  m.to_preop();
+  RestoreBuses buses;
+  buses.ethercat = &m;
+  const RestoreResult r = restore_drives(files, buses, false);
+  const std::string out = describe(r);
+  ASSERT_EQ(r.problems.size(), 1u) << out;
+  EXPECT_NE(r.problems[0].find("EtherCAT slave 1 (axis X, slave-01-x.dcf): restoring the PDO configuration, writing "
+                               "0x1A00:04 (mapping entry) failed: aborted by the slave: 0x06020000"),
+            std::string::npos) << r.problems[0];
+  EXPECT_NE(r.problems[0].find("the restore stopped there"), std::string::npos) << r.problems[0];
+  const DriveRestore& d = r.drives[0];
+  const auto left = [&d](const std::string& line) { return std::find(d.left.begin(), d.left.end(), line) != d.left.end(); };
+  EXPECT_TRUE(left("0x1C12:00 = 0x00 (no PDO assigned)")) << out;
+  EXPECT_TRUE(left("0x1C13:00 = 0x00 (no PDO assigned)")) << out;
+  EXPECT_TRUE(left("0x1A00:00 = 0x00 (nothing mapped)")) << out;
+  EXPECT_EQ(m.sdo_upload(1, 0x1C13, 0).data, (std::vector<uint8_t>{0}));
+  EXPECT_EQ(m.sdo_upload(1, 0x1A00, 0).data, (std::vector<uint8_t>{0}));
+  EXPECT_EQ(out.find("stored in the drive"), std::string::npos) << out;
 }
 
 // A drive with six TxPDO mappings, the sixth assigned as the second PDO
