@@ -141,6 +141,10 @@ struct Executor::RangeMemo {
   uint64_t from = 0;
   uint32_t valid = 0;
   std::array<std::array<RangeStretch, kWays>, kChannels> e;
+  // The entry that answered last and the velocities (v0, v1] whose grid
+  // channel is its channel: asked first, without the grid search.
+  const RangeStretch* last = nullptr;
+  double v0 = 0, v1 = 0;
 };
 static_assert(kChannels <= 32, "RangeMemo::valid has a bit per channel");
 
@@ -597,9 +601,14 @@ double Executor::range_min(RangeMemo& memo, double lo, double hi, int c) const n
   if (memo.from >= ptail_) return 0;
   auto& ways = memo.e[static_cast<std::size_t>(c)];
   const uint32_t bit = 1u << c;
+  memo.v0 = c > 0 ? grid_[static_cast<std::size_t>(c - 1)] : -kInf;
+  memo.v1 = c < kGrid - 1 ? grid_[static_cast<std::size_t>(c)] : kInf;
   if (memo.valid & bit) {
     for (const RangeStretch& e : ways) {
-      if (lo >= e.lo0 && lo < e.lo1 && hi >= e.hi0 && hi < e.hi1) return e.val;
+      if (lo >= e.lo0 && lo < e.lo1 && hi >= e.hi0 && hi < e.hi1) {
+        memo.last = &e;
+        return e.val;
+      }
     }
     for (int w = RangeMemo::kWays - 1; w > 0; --w) ways[static_cast<std::size_t>(w)] = ways[static_cast<std::size_t>(w - 1)];
   } else {
@@ -607,6 +616,7 @@ double Executor::range_min(RangeMemo& memo, double lo, double hi, int c) const n
     for (RangeStretch& e : ways) e = RangeStretch{kInf, -kInf, kInf, -kInf, 0};
     memo.valid |= bit;
   }
+  memo.last = &ways[0];
   return resolved_min(memo.from, lo, hi, c, ways[0]);
 }
 
@@ -632,6 +642,12 @@ double Executor::accel_limit(uint64_t from, double lo, double hi, double u) cons
 }
 
 double Executor::accel_limit(RangeMemo& memo, double lo, double hi, double u) const noexcept {
+  const RangeStretch* e = memo.last;
+  if (e && u > memo.v0 && u <= memo.v1 && lo >= e->lo0 && lo < e->lo1 && hi >= e->hi0 && hi < e->hi1 &&
+      memo.from < ptail_) {
+    ++work_.queries;
+    return std::max(0.0, std::min(a_top_, e->val));
+  }
   return std::max(0.0, std::min(a_top_, range_min(memo, lo, hi, grid_index(u))));
 }
 
