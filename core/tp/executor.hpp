@@ -89,8 +89,9 @@ class Executor {
     int ingested = 0, split = 0, enveloped = 0, queries = 0, envelope_queries = 0;
     // Of `queries`, those that searched the pieces and asked the segment
     // tree: an envelope span's range minima that resolve to the same
-    // pieces as the one it asked last of the same channel take its answer
-    // (executor.cpp, RangeMemo), so `queries` stays the budget's unit.
+    // pieces as one of the last two it asked of the same channel take
+    // that answer (executor.cpp, RangeMemo); `queries` counts them all
+    // and stays the walk's budget unit, so the walk's pace is unchanged.
     int searches = 0, envelope_searches = 0;
     // Pieces whose limit table the servo thread computed itself (only
     // after a change of limits while moving; prepare_published() does it).
