@@ -87,6 +87,12 @@ class Executor {
   // (kSpanQueriesMax).
   struct CycleWork {
     int ingested = 0, split = 0, enveloped = 0, queries = 0, envelope_queries = 0;
+    // Of `queries`, those that searched the pieces and asked the segment
+    // tree: an envelope span's range minima that resolve to the same
+    // pieces as one of the last two it asked of the same channel take
+    // that answer (executor.cpp, RangeMemo); `queries` counts them all
+    // and stays the walk's budget unit, so the walk's pace is unchanged.
+    int searches = 0, envelope_searches = 0;
     // Pieces whose limit table the servo thread computed itself (only
     // after a change of limits while moving; prepare_published() does it).
     int limits = 0;
@@ -150,6 +156,8 @@ class Executor {
   struct Limits;
   struct PieceLimits;
   struct Tree;
+  struct RangeStretch;
+  struct RangeMemo;
 
   void configure(const PlannerConfig& config) noexcept;
   void clear_history(double x) noexcept;
@@ -165,7 +173,10 @@ class Executor {
   bool idle_ingested() const noexcept;
   void envelope_span(uint64_t k, double w_end) noexcept;
   double accel_limit(uint64_t piece, double lo, double hi, double u) const noexcept;
+  double accel_limit(RangeMemo& memo, double lo, double hi, double u) const noexcept;
   double range_min(uint64_t from, double lo, double hi, int channel) const noexcept;
+  double range_min(RangeMemo& memo, double lo, double hi, int channel) const noexcept;
+  double resolved_min(uint64_t from, double lo, double hi, int channel, RangeStretch& e) const noexcept;
   int grid_index(double v) const noexcept;
   double ceiling(const Span& sp) const noexcept;
   double envelope_at(uint64_t k, double x) const noexcept;
