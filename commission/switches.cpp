@@ -426,8 +426,16 @@ bool SwitchLatches::stop_jogs_on_change(int which) {
   std::string value;
   for (const ShownPin& p : shown_pins(c, kJogStopPin))
     if (p.name == kJogStopPin) {
-      if (!p.signal.empty()) return false;  // the configuration's (a pendant's stop button)
-      value = p.value;
+      if (p.signal == kJogStopSignal) {
+        // Left by a search that was killed: taken back.
+        c.halcmd({"delsig", kJogStopSignal});
+        c.halcmd({"setp", kJogStopPin, "0"});
+        value = "FALSE";
+      } else if (!p.signal.empty()) {
+        return false;  // the configuration's (a pendant's stop button)
+      } else {
+        value = p.value;
+      }
     }
   if (value.empty()) return false;
   const std::string l = kLatchNames[which];
