@@ -337,7 +337,8 @@ bool SwitchLatches::attach(const Controller& c, const Axis& a, std::string& why)
   detach();
   c_ = &c;
   // Links `pin` (an output) to the latch input `latch_pin` through the
-  // signal the output is on, or a new one named `signal`.
+  // signal the output is on, or a new one named `signal` (deleted again
+  // by detach()).
   const auto link = [&](const std::string& pin, const std::string& latch_pin, const std::string& signal) {
     std::string sig;
     for (const ShownPin& p : shown_pins(c, pin))
@@ -345,7 +346,9 @@ bool SwitchLatches::attach(const Controller& c, const Axis& a, std::string& why)
     c.halcmd({"unlinkp", latch_pin});
     c.halcmd({"net", sig.empty() ? signal : sig, pin, latch_pin});
     linked_pins_.push_back(latch_pin);
-    if (sig.empty()) made_signals_.push_back(signal);
+    // Ours also when a killed search or the homing check left it.
+    if ((sig.empty() || sig == signal) && std::find(made_signals_.begin(), made_signals_.end(), signal) == made_signals_.end())
+      made_signals_.push_back(signal);
   };
   try {
     if (shown_pins(c, std::string(kLatchNames[0]) + ".").empty()) {
