@@ -196,6 +196,26 @@ TEST(CommissionSwitchesHoming, TheSearchLeavesTheHalAsItFoundItAlsoWhenAbortedAn
   EXPECT_EQ(second.str().find("again at"), std::string::npos) << second.str();
   expect_switches_at_the_truth(r2, m.axes[0], tol);
   expect_hal_as_found(c, before);
+
+  // What a killed search (SIGKILL) leaves: the latches linked and in the
+  // thread, the jog stop linked to an armed latch that saw its switch.
+  c.halcmd({"addf", "commission-latch-neg", "servo-thread"});
+  c.halcmd({"setp", "commission-latch-neg.in", "0"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  c.halcmd({"setp", "commission-latch-neg.arm", "1"});
+  c.halcmd({"setp", "commission-latch-neg.in", "1"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  c.halcmd({"net", "commission-jog-stop", "commission-latch-neg.changed", "motion.jog-stop-immediate"});
+  c.halcmd({"net", "commission-j0-neg-lim-sw", "cia402.0.drive.00.neg-lim-sw", "commission-latch-neg.in"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_EQ(c.halcmd({"getp", "motion.jog-stop-immediate"}).substr(0, 4), "TRUE") << "the stale stop holds";
+  const AxisSwitches r3 = find_switches(c, *s.axis('X'), 40, 10.0);
+  expect_switches_at_the_truth(r3, m.axes[0], tol);
+  const std::string left = hal_graph(c);
+  EXPECT_EQ(left.find("commission-jog-stop"), std::string::npos) << left;
+  EXPECT_EQ(left.find("commission-j0-"), std::string::npos) << left;
+  EXPECT_NE(left.find("addf commission-latch-neg servo-thread"), std::string::npos)
+      << "a function in a thread when the search began is left there:\n" << left;
   EXPECT_EQ(d.stop(), 0) << e2e::read_text(dir / "cncd.log");
 }
 
