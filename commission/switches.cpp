@@ -202,8 +202,13 @@ void abort_check(const Controller& c, const Axis& a, const Poll& p) {
 // Jogs by `dist` and samples until it ends, the stop input changes (then
 // a jog stop), the machine goes off (the controller stopped it), or the
 // time limit. Returns the samples.
+// `armed` (may be null): the latch armed on `stop_on`, which stopped the
+// jog in the servo cycle the input changed; where the polls missed the
+// change (the machine switched off, or the axis stopped short of the
+// target, standing on the edge with the input back at its old level),
+// the latch's change ends the leg as a last sample where it happened.
 std::vector<SwitchSample> leg(const Controller& c, const Axis& a, const std::string& prefix, double dist, double vel,
-                              bool SwitchSample::*stop_on) {
+                              bool SwitchSample::*stop_on, const SwitchLatches* armed = nullptr) {
   if (!(vel > 0)) throw std::invalid_argument("jog: no speed given");
   const std::string joint = std::to_string(a.joint);
   std::vector<SwitchSample> out;
@@ -214,8 +219,17 @@ std::vector<SwitchSample> leg(const Controller& c, const Axis& a, const std::str
   c.cnc({"jog", joint, std::to_string(vel), std::to_string(dist)});
   const auto limit = std::chrono::duration<double>(2 * std::fabs(dist) / vel + 5.0);
   const auto start = std::chrono::steady_clock::now();
-  int still = 0;
+  int still = 0, stopped = 0;
   double last = p.s.position;
+  const auto latched_stop = [&]() {
+    double at = 0;
+    if (!stop_on || !armed || !armed->armed_change(at)) return false;
+    SwitchSample s = out.back();
+    s.position = at;
+    s.*stop_on = !(out.front().*stop_on);
+    out.push_back(s);
+    return true;
+  };
   for (;;) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
     p = poll(c, a, prefix);
@@ -232,6 +246,7 @@ std::vector<SwitchSample> leg(const Controller& c, const Axis& a, const std::str
       return out;
     }
     if (!p.enabled) {
+      if (latched_stop()) return out;
       // Switched off with no switch changed: not a switch stop (E-stop, a
       // stalled servo thread, a following error on the way).
       if (stop_on)
@@ -245,6 +260,8 @@ std::vector<SwitchSample> leg(const Controller& c, const Axis& a, const std::str
     } else {
       still = 0;
     }
+    stopped = std::fabs(p.s.position - last) < 1e-4 ? stopped + 1 : 0;
+    if (stopped >= 3 && latched_stop()) return out;
     last = p.s.position;
     if (std::chrono::steady_clock::now() - start > limit) {
       c.cnc({"jog-stop", joint});
@@ -258,15 +275,31 @@ void on_again(const Controller& c) { machine_on(c, false); }
 
 const char* const kLatchNames[] = {"commission-latch-neg", "commission-latch-pos", "commission-latch-home"};
 const char* const kLatchInputs[] = {"neg-lim-sw", "pos-lim-sw", "home-sw"};
+const char* const kJogStopSignal = "commission-jog-stop";
+// The command stops in the cycle (no deceleration ramp): a drive halts at
+// its limit switch itself, and a ramp of v^2/2a past it (0.25 mm at
+// 10 mm/s and 200 mm/s^2) trips the following-error limit.
+const std::string kJogStopPin = "motion.jog-stop-immediate";
 
-// Links `pin` (an output) to the latch input `latch_pin` through the
-// signal the output is on, or a new one named `signal`.
-void link_to_latch(const Controller& c, const std::string& pin, const std::string& latch_pin, const std::string& signal) {
-  std::string sig = signal;
-  for (const ShownPin& p : shown_pins(c, pin))
-    if (p.name == pin && !p.signal.empty()) sig = p.signal;
-  c.halcmd({"unlinkp", latch_pin});
-  c.halcmd({"net", sig, pin, latch_pin});
+// The functions of `halcmd show funct PREFIX` and how many threads call
+// each (its Users column).
+std::vector<std::pair<std::string, int>> shown_functions(const Controller& c, const std::string& prefix) {
+  std::vector<std::pair<std::string, int>> out;
+  std::istringstream in(c.halcmd({"show", "funct", prefix}));
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream w(line);
+    std::vector<std::string> t;
+    for (std::string x; w >> x;) t.push_back(x);
+    // Owner FP Users Time(ns) Max(ns) Name
+    if (t.size() == 6 && t[5].rfind(prefix, 0) == 0) out.emplace_back(t[5], std::stoi(t[2]));
+  }
+  return out;
+}
+
+std::string trimmed(std::string s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+  return s;
 }
 
 }  // namespace
@@ -287,8 +320,12 @@ bool latched_change(const std::vector<SwitchSample>& samples, bool SwitchSample:
   }
   if (at == 0) return false;
   const bool rising = samples[at].*input;
-  if ((rising ? latch.rises : latch.falls) != 1) return false;
-  const double p = rising ? latch.rise_position : latch.fall_position;
+  bool first = true;
+  for (std::size_t i = 1; i < at; ++i) first = first && samples[i].*input == samples[0].*input;
+  double p = 0;
+  if (latch.changed && first) p = latch.changed_position;
+  else if ((rising ? latch.rises : latch.falls) == 1) p = rising ? latch.rise_position : latch.fall_position;
+  else return false;
   const double lo = std::min(samples[at - 1].position, samples[at].position) - kMargin;
   const double hi = std::max(samples[at - 1].position, samples[at].position) + kMargin;
   if (!(p >= lo && p <= hi)) return false;
@@ -296,34 +333,157 @@ bool latched_change(const std::vector<SwitchSample>& samples, bool SwitchSample:
   return true;
 }
 
-bool attach_switch_latches(const Controller& c, const Axis& a, std::string& why) {
+bool SwitchLatches::attach(const Controller& c, const Axis& a, std::string& why) {
+  detach();
+  c_ = &c;
+  // Links `pin` (an output) to the latch input `latch_pin` through the
+  // signal the output is on, or a new one named `signal` (deleted again
+  // by detach()).
+  const auto link = [&](const std::string& pin, const std::string& latch_pin, const std::string& signal) {
+    std::string sig;
+    for (const ShownPin& p : shown_pins(c, pin))
+      if (p.name == pin && !p.signal.empty()) sig = p.signal;
+    c.halcmd({"unlinkp", latch_pin});
+    c.halcmd({"net", sig.empty() ? signal : sig, pin, latch_pin});
+    linked_pins_.push_back(latch_pin);
+    // Ours also when a killed search or the homing check left it.
+    if ((sig.empty() || sig == signal) && std::find(made_signals_.begin(), made_signals_.end(), signal) == made_signals_.end())
+      made_signals_.push_back(signal);
+  };
   try {
     if (shown_pins(c, std::string(kLatchNames[0]) + ".").empty()) {
       std::string names;
       for (const char* n : kLatchNames) names += (names.empty() ? "" : ",") + std::string(n);
       c.halcmd({"loadrt", "latch", "names=" + names});
-      for (const char* n : kLatchNames) c.halcmd({"addf", n, "servo-thread"});
     }
-    // Linked anew each time: the last search may have been another axis.
+    // Loaded by an earlier search (no unloadrt): in no thread since it
+    // detached, or still in servo-thread after the homing check.
+    for (const auto& [function, users] : shown_functions(c, "commission-latch-")) {
+      if (users > 0) continue;
+      c.halcmd({"addf", function, "servo-thread"});
+      added_functions_.push_back(function);
+    }
     const std::string j = std::to_string(a.joint);
     const std::string drive = drive_pin_prefix(a), pos = "joint." + j + ".pos-fb";
     for (int i = 0; i < 3; ++i) {
       const std::string l = kLatchNames[i];
-      link_to_latch(c, drive + kLatchInputs[i], l + ".in", "commission-j" + j + "-" + kLatchInputs[i]);
-      link_to_latch(c, pos, l + ".position", "commission-j" + j + "-pos-fb");
+      link(drive + kLatchInputs[i], l + ".in", "commission-j" + j + "-" + kLatchInputs[i]);
+      link(pos, l + ".position", "commission-j" + j + "-pos-fb");
       // A CANopen drive's inputs come in an event-driven TPDO (as the
       // writer maps 0x60FD), ahead of its SYNC-sampled position by up to a
       // cycle; on EtherCAT both are of one frame.
       c.halcmd({"setp", l + ".input-lead-cycles", a.slave > 0 ? "0" : "1"});
     }
-    // Relinking may count an edge: some cycles pass before a reading.
+    // Relinking (and a latch back in the thread, which compares with the
+    // input of its last run) may count an edge: some cycles pass before a
+    // reading.
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     return true;
   } catch (const std::exception& e) {
-    why = e.what();
-    while (!why.empty() && std::isspace(static_cast<unsigned char>(why.back()))) why.pop_back();
+    why = trimmed(e.what());
+    const std::string left = detach();
+    if (!left.empty()) why += "; " + left;
     return false;
   }
+}
+
+std::string SwitchLatches::detach() noexcept {
+  if (!c_) return {};
+  const Controller& c = *c_;
+  c_ = nullptr;
+  std::string failed;
+  try {
+    const auto run = [&](const std::vector<std::string>& args) {
+      try {
+        c.halcmd(args);
+      } catch (const std::exception& e) {
+        if (!failed.empty()) return;
+        for (const auto& w : args) failed += w + " ";
+        failed += "failed: " + trimmed(e.what());
+      }
+    };
+    if (!armed_.empty()) {
+      run({"setp", armed_ + ".arm", "0"});
+      run({"delsig", kJogStopSignal});
+      run({"setp", kJogStopPin, jog_stop_value_});
+      armed_.clear();
+    }
+    // Out of the thread first: nothing runs while the links go.
+    for (const auto& f : added_functions_) run({"delf", f, "servo-thread"});
+    for (const auto& p : linked_pins_) run({"unlinkp", p});
+    for (const auto& s : made_signals_) run({"delsig", s});
+  } catch (...) {
+    if (failed.empty()) failed = "out of memory";
+  }
+  added_functions_.clear();
+  linked_pins_.clear();
+  made_signals_.clear();
+  if (failed.empty()) return {};
+  return "the switch latches (commission-latch-*) may still be linked in the controller's HAL (halcmd " + failed + ")";
+}
+
+bool SwitchLatches::stop_jogs_on_change(int which) {
+  if (!c_ || which < 0 || which > 2) return false;
+  release_jog_stop();
+  const Controller& c = *c_;
+  std::string value;
+  for (const ShownPin& p : shown_pins(c, kJogStopPin))
+    if (p.name == kJogStopPin) {
+      if (p.signal == kJogStopSignal) {
+        // Left by a search that was killed: taken back.
+        c.halcmd({"delsig", kJogStopSignal});
+        c.halcmd({"setp", kJogStopPin, "0"});
+        value = "FALSE";
+      } else if (!p.signal.empty()) {
+        return false;  // the configuration's (a pendant's stop button)
+      } else {
+        value = p.value;
+      }
+    }
+  if (value.empty()) return false;
+  const std::string l = kLatchNames[which];
+  // The reference level is the input's while disarmed: here, at rest.
+  c.halcmd({"setp", l + ".arm", "0"});
+  armed_ = l;
+  jog_stop_value_ = truth(value) ? "1" : "0";
+  c.halcmd({"net", kJogStopSignal, l + ".changed", kJogStopPin});
+  c.halcmd({"setp", l + ".arm", "1"});
+  return true;
+}
+
+bool SwitchLatches::armed_change(double& position) const {
+  if (!c_ || armed_.empty()) return false;
+  bool changed = false;
+  for (const ShownPin& p : shown_pins(*c_, armed_ + ".changed")) {
+    if (p.name == armed_ + ".changed") changed = truth(p.value);
+    else if (p.name == armed_ + ".changed-position") position = std::stod(p.value);
+  }
+  return changed;
+}
+
+void SwitchLatches::release_jog_stop() {
+  if (!c_ || armed_.empty()) return;
+  const Controller& c = *c_;
+  // Unlinked, motion.jog-stop keeps the signal's last value: set as it was.
+  c.halcmd({"setp", armed_ + ".arm", "0"});
+  c.halcmd({"delsig", kJogStopSignal});
+  c.halcmd({"setp", kJogStopPin, jog_stop_value_});
+  armed_.clear();
+}
+
+void SwitchLatches::keep() noexcept {
+  c_ = nullptr;
+  armed_.clear();
+  added_functions_.clear();
+  linked_pins_.clear();
+  made_signals_.clear();
+}
+
+bool attach_switch_latches(const Controller& c, const Axis& a, std::string& why) {
+  SwitchLatches latches;
+  const bool ok = latches.attach(c, a, why);
+  latches.keep();
+  return ok;
 }
 
 SwitchLatchReading read_switch_latches(const Controller& c) {
@@ -342,9 +502,11 @@ SwitchLatchReading read_switch_latches(const Controller& c) {
       else if (k == "fall-count") e.falls = std::stoi(value), ++found;
       else if (k == "rise-position") e.rise_position = std::stod(value), ++found;
       else if (k == "fall-position") e.fall_position = std::stod(value), ++found;
+      else if (k == "changed") e.changed = truth(value), ++found;
+      else if (k == "changed-position") e.changed_position = std::stod(value), ++found;
     }
   }
-  if (found != 12) throw std::runtime_error("the switch latches (commission-latch-*) are not all in the controller's HAL");
+  if (found != 18) throw std::runtime_error("the switch latches (commission-latch-*) are not all in the controller's HAL");
   return r;
 }
 
@@ -426,6 +588,7 @@ AxisSwitches find_switches(const Controller& c, const Axis& a, double search_mm,
     throw std::runtime_error(std::string("axis ") + a.letter + ": the E-stop chain is open: close it before the switch search");
   std::vector<SwitchSample> neg, pos;
   AxisSwitches r;
+  SwitchLatches latches;  // detached after the machine is off, whatever happens
   try {
     on_again(c);
     const double start = poll(c, a, prefix).s.position;
@@ -446,24 +609,28 @@ AxisSwitches find_switches(const Controller& c, const Axis& a, double search_mm,
     // each input changed, to a servo cycle of travel, however far apart
     // the polls are.
     std::string why;
-    const bool latched = attach_switch_latches(c, a, why);
+    const bool latched = latches.attach(c, a, why);
     if (!latched && progress) {
       std::fprintf(progress, "axis %c: no servo-thread latch (%s): each edge will be crossed again slowly\n", a.letter,
                    why.c_str());
     }
     SwitchLatchReading on_neg, on_pos;
-    auto latched_leg = [&](double dist, bool SwitchSample::*stop_on, SwitchLatchReading& seen) {
+    // The limit the leg looks for stops the jog in the servo cycle it
+    // changes (motion.jog-stop through the latch), not at the next poll.
+    auto latched_leg = [&](double dist, bool SwitchSample::*stop_on, int which, SwitchLatchReading& seen) {
+      const bool hal_stop = latched && latches.stop_jogs_on_change(which);
       const SwitchLatchReading before = latched ? read_switch_latches(c) : SwitchLatchReading{};
-      auto s = leg(c, a, prefix, dist, vel, stop_on);
-      if (latched) seen = latch_difference(before, read_switch_latches(c));
+      auto s = leg(c, a, prefix, dist, vel, stop_on, hal_stop ? &latches : nullptr);
+      if (latched) seen = latch_difference(before, read_switch_latches(c));  // `changed` still armed
+      if (hal_stop) latches.release_jog_stop();
       return s;
     };
     say(1, std::string("axis ") + a.letter + ": towards minus, up to " + mm(search) + " mm at " + mm(vel) + " mm/s");
-    neg = latched_leg(-search, &SwitchSample::neg, on_neg);
+    neg = latched_leg(-search, &SwitchSample::neg, 0, on_neg);
     say(2, std::string("axis ") + a.letter + ": back to the start");
     back();
     say(3, std::string("axis ") + a.letter + ": towards plus, up to " + mm(search) + " mm at " + mm(vel) + " mm/s");
-    pos = latched_leg(search, &SwitchSample::pos, on_pos);
+    pos = latched_leg(search, &SwitchSample::pos, 1, on_pos);
     r = analyse_switch_search(a.letter, neg, pos, search, vel, prefix);
     // An edge the latch did not give unambiguously (none loaded, a bounce:
     // more than one edge of the kind in the leg) is crossed again slowly,
@@ -491,9 +658,16 @@ AxisSwitches find_switches(const Controller& c, const Axis& a, double search_mm,
     say(5, std::string("axis ") + a.letter + ": back to the start");
     back();
   } catch (const std::exception& e) {
-    throw std::runtime_error(e.what() + switch_off_after_failure(c));
+    const std::string off = switch_off_after_failure(c);
+    const std::string left = latches.detach();
+    throw std::runtime_error(e.what() + off + (left.empty() ? "" : "; " + left));
   }
   c.cnc({"off"});
+  const std::string left = latches.detach();
+  if (!left.empty() && progress) {
+    std::fprintf(progress, "axis %c: warning: %s\n", a.letter, left.c_str());
+    std::fflush(progress);
+  }
   return r;
 }
 

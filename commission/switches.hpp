@@ -54,16 +54,18 @@ std::string drive_pin_prefix(const Axis& a);
 // jog at `velocity` (at most kMaxSwitchVelocity) towards minus by up to
 // `search_mm`, polling position and inputs; stop at the negative limit
 // switch; back to the start; the same towards plus; each edge is where the
-// servo-thread latch saw it (attach_switch_latches, latched_change), or,
-// where the latch is missing or saw more than one edge of the kind, it is
+// servo-thread latch saw it (SwitchLatches, latched_change), or, where
+// the latch is missing or saw more than one edge of the kind, it is
 // crossed again slowly (cross_edge, in the direction the search crossed
-// it); back to the start; machine off. A limit
+// it); back to the start; machine off; the latches detached again (also
+// when the search fails or is aborted: SwitchLatches::detach). A limit
 // switch stops the jog at once (a following-error stop of the controller
 // when the drive halts at its switch is expected and handled: the machine
 // is switched on again and the axis jogged off). Time-limited (each leg:
 // twice its travel time + 5 s); request_abort() stops it; the machine is
 // off at the end whatever happens. Prints "progress: I/N text" lines to
-// `progress` (may be null).
+// `progress` (may be null), and a line for each edge crossed again slowly
+// and for latches that could not be detached.
 AxisSwitches find_switches(const Controller& c, const Axis& a, double search_mm, double velocity,
                            std::FILE* progress = nullptr);
 
@@ -83,6 +85,10 @@ void machine_on(const Controller& c, bool override_limits = false);
 struct LatchedEdges {
   int rises = 0, falls = 0;
   double rise_position = 0, fall_position = 0;
+  // Armed for the leg (SwitchLatches::stop_jogs_on_change): the input left
+  // its level at the start of the leg, first at changed_position.
+  bool changed = false;
+  double changed_position = 0;
 };
 struct SwitchLatchReading {
   LatchedEdges neg, pos, home;
@@ -91,19 +97,65 @@ struct SwitchLatchReading {
 // Where the latch places the change of `input` that the polls of one leg
 // (`samples`) place at `edge`: the latched edge of the kind the polls saw
 // (rising when the input went TRUE), when the latch saw exactly one edge
-// of that kind in the leg and it lies between the two polls around the
-// change (give or take 0.05 mm). False otherwise: the caller crosses the
-// edge again slowly (cross_edge).
+// of that kind in the leg, or, for the leg's first change, where the
+// armed latch saw the input first leave its level (`changed`: a drive
+// halted at its limit switch chatters on the edge, a switch bounces);
+// either only when it lies between the two polls around the change (give
+// or take 0.05 mm). False otherwise: the caller crosses the edge again
+// slowly (cross_edge).
 bool latched_change(const std::vector<SwitchSample>& samples, bool SwitchSample::*input, const LatchedEdges& latch,
                     double& edge);
 
 // The latches of the switch search on a running controller: three
 // instances of the HAL component `latch` (commission-latch-neg, -pos,
-// -home), loaded and added to `servo-thread` through halcmd the first time
-// (they stay for the controller's life), their inputs linked to the
-// drive's switch inputs of `a` and their position to joint.N.pos-fb (the
-// joint position the polls read). Returns false with `why` when the
-// controller cannot have them (no component `latch`, no servo-thread).
+// -home) added to `servo-thread`, their inputs linked to the drive's
+// switch inputs of an axis and their position to joint.N.pos-fb (the
+// joint position the polls read). The HAL has no unloadrt: the instances
+// are loaded once per controller and reused by later searches; what
+// attach() changed besides (the functions added to the thread, the links,
+// the signals it made) detach() undoes, so between searches the latches
+// sit unlinked outside every thread. Non-realtime (halcmd).
+class SwitchLatches {
+ public:
+  SwitchLatches() = default;
+  SwitchLatches(const SwitchLatches&) = delete;
+  SwitchLatches& operator=(const SwitchLatches&) = delete;
+  ~SwitchLatches() { detach(); }
+  // Loads the instances if the controller has none yet, adds the functions
+  // not in a thread to servo-thread, links them to the axis `a`. False
+  // with `why` when the controller cannot have them (no component
+  // `latch`, or one loaded by the configuration; no servo-thread); what
+  // was done up to the failure is undone.
+  bool attach(const Controller& c, const Axis& a, std::string& why);
+  // Undoes what attach() did: takes the functions it added out of the
+  // thread, unlinks the latches' pins, deletes the signals it made. ""
+  // when all was undone, else what is left in the controller and why.
+  // Never throws; a second call does nothing.
+  std::string detach() noexcept;
+  // Forgets what attach() did: the latches stay attached (the homing
+  // check's use, attach_switch_latches()).
+  void keep() noexcept;
+  // Until release_jog_stop(): the jog stops in the servo cycle the input
+  // of latch `which` (0 negative limit, 1 positive, 2 home) leaves the
+  // level it has now (N.changed linked to motion.jog-stop, armed). False
+  // when not attached or the configuration links motion.jog-stop itself
+  // (then only the polls stop the jog).
+  bool stop_jogs_on_change(int which);
+  // Whether the armed latch saw its input change, and where (halcmd).
+  bool armed_change(double& position) const;
+  // Disarms the latch and puts motion.jog-stop back as it was (unlinked,
+  // its value before). Throws when halcmd fails.
+  void release_jog_stop();
+
+ private:
+  const Controller* c_ = nullptr;
+  std::vector<std::string> added_functions_, linked_pins_, made_signals_;
+  std::string armed_;              // the latch linked to motion.jog-stop
+  std::string jog_stop_value_;     // motion.jog-stop's value before
+};
+
+// Attaches the latches and leaves them attached (SwitchLatches::keep()):
+// the homing check's latch, for the controller's life.
 bool attach_switch_latches(const Controller& c, const Axis& a, std::string& why);
 // The latches' counts and last positions now (one halcmd read).
 SwitchLatchReading read_switch_latches(const Controller& c);

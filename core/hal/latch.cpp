@@ -11,11 +11,13 @@ namespace {
 int32_t next(int32_t n) noexcept { return static_cast<int32_t>(static_cast<uint32_t>(n) + 1u); }  // wraps
 
 struct PositionLatch {
-  BitPin in;
-  FloatPin position, rise_position, fall_position;
+  BitPin in, arm, changed;
+  FloatPin position, rise_position, fall_position, changed_position;
   S32Pin input_lead, rise_count, fall_count, rise_direction, fall_direction, last_edge;
   bool primed = false, last_in = false;
   bool pending = false, pending_rising = false;  // an edge waiting for the next cycle's position
+  bool reference = false;                         // the input's level while disarmed
+  bool pending_changed = false;                   // changed-position waiting for the next cycle's position
   double last_position = 0;
 
   template <class C> void make(C& c, const std::string& n) {
@@ -29,6 +31,9 @@ struct PositionLatch {
     rise_direction = c.template pin<int32_t>(n + ".rise-direction", PinDir::Out);
     fall_direction = c.template pin<int32_t>(n + ".fall-direction", PinDir::Out);
     last_edge = c.template pin<int32_t>(n + ".last-edge", PinDir::Out);
+    arm = c.template pin<bool>(n + ".arm", PinDir::In);
+    changed = c.template pin<bool>(n + ".changed", PinDir::Out);
+    changed_position = c.template pin<double>(n + ".changed-position", PinDir::Out);
   }
 
   // The input changed somewhere between the position samples `before`
@@ -57,6 +62,10 @@ struct PositionLatch {
       record(pending_rising, last_position, p);
       pending = false;
     }
+    if (pending_changed) {
+      changed_position.set(0.5 * (last_position + p));
+      pending_changed = false;
+    }
     if (primed && v != last_in) {
       // An input that arrives a cycle ahead of the position (an
       // event-driven PDO beside a synchronous one) changed between this
@@ -67,6 +76,15 @@ struct PositionLatch {
       } else {
         record(v, last_position, p);
       }
+    }
+    if (!arm.get()) {
+      reference = v;
+      changed.set(false);
+    } else if (v != reference && !changed.get()) {
+      changed.set(true);
+      // Where, as an edge (a later bounce or chatter does not move it).
+      if (input_lead.get() > 0) pending_changed = true;
+      else changed_position.set(0.5 * (last_position + p));
     }
     last_in = v;
     last_position = p;

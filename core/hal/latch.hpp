@@ -25,7 +25,15 @@ class ComponentRegistry;
 //   N.rise-count, N.fall-count (s32, OUT): edges of each kind since loaded;
 //   N.rise-direction, N.fall-direction (s32, OUT): the sign of the travel
 //     across that edge (+1, -1, 0 standing);
-//   N.last-edge (s32, OUT): +1 rising, -1 falling, 0 none yet.
+//   N.last-edge (s32, OUT): +1 rising, -1 falling, 0 none yet;
+//   N.arm (bit, IN, FALSE), N.changed (bit, OUT): while `arm` is FALSE,
+//     `changed` is FALSE and the input's level is the reference; from the
+//     first cycle `arm` is TRUE, `changed` turns TRUE in the cycle the
+//     input differs from that reference and stays TRUE (through bounces)
+//     until `arm` is FALSE again. Linked to motion.jog-stop it stops a jog
+//     in the servo cycle a switch changes, whatever its polarity;
+//   N.changed-position (float, OUT): where `changed` last turned TRUE,
+//     placed as an edge is (bounces and chatter after it do not move it).
 // The first cycle only takes the input's level (a TRUE input at start is
 // not an edge); linking `in` to another pin at run time may count one edge.
 void register_latch_component(ComponentRegistry& registry);

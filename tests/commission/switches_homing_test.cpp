@@ -161,6 +161,38 @@ TEST(CommissionSwitches, ALatchThatSawTwoEdgesOfAKindOrOneOutsideThePollsIsNotUs
   EXPECT_FALSE(latched_change(n, &SwitchSample::neg, none, at)) << "no edge latched";
 }
 
+TEST(CommissionSwitches, AnArmedLatchGivesTheFirstChangeOfALegThroughChatterOnTheEdge) {
+  // A drive halted at its negative limit switch sits on the edge: the
+  // input chatters (two falls, active low), the armed latch kept the first.
+  const auto [n, p] = search(true, 2.0);
+  const AxisSwitches r = analyse_switch_search('X', n, p, 150, 10, "cia402.0.drive.00.");
+  LatchedEdges neg;
+  neg.falls = 2;
+  neg.rises = 1;
+  neg.fall_position = -20.0004;
+  neg.changed = true;
+  neg.changed_position = -20.0011;
+  double at = r.neg_limit.position;
+  ASSERT_TRUE(latched_change(n, &SwitchSample::neg, neg, at));
+  EXPECT_DOUBLE_EQ(at, -20.0011);
+  neg.changed_position = -25.0;  // not between the polls around the change
+  at = r.neg_limit.position;
+  EXPECT_FALSE(latched_change(n, &SwitchSample::neg, neg, at));
+  // Not armed in this leg: two falls are a bounce, the polls' edge stays.
+  neg.changed = false;
+  neg.changed_position = -20.0011;
+  EXPECT_FALSE(latched_change(n, &SwitchSample::neg, neg, at));
+  // The home switch's upper edge is not the leg's first change of its
+  // input... it is here (the first the leg met): a later edge is not.
+  LatchedEdges home;
+  home.changed = true;
+  home.changed_position = -10.002;
+  home.rises = 2;
+  home.falls = 2;
+  double lower = r.home.position;  // the second change going down
+  EXPECT_FALSE(latched_change(n, &SwitchSample::home, home, lower)) << "not the first change, and two of its kind";
+}
+
 TEST(CommissionSwitches, LatchDifferencesCountAcrossTheCountersWrap) {
   SwitchLatchReading before, after;
   before.home.rises = 2147483647;

@@ -44,6 +44,10 @@ struct Bench {
   }
   double num(const std::string& pin) const { return std::stod(hal.get_value(pin)); }
   int count(const std::string& pin) const { return std::stoi(hal.get_value(pin)); }
+  bool bit(const std::string& pin) const {
+    const std::string v = hal.get_value(pin);
+    return v == "TRUE" || v == "1";
+  }
 };
 
 }  // namespace
@@ -108,6 +112,33 @@ TEST(Latch, AnInputAheadOfThePositionByACycleIsPlacedAfterTheCycleThatSawIt) {
   b.hal.set_value("sw.input-lead-cycles", "0");
   b.move(12.0, 0.0, 0.25);
   EXPECT_DOUBLE_EQ(b.num("sw.fall-position"), 9.625) << "without the lead: between the cycle before (9.75) and the one that saw it (9.5)";
+}
+
+TEST(Latch, ArmedChangedTurnsTrueInTheCycleTheInputLeavesItsLevelAndHoldsUntilDisarmed) {
+  Bench b;
+  b.move(0.0, 5.0, 0.5);
+  EXPECT_FALSE(b.bit("sw.changed")) << "not armed";
+  b.hal.set_value("sw.arm", "1");
+  b.move(5.0, 9.5, 0.5);
+  EXPECT_FALSE(b.bit("sw.changed")) << "the input still at its level when armed";
+  b.at(10.0);
+  EXPECT_TRUE(b.bit("sw.changed")) << "the cycle the switch was reached";
+  EXPECT_DOUBLE_EQ(b.num("sw.changed-position"), 9.75);
+  b.at(9.0);  // off the switch again and on (a bounce): still changed, where it first did
+  b.at(10.5);
+  EXPECT_TRUE(b.bit("sw.changed"));
+  EXPECT_DOUBLE_EQ(b.num("sw.changed-position"), 9.75);
+  EXPECT_EQ(b.count("sw.rise-count"), 2);
+  b.hal.set_value("sw.arm", "0");
+  b.at(11.0);
+  EXPECT_FALSE(b.bit("sw.changed")) << "disarmed";
+  // Armed on the switch (a normally closed input reads so): leaving it counts.
+  b.hal.set_value("sw.arm", "1");
+  b.at(11.5);
+  EXPECT_FALSE(b.bit("sw.changed"));
+  b.at(14.5);
+  EXPECT_TRUE(b.bit("sw.changed"));
+  EXPECT_DOUBLE_EQ(b.num("sw.changed-position"), 13.0) << "halfway between 11.5 and 14.5";
 }
 
 TEST(Latch, ServoCycleDoesNotAllocate) {
