@@ -175,12 +175,13 @@ std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, d
   c.cnc({"estop-reset"});
   if (!c.estop_chain_ok())
     throw std::runtime_error(std::string("axis ") + a.letter + ": the E-stop chain is open: close it before homing");
+  SwitchLatches latches;  // detached after the machine is off, whatever happens
   try {
     machine_on(c);
     // Drive methods: the home switch's edge where the servo thread latched
     // it (1 um a cycle at 1 mm/s); without the latch, crossed again slowly.
     std::string why;
-    const bool latched = drive && attach_switch_latches(c, a, why);
+    const bool latched = drive && latches.attach(c, a, why);
     if (drive && !latched && progress) std::fprintf(progress, "axis %c: no servo-thread latch (%s)\n", a.letter, why.c_str());
     for (int k = 0; k < repeat; ++k) {
       if (progress) {
@@ -221,9 +222,16 @@ std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, d
       c.cnc({"unhome", joint});
     }
   } catch (const std::exception& e) {
-    throw std::runtime_error(e.what() + switch_off_after_failure(c));
+    const std::string off = switch_off_after_failure(c);
+    const std::string left = latches.detach();
+    throw std::runtime_error(e.what() + off + (left.empty() ? "" : "; " + left));
   }
   c.cnc({"off"});
+  const std::string left = latches.detach();
+  if (!left.empty() && progress) {
+    std::fprintf(progress, "axis %c: warning: %s\n", a.letter, left.c_str());
+    std::fflush(progress);
+  }
   return refs;
 }
 

@@ -71,7 +71,7 @@ double spread(const std::vector<double>& v) noexcept;
 //     reference is measured against the switch: the joint position (in the
 //     frame the drive just set) where the home switch changes while the
 //     axis moves towards it at 1 mm/s, as the servo-thread latch saw it
-//     (attach_switch_latches: 1 mm/s x a servo cycle, 1 um at 1 ms); where
+//     (SwitchLatches: 1 mm/s x a servo cycle, 1 um at 1 ms); where
 //     the latch is missing, the edge crossed again slowly (cross_edge,
 //     until two polls are within 0.01 mm).
 std::vector<double> run_homing(const Controller& c, const Axis& a, int repeat, double away_mm, std::FILE* progress);

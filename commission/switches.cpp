@@ -471,21 +471,6 @@ void SwitchLatches::release_jog_stop() {
   armed_.clear();
 }
 
-void SwitchLatches::keep() noexcept {
-  c_ = nullptr;
-  armed_.clear();
-  added_functions_.clear();
-  linked_pins_.clear();
-  made_signals_.clear();
-}
-
-bool attach_switch_latches(const Controller& c, const Axis& a, std::string& why) {
-  SwitchLatches latches;
-  const bool ok = latches.attach(c, a, why);
-  latches.keep();
-  return ok;
-}
-
 SwitchLatchReading read_switch_latches(const Controller& c) {
   SwitchLatchReading r;
   LatchedEdges* edges[] = {&r.neg, &r.pos, &r.home};

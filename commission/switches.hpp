@@ -132,9 +132,6 @@ class SwitchLatches {
   // when all was undone, else what is left in the controller and why.
   // Never throws; a second call does nothing.
   std::string detach() noexcept;
-  // Forgets what attach() did: the latches stay attached (the homing
-  // check's use, attach_switch_latches()).
-  void keep() noexcept;
   // Until release_jog_stop(): the jog stops in the servo cycle the input
   // of latch `which` (0 negative limit, 1 positive, 2 home) leaves the
   // level it has now (N.changed linked to motion.jog-stop, armed). False
@@ -154,9 +151,6 @@ class SwitchLatches {
   std::string jog_stop_value_;     // motion.jog-stop's value before
 };
 
-// Attaches the latches and leaves them attached (SwitchLatches::keep()):
-// the homing check's latch, for the controller's life.
-bool attach_switch_latches(const Controller& c, const Axis& a, std::string& why);
 // The latches' counts and last positions now (one halcmd read).
 SwitchLatchReading read_switch_latches(const Controller& c);
 // What happened between two readings: the counts' differences, the later
