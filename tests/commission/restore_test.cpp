@@ -123,6 +123,16 @@ TEST(CommissionRestore, CanopenBackupThenAChangedParameterIsWrittenBackAndReadsB
   for (const auto& d : again.drives) EXPECT_TRUE(d.changes.empty()) << describe(again);
 }
 
+// TPDO1 as a master configures it (the simulated drive starts with none
+// mapped): statusword and position actual, valid on 0x181.
+template <typename Drive>
+void map_tpdo1(Drive& drive) {
+  drive.od().template set<uint32_t>({0x1A00, 1}, 0x60410010);
+  drive.od().template set<uint32_t>({0x1A00, 2}, 0x60640020);
+  drive.od().template set<uint8_t>({0x1A00, 0}, 2);
+  drive.od().template set<uint32_t>({0x1800, 1}, 0x181);
+}
+
 // A TPDO's mapping and transmission type changed in the drive (as CiA 301
 // allows it: the PDO disabled, sub-index 0 to 0, the entry, sub-index 0,
 // enabled) are restored in that order; the simulated drive refuses a
@@ -130,12 +140,7 @@ TEST(CommissionRestore, CanopenBackupThenAChangedParameterIsWrittenBackAndReadsB
 TEST(CommissionRestore, CanopenChangedPdoMappingIsRestoredInTheCia301Order) {
   CanBus b;
   auto& drive = b.add(1);
-  // TPDO1 as a master configures it (the simulated drive starts with none
-  // mapped): two objects, valid on 0x181.
-  drive.od().set<uint32_t>({0x1A00, 1}, 0x60410010);
-  drive.od().set<uint32_t>({0x1A00, 2}, 0x60640020);
-  drive.od().set<uint8_t>({0x1A00, 0}, 2);
-  drive.od().set<uint32_t>({0x1800, 1}, 0x181);
+  map_tpdo1(drive);
   b.start();
   State s = canopen_state({{'X', 1}});
   testing::TempDir dir;
@@ -252,10 +257,7 @@ int next_heartbeat(can::Transport& port, uint8_t node) {
 TEST(CommissionRestore, AnOperationalNodeIsPutIntoPreOperationalBeforeItsPdoMappingIsRestoredAndLeftThere) {
   CanBus b;
   auto& drive = b.add(1);
-  drive.od().set<uint32_t>({0x1A00, 1}, 0x60410010);
-  drive.od().set<uint32_t>({0x1A00, 2}, 0x60640020);
-  drive.od().set<uint8_t>({0x1A00, 0}, 2);
-  drive.od().set<uint32_t>({0x1800, 1}, 0x181);
+  map_tpdo1(drive);
   auto observer = b.bus->open_port("observer");
   b.start();
   State s = canopen_state({{'X', 1}});
@@ -395,10 +397,7 @@ TEST(CommissionRestore, WithoutHeartbeatNodeGuardingConfirmsPreOperationalAndANo
 TEST(CommissionRestore, ABackupMappingWithoutAnEntryItCountsIsAProblemBeforeAnythingIsWritten) {
   CanBus b;
   auto& drive = b.add(1);
-  drive.od().set<uint32_t>({0x1A00, 1}, 0x60410010);
-  drive.od().set<uint32_t>({0x1A00, 2}, 0x60640020);
-  drive.od().set<uint8_t>({0x1A00, 0}, 2);
-  drive.od().set<uint32_t>({0x1800, 1}, 0x181);
+  map_tpdo1(drive);
   b.start();
   State s = canopen_state({{'X', 1}});
   testing::TempDir dir;
@@ -461,10 +460,7 @@ class RecordingChannel final : public DriveChannel {
 TEST(CommissionRestore, AWriteRefusedHalfWayStopsTheRestoreNamingObjectAndAbortAndSaysWhereTheDriveIsLeft) {
   CanBus b;
   auto& drive = b.add(1);
-  drive.od().set<uint32_t>({0x1A00, 1}, 0x60410010);
-  drive.od().set<uint32_t>({0x1A00, 2}, 0x60640020);
-  drive.od().set<uint8_t>({0x1A00, 0}, 2);
-  drive.od().set<uint32_t>({0x1800, 1}, 0x181);
+  map_tpdo1(drive);
   b.add(2);
   b.start();
   State s = canopen_state({{'X', 1}, {'Y', 2}});
