@@ -16,7 +16,8 @@ import sys
 # GoogleTest, QtTest, the shell tests' own messages, ctest's timeouts.
 WHY = re.compile(
     r"(FAIL!|Loc: \[|Failure$|\[  FAILED  \]|Expected|Which is|actual:|Value of:|"
-    r"\bFAIL\b|FAILED|error:|Error:|ERROR|Timeout|timed out|Assertion|Aborted|Segmentation)")
+    r"\bFAIL\b|FAILED|error:|Error:|ERROR|Timeout|timed out|Assertion|Aborted|Segmentation|"
+    r"The difference between|evaluates to|which exceeds)")
 MAX_LINES = 30
 
 
@@ -27,8 +28,11 @@ def runs(log_text):
         if not name:
             continue
         out = re.search(r"Output:\n-{58}\n(.*?)<end of output>", block, re.S)
-        passed = "\nTest Passed." in block
-        yield name.group(1), passed, (out.group(1).splitlines() if out else [])
+        # "Test Failed." (exit status) or "Test Fail Reason:" (a FAIL_ or
+        # missed PASS_REGULAR_EXPRESSION); anything else passed or was
+        # skipped ("Test Passed.", "Test Pass Reason:").
+        failed = re.search(r"\nTest Fail(ed\.|\s+Reason:)", block) is not None
+        yield name.group(1), not failed, (out.group(1).splitlines() if out else [])
 
 
 def main():
