@@ -128,6 +128,8 @@ struct Executor::Tree {
 // channel and marks which are set.
 struct Executor::RangeStretch {
   double lo0, lo1, hi0, hi1, val;
+  // Whether the range [lo, hi] resolves to the same pieces as this one.
+  bool covers(double lo, double hi) const noexcept { return lo >= lo0 && lo < lo1 && hi >= hi0 && hi < hi1; }
 };
 
 // The last two range minima asked of each tree channel around piece
@@ -605,7 +607,7 @@ double Executor::range_min(RangeMemo& memo, double lo, double hi, int c) const n
   memo.v1 = c < kGrid - 1 ? grid_[static_cast<std::size_t>(c)] : kInf;
   if (memo.valid & bit) {
     for (const RangeStretch& e : ways) {
-      if (lo >= e.lo0 && lo < e.lo1 && hi >= e.hi0 && hi < e.hi1) {
+      if (e.covers(lo, hi)) {
         memo.last = &e;
         return e.val;
       }
@@ -643,8 +645,7 @@ double Executor::accel_limit(uint64_t from, double lo, double hi, double u) cons
 
 double Executor::accel_limit(RangeMemo& memo, double lo, double hi, double u) const noexcept {
   const RangeStretch* e = memo.last;
-  if (e && u > memo.v0 && u <= memo.v1 && lo >= e->lo0 && lo < e->lo1 && hi >= e->hi0 && hi < e->hi1 &&
-      memo.from < ptail_) {
+  if (e && u > memo.v0 && u <= memo.v1 && e->covers(lo, hi) && memo.from < ptail_) {
     ++work_.queries;
     return std::max(0.0, std::min(a_top_, e->val));
   }
