@@ -19,7 +19,7 @@
 //
 //   bench_tp [--quick] [--ini FILE] [--write-ngc DIR] [--ngc FILE ...] [--only-ngc]
 //            [--limits [L:]V,A,J ...] [--linear V,A,J] [--lookahead N] [--period S]
-//            [--start X,Y,Z]
+//            [--start X,Y,Z] [--profile FILE]
 //
 // --ini: the limits, [TRAJ]LOOKAHEAD_SEGMENTS, [EMCMOT]SERVO_PERIOD,
 // units, parameter file, tool table and start-up code of a configuration;
@@ -31,6 +31,9 @@
 // --start (machine coordinates where --ngc programs start) override the
 // INI's or the profiles'. bench/tp/cncd_program.sh compares the prediction
 // with cncd on configs/sim.
+// --profile FILE appends, per servo cycle of each --ngc program, the time,
+// path speed and program line (as LinuxCNC's halsampler profile has them),
+// to see line by line where a program spends its time.
 // --write-ngc writes the generated programs as G-code (for the LinuxCNC
 // side-by-side, bench/tp/compare_linuxcnc.sh).
 // Figures never fail the run: timing belongs to benchmarks, not tests.
@@ -401,6 +404,10 @@ double mean(const std::vector<double>& v) {
 double vmax(const std::vector<double>& v) { return v.empty() ? 0 : *std::max_element(v.begin(), v.end()); }
 
 bool g_print_end = false;
+// --profile FILE: per servo cycle, time, path speed and program line of the
+// --ngc programs (the columns of LinuxCNC's halsampler profile), to find
+// where a program spends its time line by line.
+std::string g_profile;
 
 // The program's G-code in a file (generated programs are written to a
 // temporary one) read through the task canon from `start`.
@@ -426,6 +433,21 @@ void run_one(const Bench& b, const estimate::Machine& m, const std::string& prof
   opt.measure_cpu = true;
   opt.flush_at_end = true;
   opt.moves_per_cycle = 64;  // an interpreter that keeps up
+  std::ofstream profile;
+  uint64_t cycle = 0;
+  if (!g_profile.empty() && !b.file.empty()) {
+    profile.open(g_profile, std::ios::app);
+    if (!profile) throw ConfigError(g_profile, 0, "cannot write the profile here");
+    profile << "# " << b.file.string() << " (" << prof << ", " << std::lround(m.planner.cycle_time_s * 1e6)
+            << " us): time_s path_velocity line\n";
+    opt.after_cycle = [&](const CycleOutputs& out) {
+      ++cycle;
+      char row[96];
+      std::snprintf(row, sizeof row, "%.6f %.4f %d\n", static_cast<double>(cycle) * m.planner.cycle_time_s,
+                    out.path_velocity, out.line);
+      profile << row;
+    };
+  }
   const estimate::Result r = estimate::run(m, mv, opt);
   const double T = m.planner.cycle_time_s;
   std::printf("%-34s %-6s %4.0f %-2s %9.3f %9.3f  %5.3f %5.3f %5.3f  %6.3f  %5.1f%%  %6.1f %6.1f %7.1f %7.1f  %6.2f %7.1f\n",
@@ -446,10 +468,12 @@ int usage() {
   std::fprintf(stderr,
                "usage: bench_tp [--quick] [--ini FILE] [--write-ngc DIR] [--ngc FILE ...] [--only-ngc]\n"
                "                [--limits [L:]V,A,J ...] [--linear V,A,J] [--lookahead N] [--period S] [--start X,Y,Z]\n"
+               "                [--profile FILE]\n"
                "  --ini: limits, look-ahead, period, units, offsets and tools of a configuration (as cncd reads it)\n"
                "  --only-ngc: only the --ngc programs (with their end positions), no attainment table\n"
                "  --limits V,A,J: velocity, acceleration, jerk of X, Y, Z; X:V,A,J (Y:, Z:) of one axis\n"
-               "  --linear: limits on the XYZ norm ([TRAJ]MAX_LINEAR_VELOCITY, _ACCELERATION, _JERK)\n");
+               "  --linear: limits on the XYZ norm ([TRAJ]MAX_LINEAR_VELOCITY, _ACCELERATION, _JERK)\n"
+               "  --profile FILE: per cycle of the --ngc programs, time, path speed and line (appended)\n");
   return 2;
 }
 
@@ -469,6 +493,7 @@ int main(int argc, char** argv) {
     else if (a == "--write-ngc" && has) write_dir = argv[++i];
     else if (a == "--ngc" && has) ngc.push_back(argv[++i]);
     else if (a == "--only-ngc") only_ngc = true;
+    else if (a == "--profile" && has) g_profile = argv[++i];
     else if (a == "--lookahead" && has) g_lookahead = std::atoi(argv[++i]);
     else if (a == "--period" && has) g_period = std::atof(argv[++i]);
     else if (a == "--limits" && has) {

@@ -229,6 +229,7 @@ Result run(const Machine& machine, const Moves& moves, const Options& o) {
   ro.measure_cpu = o.measure_cpu;
   ro.flush_at_end = o.flush_at_end;
   ro.moves_per_cycle = o.moves_per_cycle;
+  if (o.after_cycle) ro.after_cycle = [&o](uint64_t, const tp::CycleOutputs& out) { o.after_cycle(out); };
   double moving = 0, at_feed = 0, feed_ratio = 0;
   r.completed = true;
   for (std::size_t s = 0; s < moves.sections.size(); ++s) {

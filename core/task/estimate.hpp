@@ -16,6 +16,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -81,6 +82,9 @@ struct Options {
   // Tell the planner when no more moves come (tp flush) at each section's
   // end; cncd does not (the planner decides after flush_idle_cycles).
   bool flush_at_end = false;
+  // Called after every servo cycle (sections one after the other):
+  // bench_tp --profile writes time, speed and program line from it.
+  std::function<void(const tp::CycleOutputs&)> after_cycle;
 };
 
 struct Result {

@@ -296,6 +296,7 @@ RunResult run_program(TrajectoryPlanner& planner, const PlannerConfig& config, c
     if (options.measure_cpu) r.cycle_ns.push_back(static_cast<double>(now_ns() - t0));
     ++r.cycles;
     check.add(out, in.feed_scale);
+    if (options.after_cycle) options.after_cycle(r.cycles, out);
     if (la) {
       const Executor& e = la->executor();
       const double s = e.path_position();

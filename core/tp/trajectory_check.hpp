@@ -92,6 +92,8 @@ struct RunOptions {
   uint64_t starve_from_cycle = UINT64_MAX;
   // Called before each cycle: overrides, pause, probe input, ...
   std::function<void(uint64_t cycle, TrajectoryPlanner&, CycleInputs&)> before_cycle;
+  // Called after each cycle with what it produced (bench_tp --profile).
+  std::function<void(uint64_t cycle, const CycleOutputs&)> after_cycle;
 };
 
 struct RunResult {
