@@ -19,7 +19,11 @@
 # 0.85 says the issue's 0.85x goal cannot be reached on that program with
 # our jerk limit (50,000 mm/s^3; LinuxCNC has none). The bound is exact
 # for straight rest-to-rest moves (G61 corners, single moves) and low for
-# programs of many blended corners (docs/tp.md).
+# programs of many blended corners (docs/tp.md). The last two columns run
+# our planner once more with the jerk limit lifted to A/T (1,000,000
+# mm/s^3: the moving average spans one servo period), LinuxCNC's own
+# terms: its time, and its ratio to LinuxCNC's, say how much of the
+# difference is the jerk limit and how much the planner.
 #
 # LinuxCNC (Debian package linuxcnc-uspace) is a yardstick for this script
 # only, never a dependency of the project. It runs in real time: the whole
@@ -30,7 +34,7 @@ build="$root/build"
 for a in "$@"; do
   case "$a" in
     -h | --help)
-      sed -n '2,26p' "$0"
+      sed -n '2,30p' "$0"
       exit 0
       ;;
     *) build="$a" ;;
@@ -79,11 +83,14 @@ for f in "${cam[@]}"; do ngc_args+=(--ngc "$f"); done
 # profile at 1 ms.
 "$bench" --quick --write-ngc "$work" "${ngc_args[@]}" >"$work/ours.txt"
 chmod 644 "$work"/*.ngc
+# The same without our jerk limit (T_f = one 1 ms period).
+"$bench" --quick --limits 100,1000,1000000 --period 0.001 "${ngc_args[@]}" >"$work/ours_jerkfree.txt"
 # "name  LC  1000 ok  time bound ..." : the name is the first 34 columns.
-# ours_field NAME K: K = 4 the time, 5 the lower bound.
+# ours_field NAME K [FILE PROFILE]: K = 4 the time, 5 the lower bound.
 ours_field() {
-  awk -v n="$1" -v k="$2" 'index($0, "LC ") == 36 && substr($0, 1, 34) ~ "^" n " *$" { split(substr($0, 36), f, " +"); print f[k]; exit }' \
-    "$work/ours.txt"
+  local file="${3:-$work/ours.txt}" prof="${4:-LC}"
+  awk -v n="$1" -v k="$2" -v p="$prof " 'index($0, p) == 36 && substr($0, 1, 34) ~ "^" n " *$" { split(substr($0, 36), f, " +"); print f[k]; exit }' \
+    "$file"
 }
 
 progs=()
@@ -105,23 +112,28 @@ names+=("3D_Chips.ngc")
 echo "running ${#progs[@]} programs on LinuxCNC 2.9 (real time) ..." >&2
 "$sim" -v 100 -a 1000 -p 0.01 -o "$work/lcnc" "${progs[@]}" 2>"$work/lcnc.log" | grep '^RESULT' >"$work/lcnc.txt" || true
 
-printf '\n%-34s %10s %10s %8s %10s %8s\n' "program (LC limits, 1 ms)" "ours_s" "lcnc_s" "ratio" "bound_s" "bnd/lc"
+printf '\n%-34s %10s %10s %8s %10s %8s %10s %8s\n' "program (LC limits, 1 ms)" "ours_s" "lcnc_s" "ratio" "bound_s" "bnd/lc" \
+  "nojerk_s" "nj/lc"
 for i in "${!progs[@]}"; do
   name="${names[$i]}"
   base=$(basename "${progs[$i]}")
   esc=$(printf '%s' "$name" | sed 's/[][\.*^$()+?{}|/]/\\&/g')
   ours=$(ours_field "$esc" 4)
   bound=$(ours_field "$esc" 5)
+  nojerk=$(ours_field "$esc" 4 "$work/ours_jerkfree.txt" custom)
   lc=$(awk -v b="$base" '{ p = ""; t = ""; for (k = 1; k <= NF; ++k) { if ($k ~ /^program=/) p = substr($k, 9); if ($k ~ /^motion_busy_s=/) t = substr($k, 15) }
         n = split(p, parts, "/"); if (parts[n] == b) { print t; exit } }' "$work/lcnc.txt")
   if [[ -n "$ours" && -n "$lc" ]]; then
     ratio=$(awk -v a="$ours" -v b="$lc" 'BEGIN { printf "%.2f", (b > 0 ? a / b : 0) }')
     bratio=$(awk -v a="${bound:-0}" -v b="$lc" 'BEGIN { printf "%.2f", (b > 0 ? a / b : 0) }')
+    njratio=$(awk -v a="${nojerk:-0}" -v b="$lc" 'BEGIN { printf "%.2f", (b > 0 ? a / b : 0) }')
   else
     ratio="n/a"
     bratio="n/a"
+    njratio="n/a"
   fi
-  printf '%-34s %10s %10s %8s %10s %8s\n' "$name" "${ours:-n/a}" "${lc:-n/a}" "$ratio" "${bound:-n/a}" "$bratio"
+  printf '%-34s %10s %10s %8s %10s %8s %10s %8s\n' "$name" "${ours:-n/a}" "${lc:-n/a}" "$ratio" "${bound:-n/a}" "$bratio" \
+    "${nojerk:-n/a}" "$njratio"
 done
 if grep -q 'status=' "$work/lcnc.txt" && grep -v 'status=ok' "$work/lcnc.txt" >&2; then
   echo "(some LinuxCNC runs did not finish: see above)" >&2
