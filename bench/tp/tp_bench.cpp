@@ -307,6 +307,189 @@ double rest_to_rest(double L, double v, double a, double j) {
   return 2 * t;
 }
 
+// The fastest motion over a straight length L from speed v0 to v1 under
+// speed v, acceleration a and jerk j, the accelerations at both ends free
+// (a corner may be passed accelerating): the trapezoid, and where it
+// speeds up and brakes with no cruise between, the acceleration's swing
+// from +a to -a at j (2a/j long, a^3/(3j^2) shorter than the instant
+// switch), solved for the speed at which the swing starts.
+double fastest_between(double L, double v0, double v1, double v, double a, double j) {
+  const double peak = std::min(v, std::sqrt((v0 * v0 + v1 * v1) / 2 + a * L));
+  const double d_up = (peak * peak - v0 * v0) / (2 * a);
+  const double d_down = (peak * peak - v1 * v1) / (2 * a);
+  const double trapezoid = (peak - v0) / a + (peak - v1) / a + std::max(0.0, L - d_up - d_down) / peak;
+  const double vm = std::max(v0, v1);
+  if (!(j < 1e299) || peak >= v || peak <= vm) return trapezoid;
+  const double tau = 2 * a / j;  // the swing
+  const auto dist = [&](double vs) {
+    return (vs * vs - v0 * v0) / (2 * a) + vs * tau + (2.0 / 3.0) * a * a * a / (j * j) + (vs * vs - v1 * v1) / (2 * a);
+  };
+  if (dist(vm) > L || vm + a * a / (2 * j) > v) return trapezoid;  // no room for a full swing: the trapezoid still bounds
+  double lo = vm, hi = peak;
+  for (int k = 0; k < 80; ++k) {
+    const double mid = (lo + hi) / 2;
+    (dist(mid) <= L ? lo : hi) = mid;
+  }
+  if (lo + a * a / (2 * j) > v) return trapezoid;
+  return std::max(trapezoid, (lo - v0) / a + tau + (lo - v1) / a);
+}
+
+// A lower bound for planners that follow the path in order within G64 P,
+// counting its sharp corners (docs/tp.md, "The corner bound"). At a blended
+// corner between two straight moves d1 -> d2 of angle theta, take the unit
+// vector e perpendicular to d2 in their plane (e.d1 = sin theta): within P
+// of the outgoing move and of the corner, e.(x - corner) lies in [-P, P],
+// so from the last time it is -P the motion along e (acceleration at most
+// A_e = sum |e_i| A_i) must stop within 2P: its speed there is at most
+// sqrt(4 A_e P), the path speed along d1 at most sqrt(4 A_e P) / sin theta.
+// That holds while the tool stays near the outgoing move for the time the
+// stop takes (at most sqrt(4P / A_e), at most V times that in path
+// length): shorter moves get no corner cap. The same backward in time for
+// the outgoing move (the vector perpendicular to d1), the same cap by
+// symmetry with A_f. Between the caps, moves accelerate and brake at most
+// at their straight-line limit (min A_i / |d_i|; curved moves without a
+// limit) under their speed cap, and where they speed up and brake their
+// acceleration swings at most at the jerk limit (fastest_between); exact
+// stops, exact-path direction changes and dwells are rests. Each move's
+// length is shortened by what cutting its corners within P may save.
+double corner_bound(const estimate::Moves& moves, const PlannerConfig& cfg) {
+  struct Element {
+    double len = 0, v = 0, a = 0, j = 1e300;
+    bool line = false;
+    std::array<double, 3> dir{};
+    double tol = 0;        // G64 P of a blended end, 0 otherwise (G64 without P: no cap)
+    bool exact_path = false;  // G61: a rest where the direction changes
+    bool rest_after = false;
+  };
+  double total = 0;
+  for (const Program& p : moves.sections) {
+    std::vector<Element> el;
+    Pose pos = p.start;
+    for (std::size_t i = 0; i < p.moves.size(); ++i) {
+      const ProgramMove& m = p.moves[i];
+      if (m.kind == ProgramMove::Kind::Dwell) {
+        if (!el.empty()) el.back().rest_after = true;
+        total += m.seconds;
+        continue;
+      }
+      Curve c;
+      const bool ok = m.kind == ProgramMove::Kind::Line ? make_line(pos, m.end, 0, c)
+                                                         : make_helix(pos, m.end, m.center, m.normal, m.turns, 0, c);
+      pos = m.end;
+      if (!ok || !(c.length > 0)) continue;
+      Element e;
+      e.len = c.length;
+      e.line = !c.is_curved();
+      e.v = m.params.feed > 0 ? m.params.feed : 1e300;
+      if (m.params.max_velocity > 0) e.v = std::min(e.v, m.params.max_velocity);
+      if (cfg.max_linear_velocity > 0) e.v = std::min(e.v, cfg.max_linear_velocity);
+      e.a = 1e300;
+      for (int ax = 0; ax < kNumAxes; ++ax) {
+        if (!(cfg.axis_mask & (1U << ax)) || c.bound1[ax] < 1e-12) continue;
+        const AxisLimits& l = cfg.axes[static_cast<std::size_t>(ax)];
+        e.v = std::min(e.v, l.max_velocity / c.bound1[ax]);
+        if (e.line) e.a = std::min(e.a, l.max_acceleration / c.bound1[ax]);
+        if (e.line) e.j = std::min(e.j, l.max_jerk / c.bound1[ax]);
+      }
+      if (e.line) {
+        for (int k = 0; k < 3; ++k) e.dir[static_cast<std::size_t>(k)] = c.rate[k];
+      }
+      e.tol = m.params.term == TermCond::Blend ? m.params.tolerance : 0;
+      e.exact_path = m.params.term == TermCond::ExactPath;
+      e.rest_after = m.params.term == TermCond::ExactStop;
+      el.push_back(e);
+    }
+    if (el.empty()) continue;
+    const std::size_t n = el.size();
+    // cap[k]: the speed at the junction after element k (the last: rest).
+    std::vector<double> cap(n, 0);
+    for (std::size_t k = 0; k + 1 < n; ++k) {
+      const Element& a = el[k];
+      const Element& b = el[k + 1];
+      double c = 1e300;
+      if (a.rest_after) {
+        c = 0;
+      } else if (a.line && b.line) {
+        const double cosine = a.dir[0] * b.dir[0] + a.dir[1] * b.dir[1] + a.dir[2] * b.dir[2];
+        const bool turns = std::fabs(cosine - 1) > 1e-9;
+        if (turns && a.exact_path) {
+          c = 0;
+        } else if (turns && a.tol > 0) {
+          const double sine = std::sqrt(std::max(0.0, 1 - cosine * cosine));
+          if (sine > 1e-6) {
+            // e: perpendicular to b.dir toward a.dir; f: perpendicular to a.dir toward b.dir.
+            std::array<double, 3> e{}, f{};
+            double ne = 0, nf = 0;
+            for (std::size_t i = 0; i < 3; ++i) {
+              e[i] = a.dir[i] - cosine * b.dir[i];
+              f[i] = b.dir[i] - cosine * a.dir[i];
+              ne += e[i] * e[i];
+              nf += f[i] * f[i];
+            }
+            ne = std::sqrt(ne);
+            nf = std::sqrt(nf);
+            double ae = 0, af = 0;
+            for (std::size_t i = 0; i < 3; ++i) {
+              const double lim = cfg.axes[i].max_acceleration;
+              ae += std::fabs(e[i] / ne) * lim;
+              af += std::fabs(f[i] / nf) * lim;
+            }
+            const double P = a.tol;
+            const double vmax = std::max(a.v, b.v);
+            const bool long_enough = b.len >= 2 * P + vmax * std::sqrt(4 * P / ae) &&
+                                     a.len >= 2 * P + vmax * std::sqrt(4 * P / af);
+            if (long_enough) c = std::sqrt(4 * std::min(ae, af) * P) / sine;
+          }
+        }
+      }
+      cap[k] = c;
+    }
+    cap[n - 1] = 0;
+    // A path within P may cut a corner: from each move the length a chord
+    // can save at its ends, 2P tan(theta/4) at a corner of angle theta
+    // between lines, 2P where an arc meets it (its tangent is not
+    // computed here); the program's own end points are exact.
+    for (std::size_t k = 0; k + 1 < n; ++k) {
+      Element& a = el[k];
+      Element& b = el[k + 1];
+      if (a.rest_after || a.exact_path || !(a.tol > 0)) continue;
+      double cut = 2 * a.tol;
+      if (a.line && b.line) {
+        const double cosine = std::clamp(a.dir[0] * b.dir[0] + a.dir[1] * b.dir[1] + a.dir[2] * b.dir[2], -1.0, 1.0);
+        cut = 2 * a.tol * std::tan(std::acos(cosine) / 4);
+      }
+      a.len = std::max(0.0, a.len - cut);
+      b.len = std::max(0.0, b.len - cut);
+    }
+    // Forward and backward passes: the speed at each junction.
+    std::vector<double> w(n + 1, 0);  // w[k]: speed at the start of element k; w[n]: end
+    w[0] = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+      const Element& e = el[k];
+      const double reach = e.a >= 1e299 ? 1e300 : std::sqrt(w[k] * w[k] + 2 * e.a * e.len);
+      double next = std::min({cap[k], e.v, reach});
+      if (k + 1 < n) next = std::min(next, el[k + 1].v);
+      w[k + 1] = next;
+    }
+    w[n] = 0;
+    for (std::size_t k = n; k-- > 0;) {
+      const Element& e = el[k];
+      const double reach = e.a >= 1e299 ? 1e300 : std::sqrt(w[k + 1] * w[k + 1] + 2 * e.a * e.len);
+      w[k] = std::min(w[k], reach);
+    }
+    for (std::size_t k = 0; k < n; ++k) {
+      const Element& e = el[k];
+      const double v0 = w[k], v1 = w[k + 1];
+      if (e.a >= 1e299) {
+        total += e.len / e.v;
+        continue;
+      }
+      total += fastest_between(e.len, v0, v1, e.v, e.a, e.j);
+    }
+  }
+  return total;
+}
+
 // A lower bound no planner within the limits can beat: every move takes at
 // least its length over the highest speed it allows (feed, cap, per-axis
 // velocity in its direction); a run of collinear lines between two rests
@@ -452,7 +635,7 @@ void run_one(const Bench& b, const estimate::Machine& m, const std::string& prof
   const double T = m.planner.cycle_time_s;
   std::printf("%-34s %-6s %4.0f %-2s %9.3f %9.3f  %5.3f %5.3f %5.3f  %6.3f  %5.1f%%  %6.1f %6.1f %7.1f %7.1f  %6.2f %7.1f\n",
               b.name.c_str(), prof.c_str(), T * 1e6, r.completed ? "ok" : "no", r.stats.time_s,
-              lower_bound(mv, m.planner), r.stats.ratio_v, r.stats.ratio_a, r.stats.ratio_j, r.stats.deviation_ratio,
+              std::max(lower_bound(mv, m.planner), corner_bound(mv, m.planner)), r.stats.ratio_v, r.stats.ratio_a, r.stats.ratio_j, r.stats.deviation_ratio,
               100 * r.stats.at_feed_fraction, mean(r.cycle_ns) / 1e3, pct(r.cycle_ns, 0.99) / 1e3,
               pct(r.cycle_ns, 0.999) / 1e3, vmax(r.cycle_ns) / 1e3, mean(r.add_ns) / 1e3, pct(r.add_ns, 0.999) / 1e3);
   if (g_print_end) {
