@@ -188,7 +188,7 @@ struct Executor::Span {
   bool enveloped = false;  // the envelope values have been computed
 };
 
-Executor::Executor(const PlannerConfig& config, PathStore& store)
+Executor::Executor(const PlannerConfig& config, PathStore& store, std::size_t split_ring_spans)
     : cfg_(config),
       store_(store),
       lim_(std::make_unique<Limits>()),
@@ -209,8 +209,13 @@ Executor::Executor(const PlannerConfig& config, PathStore& store)
   while (sc < c * 2) sc *= 2;
   spans_ = std::make_unique<Span[]>(sc);
   smask_ = sc - 1;
-  split_ring_ = std::make_unique<SplitSpan[]>(sc);
-  rmask_ = sc - 1;
+  std::size_t rc = sc;
+  if (split_ring_spans > 0) {
+    rc = 2;
+    while (rc < std::max<std::size_t>(split_ring_spans, 2 * kSpansPerPiece)) rc *= 2;
+  }
+  split_ring_ = std::make_unique<SplitSpan[]>(rc);
+  rmask_ = rc - 1;
   hx_ = std::make_unique<double[]>(kRing);
   hv_ = std::make_unique<double[]>(kRing);
   ha_ = std::make_unique<double[]>(kRing);

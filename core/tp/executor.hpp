@@ -34,7 +34,13 @@ namespace cnc::tp {
 
 class Executor {
  public:
-  Executor(const PlannerConfig& config, PathStore& store);
+  // `split_ring_spans`: room of the ring through which the planner's side
+  // hands the pieces' spans over (rounded up to a power of two, at least
+  // two pieces' worth); 0: two spans per piece slot of `store`, which the
+  // benchmark programs never fill. A full ring makes the planner's side
+  // wait and run_cycle split the pieces it needs itself (CycleWork::split;
+  // tests make the ring small to run that).
+  Executor(const PlannerConfig& config, PathStore& store, std::size_t split_ring_spans = 0);
   ~Executor();
   Executor(const Executor&) = delete;
   Executor& operator=(const Executor&) = delete;
