@@ -188,7 +188,7 @@ struct Executor::Span {
   bool enveloped = false;  // the envelope values have been computed
 };
 
-Executor::Executor(const PlannerConfig& config, PathStore& store)
+Executor::Executor(const PlannerConfig& config, PathStore& store, std::size_t split_ring_spans)
     : cfg_(config),
       store_(store),
       lim_(std::make_unique<Limits>()),
@@ -209,8 +209,13 @@ Executor::Executor(const PlannerConfig& config, PathStore& store)
   while (sc < c * 2) sc *= 2;
   spans_ = std::make_unique<Span[]>(sc);
   smask_ = sc - 1;
-  split_ring_ = std::make_unique<SplitSpan[]>(sc);
-  rmask_ = sc - 1;
+  std::size_t rc = sc;
+  if (split_ring_spans > 0) {
+    rc = 2;
+    while (rc < std::max<std::size_t>(split_ring_spans, 2 * kSpansPerPiece)) rc *= 2;
+  }
+  split_ring_ = std::make_unique<SplitSpan[]>(rc);
+  rmask_ = rc - 1;
   hx_ = std::make_unique<double[]>(kRing);
   hv_ = std::make_unique<double[]>(kRing);
   ha_ = std::make_unique<double[]>(kRing);
@@ -886,11 +891,24 @@ void Executor::finalize() noexcept {
     ++work_.walks;
     envelope_request(false);
   }
-  // The walk is urgent when the spans it has still to raise lie within
-  // about twice a stop from top speed ahead of the input.
-  const bool urgent = (env_active_ && env_k_ < stail_ && span(env_k_).a - x_ < near) ||
-                      (!env_active_ && env_pending_ && final_end() - x_ < near);
-  envelope_work(urgent ? kEnvelopeUrgent : kEnvelopePerCycle, urgent ? kQueriesUrgent : kQueriesPerCycle);
+  // The walk is urgent (kQueriesUrgent) on spans within about twice a
+  // stop from top speed ahead of the input (`near`) that the input may
+  // need soon: spans no walk has reached yet (envelope zero: the start,
+  // the look-ahead arriving), and spans within about twice a stop from
+  // twice the speed the input runs or is heading for (`reach`). Farther
+  // spans keep the lower envelope of a slightly shorter path a few cycles
+  // longer, beyond where the input brakes for: with a look-ahead shorter
+  // than `near` (the circle of 0.05 mm lines: 42 mm of it against 42)
+  // every walk from the tail was urgent, all the time. The urgent slice
+  // also waits while the input's step searched in the last kSearchQuiet
+  // cycles (braking against the envelope, up to 18 brake simulations a
+  // cycle; such searches come in runs): the two together made the
+  // slowest cycles.
+  double v_ref = std::max(v_, w_);
+  if (in_ < stail_ && span(in_).stop == StopKind::None) v_ref = std::max(v_ref, ceiling(span(in_)));
+  v_ref *= 2;
+  const double reach = std::min(near, v_ref * v_ref / std::max(a_top_, 1e-9) + v_ref * tf_);
+  envelope_work(near, reach);
 }
 
 void Executor::make_spans(uint64_t p) noexcept {
@@ -1146,13 +1164,14 @@ void Executor::envelope_request(bool full) noexcept {
   }
 }
 
-void Executor::envelope_work(int budget, int queries) noexcept {
+void Executor::envelope_work(double near, double reach) noexcept {
   // Spans and range minima: a curved span may cost many times a straight
-  // one, so the walk also stops once its own queries this cycle reach
-  // `queries` (at least one span a cycle).
+  // one, so the walk also stops once its own queries this cycle reach the
+  // slice's (at least one span a cycle): kQueriesUrgent while the span to
+  // walk next is urgent (finalize), else kQueriesPerCycle.
   const int q0 = work_.queries;
   const int s0 = work_.searches;
-  for (bool first = true; budget-- > 0 && (first || work_.queries - q0 < queries); first = false) {
+  for (int spans = 0;; ++spans) {
     if (!env_active_) {
       if (!env_pending_) return;
       env_pending_ = false;
@@ -1165,6 +1184,11 @@ void Executor::envelope_work(int budget, int queries) noexcept {
     if (k < in_ || k >= stail_) {
       env_active_ = false;
       continue;
+    }
+    const double ahead = span(k).a - x_;
+    const bool urgent = ahead < near && (ahead < reach || !span(k).enveloped) && since_search_ > kSearchQuiet;
+    if (spans > 0 && (spans >= kEnvelopePerCycle || work_.queries - q0 >= (urgent ? kQueriesUrgent : kQueriesPerCycle))) {
+      return;
     }
     const double w_end = (k + 1 >= stail_) ? 0.0 : span(k + 1).w_start;
     const bool known = span(k).enveloped;
@@ -1358,6 +1382,7 @@ bool Executor::above(double v, double w, bool loose) const noexcept {
 // envelope acceleration, must stay under the envelope; once the window's
 // accelerations are all braking, the envelope guarantees the rest.
 bool Executor::safe(double v_new, double a_new, bool loose) const noexcept {
+  ++work_.brakes;
   if (v_new < 0) v_new = 0;
   const double xn = x_ + v_new * T_;
   if (step_active_ && xn > step_s_ + kLanding) return false;
@@ -1472,6 +1497,7 @@ void Executor::plan_input(const CycleInputs& in) noexcept {
   double a = want;
   prefix_max_alpha();  // for safe()
   const bool want_safe = safe(v_ + want * T_, want);
+  since_search_ = want_safe ? std::min(since_search_ + 1, kSearchQuiet + 1) : 0;
   if (want_safe) recovering_ = false;
   if (!want_safe) {
     if (!safe(v_ + lo * T_, lo)) {
@@ -1767,6 +1793,7 @@ void Executor::run_cycle(const CycleInputs& in, CycleOutputs& out) noexcept {
     // The window fills with the resting position (the step from the last
     // velocity to rest is an acceleration like any other).
     const double a_rest = -v_ / T_;
+    since_search_ = kSearchQuiet + 1;
     push_sample(x_, 0, a_rest, a_rest < 0 ? v_ : kInf, std::fabs(a_rest));
     v_ = 0;
   }

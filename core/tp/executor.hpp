@@ -34,7 +34,13 @@ namespace cnc::tp {
 
 class Executor {
  public:
-  Executor(const PlannerConfig& config, PathStore& store);
+  // `split_ring_spans`: room of the ring through which the planner's side
+  // hands the pieces' spans over (rounded up to a power of two, at least
+  // two pieces' worth); 0: two spans per piece slot of `store`, which the
+  // benchmark programs never fill. A full ring makes the planner's side
+  // wait and run_cycle split the pieces it needs itself (CycleWork::split;
+  // tests make the ring small to run that).
+  Executor(const PlannerConfig& config, PathStore& store, std::size_t split_ring_spans = 0);
   ~Executor();
   Executor(const Executor&) = delete;
   Executor& operator=(const Executor&) = delete;
@@ -101,15 +107,20 @@ class Executor {
     // counts those the servo thread split itself (only after a change of
     // limits while moving, or when the hand-over ring was full).
     int taken = 0;
+    // Brake simulations of the input's step (safe(): one when the step it
+    // wants is safe, up to 18 when it searches for the largest safe one).
+    int brakes = 0;
   };
   const CycleWork& cycle_work() const noexcept { return work_; }
   static constexpr int kIngestPerCycle = 128;
   static constexpr int kSplitPerCycle = 64;
-  static constexpr int kEnvelopePerCycle = 6;
-  // Envelope spans per cycle while the walk is near the input.
-  static constexpr int kEnvelopeUrgent = 24;
+  // Envelope spans per cycle (6 away from the input before: a walk of
+  // cheap spans then crawled, and the spans new meanwhile piled up at the
+  // tail for the next one).
+  static constexpr int kEnvelopePerCycle = 24;
   // Range minima per cycle after which the envelope's walk waits for the
-  // next cycle (one span is always walked).
+  // next cycle (one span is always walked); kQueriesUrgent on spans the
+  // input may need soon (executor.cpp, finalize).
   static constexpr int kQueriesPerCycle = 1000;
   static constexpr int kQueriesUrgent = 2400;
   // Most range minima one envelope span may take: 4 chunks, each at most
@@ -128,6 +139,9 @@ class Executor {
   // (executor.cpp, envelope_request).
   static constexpr int kStartWalkSpans = 24;
   static constexpr double kStartWalkNear = 0.05;
+  // The walk's urgent slice waits until the input's step has not searched
+  // (braked against the envelope, CycleWork::brakes) for this many cycles.
+  static constexpr int kSearchQuiet = 8;
 
   // Producer side: runs where the builder runs (the planner's own thread,
   // or inline after add_* and flush), never in the servo thread. Computes
@@ -169,7 +183,7 @@ class Executor {
                   double spread, double reach, SplitSpan* out) const noexcept;
   void split_published(uint64_t pub) noexcept;
   void envelope_request(bool full) noexcept;
-  void envelope_work(int budget, int queries) noexcept;
+  void envelope_work(double near, double reach) noexcept;
   bool idle_ingested() const noexcept;
   void envelope_span(uint64_t k, double w_end) noexcept;
   double accel_limit(uint64_t piece, double lo, double hi, double u) const noexcept;
@@ -272,6 +286,7 @@ class Executor {
   uint64_t env_floor_ = 0;
   bool merge_ok_ = false;  // the newest span is a whole short piece
   bool recovering_ = false;  // an override dropped; braking to meet it
+  int since_search_ = kSearchQuiet + 1;  // steps since the input's step last searched
 
   // Input state and the last samples (ring, newest at hist_pos_).
   double x_ = 0, v_ = 0;

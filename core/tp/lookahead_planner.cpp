@@ -57,13 +57,14 @@ std::unique_ptr<TrajectoryPlanner> make_planner(const PlannerConfig& config, Pla
   return std::make_unique<LookaheadPlanner>(config, threading);
 }
 
-LookaheadPlanner::LookaheadPlanner(const PlannerConfig& config, PlannerThreading threading)
+LookaheadPlanner::LookaheadPlanner(const PlannerConfig& config, PlannerThreading threading,
+                                   std::size_t split_ring_spans)
     : cfg_(config), threading_(threading) {
   check_config(config);
   const std::size_t segs = segments_capacity(config);
   store_ = std::make_unique<PathStore>(segs, segs, 12 * segs + 64);
   builder_ = std::make_unique<PathBuilder>(config, *store_);
-  exec_ = std::make_unique<Executor>(config, *store_);
+  exec_ = std::make_unique<Executor>(config, *store_, split_ring_spans);
   if (threading_ == PlannerThreading::OwnThread) {
     input_ = std::make_unique<SlotRing<Command>>(static_cast<std::size_t>(config.lookahead_segments) + 64);
     thread_ = std::thread([this] { thread_main(); });

@@ -30,7 +30,9 @@ std::unique_ptr<TrajectoryPlanner> make_planner(const PlannerConfig& config,
 
 class LookaheadPlanner final : public TrajectoryPlanner {
  public:
-  LookaheadPlanner(const PlannerConfig& config, PlannerThreading threading);
+  // `split_ring_spans`: the executor's hand-over ring of split spans
+  // (Executor's constructor; 0: its production size).
+  LookaheadPlanner(const PlannerConfig& config, PlannerThreading threading, std::size_t split_ring_spans = 0);
   ~LookaheadPlanner() override;
   LookaheadPlanner(const LookaheadPlanner&) = delete;
   LookaheadPlanner& operator=(const LookaheadPlanner&) = delete;

@@ -282,5 +282,66 @@ TEST(TpHandover, LimitsGivenWhileMovingHoldForTheNextProgram) {
   }
 }
 
+// The ring that hands the split spans over holds two spans per piece slot,
+// and a piece may have up to 24: when it is full the planner's side stops
+// splitting, and run_cycle splits the pieces it needs itself (one range
+// minimum and the split, as before the hand-over). A ring of 64 spans
+// (the construction parameter; the production ring never fills on these
+// programs) forces that on a dense spiral and on a random program of
+// lines, arcs, helices, dwells, rapids and stops: the servo thread splits
+// (CycleWork::split), every limit and the tolerance hold, and inline the
+// motion is the same in every cycle as with the ring that never fills
+// (the same spans from either side).
+TEST(TpHandover, AFullRingOfSplitSpansIsSplitInTheServoCycleWithTheSameMotion) {
+  PlannerConfig cfg = profile("lc", 0.001);
+  cfg.lookahead_segments = 1000;
+  constexpr std::size_t kSmallRing = 64;
+  for (const Program& prog : {spiral(1500), test::random_program(11, 300)}) {
+    SCOPED_TRACE(prog.moves.size());
+    struct Run {
+      uint64_t split = 0, taken = 0;
+      int most_split = 0;
+      std::vector<double> s;
+      std::vector<Pose> pos;
+    };
+    auto run = [&](PlannerThreading th, std::size_t ring, Run& out) {
+      LookaheadPlanner planner(cfg, th, ring);
+      RunOptions opt;
+      opt.flush_at_end = true;
+      opt.moves_per_cycle = 1 << 20;
+      opt.before_cycle = [&](uint64_t, TrajectoryPlanner& p, CycleInputs&) {
+        if (th == PlannerThreading::OwnThread) std::this_thread::yield();
+        const Executor& e = dynamic_cast<LookaheadPlanner&>(p).executor();
+        out.split += static_cast<uint64_t>(e.cycle_work().split);
+        out.taken += static_cast<uint64_t>(e.cycle_work().taken);
+        out.most_split = std::max(out.most_split, e.cycle_work().split);
+        out.s.push_back(e.path_position());
+      };
+      opt.after_cycle = [&](uint64_t, const CycleOutputs& o) { out.pos.push_back(o.position); };
+      return run_program(planner, cfg, prog, opt);
+    };
+    Run full_size, small;
+    expect_clean(run(PlannerThreading::Inline, 0, full_size));
+    EXPECT_EQ(full_size.split, 0u);
+    expect_clean(run(PlannerThreading::Inline, kSmallRing, small));
+    EXPECT_GT(small.split, 100u);
+    EXPECT_LE(small.most_split, Executor::kSplitPerCycle);
+    ASSERT_EQ(small.s.size(), full_size.s.size());
+    ASSERT_EQ(small.pos.size(), full_size.pos.size());
+    double worst = 0;
+    for (std::size_t i = 0; i < small.s.size(); ++i) {
+      worst = std::max(worst, std::fabs(small.s[i] - full_size.s[i]));
+      for (int a = 0; a < kNumAxes; ++a) worst = std::max(worst, std::fabs(small.pos[i][a] - full_size.pos[i][a]));
+    }
+    EXPECT_LE(worst, 1e-12);
+    // The planner's thread splits while the ring has room; the servo
+    // thread, running its cycles back to back, outruns it.
+    Run threaded;
+    expect_clean(run(PlannerThreading::OwnThread, kSmallRing, threaded));
+    EXPECT_GT(threaded.split, 0u);
+    EXPECT_LE(threaded.most_split, Executor::kSplitPerCycle);
+  }
+}
+
 }  // namespace
 }  // namespace cnc::tp

@@ -50,7 +50,7 @@ TEST(TpRealtime, ServoCycleWorkIsBoundedWhateverTheQueue) {
   expect_clean(r);
   EXPECT_LE(most.ingested, Executor::kIngestPerCycle);
   EXPECT_LE(most.split, Executor::kSplitPerCycle);
-  EXPECT_LE(most.enveloped, Executor::kEnvelopeUrgent);
+  EXPECT_LE(most.enveloped, Executor::kEnvelopePerCycle);
   EXPECT_GT(most.enveloped, 0);
 }
 
@@ -201,6 +201,73 @@ TEST(TpRealtime, EnvelopeWorkOnADenseProgramStaysWithinTheSlicesAndIsMostlyIdle)
   // 200 range minima a cycle on average (488 when every new piece started
   // a walk): the walk keeps up with a margin.
   EXPECT_LE(total, cycles * 300);
+}
+
+// Where the slowest cycles of a dense program came from (issue 20,
+// run_cycle p99.9): the envelope's walk at its urgent slice
+// (kQueriesUrgent range minima) in the same cycle as the input's search
+// for its step (up to 18 brake simulations, CycleWork::brakes), both
+// where a circle of 0.05 mm lines turns through a quadrant (the input
+// brakes against the envelope there, in runs of cycles). And with a
+// look-ahead shorter than the walk's urgency distance (the circle's 1000
+// moves are 50 mm, about that distance at LC) every walk from the tail
+// ran at the urgent slice, though it changed nothing within the input's
+// reach. Now the urgent slice waits while the input searched in the last
+// kSearchQuiet cycles, and is taken only on spans the input may need
+// soon (within about twice a stop from twice its speed, or never walked:
+// a start). Counted, not timed: the circle fed as bench_tp feeds it (64
+// moves a cycle).
+TEST(TpRealtime, TheWalksUrgentSliceWaitsForTheInputsSearchAndForSpansItMayNeed) {
+  PlannerConfig cfg = profile("lc", 0.001);
+  cfg.lookahead_segments = 1000;
+  Program prog;
+  prog.start = pose(0, 0, 0);
+  SegmentParams p = feed_params(100, 0.01);
+  p.naive_cam_tolerance = 0.01;
+  const int n = static_cast<int>(2 * std::numbers::pi * 10 / 0.05);
+  prog.moves.push_back(line_to(10, 0, 0, p));
+  for (int turn = 0; turn < 2; ++turn) {
+    for (int i = 1; i <= n; ++i) {
+      const double a = 2 * std::numbers::pi * i / n;
+      prog.moves.push_back(line_to(10 * std::cos(a), 10 * std::sin(a), 0, p));
+    }
+  }
+  RunOptions opt;
+  opt.flush_at_end = true;
+  opt.moves_per_cycle = 64;
+  std::vector<int> brakes, queries;
+  opt.before_cycle = [&](uint64_t cycle, TrajectoryPlanner& planner, CycleInputs&) {
+    if (cycle == 0) return;  // cycle_work() is the last cycle's
+    const Executor::CycleWork& w = dynamic_cast<LookaheadPlanner&>(planner).executor().cycle_work();
+    brakes.push_back(w.brakes);
+    queries.push_back(w.envelope_queries);
+  };
+  const RunResult r = run(cfg, prog, opt);
+  expect_clean(r);
+  ASSERT_GT(queries.size(), 1500u);
+  const int slice = Executor::kQueriesPerCycle + Executor::kSpanQueriesMax;
+  int urgent = 0, searched = 0, together = 0;
+  for (std::size_t c = 0; c < queries.size(); ++c) {
+    searched += brakes[c] > 1;
+    if (queries[c] <= slice) continue;
+    ++urgent;
+    // A search in the kSearchQuiet cycles before: the urgent slice waits.
+    for (std::size_t b = c >= Executor::kSearchQuiet ? c - Executor::kSearchQuiet : 0; b < c; ++b) {
+      if (brakes[b] > 1) {
+        ++together;
+        break;
+      }
+    }
+  }
+  std::printf("%zu cycles: %d searched, %d above the ordinary slice, %d of them after a search\n", queries.size(),
+              searched, urgent, together);
+  EXPECT_GT(searched, 50);
+  EXPECT_EQ(together, 0);
+  // The start (the look-ahead arriving, the walks coming down to the
+  // input) and walks through new spans at the tail: 119 of 1788 cycles
+  // above the ordinary slice, 737 before (253 of them within
+  // kSearchQuiet cycles after a search).
+  EXPECT_LE(urgent, 200);
 }
 
 }  // namespace
