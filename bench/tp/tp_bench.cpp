@@ -633,11 +633,12 @@ void run_one(const Bench& b, const estimate::Machine& m, const std::string& prof
   }
   const estimate::Result r = estimate::run(m, mv, opt);
   const double T = m.planner.cycle_time_s;
-  std::printf("%-34s %-6s %4.0f %-2s %9.3f %9.3f  %5.3f %5.3f %5.3f  %6.3f  %5.1f%%  %6.1f %6.1f %7.1f %7.1f  %6.2f %7.1f\n",
+  std::printf("%-34s %-6s %4.0f %-2s %9.3f %9.3f  %5.3f %5.3f %5.3f  %6.3f  %5.1f%%  %6.1f %6.1f %7.1f %7.1f  %6.2f %7.1f %6llu\n",
               b.name.c_str(), prof.c_str(), T * 1e6, r.completed ? "ok" : "no", r.stats.time_s,
               std::max(lower_bound(mv, m.planner), corner_bound(mv, m.planner)), r.stats.ratio_v, r.stats.ratio_a, r.stats.ratio_j, r.stats.deviation_ratio,
               100 * r.stats.at_feed_fraction, mean(r.cycle_ns) / 1e3, pct(r.cycle_ns, 0.99) / 1e3,
-              pct(r.cycle_ns, 0.999) / 1e3, vmax(r.cycle_ns) / 1e3, mean(r.add_ns) / 1e3, pct(r.add_ns, 0.999) / 1e3);
+              pct(r.cycle_ns, 0.999) / 1e3, vmax(r.cycle_ns) / 1e3, mean(r.add_ns) / 1e3, pct(r.add_ns, 0.999) / 1e3,
+              static_cast<unsigned long long>(r.servo_split));
   if (g_print_end) {
     std::printf("  end position X%.6f Y%.6f Z%.6f (machine), %zu moves, %zu stops%s%s\n", r.end[0], r.end[1], r.end[2],
                 r.moves, r.stops, r.error.empty() ? "" : ": ", r.error.c_str());
@@ -764,9 +765,9 @@ int main(int argc, char** argv) {
     }
 
     std::printf("\n== traverse time, lower bound, limits, tolerance, CPU (inline planner; CPU in us)\n");
-    std::printf("%-34s %-6s %4s %-2s %9s %9s  %5s %5s %5s  %6s  %6s  %6s %6s %7s %7s  %6s %7s\n", "program", "limits",
+    std::printf("%-34s %-6s %4s %-2s %9s %9s  %5s %5s %5s  %6s  %6s  %6s %6s %7s %7s  %6s %7s %6s\n", "program", "limits",
                 "T_us", "ok", "time_s", "bound_s", "v/V", "a/A", "j/J", "dev/P", "@feed", "cyc_mn", "p99", "p99.9", "max",
-                "seg_mn", "seg999");
+                "seg_mn", "seg999", "split");
     for (const Bench& b : progs) {
       for (const auto& [name, m] : machines) run_one(b, m, name);
     }

@@ -237,6 +237,7 @@ Result run(const Machine& machine, const Moves& moves, const Options& o) {
     const tp::RunResult rr = tp::run_program(*planner, machine.planner, p, ro);
     tp::StreamStats& st = r.stats;
     st.time_s += rr.stats.time_s;
+    r.servo_split += rr.servo_split;
     for (int a = 0; a < kNumAxes; ++a) {
       st.max_v[a] = std::max(st.max_v[a], rr.stats.max_v[a]);
       st.max_a[a] = std::max(st.max_a[a], rr.stats.max_a[a]);

@@ -98,7 +98,10 @@ struct Result {
   // path relative to G64 P, share of time at feed (time-weighted over the
   // sections).
   tp::StreamStats stats;
-  std::vector<double> cycle_ns, add_ns;  // with measure_cpu
+  // Pieces the servo thread split itself, the hand-over ring being full
+  // (tp::RunResult::servo_split; bench_tp's `split` column).
+  uint64_t servo_split = 0;
+    std::vector<double> cycle_ns, add_ns;  // with measure_cpu
 };
 
 Result run(const Machine& machine, const Moves& moves, const Options& options = {});

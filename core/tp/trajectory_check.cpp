@@ -303,6 +303,7 @@ RunResult run_program(TrajectoryPlanner& planner, const PlannerConfig& config, c
       if (s < last_s - 1e-9) r.monotone = false;
       last_s = s;
       r.stop_margin = std::min(r.stop_margin, e.distance_to_tail() - e.stop_distance());
+      r.servo_split += static_cast<uint64_t>(e.cycle_work().split);
     }
     if (next == program.moves.size() && out.done && planner.is_done()) {
       r.completed = true;

@@ -110,6 +110,9 @@ struct RunResult {
   bool starve_stopped = false;
   double starve_stop_gap = 0;
   uint64_t overruns = 0;
+  // LookaheadPlanner only: pieces whose spans the servo thread split
+  // itself because the hand-over ring was full (Executor::CycleWork::split).
+  uint64_t servo_split = 0;
   std::vector<double> cycle_ns;  // with measure_cpu: run_cycle durations
   std::vector<double> add_ns;    // with measure_cpu: durations of accepted add_* calls
   CycleOutputs last;
