@@ -57,13 +57,28 @@ double solve_half(double c1, double c2, double budget) {
 
 }  // namespace
 
+// The smallest of the rows' velocity, square-root and cube-root terms. The
+// roots are taken only of the arguments that may give the smallest one
+// (issue 20: a cube root a row was a tenth of the builder's time on arcs):
+// the square root is correctly rounded, so the root of the smallest
+// argument is the smallest root; the cube root is within an ulp, so only
+// arguments within 1e-9 of the smallest may give the smallest root, and
+// those are all taken. The value is the same as taking every root.
 double ceiling_of(const PieceBounds& b, const PlannerConfig& cfg) noexcept {
+  constexpr int kRows = kNumAxes + 1;
   double v = kInf;
+  double q2 = kInf;  // smallest square-root argument
+  double q3[kRows];  // cube-root arguments
+  int n3 = 0;
+  double q3_min = kInf;
   auto row = [&](double c1, double c2, double c3, double vmax, double amax, double jmax) {
     const double keep = 1 - kCeilingReserve;
     if (c1 > 1e-12) v = std::min(v, vmax * kLimitMargin / c1);
-    if (c2 > 1e-300) v = std::min(v, std::sqrt(keep * amax * kLimitMargin / c2));
-    if (c3 > 1e-300) v = std::min(v, std::cbrt(keep * jmax * kLimitMargin / c3));
+    if (c2 > 1e-300) q2 = std::min(q2, keep * amax * kLimitMargin / c2);
+    if (c3 > 1e-300) {
+      q3[n3] = keep * jmax * kLimitMargin / c3;
+      q3_min = std::min(q3_min, q3[n3++]);
+    }
   };
   for (int i = 0; i < kNumAxes; ++i) {
     if (!(cfg.axis_mask & (1u << i))) continue;
@@ -74,6 +89,11 @@ double ceiling_of(const PieceBounds& b, const PlannerConfig& cfg) noexcept {
   row(b.lin1, b.lin2, b.lin3, cfg.max_linear_velocity > 0 ? cfg.max_linear_velocity : kInf,
       cfg.max_linear_acceleration > 0 ? cfg.max_linear_acceleration : kInf,
       cfg.max_linear_jerk > 0 ? cfg.max_linear_jerk : kInf);
+  if (q2 < kInf) v = std::min(v, std::sqrt(q2));
+  const double near3 = q3_min * (1 + 1e-9);
+  for (int i = 0; i < n3; ++i) {
+    if (q3[i] <= near3) v = std::min(v, std::cbrt(q3[i]));
+  }
   return std::isfinite(v) ? v : 1e12;
 }
 
@@ -779,8 +799,18 @@ void PathBuilder::final_half(uint64_t j) noexcept {
     int first = 0;  // windows before it end before the sample (samples go forward)
     int end = 0;
     uint64_t seg_k = j;  // the segment of the last sample looked up in this pass
+    // Each sample's sum over the windows, window by window (in the order
+    // of the windows, so each sum adds the same terms in the same order;
+    // those of windows that do not reach a sample are 0).
+    double xs[65];
+    double sums[65];
     for (int i = 0; i <= n; ++i) {
-      const double x = a + step * i;
+      xs[i] = a + step * i;
+      sums[i] = 0;
+    }
+    for (int w = 0; w < nw; ++w) add_correction_norms(near[w].dt_norm, near[w].m2, near[w].d, near[w].s, xs, n + 1, sums);
+    for (int i = 0; i <= n; ++i) {
+      const double x = xs[i];
       // The tolerance of the segment holding x (segment_at(x, j, ...)): the
       // previous sample's while x lies strictly inside that segment.
       if (!(x > seg_lo && x < seg_hi)) {
@@ -796,13 +826,7 @@ void PathBuilder::final_half(uint64_t j) noexcept {
       while (end < nw && near[end].s - x < ahead) ++end;
       check_terms_ += static_cast<uint64_t>(std::max(0, end - first));
       double dev = margin;
-      {
-        double sum = 0;
-        for (int w = first; w < end; ++w) {
-          sum += correction_norm_at(near[w].dt_norm, near[w].m2, near[w].d, x - near[w].s);
-        }
-        dev += sum;
-      }
+      dev += sums[i];
       const double ratio = tol > 0 ? dev / tol : kInf;
       if (ratio > worst) {
         worst = ratio;
@@ -971,7 +995,9 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
     const double b = pts[p + 1];
     const double ga = h.rec.s0 + a;
     const double gb = h.rec.s0 + b;
-    Piece pc;
+    // Made in its slot (published with the others at the end).
+    Piece& pc = store_.pieces.push_slot();
+    pc = Piece{};
     pc.s0 = ga;
     pc.length = b - a;
     pc.seg = m;
@@ -1032,7 +1058,7 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
       const int n = std::clamp(static_cast<int>(std::ceil((b - a) / step_max)), 2, 48);
       const double step = (b - a) / n;
       AxisVec m1{}, m2{}, m3{};
-      double speed = 0;
+      double speed2 = 0;
       // The windows on this piece; a corner between two lines adds only
       // its kink's derivatives (no position, no neighbouring curves).
       const Held* win[2 * 32 + 2];
@@ -1082,8 +1108,12 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
           m2[k] = std::max(m2[k], std::fabs(d2[k]));
           m3[k] = std::max(m3[k], std::fabs(d3[k]));
         }
-        speed = std::max(speed, group_norm(d1, curve.group));
+        // The largest squared norm, its root once (the root is correctly
+        // rounded, so the same value as the largest root).
+        const auto o = static_cast<std::size_t>(curve.group) * 3;
+        speed2 = std::max(speed2, d1[o] * d1[o] + d1[o + 1] * d1[o + 1] + d1[o + 2] * d1[o + 2]);
       }
+      const double speed = std::sqrt(speed2);
       const double half_step = 0.5 * step;
       for (std::size_t k = 0; k < c1.size(); ++k) {
         c1[k] = std::min(b1[k], m1[k] + b2[k] * half_step);
@@ -1124,7 +1154,6 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
       apply(held(i + 1).params);
     }
     pc.inputs_done = (p == pieces - 1) ? h.inputs : 0;
-    store_.pieces.push_slot() = pc;
   }
   if (h.junction == Junction::Stop || pieces == 0) {
     Piece st;
