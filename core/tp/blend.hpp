@@ -22,15 +22,18 @@ namespace cnc::tp {
 
 // Kernel: the Beta(3,3) density on the window, u = (s - s_j + d) / 2d.
 namespace kernel {
-// cdf and ramp also take GCC vector types (two samples at once: the same
-// operations in the same order, so the same values as one at a time).
+// cdf, pdf, pdf1 and ramp also take GCC vector types (two samples at once:
+// the same operations in the same order, so the same values as one at a
+// time).
 template <class T>
 inline T cdf(T u) noexcept { return u * u * u * (10.0 + u * (-15.0 + 6.0 * u)); }  // W
-inline double pdf(double u) noexcept {  // dW/du
-  const double t = u * (1 - u);
-  return 30 * t * t;
+template <class T>
+inline T pdf(T u) noexcept {  // dW/du
+  const T t = u * (1.0 - u);
+  return 30.0 * t * t;
 }
-inline double pdf1(double u) noexcept { return 60 * u * (1 - u) * (1 - 2 * u); }  // d2W/du2
+template <class T>
+inline T pdf1(T u) noexcept { return 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u); }  // d2W/du2
 inline double pdf2(double u) noexcept { return 60 * (1 + u * (-6 + 6 * u)); }     // d3W/du3
 template <class T>
 inline T ramp(T u) noexcept { return u * u * u * u * (2.5 + u * (-3.0 + u)); }  // integral of W
@@ -76,6 +79,48 @@ inline void add_kink_derivatives(const Vertex& vx, double x, bool after, AxisVec
     d1[k] += g * t;
     d2[k] += g1 * t;
     d3[k] += g2 * t;
+  }
+}
+
+// add_kink_derivatives at the samples x = xg[i] - vx.s, i in [0, n) (n
+// even), added to rows[k][i] of d1, d2 and d3 for the axes k of vx.axes: two
+// samples at a time, the same values where the window reaches the sample
+// (|x| < vx.half); elsewhere a zero of either sign (add_kink_derivatives
+// adds nothing there), which bounds of absolute values do not see.
+inline void add_kink_derivative_rows(const Vertex& vx, bool after, const double* xg, int n, double* const* d1,
+                                     double* const* d2, double* const* d3) noexcept {
+  using V2 = double __attribute__((vector_size(16)));
+  using M2 = long long __attribute__((vector_size(16)));
+  const double d = vx.half;
+  const double two_d = 2 * d;
+  const double four_dd = 4 * d * d;
+  const double step = after ? 1.0 : 0.0;
+  for (int i = 0; i + 1 < n; i += 2) {
+    V2 xs;
+    std::memcpy(&xs, xg + i, sizeof xs);
+    const V2 x = xs - vx.s;
+    const V2 ax = (V2)((M2)x & 0x7fffffffffffffffLL);
+    const M2 in = ax < d;
+    // Inside the window (x + d) / 2d lies in [0, 1]: the clamp of
+    // add_kink_derivatives changes nothing there.
+    const V2 u = (x + d) / two_d;
+    const V2 g = (V2)((M2)(kernel::cdf(u) - step) & in);
+    const V2 g1 = (V2)((M2)(kernel::pdf(u) / two_d) & in);
+    const V2 g2 = (V2)((M2)(kernel::pdf1(u) / four_dd) & in);
+    for (unsigned m = vx.axes; m != 0; m &= m - 1) {
+      const auto k = static_cast<std::size_t>(std::countr_zero(m));
+      const double t = vx.dt[k];
+      V2 r1, r2, r3;
+      std::memcpy(&r1, d1[k] + i, sizeof r1);
+      std::memcpy(&r2, d2[k] + i, sizeof r2);
+      std::memcpy(&r3, d3[k] + i, sizeof r3);
+      r1 += g * t;
+      r2 += g1 * t;
+      r3 += g2 * t;
+      std::memcpy(d1[k] + i, &r1, sizeof r1);
+      std::memcpy(d2[k] + i, &r2, sizeof r2);
+      std::memcpy(d3[k] + i, &r3, sizeof r3);
+    }
   }
 }
 

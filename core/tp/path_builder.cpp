@@ -55,6 +55,62 @@ double solve_half(double c1, double c2, double budget) {
   return kInf;
 }
 
+// Samples of a piece between lines (no window curved): at x_i = a + i step
+// (i = 0..n) the line's direction plus the kink derivatives of the windows
+// `win` (the corners win_seq, `m` the piece's move); the maxima of their
+// absolute values on the axes `axes` go into m1..m3 and that of the squared
+// speed in the curve's group into speed2. Window by window, two samples at
+// a time (add_kink_derivative_rows): each sample's sums add the same terms
+// in the same order as sample by sample, so the maxima are the same.
+template <class HeldT>
+void sample_kinks(const Curve& curve, double s0, double a, double step, int n, const HeldT* const* win,
+                  const uint64_t* win_seq, int nwin, uint64_t m, const uint8_t* axes, int n_axes, AxisVec& m1,
+                  AxisVec& m2, AxisVec& m3, double& speed2) noexcept {
+  constexpr int kRow = 50;  // n <= 48: n + 1 samples, padded to an even count
+  const int count = (n + 2) & ~1;
+  double xg[kRow];
+  for (int i = 0; i < count; ++i) xg[i] = s0 + (a + step * i);
+  double rows[3][kNumAxes][kRow];
+  double* r1[kNumAxes];
+  double* r2[kNumAxes];
+  double* r3[kNumAxes];
+  for (int j = 0; j < n_axes; ++j) {
+    const std::size_t k = axes[j];
+    r1[k] = rows[0][j];
+    r2[k] = rows[1][j];
+    r3[k] = rows[2][j];
+    std::fill(r1[k], r1[k] + count, curve.rate[k]);
+    std::fill(r2[k], r2[k] + count, 0.0);
+    std::fill(r3[k], r3[k] + count, 0.0);
+  }
+  for (int w = 0; w < nwin; ++w) add_kink_derivative_rows(win[w]->vx, m > win_seq[w], xg, count, r1, r2, r3);
+  for (int j = 0; j < n_axes; ++j) {
+    const std::size_t k = axes[j];
+    for (int i = 0; i <= n; ++i) {
+      m1[k] = std::max(m1[k], std::fabs(r1[k][i]));
+      m2[k] = std::max(m2[k], std::fabs(r2[k][i]));
+      m3[k] = std::max(m3[k], std::fabs(r3[k][i]));
+    }
+  }
+  // The group's axes that are not sampled keep the line's (zero) rate.
+  const auto o = static_cast<std::size_t>(curve.group) * 3;
+  const double* g[3];
+  double idle[3][kRow];
+  for (std::size_t c = 0; c < 3; ++c) {
+    bool sampled = false;
+    for (int j = 0; j < n_axes; ++j) sampled = sampled || axes[j] == o + c;
+    if (sampled) {
+      g[c] = r1[o + c];
+    } else {
+      std::fill(idle[c], idle[c] + n + 1, curve.rate[o + c]);
+      g[c] = idle[c];
+    }
+  }
+  for (int i = 0; i <= n; ++i) {
+    speed2 = std::max(speed2, g[0][i] * g[0][i] + g[1][i] * g[1][i] + g[2][i] * g[2][i]);
+  }
+}
+
 }  // namespace
 
 // The smallest of the rows' velocity, square-root and cube-root terms. The
@@ -1081,16 +1137,13 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
         const bool active = curved || curve.rate[static_cast<std::size_t>(k)] != 0 || (moving & (1u << k));
         if (active) axes[n_axes++] = static_cast<uint8_t>(k);
       }
-      for (int i = 0; i <= n; ++i) {
+      if (!curved) {
+        sample_kinks(curve, h.rec.s0, a, step, n, win, win_seq, nwin, m, axes, n_axes, m1, m2, m3, speed2);
+      }
+      for (int i = 0; curved && i <= n; ++i) {
         const double x = a + step * i;
         AxisVec pos, d1, d2, d3;
-        if (curved) {
-          curve.eval(x, pos, &d1, &d2, &d3);
-        } else {
-          d1 = curve.rate;
-          d2 = AxisVec{};
-          d3 = AxisVec{};
-        }
+        curve.eval(x, pos, &d1, &d2, &d3);
         for (int w = 0; w < nwin; ++w) {
           const Vertex& vx = win[w]->vx;
           const uint64_t k = win_seq[w];
