@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
 namespace cnc::tp {
 namespace {
@@ -511,8 +512,7 @@ Result PathBuilder::append(const Curve& curve, const SegmentParams& params, uint
   out.tag = params.tag;
   out.epoch = epoch_;
   store_.segs.publish();
-  Held& h = held(seq);
-  h = Held{};
+  Held& h = *std::construct_at(&held(seq));
   h.rec = out;
   h.params = params;
   h.inputs = inputs;
@@ -1052,8 +1052,7 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
     const double ga = h.rec.s0 + a;
     const double gb = h.rec.s0 + b;
     // Made in its slot (published with the others at the end).
-    Piece& pc = store_.pieces.push_slot();
-    pc = Piece{};
+    Piece& pc = *std::construct_at(&store_.pieces.push_slot());
     pc.s0 = ga;
     pc.length = b - a;
     pc.seg = m;
