@@ -64,6 +64,17 @@ struct Vertex {
 void add_correction(const Vertex& vx, double x, bool after, const Curve& in, const Curve& out, AxisVec& p,
                     AxisVec* d1, AxisVec* d2, AxisVec* d3) noexcept;
 
+// The derivatives add_correction adds (no position), the curvature blend's
+// only on the axes of `axes` (curved_correction_axes: on the others its
+// terms are zeros of either sign).
+void add_correction_derivatives(const Vertex& vx, double x, bool after, const Curve& in, const Curve& out,
+                                unsigned axes, AxisVec& d1, AxisVec& d2, AxisVec& d3) noexcept;
+
+// The axes on which the curvature blend of vx.curved corner between `in`
+// and `out` may add anything but a zero: those that turn at the corner,
+// move on either curve, are the helix's, or where the curves do not meet.
+unsigned curved_correction_axes(const Vertex& vx, const Curve& in, const Curve& out) noexcept;
+
 // The derivatives add_correction adds for a corner without a curved
 // neighbour (vx.curved false), without the position: the same values.
 inline void add_kink_derivatives(const Vertex& vx, double x, bool after, AxisVec& d1, AxisVec& d2,

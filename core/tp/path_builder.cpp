@@ -1118,22 +1118,27 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
       // its kink's derivatives (no position, no neighbouring curves).
       const Held* win[2 * 32 + 2];
       uint64_t win_seq[2 * 32 + 2];
+      unsigned win_axes[2 * 32 + 2];  // curved corners: curved_correction_axes
       int nwin = 0;
       for (uint64_t k = tlo; k < thi; ++k) {
         const Held& o = held(k);
         if (o.junction != Junction::Window || !(o.vx.half > 0)) continue;
+        win_axes[nwin] = o.vx.curved ? curved_correction_axes(o.vx, o.rec.curve, held(k + 1).rec.curve) : 0;
         win_seq[nwin] = k;
         win[nwin++] = &o;
       }
-      // Between lines (nothing curved) only the axes that move or turn
-      // get derivatives; the others stay zero, and the base line adds its
+      // Only the axes that move or turn get derivatives; the others stay
+      // zero. Between lines (nothing curved) the base line adds its
       // constant direction without an evaluation.
+      // With curved corners, the axes of their curvature blends too, and a
+      // helix's own (the others' derivatives are zeros).
       unsigned moving = 0;
-      for (int w = 0; w < nwin; ++w) moving |= win[w]->vx.axes;
+      for (int w = 0; w < nwin; ++w) moving |= win[w]->vx.axes | win_axes[w];
       uint8_t axes[kNumAxes];
       int n_axes = 0;
       for (int k = 0; k < kNumAxes; ++k) {
-        const bool active = curved || curve.rate[static_cast<std::size_t>(k)] != 0 || (moving & (1u << k));
+        const bool active = (curve.is_curved() && k < 3) || curve.rate[static_cast<std::size_t>(k)] != 0 ||
+                            (moving & (1u << k));
         if (active) axes[n_axes++] = static_cast<uint8_t>(k);
       }
       if (!curved) {
@@ -1149,7 +1154,8 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
           const double dx = h.rec.s0 + x - vx.s;
           if (std::fabs(dx) >= vx.half) continue;
           if (vx.curved) {
-            add_correction(vx, dx, m > k, held(k).rec.curve, held(k + 1).rec.curve, pos, &d1, &d2, &d3);
+            add_correction_derivatives(vx, dx, m > k, held(k).rec.curve, held(k + 1).rec.curve, win_axes[w], d1, d2,
+                                       d3);
             continue;
           }
           add_kink_derivatives(vx, dx, m > k, d1, d2, d3);
