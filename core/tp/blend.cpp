@@ -92,8 +92,8 @@ void add_correction_derivatives(const Vertex& vx, double x, bool after, const Cu
   }
   if (!vx.curved) return;
   AxisVec pi, pi1, pi2, pi3, po, po1, po2, po3;
-  in.eval(in.length + x, pi, &pi1, &pi2, &pi3);
-  out.eval(x, po, &po1, &po2, &po3);
+  in.eval_axes(in.length + x, axes, pi, pi1, pi2, pi3);
+  out.eval_axes(x, axes, po, po1, po2, po3);
   for (unsigned m = axes; m != 0; m &= m - 1) {
     const auto k = static_cast<std::size_t>(std::countr_zero(m));
     const double q0 = po[k] - pi[k] - x * vx.dt[k];

@@ -1136,10 +1136,13 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
       for (int w = 0; w < nwin; ++w) moving |= win[w]->vx.axes | win_axes[w];
       uint8_t axes[kNumAxes];
       int n_axes = 0;
+      unsigned evaluated = 7u << (static_cast<unsigned>(curve.group) * 3);  // and the speed's axes
       for (int k = 0; k < kNumAxes; ++k) {
         const bool active = (curve.is_curved() && k < 3) || curve.rate[static_cast<std::size_t>(k)] != 0 ||
                             (moving & (1u << k));
-        if (active) axes[n_axes++] = static_cast<uint8_t>(k);
+        if (!active) continue;
+        axes[n_axes++] = static_cast<uint8_t>(k);
+        evaluated |= 1u << k;
       }
       if (!curved) {
         sample_kinks(curve, h.rec.s0, a, step, n, win, win_seq, nwin, m, axes, n_axes, m1, m2, m3, speed2);
@@ -1147,7 +1150,7 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
       for (int i = 0; curved && i <= n; ++i) {
         const double x = a + step * i;
         AxisVec pos, d1, d2, d3;
-        curve.eval(x, pos, &d1, &d2, &d3);
+        curve.eval_axes(x, evaluated, pos, d1, d2, d3);
         for (int w = 0; w < nwin; ++w) {
           const Vertex& vx = win[w]->vx;
           const uint64_t k = win_seq[w];
