@@ -75,6 +75,49 @@ void add_correction(const Vertex& vx, double x, bool after, const Curve& in, con
   }
 }
 
+void add_correction_derivatives(const Vertex& vx, double x, bool after, const Curve& in, const Curve& out,
+                                unsigned axes, AxisVec& d1, AxisVec& d2, AxisVec& d3) noexcept {
+  const double d = vx.half;
+  const double u = std::clamp((x + d) / (2 * d), 0.0, 1.0);
+  const double g = kernel::cdf(u) - (after ? 1.0 : 0.0);
+  const double g1 = kernel::pdf(u) / (2 * d);
+  const double g2 = kernel::pdf1(u) / (4 * d * d);
+  const double g3 = kernel::pdf2(u) / (8 * d * d * d);
+  for (unsigned m = vx.axes; m != 0; m &= m - 1) {
+    const auto k = static_cast<std::size_t>(std::countr_zero(m));
+    const double t = vx.dt[k];
+    d1[k] += g * t;
+    d2[k] += g1 * t;
+    d3[k] += g2 * t;
+  }
+  if (!vx.curved) return;
+  AxisVec pi, pi1, pi2, pi3, po, po1, po2, po3;
+  in.eval_axes(in.length + x, axes, pi, pi1, pi2, pi3);
+  out.eval_axes(x, axes, po, po1, po2, po3);
+  for (unsigned m = axes; m != 0; m &= m - 1) {
+    const auto k = static_cast<std::size_t>(std::countr_zero(m));
+    const double q0 = po[k] - pi[k] - x * vx.dt[k];
+    const double q1 = po1[k] - pi1[k] - vx.dt[k];
+    const double q2 = po2[k] - pi2[k];
+    const double q3 = po3[k] - pi3[k];
+    d1[k] += g1 * q0 + g * q1;
+    d2[k] += g2 * q0 + 2 * g1 * q1 + g * q2;
+    d3[k] += g3 * q0 + 3 * g2 * q1 + 3 * g1 * q2 + g * q3;
+  }
+}
+
+unsigned curved_correction_axes(const Vertex& vx, const Curve& in, const Curve& out) noexcept {
+  unsigned axes = vx.axes;
+  for (std::size_t k = 0; k < in.rate.size(); ++k) {
+    const bool helix = k < 3 && (in.is_curved() || out.is_curved());
+    if (helix || in.rate[k] != 0 || out.rate[k] != 0 || in.start.v[k] != out.start.v[k] ||
+        in.end.v[k] != out.start.v[k]) {
+      axes |= 1u << k;
+    }
+  }
+  return axes;
+}
+
 void add_correction_bounds(const Vertex& vx, double x0, double x1, const Curve& in, const Curve& out, AxisVec& b1,
                            AxisVec& b2, AxisVec& b3, AxisVec* b4) noexcept {
   const double d = vx.half;

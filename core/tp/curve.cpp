@@ -1,6 +1,7 @@
 #include "core/tp/curve.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <numbers>
 
@@ -24,21 +25,20 @@ double group_norm(const AxisVec& v, LengthGroup g) noexcept {
 }
 
 void Curve::eval(double s, AxisVec& p, AxisVec* d1, AxisVec* d2, AxisVec* d3) const noexcept {
-  for (int i = 0; i < kNumAxes; ++i) {
-    const auto k = static_cast<std::size_t>(i);
-    p[k] = start.v[k] + rate[k] * s;
-    if (d1) (*d1)[k] = rate[k];
-    if (d2) (*d2)[k] = 0;
-    if (d3) (*d3)[k] = 0;
-  }
+  // A helix sets its first three axes itself; the linear terms of the
+  // others (all of them on a line) are the same loop either way.
+  const std::size_t first = kind == CurveKind::Helix ? 3 : 0;
+  for (std::size_t k = first; k < p.size(); ++k) p[k] = start.v[k] + rate[k] * s;
+  if (d1) *d1 = rate;
+  if (d2) d2->fill(0.0);
+  if (d3) d3->fill(0.0);
   if (kind == CurveKind::Helix) {
     const double phi = omega * s;
     const double c = std::cos(phi);
     const double sn = std::sin(phi);
     const double rho = r0 + dr * s;
     const double h = h0 + dh * s;
-    for (int i = 0; i < 3; ++i) {
-      const auto k = static_cast<std::size_t>(i);
+    for (std::size_t k = 0; k < 3; ++k) {
       const double e = c * u[k] + sn * v[k];
       const double f = -sn * u[k] + c * v[k];
       p[k] = center[k] + rho * e + h * n[k];
@@ -51,6 +51,41 @@ void Curve::eval(double s, AxisVec& p, AxisVec* d1, AxisVec* d2, AxisVec* d3) co
     p = start.v;
   } else if (s == length) {
     p = end.v;
+  }
+}
+
+void Curve::eval_axes(double s, unsigned axes, AxisVec& p, AxisVec& d1, AxisVec& d2, AxisVec& d3) const noexcept {
+  const bool helix = kind == CurveKind::Helix;
+  const unsigned turning = helix ? axes & 7u : 0u;
+  for (unsigned m = axes & ~turning; m != 0; m &= m - 1) {
+    const auto k = static_cast<std::size_t>(std::countr_zero(m));
+    p[k] = start.v[k] + rate[k] * s;
+    d1[k] = rate[k];
+    d2[k] = 0.0;
+    d3[k] = 0.0;
+  }
+  if (turning != 0) {
+    const double phi = omega * s;
+    const double c = std::cos(phi);
+    const double sn = std::sin(phi);
+    const double rho = r0 + dr * s;
+    const double h = h0 + dh * s;
+    for (unsigned m = turning; m != 0; m &= m - 1) {
+      const auto k = static_cast<std::size_t>(std::countr_zero(m));
+      const double e = c * u[k] + sn * v[k];
+      const double f = -sn * u[k] + c * v[k];
+      p[k] = center[k] + rho * e + h * n[k];
+      d1[k] = dr * e + rho * omega * f + dh * n[k];
+      d2[k] = 2 * dr * omega * f - rho * omega * omega * e;
+      d3[k] = -3 * dr * omega * omega * e - rho * omega * omega * omega * f;
+    }
+  }
+  if (s == 0 || s == length) {
+    const Pose& at = s == 0 ? start : end;
+    for (unsigned m = axes; m != 0; m &= m - 1) {
+      const auto k = static_cast<std::size_t>(std::countr_zero(m));
+      p[k] = at.v[k];
+    }
   }
 }
 

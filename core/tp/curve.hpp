@@ -44,6 +44,9 @@ struct Curve {
   // Position and derivatives at s (outside [0, length] on the extension).
   // s == 0 and s == length give the programmed end points exactly.
   void eval(double s, AxisVec& p, AxisVec* d1 = nullptr, AxisVec* d2 = nullptr, AxisVec* d3 = nullptr) const noexcept;
+  // eval on the axes of `axes` only (bit k: axis k); the other entries are
+  // left as they were. The same values as eval on those axes.
+  void eval_axes(double s, unsigned axes, AxisVec& p, AxisVec& d1, AxisVec& d2, AxisVec& d3) const noexcept;
   bool is_curved() const noexcept { return kind == CurveKind::Helix; }
 };
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
 namespace cnc::tp {
 namespace {
@@ -55,15 +56,86 @@ double solve_half(double c1, double c2, double budget) {
   return kInf;
 }
 
+// Samples of a piece between lines (no window curved): at x_i = a + i step
+// (i = 0..n) the line's direction plus the kink derivatives of the windows
+// `win` (the corners win_seq, `m` the piece's move); the maxima of their
+// absolute values on the axes `axes` go into m1..m3 and that of the squared
+// speed in the curve's group into speed2. Window by window, two samples at
+// a time (add_kink_derivative_rows): each sample's sums add the same terms
+// in the same order as sample by sample, so the maxima are the same.
+template <class HeldT>
+void sample_kinks(const Curve& curve, double s0, double a, double step, int n, const HeldT* const* win,
+                  const uint64_t* win_seq, int nwin, uint64_t m, const uint8_t* axes, int n_axes, AxisVec& m1,
+                  AxisVec& m2, AxisVec& m3, double& speed2) noexcept {
+  constexpr int kRow = 50;  // n <= 48: n + 1 samples, padded to an even count
+  const int count = (n + 2) & ~1;
+  double xg[kRow];
+  for (int i = 0; i < count; ++i) xg[i] = s0 + (a + step * i);
+  double rows[3][kNumAxes][kRow];
+  double* r1[kNumAxes];
+  double* r2[kNumAxes];
+  double* r3[kNumAxes];
+  for (int j = 0; j < n_axes; ++j) {
+    const std::size_t k = axes[j];
+    r1[k] = rows[0][j];
+    r2[k] = rows[1][j];
+    r3[k] = rows[2][j];
+    std::fill(r1[k], r1[k] + count, curve.rate[k]);
+    std::fill(r2[k], r2[k] + count, 0.0);
+    std::fill(r3[k], r3[k] + count, 0.0);
+  }
+  for (int w = 0; w < nwin; ++w) add_kink_derivative_rows(win[w]->vx, m > win_seq[w], xg, count, r1, r2, r3);
+  for (int j = 0; j < n_axes; ++j) {
+    const std::size_t k = axes[j];
+    for (int i = 0; i <= n; ++i) {
+      m1[k] = std::max(m1[k], std::fabs(r1[k][i]));
+      m2[k] = std::max(m2[k], std::fabs(r2[k][i]));
+      m3[k] = std::max(m3[k], std::fabs(r3[k][i]));
+    }
+  }
+  // The group's axes that are not sampled keep the line's (zero) rate.
+  const auto o = static_cast<std::size_t>(curve.group) * 3;
+  const double* g[3];
+  double idle[3][kRow];
+  for (std::size_t c = 0; c < 3; ++c) {
+    bool sampled = false;
+    for (int j = 0; j < n_axes; ++j) sampled = sampled || axes[j] == o + c;
+    if (sampled) {
+      g[c] = r1[o + c];
+    } else {
+      std::fill(idle[c], idle[c] + n + 1, curve.rate[o + c]);
+      g[c] = idle[c];
+    }
+  }
+  for (int i = 0; i <= n; ++i) {
+    speed2 = std::max(speed2, g[0][i] * g[0][i] + g[1][i] * g[1][i] + g[2][i] * g[2][i]);
+  }
+}
+
 }  // namespace
 
+// The smallest of the rows' velocity, square-root and cube-root terms. The
+// roots are taken only of the arguments that may give the smallest one
+// (issue 20: a cube root a row was a tenth of the builder's time on arcs):
+// the square root is correctly rounded, so the root of the smallest
+// argument is the smallest root; the cube root is within an ulp, so only
+// arguments within 1e-9 of the smallest may give the smallest root, and
+// those are all taken. The value is the same as taking every root.
 double ceiling_of(const PieceBounds& b, const PlannerConfig& cfg) noexcept {
+  constexpr int kRows = kNumAxes + 1;
   double v = kInf;
+  double q2 = kInf;  // smallest square-root argument
+  double q3[kRows];  // cube-root arguments
+  int n3 = 0;
+  double q3_min = kInf;
   auto row = [&](double c1, double c2, double c3, double vmax, double amax, double jmax) {
     const double keep = 1 - kCeilingReserve;
     if (c1 > 1e-12) v = std::min(v, vmax * kLimitMargin / c1);
-    if (c2 > 1e-300) v = std::min(v, std::sqrt(keep * amax * kLimitMargin / c2));
-    if (c3 > 1e-300) v = std::min(v, std::cbrt(keep * jmax * kLimitMargin / c3));
+    if (c2 > 1e-300) q2 = std::min(q2, keep * amax * kLimitMargin / c2);
+    if (c3 > 1e-300) {
+      q3[n3] = keep * jmax * kLimitMargin / c3;
+      q3_min = std::min(q3_min, q3[n3++]);
+    }
   };
   for (int i = 0; i < kNumAxes; ++i) {
     if (!(cfg.axis_mask & (1u << i))) continue;
@@ -74,6 +146,11 @@ double ceiling_of(const PieceBounds& b, const PlannerConfig& cfg) noexcept {
   row(b.lin1, b.lin2, b.lin3, cfg.max_linear_velocity > 0 ? cfg.max_linear_velocity : kInf,
       cfg.max_linear_acceleration > 0 ? cfg.max_linear_acceleration : kInf,
       cfg.max_linear_jerk > 0 ? cfg.max_linear_jerk : kInf);
+  if (q2 < kInf) v = std::min(v, std::sqrt(q2));
+  const double near3 = q3_min * (1 + 1e-9);
+  for (int i = 0; i < n3; ++i) {
+    if (q3[i] <= near3) v = std::min(v, std::cbrt(q3[i]));
+  }
   return std::isfinite(v) ? v : 1e12;
 }
 
@@ -435,8 +512,7 @@ Result PathBuilder::append(const Curve& curve, const SegmentParams& params, uint
   out.tag = params.tag;
   out.epoch = epoch_;
   store_.segs.publish();
-  Held& h = held(seq);
-  h = Held{};
+  Held& h = *std::construct_at(&held(seq));
   h.rec = out;
   h.params = params;
   h.inputs = inputs;
@@ -779,8 +855,18 @@ void PathBuilder::final_half(uint64_t j) noexcept {
     int first = 0;  // windows before it end before the sample (samples go forward)
     int end = 0;
     uint64_t seg_k = j;  // the segment of the last sample looked up in this pass
+    // Each sample's sum over the windows, window by window (in the order
+    // of the windows, so each sum adds the same terms in the same order;
+    // those of windows that do not reach a sample are 0).
+    double xs[65];
+    double sums[65];
     for (int i = 0; i <= n; ++i) {
-      const double x = a + step * i;
+      xs[i] = a + step * i;
+      sums[i] = 0;
+    }
+    for (int w = 0; w < nw; ++w) add_correction_norms(near[w].dt_norm, near[w].m2, near[w].d, near[w].s, xs, n + 1, sums);
+    for (int i = 0; i <= n; ++i) {
+      const double x = xs[i];
       // The tolerance of the segment holding x (segment_at(x, j, ...)): the
       // previous sample's while x lies strictly inside that segment.
       if (!(x > seg_lo && x < seg_hi)) {
@@ -796,13 +882,7 @@ void PathBuilder::final_half(uint64_t j) noexcept {
       while (end < nw && near[end].s - x < ahead) ++end;
       check_terms_ += static_cast<uint64_t>(std::max(0, end - first));
       double dev = margin;
-      {
-        double sum = 0;
-        for (int w = first; w < end; ++w) {
-          sum += correction_norm_at(near[w].dt_norm, near[w].m2, near[w].d, x - near[w].s);
-        }
-        dev += sum;
-      }
+      dev += sums[i];
       const double ratio = tol > 0 ? dev / tol : kInf;
       if (ratio > worst) {
         worst = ratio;
@@ -971,7 +1051,8 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
     const double b = pts[p + 1];
     const double ga = h.rec.s0 + a;
     const double gb = h.rec.s0 + b;
-    Piece pc;
+    // Made in its slot (published with the others at the end).
+    Piece& pc = *std::construct_at(&store_.pieces.push_slot());
     pc.s0 = ga;
     pc.length = b - a;
     pc.seg = m;
@@ -1032,46 +1113,52 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
       const int n = std::clamp(static_cast<int>(std::ceil((b - a) / step_max)), 2, 48);
       const double step = (b - a) / n;
       AxisVec m1{}, m2{}, m3{};
-      double speed = 0;
+      double speed2 = 0;
       // The windows on this piece; a corner between two lines adds only
       // its kink's derivatives (no position, no neighbouring curves).
       const Held* win[2 * 32 + 2];
       uint64_t win_seq[2 * 32 + 2];
+      unsigned win_axes[2 * 32 + 2];  // curved corners: curved_correction_axes
       int nwin = 0;
       for (uint64_t k = tlo; k < thi; ++k) {
         const Held& o = held(k);
         if (o.junction != Junction::Window || !(o.vx.half > 0)) continue;
+        win_axes[nwin] = o.vx.curved ? curved_correction_axes(o.vx, o.rec.curve, held(k + 1).rec.curve) : 0;
         win_seq[nwin] = k;
         win[nwin++] = &o;
       }
-      // Between lines (nothing curved) only the axes that move or turn
-      // get derivatives; the others stay zero, and the base line adds its
+      // Only the axes that move or turn get derivatives; the others stay
+      // zero. Between lines (nothing curved) the base line adds its
       // constant direction without an evaluation.
+      // With curved corners, the axes of their curvature blends too, and a
+      // helix's own (the others' derivatives are zeros).
       unsigned moving = 0;
-      for (int w = 0; w < nwin; ++w) moving |= win[w]->vx.axes;
+      for (int w = 0; w < nwin; ++w) moving |= win[w]->vx.axes | win_axes[w];
       uint8_t axes[kNumAxes];
       int n_axes = 0;
+      unsigned evaluated = 7u << (static_cast<unsigned>(curve.group) * 3);  // and the speed's axes
       for (int k = 0; k < kNumAxes; ++k) {
-        const bool active = curved || curve.rate[static_cast<std::size_t>(k)] != 0 || (moving & (1u << k));
-        if (active) axes[n_axes++] = static_cast<uint8_t>(k);
+        const bool active = (curve.is_curved() && k < 3) || curve.rate[static_cast<std::size_t>(k)] != 0 ||
+                            (moving & (1u << k));
+        if (!active) continue;
+        axes[n_axes++] = static_cast<uint8_t>(k);
+        evaluated |= 1u << k;
       }
-      for (int i = 0; i <= n; ++i) {
+      if (!curved) {
+        sample_kinks(curve, h.rec.s0, a, step, n, win, win_seq, nwin, m, axes, n_axes, m1, m2, m3, speed2);
+      }
+      for (int i = 0; curved && i <= n; ++i) {
         const double x = a + step * i;
         AxisVec pos, d1, d2, d3;
-        if (curved) {
-          curve.eval(x, pos, &d1, &d2, &d3);
-        } else {
-          d1 = curve.rate;
-          d2 = AxisVec{};
-          d3 = AxisVec{};
-        }
+        curve.eval_axes(x, evaluated, pos, d1, d2, d3);
         for (int w = 0; w < nwin; ++w) {
           const Vertex& vx = win[w]->vx;
           const uint64_t k = win_seq[w];
           const double dx = h.rec.s0 + x - vx.s;
           if (std::fabs(dx) >= vx.half) continue;
           if (vx.curved) {
-            add_correction(vx, dx, m > k, held(k).rec.curve, held(k + 1).rec.curve, pos, &d1, &d2, &d3);
+            add_correction_derivatives(vx, dx, m > k, held(k).rec.curve, held(k + 1).rec.curve, win_axes[w], d1, d2,
+                                       d3);
             continue;
           }
           add_kink_derivatives(vx, dx, m > k, d1, d2, d3);
@@ -1082,8 +1169,12 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
           m2[k] = std::max(m2[k], std::fabs(d2[k]));
           m3[k] = std::max(m3[k], std::fabs(d3[k]));
         }
-        speed = std::max(speed, group_norm(d1, curve.group));
+        // The largest squared norm, its root once (the root is correctly
+        // rounded, so the same value as the largest root).
+        const auto o = static_cast<std::size_t>(curve.group) * 3;
+        speed2 = std::max(speed2, d1[o] * d1[o] + d1[o + 1] * d1[o + 1] + d1[o + 2] * d1[o + 2]);
       }
+      const double speed = std::sqrt(speed2);
       const double half_step = 0.5 * step;
       for (std::size_t k = 0; k < c1.size(); ++k) {
         c1[k] = std::min(b1[k], m1[k] + b2[k] * half_step);
@@ -1124,7 +1215,6 @@ bool PathBuilder::emit_pieces(uint64_t m) noexcept {
       apply(held(i + 1).params);
     }
     pc.inputs_done = (p == pieces - 1) ? h.inputs : 0;
-    store_.pieces.push_slot() = pc;
   }
   if (h.junction == Junction::Stop || pieces == 0) {
     Piece st;
