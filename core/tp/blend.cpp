@@ -77,20 +77,14 @@ void add_correction(const Vertex& vx, double x, bool after, const Curve& in, con
 
 void add_correction_derivatives(const Vertex& vx, double x, bool after, const Curve& in, const Curve& out,
                                 unsigned axes, AxisVec& d1, AxisVec& d2, AxisVec& d3) noexcept {
+  add_kink_derivatives(vx, x, after, d1, d2, d3);
+  if (!vx.curved) return;
   const double d = vx.half;
   const double u = std::clamp((x + d) / (2 * d), 0.0, 1.0);
   const double g = kernel::cdf(u) - (after ? 1.0 : 0.0);
   const double g1 = kernel::pdf(u) / (2 * d);
   const double g2 = kernel::pdf1(u) / (4 * d * d);
   const double g3 = kernel::pdf2(u) / (8 * d * d * d);
-  for (unsigned m = vx.axes; m != 0; m &= m - 1) {
-    const auto k = static_cast<std::size_t>(std::countr_zero(m));
-    const double t = vx.dt[k];
-    d1[k] += g * t;
-    d2[k] += g1 * t;
-    d3[k] += g2 * t;
-  }
-  if (!vx.curved) return;
   AxisVec pi, pi1, pi2, pi3, po, po1, po2, po3;
   in.eval_axes(in.length + x, axes, pi, pi1, pi2, pi3);
   out.eval_axes(x, axes, po, po1, po2, po3);
