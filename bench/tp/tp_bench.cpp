@@ -341,12 +341,13 @@ double fastest_between(double L, double v0, double v1, double v, double a, doubl
 // of the outgoing move and of the corner, e.(x - corner) lies in [-P, P],
 // so from the last time it is -P the motion along e (acceleration at most
 // A_e = sum |e_i| A_i) must stop within 2P: its speed there is at most
-// sqrt(4 A_e P), the path speed along d1 at most sqrt(4 A_e P) / sin theta.
-// That holds while the tool stays near the outgoing move for the time the
-// stop takes (at most sqrt(4P / A_e), at most V times that in path
-// length): shorter moves get no corner cap. The same backward in time for
-// the outgoing move (the vector perpendicular to d1), the same cap by
-// symmetry with A_f. Between the caps, moves accelerate and brake at most
+// sqrt(4 A_e P). That holds while the tool stays near the outgoing move
+// for the time the stop takes (at most sqrt(4P / A_e), at most V times
+// that in path length): shorter moves get no corner cap. Backward in time
+// the same holds for f, perpendicular to d1 (the tool was within P of the
+// incoming move), so at that moment |v.e| and |v.f| are both bounded and
+// the speed is at most their larger bound over min(sin, cos)(theta / 2)
+// (sqrt 2 times it at 90 degrees). Between the caps, moves accelerate and brake at most
 // at their straight-line limit (min A_i / |d_i|; curved moves without a
 // limit) under their speed cap, and where they speed up and brake their
 // acceleration swings at most at the jerk limit (fastest_between); exact
@@ -438,7 +439,12 @@ double corner_bound(const estimate::Moves& moves, const PlannerConfig& cfg) {
             const double vmax = std::max(a.v, b.v);
             const bool long_enough = b.len >= 2 * P + vmax * std::sqrt(4 * P / ae) &&
                                      a.len >= 2 * P + vmax * std::sqrt(4 * P / af);
-            if (long_enough) c = std::sqrt(4 * std::min(ae, af) * P) / sine;
+            // |v.e| <= sqrt(4 A_e P) and |v.f| <= sqrt(4 A_f P) there; e and
+            // f make the angle pi - theta, so |v| is at most the larger
+            // over min(sin, cos) of theta/2 (the rhombus' far corner).
+            const double half = 0.5 * std::acos(std::clamp(cosine, -1.0, 1.0));
+            const double u = std::sqrt(4 * std::max(ae, af) * P);
+            if (long_enough) c = u / std::max(1e-12, std::min(std::sin(half), std::cos(half)));
           }
         }
       }
